@@ -1,0 +1,308 @@
+//! Voxel blocks: what meshers see of one chunk. The inside/outside state of its `(n+1)³` nodes
+//! and, on every cell edge whose two nodes differ, the crossing position and normal (the paper's
+//! V and P_s), with the `+1` apron read from the neighbouring chunks.
+//!
+//! Border contract: a block owns the cells `0..n` on each axis; its apron nodes (index `n`) and
+//! the edges that lie on its `+x`, `+y`, `+z` faces are copies of the neighbours' data, so two
+//! blocks agree exactly on what they share and meshes of neighbouring chunks meet without cracks.
+
+use glam::{I64Vec3, IVec3};
+use rayon::prelude::*;
+
+use crate::axis::{Axis, compose};
+use crate::chunk::{ChunkView, node_mask};
+use crate::coords::{ChunkKey, Level, edge_of};
+use crate::normal::PackedNormal;
+use crate::volume::Volume;
+
+/// A surface crossing on one cell edge of a block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeCrossing {
+    /// Block-local node at the lower end of the edge.
+    pub lower: [u8; 3],
+    /// Position along the edge, strictly between 0 (the lower node) and 1.
+    pub t: f32,
+    /// Outward normal, octahedral-packed (see [`crate::normal::unpack_normal`]).
+    pub normal: PackedNormal,
+}
+
+/// Node states and edge crossings of one chunk plus its apron.
+#[derive(Clone, Debug, Default)]
+pub struct VoxelBlock {
+    key: Option<ChunkKey>,
+    level: Option<Level>,
+    n: usize,
+    /// `rows[y + (n+1) z]`, bit `x`: whether node `(x, y, z)` is inside.
+    rows: Vec<u128>,
+    crossings: [Vec<EdgeCrossing>; 3],
+    /// Per axis, the index into `crossings` of the edge whose lower node is `node_index(..)`, or
+    /// `u32::MAX`.
+    lookup: [Vec<u32>; 3],
+    repaired: u32,
+}
+
+const NONE: u32 = u32::MAX;
+
+impl VoxelBlock {
+    /// The chunk this block was extracted from (`None` before the first extraction).
+    pub fn key(&self) -> Option<ChunkKey> {
+        self.key
+    }
+
+    /// Cells per side.
+    pub fn cells(&self) -> usize {
+        self.n
+    }
+
+    /// The chunk's resolution level.
+    pub fn level(&self) -> Level {
+        self.level.unwrap_or(Level::BASE)
+    }
+
+    /// Grid coordinate of node `(0, 0, 0)`.
+    pub fn origin_grid(&self) -> I64Vec3 {
+        self.key.map(|k| k.origin_grid()).unwrap_or_default()
+    }
+
+    #[inline]
+    fn node_index(&self, x: usize, y: usize, z: usize) -> usize {
+        let m = self.n + 1;
+        x + m * (y + m * z)
+    }
+
+    /// Whether node `(x, y, z)` (each in `0..=n`) is inside.
+    #[inline]
+    pub fn inside(&self, x: usize, y: usize, z: usize) -> bool {
+        (self.rows[y + (self.n + 1) * z] >> x) & 1 == 1
+    }
+
+    /// Bits along x of the node row `(y, z)`: bit `x` is node `(x, y, z)`.
+    #[inline]
+    pub fn row(&self, y: usize, z: usize) -> u128 {
+        self.rows[y + (self.n + 1) * z]
+    }
+
+    /// The crossings on edges along `axis`.
+    pub fn crossings(&self, axis: Axis) -> &[EdgeCrossing] {
+        &self.crossings[axis.index()]
+    }
+
+    /// The crossing on the edge along `axis` whose lower node is `(x, y, z)`.
+    #[inline]
+    pub fn crossing(&self, axis: Axis, x: usize, y: usize, z: usize) -> Option<&EdgeCrossing> {
+        let i = *self.lookup[axis.index()].get(self.node_index(x, y, z))?;
+        self.crossings[axis.index()].get(i as usize)
+    }
+
+    /// Index of that crossing in [`VoxelBlock::crossings`].
+    #[inline]
+    pub fn crossing_index(&self, axis: Axis, x: usize, y: usize, z: usize) -> Option<u32> {
+        let i = *self.lookup[axis.index()].get(self.node_index(x, y, z))?;
+        (i != NONE).then_some(i)
+    }
+
+    /// Inconsistent crossings the extractor found and repaired: a crossing on an edge whose nodes
+    /// agree (dropped) or an edge whose nodes differ without a crossing (given one at its
+    /// middle). Zero for every volume built by this crate's edits.
+    pub fn repaired(&self) -> u32 {
+        self.repaired
+    }
+
+    fn reset(&mut self, key: ChunkKey, level: Level) {
+        let n = level.cells();
+        let m = n + 1;
+        self.key = Some(key);
+        self.level = Some(level);
+        self.n = n;
+        self.rows.clear();
+        self.rows.resize(m * m, 0);
+        for a in 0..3 {
+            self.crossings[a].clear();
+            self.lookup[a].clear();
+            self.lookup[a].resize(m * m * m, NONE);
+        }
+        self.repaired = 0;
+    }
+}
+
+impl Volume {
+    /// The voxel block of the chunk at `key`.
+    pub fn extract_block(&self, key: ChunkKey) -> VoxelBlock {
+        let mut b = VoxelBlock::default();
+        self.extract_block_into(key, &mut b);
+        b
+    }
+
+    /// The voxel blocks of `keys`, in parallel.
+    pub fn extract_blocks(&self, keys: &[ChunkKey]) -> Vec<VoxelBlock> {
+        keys.par_iter().map(|&k| self.extract_block(k)).collect()
+    }
+
+    /// Extracts the block of `key` into `out`, reusing its allocations.
+    pub fn extract_block_into(&self, key: ChunkKey, out: &mut VoxelBlock) {
+        let level = self.level_of(key);
+        out.reset(key, level);
+        let n = level.cells();
+        let m = n + 1;
+        let s = level.steps_per_cell();
+        let inv_s = 1.0 / s as f32;
+        for axis in Axis::ALL {
+            let (ua, va) = axis.across();
+            let a = axis.index();
+            let mut expected_ok = true;
+            for v in 0..=n {
+                // Lines u in 0..n come from one chunk, u = n from its neighbour along `ua`.
+                let base = key.0 + if v == n { unit(va) } else { IVec3::ZERO };
+                for (source, us) in [(base, 0..n), (base + unit(ua), n..n + 1)] {
+                    let view = self.view(ChunkKey(source));
+                    if let ChunkView::Lists(l) = view
+                        && l.level() != level
+                    {
+                        // Mixed levels are not created by any edit yet; read nothing rather than
+                        // misread (the extractor's repair then closes the surface).
+                        continue;
+                    }
+                    let mut cursor = match view {
+                        ChunkView::Lists(l) => Some(l.cursor(axis, (us.start % n) + n * (v % n))),
+                        ChunkView::Uniform(_) => None,
+                    };
+                    for u in us {
+                        let line = match &mut cursor {
+                            Some(c) => c.next_line(),
+                            None => view.line(axis, u % n, v % n),
+                        };
+                        let mut states = if line.start_inside { node_mask(n) } else { 0 };
+                        for (&q, &nr) in line.positions.iter().zip(line.normals) {
+                            let e = edge_of(q, level);
+                            if axis == Axis::X {
+                                states ^= node_mask(n) & !((1u128 << (e + 1)) - 1);
+                            } else if !edge_changes(out, axis, e, u, v) {
+                                out.repaired += 1;
+                                expected_ok = false;
+                                continue;
+                            }
+                            let lower = compose(axis, e, u, v);
+                            let idx = out.node_index(lower[0], lower[1], lower[2]);
+                            out.lookup[a][idx] = out.crossings[a].len() as u32;
+                            out.crossings[a].push(EdgeCrossing {
+                                lower: lower.map(|c| c as u8),
+                                t: (q as u32 - e as u32 * s) as f32 * inv_s,
+                                normal: nr,
+                            });
+                        }
+                        if axis == Axis::X {
+                            out.rows[u + m * v] = states;
+                        }
+                    }
+                }
+            }
+            if axis != Axis::X && (!expected_ok || out.crossings[a].len() != expected_changes(out, axis)) {
+                fill_missing(out, axis);
+            }
+        }
+    }
+}
+
+fn unit(a: Axis) -> IVec3 {
+    let mut v = IVec3::ZERO;
+    v[a.index()] = 1;
+    v
+}
+
+/// Whether the nodes at both ends of edge `e` of line `(u, v)` along `axis` differ (per the rows).
+#[inline]
+fn edge_changes(b: &VoxelBlock, axis: Axis, e: usize, u: usize, v: usize) -> bool {
+    let [x0, y0, z0] = compose(axis, e, u, v);
+    let [x1, y1, z1] = compose(axis, e + 1, u, v);
+    b.inside(x0, y0, z0) != b.inside(x1, y1, z1)
+}
+
+/// Number of edges along `axis` (y or z) whose two nodes differ.
+fn expected_changes(b: &VoxelBlock, axis: Axis) -> usize {
+    let m = b.n + 1;
+    let mut total = 0;
+    for z in 0..m {
+        for y in 0..m {
+            let next = match axis {
+                Axis::Y if y < b.n => b.rows[y + 1 + m * z],
+                Axis::Z if z < b.n => b.rows[y + m * (z + 1)],
+                _ => continue,
+            };
+            total += (b.rows[y + m * z] ^ next).count_ones() as usize;
+        }
+    }
+    total
+}
+
+/// Gives every changing edge along `axis` without a crossing one at its middle, with the axis as
+/// normal, and counts each as repaired.
+fn fill_missing(b: &mut VoxelBlock, axis: Axis) {
+    let n = b.n;
+    let a = axis.index();
+    for z in 0..=n {
+        for y in 0..=n {
+            for x in 0..=n {
+                let [x1, y1, z1] = match axis {
+                    Axis::Y => [x, y + 1, z],
+                    Axis::Z => [x, y, z + 1],
+                    Axis::X => [x + 1, y, z],
+                };
+                if x1 > n || y1 > n || z1 > n {
+                    continue;
+                }
+                let (i0, i1) = (b.inside(x, y, z), b.inside(x1, y1, z1));
+                let idx = b.node_index(x, y, z);
+                if i0 != i1 && b.lookup[a][idx] == NONE {
+                    let dir = axis.unit();
+                    let normal = if i1 { -dir } else { dir };
+                    b.lookup[a][idx] = b.crossings[a].len() as u32;
+                    b.crossings[a].push(EdgeCrossing {
+                        lower: [x as u8, y as u8, z as u8],
+                        t: 0.5,
+                        normal: crate::normal::pack_normal(normal),
+                    });
+                    b.repaired += 1;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brush::Sphere;
+    use glam::DVec3;
+
+    #[test]
+    fn a_block_reports_every_sign_change_once_with_a_crossing() {
+        let mut v = Volume::new();
+        v.add(&Sphere::new(DVec3::new(15.3, 16.2, 14.9), 7.4).unwrap()).unwrap();
+        let b = v.extract_block(ChunkKey::new(0, 0, 0));
+        assert_eq!(b.repaired(), 0);
+        let n = b.cells();
+        for axis in Axis::ALL {
+            let mut count = 0;
+            for z in 0..=n {
+                for y in 0..=n {
+                    for x in 0..=n {
+                        let mut p1 = [x, y, z];
+                        p1[axis.index()] += 1;
+                        if p1.iter().any(|&c| c > n) {
+                            continue;
+                        }
+                        let changes = b.inside(x, y, z) != b.inside(p1[0], p1[1], p1[2]);
+                        let c = b.crossing(axis, x, y, z);
+                        assert_eq!(changes, c.is_some(), "{axis:?} edge at {x},{y},{z}");
+                        if let Some(c) = c {
+                            assert!(c.t > 0.0 && c.t < 1.0);
+                            count += 1;
+                        }
+                    }
+                }
+            }
+            assert_eq!(count, b.crossings(axis).len());
+            assert!(count > 0);
+        }
+    }
+}

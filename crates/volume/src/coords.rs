@@ -1,0 +1,157 @@
+//! Chunk keys, resolution levels and chunk-local fixed-point positions.
+//!
+//! Spaces, and the names that carry them:
+//! - *grid space* (`p_grid`, `DVec3`): base-level cells, one unit per base cell; world space is
+//!   grid space times the volume's cell size.
+//! - *node space* (`node`, `I64Vec3`): integer lattice of a resolution level; at level `k` node
+//!   `i` sits at grid coordinate `i * 16 / (16 << k)`.
+//! - *chunk-local fixed point* (`LocalPos`, `u16`): a position along a chunk's extent in 65,536
+//!   steps, whatever the chunk's level.
+
+use glam::{DVec3, I64Vec3, IVec3};
+use serde::{Deserialize, Serialize};
+
+/// Cells along one side of a chunk at level 0 (the paper's `w`).
+pub const CHUNK_CELLS: i64 = 16;
+/// Fixed-point steps across one chunk side.
+pub const CHUNK_STEPS: u32 = 1 << 16;
+/// Finest supported resolution level: 16 << 2 = 64 cells per chunk side.
+pub const MAX_LEVEL: u8 = 2;
+
+/// Identifies a chunk: the chunk `k` covers grid coordinates `[16 k, 16 k + 16)` on each axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct ChunkKey(pub IVec3);
+
+impl PartialOrd for ChunkKey {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Keys order by z, then y, then x (the storage order of lines).
+impl Ord for ChunkKey {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        (self.0.z, self.0.y, self.0.x).cmp(&(other.0.z, other.0.y, other.0.x))
+    }
+}
+
+impl ChunkKey {
+    /// The key from its three integer coordinates.
+    pub const fn new(x: i32, y: i32, z: i32) -> Self {
+        ChunkKey(IVec3::new(x, y, z))
+    }
+
+    /// Grid coordinate of the chunk's minimum corner.
+    #[inline]
+    pub fn origin_grid(self) -> I64Vec3 {
+        self.0.as_i64vec3() * CHUNK_CELLS
+    }
+
+    /// The neighbouring key offset by `d` chunks.
+    #[inline]
+    pub fn offset(self, d: IVec3) -> ChunkKey {
+        ChunkKey(self.0 + d)
+    }
+
+    /// The chunk holding the grid point `p_grid` (a point on a chunk's minimum face belongs to it).
+    pub fn containing(p_grid: DVec3) -> Option<ChunkKey> {
+        let c = (p_grid / CHUNK_CELLS as f64).floor();
+        let ok = c.is_finite()
+            && c.abs().max_element() <= i32::MAX as f64
+            && c.min_element() >= i32::MIN as f64;
+        ok.then(|| ChunkKey(c.as_ivec3()))
+    }
+}
+
+/// A per-chunk resolution level: level `k` has `16 << k` cells along each side of the chunk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Level(u8);
+
+impl Level {
+    /// The base level, 16 cells per chunk side.
+    pub const BASE: Level = Level(0);
+
+    /// The level `k`, or `None` above [`MAX_LEVEL`].
+    pub fn new(k: u8) -> Option<Level> {
+        (k <= MAX_LEVEL).then_some(Level(k))
+    }
+
+    /// The level number.
+    #[inline]
+    pub fn get(self) -> u8 {
+        self.0
+    }
+
+    /// Cells (and node lines) along one chunk side.
+    #[inline]
+    pub fn cells(self) -> usize {
+        16 << self.0
+    }
+
+    /// Fixed-point steps per cell.
+    #[inline]
+    pub fn steps_per_cell(self) -> u32 {
+        CHUNK_STEPS / self.cells() as u32
+    }
+
+    /// Distance between neighbouring nodes in grid units.
+    #[inline]
+    pub fn spacing(self) -> f64 {
+        CHUNK_CELLS as f64 / self.cells() as f64
+    }
+}
+
+/// A position along a chunk's extent: `value / 65536` of the chunk side.
+pub type LocalPos = u16;
+
+/// Grid-unit offset (from the chunk's minimum face) of a fixed-point position.
+#[inline]
+pub fn local_pos_to_grid(q: LocalPos) -> f64 {
+    q as f64 * (CHUNK_CELLS as f64 / CHUNK_STEPS as f64)
+}
+
+/// Quantises a grid-unit offset along a chunk line into the open cell `edge` of `level`: the
+/// result lies strictly between the fixed-point positions of the edge's two nodes, so a crossing
+/// never sits on a node.
+#[inline]
+pub fn quantize_into_edge(t_grid: f64, edge: usize, level: Level) -> LocalPos {
+    let s = level.steps_per_cell() as i64;
+    let lo = edge as i64 * s + 1;
+    let hi = (edge as i64 + 1) * s - 1;
+    let q = (t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64)).round();
+    let q = if q.is_nan() { (lo + hi) / 2 } else { (q.clamp(lo as f64, hi as f64)) as i64 };
+    q as LocalPos
+}
+
+/// The cell (edge index along the line) a fixed-point position lies in.
+#[inline]
+pub fn edge_of(q: LocalPos, level: Level) -> usize {
+    (q as u32 / level.steps_per_cell()) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantised_positions_stay_strictly_inside_their_edge() {
+        for k in 0..=MAX_LEVEL {
+            let level = Level::new(k).unwrap();
+            let s = level.steps_per_cell();
+            for edge in [0, 1, level.cells() - 1] {
+                for t in [-5.0, 0.0, edge as f64 * level.spacing(), 1e9, f64::NAN] {
+                    let q = quantize_into_edge(t, edge, level);
+                    assert_eq!(edge_of(q, level), edge);
+                    assert_ne!(q as u32 % s, 0, "a crossing must not sit on a node");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn chunk_of_negative_points_rounds_down() {
+        assert_eq!(ChunkKey::containing(DVec3::new(-0.5, 0.0, 16.0)), Some(ChunkKey::new(-1, 0, 1)));
+        assert_eq!(ChunkKey::containing(DVec3::splat(f64::NAN)), None);
+        assert_eq!(ChunkKey::containing(DVec3::splat(1e30)), None);
+    }
+}

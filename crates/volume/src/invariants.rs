@@ -1,0 +1,94 @@
+//! The invariants every volume keeps, checked exhaustively (for tests and debugging).
+
+use thiserror::Error;
+
+use crate::axis::{Axis, compose};
+use crate::chunk::{Chunk, ChunkLists, ChunkView, check_lists};
+use crate::coords::{ChunkKey, edge_of};
+use crate::volume::Volume;
+
+/// A broken invariant: which chunk and what.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[error("chunk {key:?}: {what}")]
+pub struct InvariantViolation {
+    /// The chunk.
+    pub key: ChunkKey,
+    /// What is wrong.
+    pub what: String,
+}
+
+fn end_state(line: crate::chunk::LineRef<'_>) -> bool {
+    line.start_inside ^ (line.positions.len() % 2 == 1)
+}
+
+/// Node states of a chunk's own nodes (`0..n` on each axis) as read from the lines along one
+/// axis, as `rows[y + n z]` with bit `x`.
+fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
+    let level = lists.level();
+    let n = level.cells();
+    let mut rows = vec![0u128; n * n];
+    for v in 0..n {
+        for u in 0..n {
+            let line = lists.line(axis, u, v);
+            let mut s = line.start_inside;
+            let mut next = line.positions.iter().map(|&q| edge_of(q, level)).peekable();
+            for j in 0..n {
+                if s {
+                    let [x, y, z] = compose(axis, j, u, v);
+                    rows[y + n * z] |= 1 << x;
+                }
+                if next.next_if(|&e| e == j).is_some() {
+                    s = !s;
+                }
+            }
+        }
+    }
+    rows
+}
+
+impl Volume {
+    /// Verifies, for every chunk: sorted lists with at most one crossing per cell and none on a
+    /// node; lists in chunks that are not uniform; x, y and z lines agreeing on every node state;
+    /// and continuity across chunk borders (a line's state after its last cell equals the state
+    /// the next chunk's line starts with).
+    pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
+        for (&key, chunk) in &self.chunks {
+            let fail = |what: String| InvariantViolation { key, what };
+            if let Chunk::Lists(lists) = chunk {
+                check_lists(lists).map_err(fail)?;
+                if lists.level() != self.level {
+                    return Err(fail(format!("level {:?} differs from the volume's", lists.level())));
+                }
+                let from_x = states_from(lists, Axis::X);
+                for axis in [Axis::Y, Axis::Z] {
+                    if states_from(lists, axis) != from_x {
+                        return Err(fail(format!("lines along {axis:?} disagree with x lines on node states")));
+                    }
+                }
+            }
+            // Continuity with the next chunk along each axis, and with an empty previous chunk.
+            let here = ChunkView::of(Some(chunk));
+            let n = self.level.cells();
+            for axis in Axis::ALL {
+                let step = axis.unit_i64().as_ivec3();
+                let next = self.view(key.offset(step));
+                let prev_missing = !self.chunks.contains_key(&key.offset(-step));
+                for v in 0..n {
+                    for u in 0..n {
+                        let line = here.line(axis, u, v);
+                        if end_state(line) != next.line(axis, u, v).start_inside {
+                            return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
+                        }
+                        if prev_missing && line.start_inside {
+                            return Err(fail(format!(
+                                "{axis:?} line ({u}, {v}) starts inside after an empty chunk"
+                            )));
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+

@@ -1,0 +1,73 @@
+//! Memory accounting from the real allocations.
+
+use crate::chunk::Chunk;
+use crate::coords::ChunkKey;
+use crate::volume::Volume;
+
+/// Bytes held by a volume, by category. Every figure is the size of a live allocation
+/// (capacity, not length): boxed slices are allocated exactly, and the chunk map is counted
+/// from its capacity using hashbrown's layout (one slot and one control byte per bucket, plus a
+/// 16-byte control group).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryReport {
+    /// Crossing positions (2 bytes each).
+    pub positions: usize,
+    /// Crossing normals (2 bytes each).
+    pub normals: usize,
+    /// Start bits, unary-coded counts and the per-chunk list struct.
+    pub headers: usize,
+    /// The chunk map's table.
+    pub chunk_map: usize,
+    /// Crossings stored (not bytes).
+    pub crossings: usize,
+}
+
+impl MemoryReport {
+    /// All bytes.
+    pub fn total(&self) -> usize {
+        self.positions + self.normals + self.headers + self.chunk_map
+    }
+
+    /// All bytes except normals.
+    pub fn without_normals(&self) -> usize {
+        self.total() - self.normals
+    }
+
+    /// Bytes per stored crossing, with or without normals (0 when there are none).
+    pub fn bytes_per_crossing(&self, with_normals: bool) -> f64 {
+        if self.crossings == 0 {
+            return 0.0;
+        }
+        let b = if with_normals { self.total() } else { self.without_normals() };
+        b as f64 / self.crossings as f64
+    }
+}
+
+/// Bytes of a hashbrown table of `capacity` usable slots holding `slot` bytes each.
+pub(crate) fn hash_table_bytes(capacity: usize, slot: usize) -> usize {
+    if capacity == 0 {
+        return 0;
+    }
+    let buckets = if capacity < 8 { (capacity + 1).next_power_of_two() } else { (capacity * 8 / 7).next_power_of_two() };
+    buckets * slot + buckets + 16
+}
+
+impl Volume {
+    /// Bytes held, by category.
+    pub fn memory(&self) -> MemoryReport {
+        let mut r = MemoryReport {
+            chunk_map: hash_table_bytes(self.chunks.capacity(), std::mem::size_of::<(ChunkKey, Chunk)>()),
+            ..Default::default()
+        };
+        for chunk in self.chunks.values() {
+            if let Chunk::Lists(l) = chunk {
+                let (p, n, h) = l.heap_bytes();
+                r.positions += p;
+                r.normals += n;
+                r.headers += h;
+                r.crossings += l.crossing_count();
+            }
+        }
+        r
+    }
+}

@@ -1,0 +1,64 @@
+//! Octahedral normal encoding: 8 + 8 bits per unit vector (worst-case error about 0.7°).
+
+use glam::DVec3;
+
+/// A unit normal packed into 16 bits.
+pub type PackedNormal = u16;
+
+/// Packs a normal. Zero or non-finite input packs to +z.
+pub fn pack_normal(n: DVec3) -> PackedNormal {
+    let l1 = n.x.abs() + n.y.abs() + n.z.abs();
+    if !(l1.is_finite() && l1 > 0.0) {
+        return pack_normal(DVec3::Z);
+    }
+    let (mut x, mut y) = (n.x / l1, n.y / l1);
+    if n.z < 0.0 {
+        let (ox, oy) = (x, y);
+        x = (1.0 - oy.abs()) * sign(ox);
+        y = (1.0 - ox.abs()) * sign(oy);
+    }
+    let qx = ((x * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u16;
+    let qy = ((y * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u16;
+    qx | (qy << 8)
+}
+
+/// Unpacks a normal to a unit vector.
+pub fn unpack_normal(p: PackedNormal) -> DVec3 {
+    let x = (p & 0xff) as f64 / 255.0 * 2.0 - 1.0;
+    let y = (p >> 8) as f64 / 255.0 * 2.0 - 1.0;
+    let z = 1.0 - x.abs() - y.abs();
+    let (x, y) = if z < 0.0 {
+        ((1.0 - y.abs()) * sign(x), (1.0 - x.abs()) * sign(y))
+    } else {
+        (x, y)
+    };
+    DVec3::new(x, y, z).normalize()
+}
+
+/// Flips a packed normal (used by subtraction, where the brush's outside becomes the solid's).
+pub fn flip_normal(p: PackedNormal) -> PackedNormal {
+    pack_normal(-unpack_normal(p))
+}
+
+fn sign(v: f64) -> f64 {
+    if v >= 0.0 { 1.0 } else { -1.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packed_normals_round_trip_within_one_degree() {
+        let mut worst: f64 = 1.0;
+        for i in 0..2000 {
+            let a = i as f64 * 2.399963;
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 2000.0;
+            let r = (1.0 - z * z).sqrt();
+            let n = DVec3::new(r * a.cos(), r * a.sin(), z);
+            worst = worst.min(unpack_normal(pack_normal(n)).dot(n));
+        }
+        assert!(worst > 1.0f64.to_radians().cos(), "worst cosine {worst}");
+        assert!(unpack_normal(pack_normal(DVec3::NAN)).z > 0.99);
+    }
+}
