@@ -128,6 +128,16 @@ pub(crate) struct LineCursor<'a> {
 }
 
 impl<'a> LineCursor<'a> {
+    /// Moves forward to line `index` (not backwards).
+    #[inline]
+    pub(crate) fn advance_to(&mut self, index: usize) {
+        debug_assert!(index >= self.index);
+        let (bit, ones) = skip_zeros(&self.lists.bits, self.bit, index - self.index);
+        self.bit = bit;
+        self.cross += ones;
+        self.index = index;
+    }
+
     #[inline]
     pub(crate) fn next_line(&mut self) -> LineRef<'a> {
         let count = ones_run(&self.lists.bits, self.bit);
@@ -287,42 +297,36 @@ impl ChunkBuilder {
         self.axis_start[self.axis] = (self.unary.len as u32, self.positions.len() as u32);
     }
 
-    pub(crate) fn push_work(&mut self, line: &WorkLine) {
-        let n = self.level.cells();
-        self.starts.push(line.states & 1 == 1);
-        let mut c = line.changes(n);
-        let count = c.count_ones() as usize;
-        while c != 0 {
-            let e = c.trailing_zeros() as usize;
-            self.positions.push(line.pos[e]);
-            self.normals.push(line.nrm[e]);
-            c &= c - 1;
+    /// Appends a line given by its start state and crossings.
+    pub(crate) fn push_line(&mut self, start_inside: bool, crossings: &[(LocalPos, PackedNormal)]) {
+        self.starts.push(start_inside);
+        for &(q, n) in crossings {
+            self.positions.push(q);
+            self.normals.push(n);
         }
-        self.unary.push_run(true, count);
+        self.unary.push_run(true, crossings.len());
         self.unary.push(false);
     }
 
-    /// Appends `count` lines from `view` along `axis`, starting at line `index`.
-    pub(crate) fn copy_lines(&mut self, view: ChunkView<'_>, axis: Axis, index: usize, count: usize) {
+    /// Appends `count` uniform lines without crossings.
+    pub(crate) fn push_uniform(&mut self, state: bool, count: usize) {
+        self.starts.push_run(state, count);
+        self.unary.push_run(false, count);
+    }
+
+    /// Appends `count` lines read from `cursor` (along `axis`) and moves it past them.
+    pub(crate) fn copy_from(&mut self, cursor: &mut LineCursor<'_>, axis: Axis, count: usize) {
         if count == 0 {
             return;
         }
-        match view {
-            ChunkView::Uniform(s) => {
-                self.starts.push_run(s, count);
-                self.unary.push_run(false, count);
-            }
-            ChunkView::Lists(src) => {
-                debug_assert_eq!(src.level, self.level);
-                let per_axis = src.lines_per_axis();
-                self.starts.extend_from(&src.bits, axis.index() * per_axis + index, count);
-                let c0 = src.cursor(axis, index);
-                let (b1, ones) = skip_zeros(&src.bits, c0.bit, count);
-                self.unary.extend_from(&src.bits, c0.bit, b1 - c0.bit);
-                self.positions.extend_from_slice(&src.positions[c0.cross..c0.cross + ones]);
-                self.normals.extend_from_slice(&src.normals[c0.cross..c0.cross + ones]);
-            }
-        }
+        let src = cursor.lists;
+        debug_assert_eq!(src.level, self.level);
+        let (bit, cross) = (cursor.bit, cursor.cross);
+        self.starts.extend_from(&src.bits, axis.index() * src.lines_per_axis() + cursor.index, count);
+        cursor.advance_to(cursor.index + count);
+        self.unary.extend_from(&src.bits, bit, cursor.bit - bit);
+        self.positions.extend_from_slice(&src.positions[cross..cursor.cross]);
+        self.normals.extend_from_slice(&src.normals[cross..cursor.cross]);
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.

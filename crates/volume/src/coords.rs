@@ -118,9 +118,11 @@ pub fn quantize_into_edge(t_grid: f64, edge: usize, level: Level) -> LocalPos {
     let s = level.steps_per_cell() as i64;
     let lo = edge as i64 * s + 1;
     let hi = (edge as i64 + 1) * s - 1;
-    let q = (t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64)).round();
-    let q = if q.is_nan() { (lo + hi) / 2 } else { (q.clamp(lo as f64, hi as f64)) as i64 };
-    q as LocalPos
+    // Round half up without a libm call; the clamp makes the cast's truncation of negative
+    // values harmless.
+    let q = t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64) + 0.5;
+    let q = if q.is_nan() { (lo + hi) / 2 } else { (q.clamp(lo as f64, hi as f64 + 0.5)) as i64 };
+    q.clamp(lo, hi) as LocalPos
 }
 
 /// The cell (edge index along the line) a fixed-point position lies in.

@@ -8,10 +8,11 @@ use thiserror::Error;
 
 use crate::axis::Axis;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE};
-use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, WorkLine, node_mask};
-use crate::coords::{CHUNK_CELLS, ChunkKey, Level};
-use crate::normal::{pack_normal, unpack_normal};
-use crate::sample::LineSampler;
+use crate::axis::compose;
+use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineCursor, WorkLine, node_mask};
+use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos};
+use crate::normal::{PackedNormal, pack_normal, unpack_normal};
+use crate::sample::{LineAt, LineSampler, PackedSpan};
 use crate::volume::Volume;
 
 /// How a brush combines with the volume.
@@ -106,11 +107,21 @@ impl UndoRecord {
     }
 }
 
+/// A line an edit changed, in storage order; its crossings are in `Scratch::crossings`.
+struct ChangedLine {
+    axis: u8,
+    index: u32,
+    start_inside: bool,
+    first: u32,
+    count: u32,
+}
+
 /// Per-thread scratch space for chunk edits.
 #[derive(Default)]
 struct Scratch {
     builder: ChunkBuilder,
-    changed: Vec<(u8, u32, WorkLine)>,
+    changed: Vec<ChangedLine>,
+    crossings: Vec<(LocalPos, PackedNormal)>,
     x_states: Vec<u128>,
 }
 
@@ -119,6 +130,101 @@ struct EditCtx<'a> {
     op: CsgOp,
     bounds: Aabb,
     reconcile: bool,
+    table: Option<SpanTable>,
+}
+
+/// The brush's spans on every grid line through its box, computed once per edit (a line
+/// crosses several chunks) relative to the grid origin `base` of the first chunk of the edit's
+/// range, so the result depends only on where the brush sits relative to the chunk grid.
+struct SpanTable {
+    base: I64Vec3,
+    axes: [AxisSpans; 3],
+}
+
+#[derive(Default)]
+struct AxisSpans {
+    /// Node coordinates (relative to `base`, in level units) of the first line on each across
+    /// axis, and the line counts.
+    u0: i64,
+    v0: i64,
+    nu: usize,
+    nv: usize,
+    offsets: Vec<u32>,
+    spans: Vec<PackedSpan>,
+}
+
+impl AxisSpans {
+    #[inline]
+    fn line(&self, u: i64, v: i64) -> &[PackedSpan] {
+        let (u, v) = (u - self.u0, v - self.v0);
+        if u < 0 || v < 0 || u as usize >= self.nu || v as usize >= self.nv {
+            return &[];
+        }
+        let i = u as usize + self.nu * v as usize;
+        &self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+}
+
+/// Lines beyond which the table is not built (each costs a few bytes even when empty); larger
+/// brushes are sampled chunk by chunk instead.
+const TABLE_MAX_LINES: i64 = 1 << 22;
+
+impl SpanTable {
+    fn build(brush: &dyn Brush, flip: bool, bounds: &Aabb, cmin: IVec3, level: Level, parallel: bool) -> Option<Self> {
+        let base = ChunkKey(cmin).origin_grid();
+        let origin = base.as_dvec3();
+        let mut probe = Vec::new();
+        if !brush.spans(origin, DVec3::ZERO, DVec3::X, &mut probe) {
+            return None;
+        }
+        let sp = level.spacing();
+        let range = |i: usize| {
+            let lo = ((bounds.min[i] - origin[i]) / sp).ceil().max(0.0) as i64;
+            let hi = ((bounds.max[i] - origin[i]) / sp).floor() as i64;
+            (lo, (hi - lo + 1).max(0))
+        };
+        let mut total = 0;
+        for axis in Axis::ALL {
+            let (ua, va) = axis.across();
+            total += range(ua.index()).1 * range(va.index()).1;
+        }
+        if total > TABLE_MAX_LINES {
+            return None;
+        }
+        let mut axes: [AxisSpans; 3] = Default::default();
+        for axis in Axis::ALL {
+            let (ua, va) = axis.across();
+            let ((u0, nu), (v0, nv)) = (range(ua.index()), range(va.index()));
+            let row = |v: i64| {
+                let mut counts = Vec::with_capacity(nu as usize);
+                let mut packed = Vec::new();
+                let mut spans = Vec::new();
+                for u in u0..u0 + nu {
+                    let start = DVec3::from_array(compose(axis, 0.0, u as f64 * sp, v as f64 * sp));
+                    brush.spans(origin, start, axis.unit(), &mut spans);
+                    counts.push(spans.len() as u32);
+                    packed.extend(spans.iter().map(|s| PackedSpan::pack(s, flip)));
+                }
+                (counts, packed)
+            };
+            let rows: Vec<(Vec<u32>, Vec<PackedSpan>)> = if parallel {
+                (v0..v0 + nv).into_par_iter().map(row).collect()
+            } else {
+                (v0..v0 + nv).map(row).collect()
+            };
+            let a = &mut axes[axis.index()];
+            *a = AxisSpans { u0, v0, nu: nu as usize, nv: nv as usize, ..Default::default() };
+            a.offsets.reserve((nu * nv + 1) as usize);
+            a.offsets.push(0);
+            for (counts, packed) in rows {
+                for c in counts {
+                    a.offsets.push(a.offsets.last().copied().unwrap_or(0) + c);
+                }
+                a.spans.extend(packed);
+            }
+        }
+        Some(SpanTable { base, axes })
+    }
 }
 
 impl Volume {
@@ -157,7 +263,8 @@ impl Volume {
             }
             CsgOp::Intersect => self.chunks.keys().copied().collect(),
         };
-        let ctx = EditCtx { brush, op, bounds, reconcile: !brush.lines_agree() };
+        let table = SpanTable::build(brush, op == CsgOp::Subtract, &bounds, cmin, self.level, settings.parallel);
+        let ctx = EditCtx { brush, op, bounds, reconcile: !brush.lines_agree(), table };
         let run = |scratch: &mut Scratch, key: ChunkKey| -> Option<(ChunkKey, Built, u64)> {
             let view = self.view(key);
             if op == CsgOp::Intersect && !in_range(key, cmin, cmax) {
@@ -273,6 +380,7 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
     let n = level.cells();
     let origin = key.origin_grid();
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
+    let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;
     if ctx.reconcile {
         // Node states of the brush from the x lines, apron rows included: x_states[y + (n+1) z].
@@ -280,12 +388,14 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
         let mut line = WorkLine::EMPTY;
         for z in 0..=n {
             for y in 0..=n {
-                sampler.sample(origin, level, Axis::X, y, z, &mut line);
+                sampler.sample(at(Axis::X, y, z), &mut line);
                 s.x_states.push(line.states);
             }
         }
     }
     s.changed.clear();
+    s.crossings.clear();
+    let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
     for axis in Axis::ALL {
         let (ua, va) = axis.across();
@@ -295,30 +405,62 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
             (_, (Some(ur), Some(vr))) => (ur, vr),
             _ => continue,
         };
+        let mut cursor = match old {
+            ChunkView::Lists(l) => Some(l.cursor(axis, 0)),
+            ChunkView::Uniform(_) => None,
+        };
         for v in v0..=v1 {
-            let mut cursor = match old {
-                ChunkView::Lists(l) => Some(l.cursor(axis, u0 + n * v)),
-                ChunkView::Uniform(_) => None,
-            };
             for u in u0..=u1 {
-                let line = match (&mut cursor, old) {
-                    (Some(c), _) => c.next_line(),
-                    (None, view) => view.line(axis, u, v),
-                };
-                old_line.load(line, level);
                 let inside_box = ranges.0.is_some_and(|(a, b)| (a..=b).contains(&u))
                     && ranges.1.is_some_and(|(a, b)| (a..=b).contains(&v));
                 if inside_box {
-                    sampler.sample(origin, level, axis, u, v, &mut brush_line);
+                    match table_level {
+                        Some((t, offset)) => {
+                            let spans = t.axes[axis.index()].line(offset[ua.index()] + u as i64, offset[va.index()] + v as i64);
+                            let shift = (origin[axis.index()] - t.base[axis.index()]) as f64;
+                            if spans.is_empty() {
+                                brush_line.states = 0;
+                            } else {
+                                sampler.from_spans(spans, shift, at(axis, u, v), &mut brush_line);
+                            }
+                        }
+                        None => sampler.sample(at(axis, u, v), &mut brush_line),
+                    }
                     if ctx.reconcile && axis != Axis::X {
                         repaired += reconcile_line(&s.x_states, axis, u, v, n, sampler.flip, &mut brush_line);
                     }
                 } else {
                     brush_line.states = 0;
                 }
+                if brush_line.states == 0 && ctx.op != CsgOp::Intersect {
+                    // An empty brush line leaves a union or difference unchanged.
+                    continue;
+                }
+                let index = u + n * v;
+                let line = match (&mut cursor, old) {
+                    (Some(c), _) => {
+                        c.advance_to(index);
+                        c.next_line()
+                    }
+                    (None, view) => view.line(axis, u, v),
+                };
+                old_line.load(line, level);
                 combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
                 if !new_line.same_as(&old_line, n) {
-                    s.changed.push((axis as u8, (u + n * v) as u32, new_line));
+                    let first = s.crossings.len() as u32;
+                    let mut c = new_line.changes(n);
+                    while c != 0 {
+                        let e = c.trailing_zeros() as usize;
+                        c &= c - 1;
+                        s.crossings.push((new_line.pos[e], new_line.nrm[e]));
+                    }
+                    s.changed.push(ChangedLine {
+                        axis: axis as u8,
+                        index: index as u32,
+                        start_inside: new_line.states & 1 == 1,
+                        first,
+                        count: s.crossings.len() as u32 - first,
+                    });
                 }
             }
         }
@@ -331,14 +473,26 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
     let mut next = s.changed.iter().peekable();
     for axis in Axis::ALL {
         b.begin_axis(axis);
+        let mut cursor = match old {
+            ChunkView::Lists(l) => Ok(l.cursor(axis, 0)),
+            ChunkView::Uniform(state) => Err(state),
+        };
         let mut index = 0;
-        while let Some((_, i, line)) = next.next_if(|c| c.0 == axis as u8) {
-            let i = *i as usize;
-            b.copy_lines(old, axis, index, i - index);
-            b.push_work(line);
+        let copy = |b: &mut ChunkBuilder, cursor: &mut Result<LineCursor<'_>, bool>, count: usize| match cursor {
+            Ok(c) => b.copy_from(c, axis, count),
+            Err(state) => b.push_uniform(*state, count),
+        };
+        while let Some(line) = next.next_if(|c| c.axis == axis as u8) {
+            let i = line.index as usize;
+            copy(b, &mut cursor, i - index);
+            if let Ok(c) = &mut cursor {
+                c.advance_to(i + 1);
+            }
+            let crossings = &s.crossings[line.first as usize..(line.first + line.count) as usize];
+            b.push_line(line.start_inside, crossings);
             index = i + 1;
         }
-        b.copy_lines(old, axis, index, n * n - index);
+        copy(b, &mut cursor, n * n - index);
     }
     Some((b.finish(), repaired))
 }
@@ -378,4 +532,75 @@ fn reconcile_line(x_states: &[u128], axis: Axis, u: usize, v: usize, n: usize, f
         }
     }
     moved
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Inside state of a line at fixed-point position `q` (not on a crossing).
+    fn state_at(l: &WorkLine, q: u32, level: Level) -> bool {
+        let e = (q / level.steps_per_cell()) as usize;
+        let before = (l.states >> e) & 1 == 1;
+        let after = (l.states >> (e + 1)) & 1 == 1;
+        if before != after && q > l.pos[e] as u32 { after } else { before }
+    }
+
+    #[test]
+    fn per_cell_csg_equals_continuous_csg_wherever_the_result_changes_once() {
+        let level = Level::BASE;
+        let n = level.cells();
+        let s = level.steps_per_cell();
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 33) as u32
+        };
+        let mut random_line = |rnd: &mut dyn FnMut() -> u32| {
+            let mut l = WorkLine::EMPTY;
+            l.states = (rnd() as u128 | ((rnd() as u128) << 32)) & node_mask(n);
+            for e in 0..n {
+                l.pos[e] = (e as u32 * s + 1 + rnd() % (s - 1)) as u16;
+                l.nrm[e] = rnd() as u16;
+            }
+            l
+        };
+        for _ in 0..1000 {
+            let a = random_line(&mut rnd);
+            let b = random_line(&mut rnd);
+            for op in [CsgOp::Add, CsgOp::Subtract, CsgOp::Intersect] {
+                let mut out = WorkLine::EMPTY;
+                combine(&a, &b, op, n, &mut out);
+                let f = |q: u32| {
+                    let (x, y) = (state_at(&a, q, level), state_at(&b, q, level));
+                    match op {
+                        CsgOp::Add => x | y,
+                        CsgOp::Subtract => x & !y,
+                        CsgOp::Intersect => x & y,
+                    }
+                };
+                for j in 0..=n {
+                    let bit = |l: &WorkLine| (l.states >> j) & 1 == 1;
+                    let expect = match op {
+                        CsgOp::Add => bit(&a) | bit(&b),
+                        CsgOp::Subtract => bit(&a) & !bit(&b),
+                        CsgOp::Intersect => bit(&a) & bit(&b),
+                    };
+                    assert_eq!(bit(&out), expect, "node states are the CSG of node states");
+                }
+                let mut c = out.changes(n);
+                while c != 0 {
+                    let e = c.trailing_zeros() as usize;
+                    c &= c - 1;
+                    // The continuous result switches at most twice in the cell; where it switches
+                    // once, the stored crossing must be exactly there.
+                    let lo = e as u32 * s;
+                    let switches: Vec<u32> = (lo + 1..lo + s).filter(|&q| f(q) != f(q - 1)).map(|q| q - 1).collect();
+                    if switches.len() == 1 {
+                        assert_eq!(out.pos[e] as u32, switches[0], "{op:?} cell {e}");
+                    }
+                }
+            }
+        }
+    }
 }

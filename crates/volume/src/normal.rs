@@ -17,8 +17,8 @@ pub fn pack_normal(n: DVec3) -> PackedNormal {
         x = (1.0 - oy.abs()) * sign(ox);
         y = (1.0 - ox.abs()) * sign(oy);
     }
-    let qx = ((x * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u16;
-    let qy = ((y * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u16;
+    let qx = ((x * 0.5 + 0.5) * 255.0 + 0.5).clamp(0.0, 255.0) as u16;
+    let qy = ((y * 0.5 + 0.5) * 255.0 + 0.5).clamp(0.0, 255.0) as u16;
     qx | (qy << 8)
 }
 

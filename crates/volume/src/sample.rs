@@ -40,6 +40,27 @@ pub fn brush_contains_node(brush: &dyn Brush, node: I64Vec3, level: Level) -> bo
     brush.contains(origin, p)
 }
 
+/// A span with its normals already packed (and flipped for subtraction).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PackedSpan {
+    pub(crate) enter: f64,
+    pub(crate) exit: f64,
+    pub(crate) enter_normal: u16,
+    pub(crate) exit_normal: u16,
+}
+
+impl PackedSpan {
+    pub(crate) fn pack(s: &Span, flip: bool) -> Self {
+        let f = if flip { -1.0 } else { 1.0 };
+        PackedSpan {
+            enter: s.enter,
+            exit: s.exit,
+            enter_normal: pack_normal(s.enter_normal * f),
+            exit_normal: pack_normal(s.exit_normal * f),
+        }
+    }
+}
+
 /// Samples one brush along chunk lines; keeps scratch space between lines.
 pub(crate) struct LineSampler<'a> {
     pub(crate) brush: &'a dyn Brush,
@@ -47,29 +68,50 @@ pub(crate) struct LineSampler<'a> {
     /// Flip normals (subtraction: the brush's outside becomes the solid's outside).
     pub(crate) flip: bool,
     spans: Vec<Span>,
+    packed: Vec<PackedSpan>,
+}
+
+/// Where a line sits: the chunk's grid origin, its level, axis and across coordinates (`u`,
+/// `v` may equal `n`: apron lines owned by a neighbour).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LineAt {
+    pub(crate) origin_grid: I64Vec3,
+    pub(crate) level: Level,
+    pub(crate) axis: Axis,
+    pub(crate) u: usize,
+    pub(crate) v: usize,
+}
+
+impl LineAt {
+    fn start(&self) -> DVec3 {
+        let sp = self.level.spacing();
+        DVec3::from_array(compose(self.axis, 0.0, self.u as f64 * sp, self.v as f64 * sp))
+    }
+
+    /// Canonical predicate point of node `j` of the line.
+    #[inline]
+    fn node(&self, j: usize) -> (DVec3, DVec3) {
+        node_point(self.origin_grid, compose(self.axis, j, self.u, self.v), self.level)
+    }
 }
 
 impl<'a> LineSampler<'a> {
     pub(crate) fn new(brush: &'a dyn Brush, flip: bool) -> Self {
-        LineSampler { brush, bounds: brush.bounds().expand(SNAP_DISTANCE), flip, spans: Vec::new() }
+        LineSampler {
+            brush,
+            bounds: brush.bounds().expand(SNAP_DISTANCE),
+            flip,
+            spans: Vec::new(),
+            packed: Vec::new(),
+        }
     }
 
-    /// Fills `out` with the brush's states and crossings on line `(u, v)` along `axis` of the
-    /// chunk at `origin_grid` (`u`, `v` may equal `n`: apron lines owned by a neighbour).
-    pub(crate) fn sample(
-        &mut self,
-        origin_grid: I64Vec3,
-        level: Level,
-        axis: Axis,
-        u: usize,
-        v: usize,
-        out: &mut WorkLine,
-    ) {
-        let n = level.cells();
-        let sp = level.spacing();
-        let origin = origin_grid.as_dvec3();
-        let start = DVec3::from_array(compose(axis, 0.0, u as f64 * sp, v as f64 * sp));
-        let a = axis.index();
+    /// Fills `out` with the brush's states and crossings on one chunk line, asking the brush.
+    pub(crate) fn sample(&mut self, at: LineAt, out: &mut WorkLine) {
+        let n = at.level.cells();
+        let origin = at.origin_grid.as_dvec3();
+        let start = at.start();
+        let a = at.axis.index();
         out.states = 0;
         // Reject lines that miss the brush's box.
         let lo = self.bounds.min - origin;
@@ -82,47 +124,42 @@ impl<'a> LineSampler<'a> {
         if hi[a] < 0.0 || lo[a] > crate::coords::CHUNK_CELLS as f64 {
             return;
         }
-        let dir = axis.unit();
-        let node_at = |j: usize| -> (DVec3, DVec3) {
-            let local = compose(axis, j, u, v);
-            node_point(origin_grid, local, level)
-        };
+        let dir = at.axis.unit();
         let mut spans = std::mem::take(&mut self.spans);
         if self.brush.spans(origin, start, dir, &mut spans) {
-            self.from_spans(&spans, n, sp, level, dir, &node_at, out);
+            let mut packed = std::mem::take(&mut self.packed);
+            packed.clear();
+            packed.extend(spans.iter().map(|s| PackedSpan::pack(s, self.flip)));
+            self.from_spans(&packed, 0.0, at, out);
+            self.packed = packed;
         } else {
-            self.from_samples(origin, start, n, sp, level, dir, lo[a], hi[a], &node_at, out);
+            self.from_samples(origin, start, n, lo[a], hi[a], at, out);
         }
         self.spans = spans;
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn from_spans(
-        &self,
-        spans: &[Span],
-        n: usize,
-        sp: f64,
-        level: Level,
-        dir: DVec3,
-        node_at: &dyn Fn(usize) -> (DVec3, DVec3),
-        out: &mut WorkLine,
-    ) {
+    /// Fills `out` from spans whose parameter is `shift` grid units ahead of the line's node 0.
+    pub(crate) fn from_spans(&self, spans: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
+        let n = at.level.cells();
+        let sp = at.level.spacing();
+        let inv_sp = 1.0 / sp;
         let mut states = 0u128;
         for s in spans {
-            let j0 = (s.enter / sp).ceil().max(0.0);
-            let j1 = (s.exit / sp).floor().min(n as f64);
-            if j0 <= j1 {
-                let (j0, j1) = (j0 as usize, j1 as usize);
+            let (enter, exit) = (s.enter - shift, s.exit - shift);
+            let j0 = ceil_clamped(enter * inv_sp, n);
+            let j1 = floor_clamped(exit * inv_sp, n);
+            if let (Some(j0), Some(j1)) = (j0, j1)
+                && j0 <= j1
+            {
                 states |= node_mask(j1) & !((1u128 << j0) - 1);
             }
         }
         // Nodes (practically) on the surface follow the predicate, whatever the roots said.
         for s in spans {
-            for t in [s.enter, s.exit] {
-                let j = (t / sp).round();
-                if j >= 0.0 && j <= n as f64 && (j * sp - t).abs() <= SNAP_DISTANCE {
-                    let j = j as usize;
-                    let (o, p) = node_at(j);
+            for t in [s.enter - shift, s.exit - shift] {
+                let Some(j) = nearest_node(t * inv_sp, n) else { continue };
+                if (j as f64 * sp - t).abs() <= SNAP_DISTANCE {
+                    let (o, p) = at.node(j);
                     if self.brush.contains(o, p) {
                         states |= 1 << j;
                     } else {
@@ -137,40 +174,33 @@ impl<'a> LineSampler<'a> {
             let e = c.trailing_zeros() as usize;
             c &= c - 1;
             let entering = (states >> (e + 1)) & 1 == 1;
-            let (lo, hi) = (e as f64 * sp - SNAP_DISTANCE, (e + 1) as f64 * sp + SNAP_DISTANCE);
+            let (lo, hi) = (e as f64 * sp - SNAP_DISTANCE + shift, (e + 1) as f64 * sp + SNAP_DISTANCE + shift);
             let pick = if entering {
                 spans.iter().rev().find(|s| s.enter >= lo && s.enter <= hi).map(|s| (s.enter, s.enter_normal))
             } else {
                 spans.iter().find(|s| s.exit >= lo && s.exit <= hi).map(|s| (s.exit, s.exit_normal))
             };
-            let mid = (e as f64 + 0.5) * sp;
+            let mid = (e as f64 + 0.5) * sp + shift;
             let (t, normal) = pick.unwrap_or_else(|| {
                 // The predicate moved the change away from any root: use the nearest end.
                 let nearest = spans
                     .iter()
                     .flat_map(|s| [(s.enter, s.enter_normal), (s.exit, s.exit_normal)])
                     .min_by(|a, b| (a.0 - mid).abs().total_cmp(&(b.0 - mid).abs()));
-                nearest.unwrap_or((mid, if entering { -dir } else { dir }))
+                nearest.unwrap_or_else(|| {
+                    let dir = at.axis.unit();
+                    let outward = if entering != self.flip { -dir } else { dir };
+                    (mid, pack_normal(outward))
+                })
             });
-            out.pos[e] = quantize_into_edge(t, e, level);
-            out.nrm[e] = pack_normal(if self.flip { -normal } else { normal });
+            out.pos[e] = quantize_into_edge(t - shift, e, at.level);
+            out.nrm[e] = normal;
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn from_samples(
-        &self,
-        origin: DVec3,
-        start: DVec3,
-        n: usize,
-        sp: f64,
-        level: Level,
-        dir: DVec3,
-        t_lo: f64,
-        t_hi: f64,
-        node_at: &dyn Fn(usize) -> (DVec3, DVec3),
-        out: &mut WorkLine,
-    ) {
+    fn from_samples(&self, origin: DVec3, start: DVec3, n: usize, t_lo: f64, t_hi: f64, at: LineAt, out: &mut WorkLine) {
+        let sp = at.level.spacing();
+        let dir = at.axis.unit();
         let brush = self.brush;
         let lip = brush.lipschitz();
         let field_at = |t: f64| brush.field(origin, start + dir * t);
@@ -187,7 +217,7 @@ impl<'a> LineSampler<'a> {
             let inside = if j < skip_until {
                 skip_state
             } else {
-                let (o, p) = node_at(j);
+                let (o, p) = at.node(j);
                 let inside = brush.contains(o, p);
                 let f = field_at(t);
                 values[j] = f;
@@ -195,7 +225,7 @@ impl<'a> LineSampler<'a> {
                 // this node's state (a small margin absorbs rounding in the field).
                 let reach = f.abs() / lip * (1.0 - 1e-9) - 1e-9;
                 if reach > sp && ((f > 0.0) != inside) {
-                    skip_until = j + 1 + (reach / sp).floor() as usize;
+                    skip_until = j + 1 + (reach / sp) as usize;
                     skip_state = inside;
                 }
                 inside
@@ -219,10 +249,42 @@ impl<'a> LineSampler<'a> {
             if (normal.dot(dir) > 0.0) == entering {
                 normal = -normal;
             }
-            out.pos[e] = quantize_into_edge(t, e, level);
+            out.pos[e] = quantize_into_edge(t, e, at.level);
             out.nrm[e] = pack_normal(if self.flip { -normal } else { normal });
         }
     }
+}
+
+/// `ceil(x)` as a node index if it is at most `n` (negative values give 0).
+#[inline]
+fn ceil_clamped(x: f64, n: usize) -> Option<usize> {
+    if !(x <= n as f64) {
+        return None;
+    }
+    if x <= 0.0 {
+        return Some(0);
+    }
+    let i = x as usize;
+    Some(if (i as f64) < x { i + 1 } else { i })
+}
+
+/// `floor(x)` clamped to `n`, or `None` below 0.
+#[inline]
+fn floor_clamped(x: f64, n: usize) -> Option<usize> {
+    if !(x >= 0.0) {
+        return None;
+    }
+    if x >= n as f64 {
+        return Some(n);
+    }
+    Some(x as usize)
+}
+
+/// The nearest node index to `x`, if it is one of `0..=n`.
+#[inline]
+fn nearest_node(x: f64, n: usize) -> Option<usize> {
+    let r = x + 0.5;
+    (r >= 0.0 && r < (n + 1) as f64).then(|| r as usize)
 }
 
 /// Illinois-modified regula falsi on a bracket with `f(lo)` and `f(hi)` of opposite signs.
@@ -268,5 +330,56 @@ mod tests {
         let f = |t: f64| t * t * t - 0.3;
         let r = find_root(&f, 0.0, f(0.0), 1.0, f(1.0));
         assert!((r - 0.3f64.cbrt()).abs() < 1e-6, "{r}");
+    }
+}
+
+#[cfg(test)]
+mod snap_tests {
+    use super::*;
+    use crate::Volume;
+    use crate::brush::Sphere;
+
+    /// A sphere whose spans are pushed inwards by 1e-9 cells, as a rounding closed form might.
+    struct Jittered(Sphere);
+
+    impl Brush for Jittered {
+        fn bounds(&self) -> Aabb {
+            self.0.bounds()
+        }
+        fn field(&self, origin: DVec3, p: DVec3) -> f64 {
+            self.0.field(origin, p)
+        }
+        fn contains(&self, origin: DVec3, p: DVec3) -> bool {
+            self.0.contains(origin, p)
+        }
+        fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
+            self.0.spans(origin, start, dir, out);
+            for s in out.iter_mut() {
+                s.enter += 1e-9;
+                s.exit -= 1e-9;
+            }
+            true
+        }
+    }
+
+    #[test]
+    fn nodes_on_the_surface_follow_the_predicate_even_when_roots_round_inwards() {
+        // Radius 5 around a node: nodes like (3, 4, 0) away from the centre lie exactly on it.
+        let brush = Jittered(Sphere::new(DVec3::new(8.0, 8.0, 8.0), 5.0).unwrap());
+        let mut v = Volume::new();
+        v.add(&brush).unwrap();
+        v.check_invariants().unwrap();
+        let mut on_surface = 0;
+        for z in 0..17 {
+            for y in 0..17 {
+                for x in 0..17 {
+                    let node = I64Vec3::new(x, y, z);
+                    let expect = brush_contains_node(&brush, node, Level::BASE);
+                    assert_eq!(v.node_inside(node), expect, "node {node}");
+                    on_surface += ((node - 8).length_squared() == 25) as u32;
+                }
+            }
+        }
+        assert!(on_surface > 20);
     }
 }
