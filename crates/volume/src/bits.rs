@@ -23,42 +23,42 @@ pub(crate) fn ones_run(words: &[u64], mut i: usize) -> usize {
     }
 }
 
+/// Mask of the low `n` bits (`n` in `0..=64`).
+#[inline]
+fn low_bits(n: usize) -> u64 {
+    if n >= 64 { u64::MAX } else { (1u64 << n) - 1 }
+}
+
 /// Position just after the `k`-th zero bit at or after bit `from`, and the number of ones passed.
 /// Used to jump to a line in a unary-coded count stream.
+#[inline]
 pub(crate) fn skip_zeros(words: &[u64], from: usize, mut k: usize) -> (usize, usize) {
     if k == 0 {
         return (from, 0);
     }
-    let mut i = from;
+    let mut word = from >> 6;
+    let mut w = words[word] >> (from & 63);
+    let mut valid = 64 - (from & 63);
+    let mut base = from;
     let mut ones = 0;
-    // Align to a word boundary one bit at a time.
-    while i & 63 != 0 {
-        if bit(words, i) {
-            ones += 1;
-        } else {
-            k -= 1;
-            if k == 0 {
-                return (i + 1, ones);
-            }
-        }
-        i += 1;
-    }
     loop {
-        let w = words[i >> 6];
-        let zeros = (!w).count_ones() as usize;
-        if zeros >= k {
-            let mut z = !w;
+        let zeros = !w & low_bits(valid);
+        let z = zeros.count_ones() as usize;
+        if z >= k {
+            let mut zs = zeros;
             for _ in 1..k {
-                z &= z - 1;
+                zs &= zs - 1;
             }
-            let pos = z.trailing_zeros() as usize;
-            let mask = if pos == 0 { 0 } else { u64::MAX >> (64 - pos) };
-            ones += (w & mask).count_ones() as usize;
-            return (i + pos + 1, ones);
+            let pos = zs.trailing_zeros() as usize;
+            ones += (w & low_bits(pos)).count_ones() as usize;
+            return (base + pos + 1, ones);
         }
-        k -= zeros;
-        ones += w.count_ones() as usize;
-        i += 64;
+        k -= z;
+        ones += (w & low_bits(valid)).count_ones() as usize;
+        base += valid;
+        word += 1;
+        w = words[word];
+        valid = 64;
     }
 }
 

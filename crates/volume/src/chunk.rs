@@ -154,7 +154,7 @@ impl<'a> LineCursor<'a> {
 }
 
 /// Read access to a chunk whatever its storage.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum ChunkView<'a> {
     Uniform(bool),
     Lists(&'a ChunkLists),

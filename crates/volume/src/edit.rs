@@ -396,6 +396,14 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
     s.changed.clear();
     s.crossings.clear();
     let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
+    if let Some((t, offset)) = table_level
+        && ctx.op != CsgOp::Intersect
+        && covers_chunk(t, offset, origin, n)
+    {
+        // Every node of the chunk and its apron is well inside the brush.
+        let now = ctx.op == CsgOp::Add;
+        return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
+    }
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
     for axis in Axis::ALL {
         let (ua, va) = axis.across();
@@ -495,6 +503,25 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
         copy(b, &mut cursor, n * n - index);
     }
     Some((b.finish(), repaired))
+}
+
+/// Whether every x line through the chunk (apron rows included) lies inside one span from
+/// before node 0 to after node `n`, farther than the snapping distance from both ends.
+fn covers_chunk(t: &SpanTable, offset: I64Vec3, origin: I64Vec3, n: usize) -> bool {
+    let shift = (origin.x - t.base.x) as f64;
+    let end = CHUNK_CELLS as f64;
+    for z in 0..=n as i64 {
+        for y in 0..=n as i64 {
+            let spans = t.axes[0].line(offset.y + y, offset.z + z);
+            let covered = spans
+                .iter()
+                .any(|s| s.enter - shift < -SNAP_DISTANCE && s.exit - shift > end + SNAP_DISTANCE);
+            if !covered {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// Forces a y or z brush line to the node states of the x lines; returns how many nodes moved.
