@@ -91,13 +91,20 @@ impl Level {
     /// Fixed-point steps per cell.
     #[inline]
     pub fn steps_per_cell(self) -> u32 {
-        CHUNK_STEPS / self.cells() as u32
+        4096 >> self.0
     }
 
     /// Distance between neighbouring nodes in grid units.
     #[inline]
     pub fn spacing(self) -> f64 {
-        CHUNK_CELLS as f64 / self.cells() as f64
+        // Exact powers of two; a table avoids a division on hot paths.
+        [1.0, 0.5, 0.25][self.0 as usize]
+    }
+
+    /// Nodes per grid unit (`1 / spacing`).
+    #[inline]
+    pub fn nodes_per_unit(self) -> f64 {
+        [1.0, 2.0, 4.0][self.0 as usize]
     }
 }
 
@@ -128,7 +135,7 @@ pub fn quantize_into_edge(t_grid: f64, edge: usize, level: Level) -> LocalPos {
 /// The cell (edge index along the line) a fixed-point position lies in.
 #[inline]
 pub fn edge_of(q: LocalPos, level: Level) -> usize {
-    (q as u32 / level.steps_per_cell()) as usize
+    (q as u32 >> (12 - level.0)) as usize
 }
 
 #[cfg(test)]

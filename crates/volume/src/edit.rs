@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::axis::Axis;
-use crate::brush::{Aabb, Brush, SNAP_DISTANCE};
+use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::axis::compose;
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineCursor, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos};
@@ -151,9 +151,22 @@ struct AxisSpans {
     nv: usize,
     offsets: Vec<u32>,
     spans: Vec<PackedSpan>,
+    /// Per row `v`: the first and one past the last `u` whose line has spans (empty if none).
+    rows: Vec<(i64, i64)>,
 }
 
 impl AxisSpans {
+    /// Lines `u` of row `v` (absolute, relative to the table base) that can have spans.
+    #[inline]
+    fn row_range(&self, v: i64) -> (i64, i64) {
+        let r = v - self.v0;
+        if r < 0 || r as usize >= self.nv {
+            return (0, 0);
+        }
+        let (a, b) = self.rows[r as usize];
+        (a + self.u0, b + self.u0)
+    }
+
     #[inline]
     fn line(&self, u: i64, v: i64) -> &[PackedSpan] {
         let (u, v) = (u - self.u0, v - self.v0);
@@ -195,32 +208,53 @@ impl SpanTable {
         for axis in Axis::ALL {
             let (ua, va) = axis.across();
             let ((u0, nu), (v0, nv)) = (range(ua.index()), range(va.index()));
-            let row = |v: i64| {
-                let mut counts = Vec::with_capacity(nu as usize);
-                let mut packed = Vec::new();
-                let mut spans = Vec::new();
+            // One row of lines: appends span counts and packed spans.
+            let row = |v: i64, counts: &mut Vec<u32>, packed: &mut Vec<PackedSpan>, spans: &mut Vec<Span>| {
                 for u in u0..u0 + nu {
                     let start = DVec3::from_array(compose(axis, 0.0, u as f64 * sp, v as f64 * sp));
-                    brush.spans(origin, start, axis.unit(), &mut spans);
+                    brush.spans(origin, start, axis.unit(), spans);
                     counts.push(spans.len() as u32);
-                    packed.extend(spans.iter().map(|s| PackedSpan::pack(s, flip)));
+                    for s in spans.iter() {
+                        packed.push(PackedSpan::pack(s, flip));
+                    }
                 }
-                (counts, packed)
-            };
-            let rows: Vec<(Vec<u32>, Vec<PackedSpan>)> = if parallel {
-                (v0..v0 + nv).into_par_iter().map(row).collect()
-            } else {
-                (v0..v0 + nv).map(row).collect()
             };
             let a = &mut axes[axis.index()];
             *a = AxisSpans { u0, v0, nu: nu as usize, nv: nv as usize, ..Default::default() };
-            a.offsets.reserve((nu * nv + 1) as usize);
-            a.offsets.push(0);
-            for (counts, packed) in rows {
-                for c in counts {
-                    a.offsets.push(a.offsets.last().copied().unwrap_or(0) + c);
+            let mut counts = Vec::with_capacity((nu * nv) as usize);
+            if parallel {
+                let rows: Vec<(Vec<u32>, Vec<PackedSpan>)> = (v0..v0 + nv)
+                    .into_par_iter()
+                    .map_init(Vec::new, |spans, v| {
+                        let (mut c, mut p) = (Vec::with_capacity(nu as usize), Vec::new());
+                        row(v, &mut c, &mut p, spans);
+                        (c, p)
+                    })
+                    .collect();
+                for (c, p) in rows {
+                    counts.extend(c);
+                    a.spans.extend(p);
                 }
-                a.spans.extend(packed);
+            } else {
+                let mut spans = Vec::new();
+                for v in v0..v0 + nv {
+                    row(v, &mut counts, &mut a.spans, &mut spans);
+                }
+            }
+            a.offsets.reserve(counts.len() + 1);
+            a.offsets.push(0);
+            let mut total = 0;
+            for r in counts.chunks(nu.max(1) as usize) {
+                let first = r.iter().position(|&c| c > 0);
+                let last = r.iter().rposition(|&c| c > 0);
+                a.rows.push(match (first, last) {
+                    (Some(f), Some(l)) => (f as i64, l as i64 + 1),
+                    _ => (0, 0),
+                });
+                for &c in r {
+                    total += c;
+                    a.offsets.push(total);
+                }
             }
         }
         Some(SpanTable { base, axes })
@@ -405,6 +439,7 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
         return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
     }
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
+    let full = node_mask(n);
     for axis in Axis::ALL {
         let (ua, va) = axis.across();
         let ranges = (across_range(&ctx.bounds, origin, ua, level), across_range(&ctx.bounds, origin, va, level));
@@ -418,6 +453,18 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
             ChunkView::Uniform(_) => None,
         };
         for v in v0..=v1 {
+            let (u0, u1) = match (ctx.op, table_level) {
+                (CsgOp::Intersect, _) | (_, None) => (u0, u1),
+                (_, Some((t, offset))) => {
+                    // Only the lines of this row that the brush can reach.
+                    let (a, b) = t.axes[axis.index()].row_range(offset[va.index()] + v as i64);
+                    let (a, b) = (a - offset[ua.index()], b - offset[ua.index()]);
+                    if b <= a || b <= u0 as i64 || a > u1 as i64 {
+                        continue;
+                    }
+                    ((a.max(u0 as i64)) as usize, ((b - 1).min(u1 as i64)) as usize)
+                }
+            };
             for u in u0..=u1 {
                 let inside_box = ranges.0.is_some_and(|(a, b)| (a..=b).contains(&u))
                     && ranges.1.is_some_and(|(a, b)| (a..=b).contains(&v));
@@ -452,6 +499,14 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
                     }
                     (None, view) => view.line(axis, u, v),
                 };
+                if brush_line.states == full && ctx.op != CsgOp::Intersect {
+                    // The brush fills the line: the result is a full or an empty line.
+                    let now = ctx.op == CsgOp::Add;
+                    if line.start_inside != now || !line.positions.is_empty() {
+                        s.changed.push(ChangedLine { axis: axis as u8, index: index as u32, start_inside: now, first: 0, count: 0 });
+                    }
+                    continue;
+                }
                 old_line.load(line, level);
                 combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
                 if !new_line.same_as(&old_line, n) {

@@ -11,7 +11,8 @@ pub fn pack_normal(n: DVec3) -> PackedNormal {
     if !(l1.is_finite() && l1 > 0.0) {
         return pack_normal(DVec3::Z);
     }
-    let (mut x, mut y) = (n.x / l1, n.y / l1);
+    let inv = 1.0 / l1;
+    let (mut x, mut y) = (n.x * inv, n.y * inv);
     if n.z < 0.0 {
         let (ox, oy) = (x, y);
         x = (1.0 - oy.abs()) * sign(ox);

@@ -142,7 +142,22 @@ impl<'a> LineSampler<'a> {
     pub(crate) fn from_spans(&self, spans: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
         let n = at.level.cells();
         let sp = at.level.spacing();
-        let inv_sp = 1.0 / sp;
+        let inv_sp = at.level.nodes_per_unit();
+        let end = crate::coords::CHUNK_CELLS as f64;
+        if let [s] = spans
+            && s.enter - shift < -SNAP_DISTANCE
+            && s.exit - shift > end + SNAP_DISTANCE
+        {
+            // The whole chunk line is well inside.
+            out.states = node_mask(n);
+            return;
+        }
+        if let [s] = spans
+            && let Some(line) = single_span(s, shift, at.level)
+        {
+            line.apply(out);
+            return;
+        }
         let mut states = 0u128;
         for s in spans {
             let (enter, exit) = (s.enter - shift, s.exit - shift);
@@ -253,6 +268,45 @@ impl<'a> LineSampler<'a> {
             out.nrm[e] = pack_normal(if self.flip { -normal } else { normal });
         }
     }
+}
+
+/// The result of one span on a chunk line when no node lies within the snapping distance of
+/// its ends (the common case, taken without a predicate call).
+struct SingleSpan {
+    states: u128,
+    enter: Option<(usize, u16, u16)>,
+    exit: Option<(usize, u16, u16)>,
+}
+
+impl SingleSpan {
+    fn apply(&self, out: &mut WorkLine) {
+        out.states = self.states;
+        for (e, q, nrm) in [self.enter, self.exit].into_iter().flatten() {
+            out.pos[e] = q;
+            out.nrm[e] = nrm;
+        }
+    }
+}
+
+#[inline]
+fn single_span(s: &PackedSpan, shift: f64, level: Level) -> Option<SingleSpan> {
+    let n = level.cells();
+    let inv_sp = level.nodes_per_unit();
+    let (enter, exit) = ((s.enter - shift) * inv_sp, (s.exit - shift) * inv_sp);
+    let snap = SNAP_DISTANCE * inv_sp;
+    let near = |x: f64| x > -snap - 0.5 && x < n as f64 + 0.5 + snap && (x - (x + 0.5).floor()).abs() <= snap;
+    if near(enter) || near(exit) {
+        return None;
+    }
+    let j0 = ceil_clamped(enter, n)?;
+    let j1 = floor_clamped(exit, n)?;
+    if j0 > j1 {
+        return Some(SingleSpan { states: 0, enter: None, exit: None });
+    }
+    let states = node_mask(j1) & !((1u128 << j0) - 1);
+    let enter = (j0 > 0).then(|| (j0 - 1, quantize_into_edge(s.enter - shift, j0 - 1, level), s.enter_normal));
+    let exit = (j1 < n).then(|| (j1, quantize_into_edge(s.exit - shift, j1, level), s.exit_normal));
+    Some(SingleSpan { states, enter, exit })
 }
 
 /// `ceil(x)` as a node index if it is at most `n` (negative values give 0).

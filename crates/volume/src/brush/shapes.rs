@@ -53,17 +53,19 @@ impl Brush for Sphere {
         out.clear();
         let q = start - (self.center - origin);
         let a = dir.length_squared();
-        let b = q.dot(dir);
-        let c = q.length_squared() - self.radius * self.radius;
-        let disc = b * b - a * c;
-        if !(disc >= 0.0 && a > 0.0) {
+        if !(a > 0.0) {
             return true;
         }
-        // Numerically stable roots: never subtract two nearly equal numbers.
-        let s = disc.sqrt();
-        let k = -(b + s.copysign(b));
-        let (t0, t1) = if k == 0.0 { (0.0, 0.0) } else { (k / a, c / k) };
-        let (t0, t1) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+        // Closest approach first, then the half chord from the perpendicular distance: no
+        // cancellation, and no division for the unit axis directions the volume uses.
+        let t_mid = if a == 1.0 { -q.dot(dir) } else { -q.dot(dir) / a };
+        let perp = q + dir * t_mid;
+        let disc = self.radius * self.radius - perp.length_squared();
+        if !(disc >= 0.0) {
+            return true;
+        }
+        let h = if a == 1.0 { disc.sqrt() } else { (disc / a).sqrt() };
+        let (t0, t1) = (t_mid - h, t_mid + h);
         let inv_r = 1.0 / self.radius;
         out.push(Span {
             enter: t0,
