@@ -455,6 +455,8 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
         for v in v0..=v1 {
             let (u0, u1) = match (ctx.op, table_level) {
                 (CsgOp::Intersect, _) | (_, None) => (u0, u1),
+                // Repairs can give lines without spans node states.
+                _ if ctx.reconcile => (u0, u1),
                 (_, Some((t, offset))) => {
                     // Only the lines of this row that the brush can reach.
                     let (a, b) = t.axes[axis.index()].row_range(offset[va.index()] + v as i64);
