@@ -1,1 +1,28 @@
-fn main() {}
+//! `strata`: the Strata command line.
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(version, about = "Strata: volumetric sculpting on per-grid-line crossing lists")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Sculpt a small scene from analytic brushes and print its statistics.
+    Demo {
+        /// Size multiplier (1: a body of radius 24 cells).
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+    },
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Command::Demo { scale } => print!("{}", strata::demo(scale)?),
+    }
+    Ok(())
+}

@@ -7,7 +7,7 @@
 
 use glam::{DQuat, DVec3, I64Vec3};
 use proptest::prelude::*;
-use strata_volume::brush::{Brush, Capsule, Cuboid, Cylinder, Sphere, Torus, Transformed};
+use strata_volume::brush::{Aabb, Brush, Capsule, Cuboid, Cylinder, MeshBrush, MeshRule, SdfBrush, Sphere, Torus, Transformed};
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Level, Volume, brush_contains_node};
 
 /// Side of the reference region in nodes: 3 chunks, so shapes straddle chunk borders.
@@ -21,6 +21,19 @@ enum Shape {
     Cylinder { c: DVec3, axis: DVec3, h: f64, r: f64 },
     Torus { c: DVec3, axis: DVec3, major: f64, minor: f64 },
     ScaledSphere { c: DVec3, rot: DVec3, scale: f64 },
+    /// An octahedron mesh, closed or with one face missing, rotated and scaled.
+    Mesh { c: DVec3, rot: DVec3, scale: f64, open: bool },
+    /// A user field (a ball) with Lipschitz bound 1.
+    Field { c: DVec3, r: f64 },
+}
+
+fn octahedron(open: bool) -> MeshBrush {
+    let v = [DVec3::X, -DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z];
+    let mut t = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    if open {
+        t.pop();
+    }
+    MeshBrush::new(&v, &t, MeshRule::EvenOdd).unwrap()
 }
 
 impl Shape {
@@ -38,6 +51,15 @@ impl Shape {
             Shape::ScaledSphere { c, rot, scale } => {
                 let q = DQuat::from_euler(glam::EulerRot::XYZ, rot.x, rot.y, rot.z);
                 Box::new(Transformed::new(Sphere::new(DVec3::new(0.5, -0.25, 0.0), 1.5).unwrap(), q, c + offset, scale).unwrap())
+            }
+            Shape::Mesh { c, rot, scale, open } => {
+                let q = DQuat::from_euler(glam::EulerRot::XYZ, rot.x, rot.y, rot.z);
+                Box::new(Transformed::new(octahedron(open), q, c + offset, scale).unwrap())
+            }
+            Shape::Field { c, r } => {
+                let center = c + offset;
+                let f = move |p: DVec3| (p - center).length() - r;
+                Box::new(SdfBrush::new(f, Aabb::new(center - r, center + r), 1.0).unwrap())
             }
         }
     }
@@ -85,6 +107,8 @@ fn shape() -> impl Strategy<Value = Shape> {
         1 => (point(), direction(), size(), size()).prop_map(|(c, axis, h, r)| Shape::Cylinder { c, axis, h, r }),
         1 => (point(), direction(), size(), size()).prop_map(|(c, axis, major, minor)| Shape::Torus { c, axis, major, minor }),
         1 => (point(), angles(), size()).prop_map(|(c, rot, scale)| Shape::ScaledSphere { c, rot, scale }),
+        1 => (point(), angles(), size(), any::<bool>()).prop_map(|(c, rot, scale, open)| Shape::Mesh { c, rot, scale, open }),
+        1 => (point(), size()).prop_map(|(c, r)| Shape::Field { c, r }),
     ]
 }
 
@@ -179,8 +203,12 @@ fn run(edits: &[(CsgOp, Shape)], offset_cells: i64) -> Result<(), TestCaseError>
         if let Err(e) = volume.check_invariants() {
             return Err(TestCaseError::fail(format!("edit {i} ({op:?} {shape:?}): {e}")));
         }
-        prop_assert_eq!(report.repaired_nodes, 0);
-        dense.compare(&volume, Some(&report.changed))?;
+        if brush.lines_agree() {
+            prop_assert_eq!(report.repaired_nodes, 0);
+        }
+        dense
+            .compare(&volume, Some(&report.changed))
+            .map_err(|e| TestCaseError::fail(format!("after edit {i} ({op:?} {shape:?}): {e}")))?;
     }
     dense.compare(&volume, None)
 }
@@ -190,7 +218,7 @@ fn cases() -> u32 {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: cases(), max_shrink_iters: 200, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: cases(), max_shrink_iters: 20, ..ProptestConfig::default() })]
 
     #[test]
     fn random_edit_sequences_match_a_dense_reference(edits in proptest::collection::vec((op(), shape()), 200..230)) {

@@ -7,8 +7,8 @@
 //!
 //! Inside is decided by [`MeshRule`]. A mesh that is not closed (holes, unwelded vertices) is
 //! still accepted: along each line an unmatched last crossing is ignored (the line is outside
-//! after it), node states are taken from the x lines (the predicate is the rule applied to the
-//! +x ray from the node) and the volume repairs the y and z lines to match, so the result is a
+//! after it), node states are taken from the x lines (the predicate is: the node lies in a span
+//! of the x line through it) and the volume repairs the y and z lines to match, so the result is a
 //! consistent solid close to what the mesh encloses, never a crash.
 
 use std::collections::HashMap;
@@ -268,19 +268,19 @@ impl Brush for MeshBrush {
         if self.contains(origin, p) { -1.0 } else { 1.0 }
     }
 
+    /// Inside iff the point lies in one of the spans of the x line through it, so the
+    /// predicate and the x lines agree, closed mesh or not.
     fn contains(&self, origin: DVec3, p: DVec3) -> bool {
-        let o = origin + p;
-        if !self.bounds.contains(o) {
+        self.contains_on_line(origin, p, DVec3::X)
+    }
+
+    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+        if !self.bounds.expand(1e-9 * (1.0 + self.bounds.max.abs().max_element())).contains(origin + p) {
             return false;
         }
-        let (mut crossings, mut winding) = (0, 0);
-        self.for_each_hit(o, DVec3::X, |t, facing, _| {
-            if t >= 0.0 {
-                crossings += 1;
-                winding -= facing;
-            }
-        });
-        self.inside(crossings, winding)
+        let mut spans = Vec::new();
+        self.spans(origin, p, dir, &mut spans);
+        spans.iter().any(|s| s.enter <= 0.0 && 0.0 <= s.exit)
     }
 
     fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {

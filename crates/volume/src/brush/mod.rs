@@ -128,6 +128,15 @@ pub trait Brush: Send + Sync {
         self.field(origin, p) <= 0.0
     }
 
+    /// The inside predicate for brushes whose inside depends on a ray direction (meshes with
+    /// holes): inside as seen along the line through the point with direction `dir`. The volume
+    /// defines node states by `contains`, which transformed brushes answer along the world x
+    /// axis through this method. Defaults to `contains`.
+    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+        let _ = dir;
+        self.contains(origin, p)
+    }
+
     /// The outward unit normal near the surface point `origin + p`.
     fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
         let e = 1e-5;
@@ -166,6 +175,9 @@ impl<B: Brush + ?Sized> Brush for &B {
     fn contains(&self, origin: DVec3, p: DVec3) -> bool {
         (**self).contains(origin, p)
     }
+    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+        (**self).contains_on_line(origin, p, dir)
+    }
     fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
         (**self).normal(origin, p)
     }
@@ -189,6 +201,9 @@ impl<B: Brush + ?Sized> Brush for Box<B> {
     }
     fn contains(&self, origin: DVec3, p: DVec3) -> bool {
         (**self).contains(origin, p)
+    }
+    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+        (**self).contains_on_line(origin, p, dir)
     }
     fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
         (**self).normal(origin, p)

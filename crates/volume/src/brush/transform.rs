@@ -54,7 +54,12 @@ impl<B: Brush> Brush for Transformed<B> {
     }
 
     fn contains(&self, origin: DVec3, p: DVec3) -> bool {
-        self.inner.contains(DVec3::ZERO, self.to_local(origin, p))
+        self.contains_on_line(origin, p, DVec3::X)
+    }
+
+    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+        let local_dir = self.inverse_rotation * dir / self.scale;
+        self.inner.contains_on_line(DVec3::ZERO, self.to_local(origin, p), local_dir)
     }
 
     fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
