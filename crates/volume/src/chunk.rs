@@ -20,7 +20,11 @@ use crate::coords::{Level, LocalPos, edge_of};
 use crate::normal::PackedNormal;
 
 /// The crossing lists of a chunk that is neither all empty nor all solid.
+///
+/// Deserialisation checks the structure (see [`crate::Volume::check_invariants`] for what) and
+/// rejects malformed data with an error instead of storing it.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "RawChunkLists")]
 pub struct ChunkLists {
     level: Level,
     bits: Box<[u64]>,
@@ -28,6 +32,36 @@ pub struct ChunkLists {
     axis_start: [(u32, u32); 3],
     positions: Box<[LocalPos]>,
     normals: Box<[PackedNormal]>,
+}
+
+/// Unchecked deserialised form of [`ChunkLists`].
+#[derive(Deserialize)]
+struct RawChunkLists {
+    level: Level,
+    bits: Box<[u64]>,
+    axis_start: [(u32, u32); 3],
+    positions: Box<[LocalPos]>,
+    normals: Box<[PackedNormal]>,
+}
+
+impl TryFrom<RawChunkLists> for ChunkLists {
+    type Error = String;
+
+    fn try_from(r: RawChunkLists) -> Result<Self, String> {
+        let lists = ChunkLists {
+            level: r.level,
+            bits: r.bits,
+            axis_start: r.axis_start,
+            positions: r.positions,
+            normals: r.normals,
+        };
+        let n = lists.level.cells();
+        if lists.bits.len() * 64 < 6 * n * n + lists.positions.len() {
+            return Err("chunk bit stream too short".into());
+        }
+        check_lists(&lists)?;
+        Ok(lists)
+    }
 }
 
 /// A stored chunk. Chunks missing from the volume's map are all empty.

@@ -65,7 +65,22 @@ impl ChunkKey {
 
 /// A per-chunk resolution level: level `k` has `16 << k` cells along each side of the chunk.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(try_from = "u8", into = "u8")]
 pub struct Level(u8);
+
+impl TryFrom<u8> for Level {
+    type Error = String;
+
+    fn try_from(k: u8) -> Result<Self, String> {
+        Level::new(k).ok_or_else(|| format!("resolution level {k} is above the maximum {MAX_LEVEL}"))
+    }
+}
+
+impl From<Level> for u8 {
+    fn from(l: Level) -> u8 {
+        l.0
+    }
+}
 
 impl Level {
     /// The base level, 16 cells per chunk side.

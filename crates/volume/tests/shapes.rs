@@ -280,3 +280,42 @@ fn finer_levels_store_finer_lines() {
         assert_eq!(block.repaired(), 0);
     }
 }
+
+#[test]
+fn volumes_round_trip_through_serde_and_corrupted_bytes_never_panic() {
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(3.0, 5.0, 7.0), 12.0).unwrap()).unwrap();
+    v.subtract(&Cuboid::new(DVec3::new(9.0, 5.0, 7.0), DVec3::splat(5.0)).unwrap()).unwrap();
+    let bytes = postcard::to_allocvec(&v).unwrap();
+    let back: Volume = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(back, v);
+    let mut seed = 99u64;
+    let mut accepted = 0;
+    for round in 0..3000 {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let mut b = bytes.clone();
+        match round % 3 {
+            0 => b.truncate((seed >> 33) as usize % b.len()),
+            _ => {
+                for k in 0..1 + round % 4 {
+                    let i = ((seed >> (7 + k)) as usize) % b.len();
+                    b[i] ^= 1 << ((seed >> 40) % 8);
+                }
+            }
+        }
+        if let Ok(c) = postcard::from_bytes::<Volume>(&b) {
+            // Whatever decodes is structurally sound enough to query without panicking.
+            accepted += 1;
+            let _ = c.check_invariants();
+            let _ = c.memory();
+            let _ = c.crossing_stats();
+            let _ = c.measured_volume(Axis::Y);
+            let _ = c.raycast(DVec3::new(-40.0, 5.0, 7.0), DVec3::X, 100.0);
+            let keys: Vec<ChunkKey> = c.chunks().map(|(k, _)| k).collect();
+            for k in keys {
+                let _ = c.extract_block(k);
+            }
+        }
+    }
+    assert!(accepted < 3000);
+}
