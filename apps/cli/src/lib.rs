@@ -40,7 +40,11 @@ fn demo_steps(scale: f64) -> Result<Vec<Step>> {
         Step {
             what: "handle: capsule",
             op: CsgOp::Add,
-            brush: Box::new(Capsule::new(c - DVec3::new(30.0, 0.0, 0.0) * s, c + DVec3::new(-30.0, 25.0, 10.0) * s, 4.0 * s)?),
+            brush: Box::new(Capsule::new(
+                c - DVec3::new(30.0, 0.0, 0.0) * s,
+                c + DVec3::new(-30.0, 25.0, 10.0) * s,
+                4.0 * s,
+            )?),
         },
         Step {
             what: "trim: intersect with a big box",

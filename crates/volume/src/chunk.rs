@@ -127,13 +127,7 @@ impl ChunkLists {
     pub(crate) fn cursor(&self, axis: Axis, index: usize) -> LineCursor<'_> {
         let (b0, c0) = self.axis_start[axis.index()];
         let (bitpos, ones) = skip_zeros(&self.bits, self.unary_offset() + b0 as usize, index);
-        LineCursor {
-            lists: self,
-            axis,
-            index,
-            bit: bitpos,
-            cross: c0 as usize + ones,
-        }
+        LineCursor { lists: self, axis, index, bit: bitpos, cross: c0 as usize + ones }
     }
 
     /// Bytes held by positions, normals and the bit stream plus this struct (its box).
@@ -230,11 +224,7 @@ pub(crate) struct WorkLine {
 }
 
 impl WorkLine {
-    pub(crate) const EMPTY: WorkLine = WorkLine {
-        states: 0,
-        pos: [0; MAX_NODES - 1],
-        nrm: [0; MAX_NODES - 1],
-    };
+    pub(crate) const EMPTY: WorkLine = WorkLine { states: 0, pos: [0; MAX_NODES - 1], nrm: [0; MAX_NODES - 1] };
 
     /// Unpacks a stored line.
     pub(crate) fn load(&mut self, line: LineRef<'_>, level: Level) {
@@ -368,10 +358,7 @@ impl ChunkBuilder {
         if self.positions.is_empty() {
             return Built::Uniform(self.starts.len > 0 && bit(&self.starts.words, 0));
         }
-        let mut all = BitBuf {
-            words: Vec::with_capacity((self.starts.len + self.unary.len).div_ceil(64)),
-            len: 0,
-        };
+        let mut all = BitBuf { words: Vec::with_capacity((self.starts.len + self.unary.len).div_ceil(64)), len: 0 };
         all.extend_from(&self.starts.words, 0, self.starts.len);
         all.extend_from(&self.unary.words, 0, self.unary.len);
         Built::Lists(ChunkLists {
@@ -413,13 +400,11 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
                 return Err("unary count stream ends early".into());
             }
             bitpos += 1;
-            let pos = lists
-                .positions
-                .get(cross..cross + count)
-                .ok_or("count stream names more crossings than stored")?;
+            let pos =
+                lists.positions.get(cross..cross + count).ok_or("count stream names more crossings than stored")?;
             let mut last_edge: Option<usize> = None;
             for &q in pos {
-                if q as u32 % s == 0 {
+                if (q as u32).is_multiple_of(s) {
                     return Err(format!("{axis:?} line {index}: crossing {q} sits on a node"));
                 }
                 let e = edge_of(q, lists.level);

@@ -56,9 +56,7 @@ impl ChunkKey {
     /// The chunk holding the grid point `p_grid` (a point on a chunk's minimum face belongs to it).
     pub fn containing(p_grid: DVec3) -> Option<ChunkKey> {
         let c = (p_grid / CHUNK_CELLS as f64).floor();
-        let ok = c.is_finite()
-            && c.abs().max_element() <= i32::MAX as f64
-            && c.min_element() >= i32::MIN as f64;
+        let ok = c.is_finite() && c.abs().max_element() <= i32::MAX as f64 && c.min_element() >= i32::MIN as f64;
         ok.then(|| ChunkKey(c.as_ivec3()))
     }
 }

@@ -7,8 +7,8 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::axis::Axis;
-use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::axis::compose;
+use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineCursor, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos};
 use crate::normal::{PackedNormal, pack_normal, unpack_normal};
@@ -314,7 +314,8 @@ impl Volume {
             keys.iter().filter_map(|&k| run(&mut s, k)).collect()
         };
         results.sort_by_key(|r| r.0);
-        let mut report = EditReport { changed: Vec::with_capacity(results.len()), undo: UndoRecord::default(), repaired_nodes: 0 };
+        let mut report =
+            EditReport { changed: Vec::with_capacity(results.len()), undo: UndoRecord::default(), repaired_nodes: 0 };
         report.undo.previous.reserve(results.len());
         for (key, built, repaired) in results {
             let previous = match built.into_chunk() {
@@ -410,7 +411,13 @@ fn across_range(bounds: &Aabb, origin: I64Vec3, axis: Axis, level: Level) -> Opt
 
 /// Edits one chunk. Returns `None` when nothing changed, else the new chunk and the number of
 /// repaired brush nodes.
-fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level, s: &mut Scratch) -> Option<(Built, u64)> {
+fn edit_chunk(
+    ctx: &EditCtx<'_>,
+    key: ChunkKey,
+    old: ChunkView<'_>,
+    level: Level,
+    s: &mut Scratch,
+) -> Option<(Built, u64)> {
     let n = level.cells();
     let origin = key.origin_grid();
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
@@ -473,12 +480,13 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
                 if inside_box {
                     match table_level {
                         Some((t, offset)) => {
-                            let spans = t.axes[axis.index()].line(offset[ua.index()] + u as i64, offset[va.index()] + v as i64);
+                            let spans =
+                                t.axes[axis.index()].line(offset[ua.index()] + u as i64, offset[va.index()] + v as i64);
                             let shift = (origin[axis.index()] - t.base[axis.index()]) as f64;
                             if spans.is_empty() {
                                 brush_line.states = 0;
                             } else {
-                                sampler.from_spans(spans, shift, at(axis, u, v), &mut brush_line);
+                                sampler.fill_from_spans(spans, shift, at(axis, u, v), &mut brush_line);
                             }
                         }
                         None => sampler.sample(at(axis, u, v), &mut brush_line),
@@ -505,7 +513,13 @@ fn edit_chunk(ctx: &EditCtx<'_>, key: ChunkKey, old: ChunkView<'_>, level: Level
                     // The brush fills the line: the result is a full or an empty line.
                     let now = ctx.op == CsgOp::Add;
                     if line.start_inside != now || !line.positions.is_empty() {
-                        s.changed.push(ChangedLine { axis: axis as u8, index: index as u32, start_inside: now, first: 0, count: 0 });
+                        s.changed.push(ChangedLine {
+                            axis: axis as u8,
+                            index: index as u32,
+                            start_inside: now,
+                            first: 0,
+                            count: 0,
+                        });
                     }
                     continue;
                 }
@@ -570,9 +584,8 @@ fn covers_chunk(t: &SpanTable, offset: I64Vec3, origin: I64Vec3, n: usize) -> bo
     for z in 0..=n as i64 {
         for y in 0..=n as i64 {
             let spans = t.axes[0].line(offset.y + y, offset.z + z);
-            let covered = spans
-                .iter()
-                .any(|s| s.enter - shift < -SNAP_DISTANCE && s.exit - shift > end + SNAP_DISTANCE);
+            let covered =
+                spans.iter().any(|s| s.enter - shift < -SNAP_DISTANCE && s.exit - shift > end + SNAP_DISTANCE);
             if !covered {
                 return false;
             }
@@ -640,7 +653,7 @@ mod tests {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (seed >> 33) as u32
         };
-        let mut random_line = |rnd: &mut dyn FnMut() -> u32| {
+        let random_line = |rnd: &mut dyn FnMut() -> u32| {
             let mut l = WorkLine::EMPTY;
             l.states = (rnd() as u128 | ((rnd() as u128) << 32)) & node_mask(n);
             for e in 0..n {

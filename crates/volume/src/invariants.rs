@@ -80,9 +80,7 @@ impl Volume {
                             return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
                         }
                         if prev_missing && line.start_inside {
-                            return Err(fail(format!(
-                                "{axis:?} line ({u}, {v}) starts inside after an empty chunk"
-                            )));
+                            return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
                         }
                     }
                 }
@@ -91,4 +89,3 @@ impl Volume {
         Ok(())
     }
 }
-

@@ -48,7 +48,8 @@ pub(crate) fn hash_table_bytes(capacity: usize, slot: usize) -> usize {
     if capacity == 0 {
         return 0;
     }
-    let buckets = if capacity < 8 { (capacity + 1).next_power_of_two() } else { (capacity * 8 / 7).next_power_of_two() };
+    let buckets =
+        if capacity < 8 { (capacity + 1).next_power_of_two() } else { (capacity * 8 / 7).next_power_of_two() };
     buckets * slot + buckets + 16
 }
 

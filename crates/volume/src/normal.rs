@@ -28,11 +28,7 @@ pub fn unpack_normal(p: PackedNormal) -> DVec3 {
     let x = (p & 0xff) as f64 / 255.0 * 2.0 - 1.0;
     let y = (p >> 8) as f64 / 255.0 * 2.0 - 1.0;
     let z = 1.0 - x.abs() - y.abs();
-    let (x, y) = if z < 0.0 {
-        ((1.0 - y.abs()) * sign(x), (1.0 - x.abs()) * sign(y))
-    } else {
-        (x, y)
-    };
+    let (x, y) = if z < 0.0 { ((1.0 - y.abs()) * sign(x), (1.0 - x.abs()) * sign(y)) } else { (x, y) };
     DVec3::new(x, y, z).normalize()
 }
 

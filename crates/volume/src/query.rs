@@ -120,7 +120,7 @@ impl Volume {
         let mut block = VoxelBlock::default();
         let chunk_size = CHUNK_CELLS as f64;
         for (cell, t0, t1, entry_axis) in Dda::new(origin / chunk_size, dir / chunk_size, max_t) {
-            let Some(key) = key_of(cell) else { return None };
+            let key = key_of(cell)?;
             let entry_normal = entry_normal(entry_axis, dir);
             match self.view(key) {
                 ChunkView::Uniform(false) => {}

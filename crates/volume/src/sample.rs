@@ -97,13 +97,7 @@ impl LineAt {
 
 impl<'a> LineSampler<'a> {
     pub(crate) fn new(brush: &'a dyn Brush, flip: bool) -> Self {
-        LineSampler {
-            brush,
-            bounds: brush.bounds().expand(SNAP_DISTANCE),
-            flip,
-            spans: Vec::new(),
-            packed: Vec::new(),
-        }
+        LineSampler { brush, bounds: brush.bounds().expand(SNAP_DISTANCE), flip, spans: Vec::new(), packed: Vec::new() }
     }
 
     /// Fills `out` with the brush's states and crossings on one chunk line, asking the brush.
@@ -130,16 +124,16 @@ impl<'a> LineSampler<'a> {
             let mut packed = std::mem::take(&mut self.packed);
             packed.clear();
             packed.extend(spans.iter().map(|s| PackedSpan::pack(s, self.flip)));
-            self.from_spans(&packed, 0.0, at, out);
+            self.fill_from_spans(&packed, 0.0, at, out);
             self.packed = packed;
         } else {
-            self.from_samples(origin, start, n, lo[a], hi[a], at, out);
+            self.fill_from_samples(origin, start, n, lo[a], hi[a], at, out);
         }
         self.spans = spans;
     }
 
     /// Fills `out` from spans whose parameter is `shift` grid units ahead of the line's node 0.
-    pub(crate) fn from_spans(&self, spans: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
+    pub(crate) fn fill_from_spans(&self, spans: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
         let n = at.level.cells();
         let sp = at.level.spacing();
         let inv_sp = at.level.nodes_per_unit();
@@ -213,7 +207,16 @@ impl<'a> LineSampler<'a> {
         }
     }
 
-    fn from_samples(&self, origin: DVec3, start: DVec3, n: usize, t_lo: f64, t_hi: f64, at: LineAt, out: &mut WorkLine) {
+    fn fill_from_samples(
+        &self,
+        origin: DVec3,
+        start: DVec3,
+        n: usize,
+        t_lo: f64,
+        t_hi: f64,
+        at: LineAt,
+        out: &mut WorkLine,
+    ) {
         let sp = at.level.spacing();
         let dir = at.axis.unit();
         let brush = self.brush;
@@ -224,6 +227,7 @@ impl<'a> LineSampler<'a> {
         let mut values = [f64::NAN; crate::chunk::MAX_NODES];
         let mut skip_until = 0usize;
         let mut skip_state = false;
+        #[allow(clippy::needless_range_loop)] // j is a node index used for more than `values`
         for j in 0..=n {
             let t = j as f64 * sp;
             if t < t_lo || t > t_hi {
@@ -338,7 +342,7 @@ fn floor_clamped(x: f64, n: usize) -> Option<usize> {
 #[inline]
 fn nearest_node(x: f64, n: usize) -> Option<usize> {
     let r = x + 0.5;
-    (r >= 0.0 && r < (n + 1) as f64).then(|| r as usize)
+    (r >= 0.0 && r < (n + 1) as f64).then_some(r as usize)
 }
 
 /// Illinois-modified regula falsi on a bracket with `f(lo)` and `f(hi)` of opposite signs.

@@ -7,7 +7,9 @@
 
 use glam::{DQuat, DVec3, I64Vec3};
 use proptest::prelude::*;
-use strata_volume::brush::{Aabb, Brush, Capsule, Cuboid, Cylinder, MeshBrush, MeshRule, SdfBrush, Sphere, Torus, Transformed};
+use strata_volume::brush::{
+    Aabb, Brush, Capsule, Cuboid, Cylinder, MeshBrush, MeshRule, SdfBrush, Sphere, Torus, Transformed,
+};
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Level, Volume, brush_contains_node};
 
 /// Side of the reference region in nodes: 3 chunks, so shapes straddle chunk borders.
@@ -15,16 +17,50 @@ const SIDE: i64 = 48;
 
 #[derive(Clone, Debug)]
 enum Shape {
-    Sphere { c: DVec3, r: f64 },
-    Box { c: DVec3, half: DVec3, rounding: f64, rot: Option<DVec3> },
-    Capsule { a: DVec3, b: DVec3, r: f64 },
-    Cylinder { c: DVec3, axis: DVec3, h: f64, r: f64 },
-    Torus { c: DVec3, axis: DVec3, major: f64, minor: f64 },
-    ScaledSphere { c: DVec3, rot: DVec3, scale: f64 },
+    Sphere {
+        c: DVec3,
+        r: f64,
+    },
+    Box {
+        c: DVec3,
+        half: DVec3,
+        rounding: f64,
+        rot: Option<DVec3>,
+    },
+    Capsule {
+        a: DVec3,
+        b: DVec3,
+        r: f64,
+    },
+    Cylinder {
+        c: DVec3,
+        axis: DVec3,
+        h: f64,
+        r: f64,
+    },
+    Torus {
+        c: DVec3,
+        axis: DVec3,
+        major: f64,
+        minor: f64,
+    },
+    ScaledSphere {
+        c: DVec3,
+        rot: DVec3,
+        scale: f64,
+    },
     /// An octahedron mesh, closed or with one face missing, rotated and scaled.
-    Mesh { c: DVec3, rot: DVec3, scale: f64, open: bool },
+    Mesh {
+        c: DVec3,
+        rot: DVec3,
+        scale: f64,
+        open: bool,
+    },
     /// A user field (a ball) with Lipschitz bound 1.
-    Field { c: DVec3, r: f64 },
+    Field {
+        c: DVec3,
+        r: f64,
+    },
 }
 
 fn octahedron(open: bool) -> MeshBrush {
@@ -40,7 +76,9 @@ impl Shape {
     fn brush(&self, offset: DVec3) -> Box<dyn Brush> {
         match *self {
             Shape::Sphere { c, r } => Box::new(Sphere::new(c + offset, r).unwrap()),
-            Shape::Box { c, half, rounding, rot: None } => Box::new(Cuboid::rounded(c + offset, half, rounding).unwrap()),
+            Shape::Box { c, half, rounding, rot: None } => {
+                Box::new(Cuboid::rounded(c + offset, half, rounding).unwrap())
+            }
             Shape::Box { c, half, rounding, rot: Some(e) } => {
                 let q = DQuat::from_euler(glam::EulerRot::XYZ, e.x, e.y, e.z);
                 Box::new(Cuboid::oriented(c + offset, half, q, rounding).unwrap())
@@ -50,7 +88,10 @@ impl Shape {
             Shape::Torus { c, axis, major, minor } => Box::new(Torus::new(c + offset, axis, major, minor).unwrap()),
             Shape::ScaledSphere { c, rot, scale } => {
                 let q = DQuat::from_euler(glam::EulerRot::XYZ, rot.x, rot.y, rot.z);
-                Box::new(Transformed::new(Sphere::new(DVec3::new(0.5, -0.25, 0.0), 1.5).unwrap(), q, c + offset, scale).unwrap())
+                Box::new(
+                    Transformed::new(Sphere::new(DVec3::new(0.5, -0.25, 0.0), 1.5).unwrap(), q, c + offset, scale)
+                        .unwrap(),
+                )
             }
             Shape::Mesh { c, rot, scale, open } => {
                 let q = DQuat::from_euler(glam::EulerRot::XYZ, rot.x, rot.y, rot.z);

@@ -3,7 +3,9 @@
 use std::f64::consts::PI;
 
 use glam::{DQuat, DVec3, I64Vec3};
-use strata_volume::brush::{Brush, Capsule, Cuboid, Cylinder, MeshBrush, MeshRule, SdfBrush, Sphere, Torus, Transformed};
+use strata_volume::brush::{
+    Brush, Capsule, Cuboid, Cylinder, MeshBrush, MeshRule, SdfBrush, Sphere, Torus, Transformed,
+};
 use strata_volume::{Axis, ChunkKey, CsgOp, EditError, EditSettings, Volume, brush_contains_node};
 
 fn relative_error(measured: f64, exact: f64) -> f64 {
@@ -54,12 +56,9 @@ fn other_shapes_have_their_analytic_volumes() {
     assert_volume_close(&obox, rounded, 0.01);
     let scaled = Transformed::new(Sphere::new(DVec3::ZERO, 2.0).unwrap(), rot, c, 8.0).unwrap();
     assert_volume_close(&scaled, 4.0 / 3.0 * PI * 16f64.powi(3), 0.005);
-    let field = SdfBrush::new(
-        move |p| (p - c).length() - 14.0,
-        strata_volume::brush::Aabb::new(c - 15.0, c + 15.0),
-        1.0,
-    )
-    .unwrap();
+    let field =
+        SdfBrush::new(move |p| (p - c).length() - 14.0, strata_volume::brush::Aabb::new(c - 15.0, c + 15.0), 1.0)
+            .unwrap();
     assert_volume_close(&field, 4.0 / 3.0 * PI * 14f64.powi(3), 0.01);
 }
 
@@ -80,8 +79,11 @@ fn the_same_edits_a_million_cells_away_store_identical_chunk_local_data() {
         let t = Torus::new(DVec3::new(-5.0, 2.5, 1.0) + offset, DVec3::new(1.0, 1.0, 0.0), 8.0, 2.5).unwrap();
         v.add(&t).unwrap();
         let rot = DQuat::from_rotation_y(0.4);
-        v.add(&Transformed::new(Cuboid::new(DVec3::ZERO, DVec3::new(3.0, 4.0, 5.0)).unwrap(), rot, offset + 9.0, 1.5).unwrap())
-            .unwrap();
+        v.add(
+            &Transformed::new(Cuboid::new(DVec3::ZERO, DVec3::new(3.0, 4.0, 5.0)).unwrap(), rot, offset + 9.0, 1.5)
+                .unwrap(),
+        )
+        .unwrap();
         v.check_invariants().unwrap();
         v
     };
@@ -217,7 +219,11 @@ fn huge_and_degenerate_brushes_are_refused_and_leave_the_volume_unchanged() {
     assert!(v.add(&Sphere::new(DVec3::new(30.5, 30.5, 30.5), 0.1).unwrap()).unwrap().changed.is_empty());
     v.add(&Sphere::new(DVec3::new(30.0, 30.0, 30.0), 0.1).unwrap()).unwrap();
     assert!(v.node_inside(I64Vec3::new(30, 30, 30)));
-    assert!(brush_contains_node(&Sphere::new(DVec3::new(30.0, 30.0, 30.0), 0.1).unwrap(), I64Vec3::new(30, 30, 30), v.level()));
+    assert!(brush_contains_node(
+        &Sphere::new(DVec3::new(30.0, 30.0, 30.0), 0.1).unwrap(),
+        I64Vec3::new(30, 30, 30),
+        v.level()
+    ));
     v.check_invariants().unwrap();
 }
 

@@ -166,7 +166,13 @@ fn build(tris: &[[DVec3; 3]], order: &mut [u32], start: usize, end: usize, nodes
     };
     let cb = Aabb::from_points(items.iter().map(|&i| centroid(i))).expect("non-empty");
     let ext = cb.max - cb.min;
-    let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+    let axis = if ext.x >= ext.y && ext.x >= ext.z {
+        0
+    } else if ext.y >= ext.z {
+        1
+    } else {
+        2
+    };
     if ext[axis] == 0.0 {
         return me;
     }
@@ -206,14 +212,16 @@ struct RayFrame {
 impl RayFrame {
     fn new(o: DVec3, d: DVec3) -> Self {
         let a = d.abs();
-        let kz = if a.x >= a.y && a.x >= a.z { 0 } else if a.y >= a.z { 1 } else { 2 };
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
         let kx = (kz + 1) % 3;
         let ky = (kx + 1) % 3;
-        RayFrame {
-            o,
-            k: [kx, ky, kz],
-            shear: DVec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]),
-        }
+        RayFrame { o, k: [kx, ky, kz], shear: DVec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]) }
     }
 
     #[inline]
@@ -330,14 +338,7 @@ mod tests {
 
     /// An octahedron with vertices on the axes at distance `r`, counter-clockwise from outside.
     pub(crate) fn octahedron(r: f64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
-        let v = vec![
-            DVec3::X * r,
-            -DVec3::X * r,
-            DVec3::Y * r,
-            -DVec3::Y * r,
-            DVec3::Z * r,
-            -DVec3::Z * r,
-        ];
+        let v = vec![DVec3::X * r, -DVec3::X * r, DVec3::Y * r, -DVec3::Y * r, DVec3::Z * r, -DVec3::Z * r];
         let t = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
         (v, t)
     }
@@ -370,10 +371,7 @@ mod tests {
     fn bad_meshes_are_errors() {
         assert_eq!(MeshBrush::new(&[], &[], MeshRule::EvenOdd).unwrap_err(), MeshError::Empty);
         let v = [DVec3::ZERO, DVec3::X, DVec3::Y];
-        assert!(matches!(
-            MeshBrush::new(&v, &[[0, 1, 7]], MeshRule::EvenOdd),
-            Err(MeshError::IndexOutOfRange { .. })
-        ));
+        assert!(matches!(MeshBrush::new(&v, &[[0, 1, 7]], MeshRule::EvenOdd), Err(MeshError::IndexOutOfRange { .. })));
         assert_eq!(MeshBrush::new(&v, &[[0, 1, 1]], MeshRule::EvenOdd).unwrap_err(), MeshError::Empty);
         let nan = [DVec3::NAN, DVec3::X, DVec3::Y];
         assert_eq!(MeshBrush::new(&nan, &[[0, 1, 2]], MeshRule::EvenOdd).unwrap_err(), MeshError::NonFiniteVertex(0));

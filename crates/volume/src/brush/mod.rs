@@ -242,11 +242,7 @@ pub enum BrushError {
 }
 
 pub(crate) fn positive(what: &'static str, value: f64) -> Result<f64, BrushError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(BrushError::BadSize { what, value })
-    }
+    if value.is_finite() && value > 0.0 { Ok(value) } else { Err(BrushError::BadSize { what, value }) }
 }
 
 pub(crate) fn finite(what: &'static str, v: DVec3) -> Result<DVec3, BrushError> {
@@ -255,9 +251,5 @@ pub(crate) fn finite(what: &'static str, v: DVec3) -> Result<DVec3, BrushError> 
 
 pub(crate) fn unit_rotation(what: &'static str, q: DQuat) -> Result<DQuat, BrushError> {
     let l = q.length();
-    if q.is_finite() && l > 1e-12 {
-        Ok(q / l)
-    } else {
-        Err(BrushError::NotFinite { what })
-    }
+    if q.is_finite() && l > 1e-12 { Ok(q / l) } else { Err(BrushError::NotFinite { what }) }
 }

@@ -15,10 +15,7 @@ pub struct Sphere {
 impl Sphere {
     /// A ball of `radius` cells around `center` (grid coordinates).
     pub fn new(center: DVec3, radius: f64) -> Result<Self, BrushError> {
-        Ok(Sphere {
-            center: finite("sphere centre", center)?,
-            radius: positive("sphere radius", radius)?,
-        })
+        Ok(Sphere { center: finite("sphere centre", center)?, radius: positive("sphere radius", radius)? })
     }
 
     /// The centre.
@@ -227,9 +224,8 @@ pub struct Cylinder {
 impl Cylinder {
     /// A cylinder around `center` whose axis points along `axis` (any non-zero length).
     pub fn new(center: DVec3, axis: DVec3, half_height: f64, radius: f64) -> Result<Self, BrushError> {
-        let axis = finite("cylinder axis", axis)?
-            .try_normalize()
-            .ok_or(BrushError::NotFinite { what: "cylinder axis" })?;
+        let axis =
+            finite("cylinder axis", axis)?.try_normalize().ok_or(BrushError::NotFinite { what: "cylinder axis" })?;
         Ok(Cylinder {
             center: finite("cylinder centre", center)?,
             axis,
@@ -266,9 +262,7 @@ impl Torus {
     /// A torus around `center` in the plane perpendicular to `axis`, with ring radius `major`
     /// and tube radius `minor`.
     pub fn new(center: DVec3, axis: DVec3, major: f64, minor: f64) -> Result<Self, BrushError> {
-        let axis = finite("torus axis", axis)?
-            .try_normalize()
-            .ok_or(BrushError::NotFinite { what: "torus axis" })?;
+        let axis = finite("torus axis", axis)?.try_normalize().ok_or(BrushError::NotFinite { what: "torus axis" })?;
         Ok(Torus {
             center: finite("torus centre", center)?,
             axis,
