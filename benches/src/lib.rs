@@ -127,3 +127,20 @@ fn extract(volume: &Volume, keys: &[ChunkKey], parallel: bool, block: &mut Voxel
     }
     std::hint::black_box(&*block);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table1_workload_replays_identically_on_one_thread_and_with_rayon() {
+        let ins = table1_instructions(40, 12.0, 7);
+        assert_eq!(ins, table1_instructions(40, 12.0, 7), "the workload is seeded");
+        let a = replay(&ins, false);
+        let b = replay(&ins, true);
+        assert_eq!(a.volume, b.volume);
+        a.volume.check_invariants().unwrap();
+        assert!(a.changed_chunks > 0 && a.volume.memory().crossings > 0);
+        assert!(ins.iter().any(|i| i.op == CsgOp::Subtract) && ins.iter().any(|i| i.op == CsgOp::Add));
+    }
+}
