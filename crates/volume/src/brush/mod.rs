@@ -165,59 +165,39 @@ pub trait Brush: Send + Sync {
     }
 }
 
-impl<B: Brush + ?Sized> Brush for &B {
-    fn bounds(&self) -> Aabb {
-        (**self).bounds()
-    }
-    fn field(&self, origin: DVec3, p: DVec3) -> f64 {
-        (**self).field(origin, p)
-    }
-    fn contains(&self, origin: DVec3, p: DVec3) -> bool {
-        (**self).contains(origin, p)
-    }
-    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
-        (**self).contains_on_line(origin, p, dir)
-    }
-    fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
-        (**self).normal(origin, p)
-    }
-    fn lipschitz(&self) -> f64 {
-        (**self).lipschitz()
-    }
-    fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
-        (**self).spans(origin, start, dir, out)
-    }
-    fn lines_agree(&self) -> bool {
-        (**self).lines_agree()
-    }
+/// Forwards every `Brush` method through a pointer type.
+macro_rules! forward_brush {
+    ($($ptr:ty),*) => {$(
+        impl<B: Brush + ?Sized> Brush for $ptr {
+            fn bounds(&self) -> Aabb {
+                (**self).bounds()
+            }
+            fn field(&self, origin: DVec3, p: DVec3) -> f64 {
+                (**self).field(origin, p)
+            }
+            fn contains(&self, origin: DVec3, p: DVec3) -> bool {
+                (**self).contains(origin, p)
+            }
+            fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+                (**self).contains_on_line(origin, p, dir)
+            }
+            fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
+                (**self).normal(origin, p)
+            }
+            fn lipschitz(&self) -> f64 {
+                (**self).lipschitz()
+            }
+            fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
+                (**self).spans(origin, start, dir, out)
+            }
+            fn lines_agree(&self) -> bool {
+                (**self).lines_agree()
+            }
+        }
+    )*};
 }
 
-impl<B: Brush + ?Sized> Brush for Box<B> {
-    fn bounds(&self) -> Aabb {
-        (**self).bounds()
-    }
-    fn field(&self, origin: DVec3, p: DVec3) -> f64 {
-        (**self).field(origin, p)
-    }
-    fn contains(&self, origin: DVec3, p: DVec3) -> bool {
-        (**self).contains(origin, p)
-    }
-    fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
-        (**self).contains_on_line(origin, p, dir)
-    }
-    fn normal(&self, origin: DVec3, p: DVec3) -> DVec3 {
-        (**self).normal(origin, p)
-    }
-    fn lipschitz(&self) -> f64 {
-        (**self).lipschitz()
-    }
-    fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
-        (**self).spans(origin, start, dir, out)
-    }
-    fn lines_agree(&self) -> bool {
-        (**self).lines_agree()
-    }
-}
+forward_brush!(&B, Box<B>);
 
 /// A brush parameter that cannot make a solid.
 #[derive(Debug, Error, Clone, PartialEq)]
