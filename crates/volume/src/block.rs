@@ -108,6 +108,54 @@ impl VoxelBlock {
         self.repaired
     }
 
+    /// A block built from functions instead of a volume (for other representations and tests):
+    /// `inside(x, y, z)` for every node in `0..=n`, and `crossing(axis, lower, nodes differ)` the
+    /// position in `(0, 1)` and outward normal of the crossing on each edge whose nodes differ.
+    pub fn from_fn(
+        key: ChunkKey,
+        level: Level,
+        inside: impl Fn(usize, usize, usize) -> bool,
+        crossing: impl Fn(Axis, [usize; 3]) -> (f32, glam::Vec3),
+    ) -> VoxelBlock {
+        let mut b = VoxelBlock::default();
+        b.reset(key, level);
+        let n = b.n;
+        let m = n + 1;
+        for z in 0..m {
+            for y in 0..m {
+                let mut row = 0u128;
+                for x in 0..m {
+                    row |= (inside(x, y, z) as u128) << x;
+                }
+                b.rows[y + m * z] = row;
+            }
+        }
+        for axis in Axis::ALL {
+            let a = axis.index();
+            for z in 0..m {
+                for y in 0..m {
+                    for x in 0..m {
+                        let lower = [x, y, z];
+                        let mut upper = lower;
+                        upper[a] += 1;
+                        if upper[a] > n || b.inside(x, y, z) == b.inside(upper[0], upper[1], upper[2]) {
+                            continue;
+                        }
+                        let (t, normal) = crossing(axis, lower);
+                        let idx = b.node_index(x, y, z);
+                        b.lookup[a][idx] = b.crossings[a].len() as u32;
+                        b.crossings[a].push(EdgeCrossing {
+                            lower: lower.map(|c| c as u8),
+                            t: t.clamp(1e-6, 1.0 - 1e-6),
+                            normal: crate::normal::pack_normal(normal.as_dvec3()),
+                        });
+                    }
+                }
+            }
+        }
+        b
+    }
+
     fn reset(&mut self, key: ChunkKey, level: Level) {
         let n = level.cells();
         let m = n + 1;
