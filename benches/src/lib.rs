@@ -116,6 +116,48 @@ pub fn replay(instructions: &[Instruction], parallel: bool) -> Replay {
     r
 }
 
+/// Whole-frame times with marching cubes: per instruction, the edit plus the voxel blocks and
+/// meshes of every chunk whose mesh depends on a changed chunk (the paper's Table 2 work,
+/// without rendering).
+#[derive(Clone, Debug, Default)]
+pub struct FrameReplay {
+    /// Per-instruction frame times, in order.
+    pub frames: Vec<Duration>,
+    /// Triangles in the final mesh cache.
+    pub triangles: usize,
+}
+
+impl FrameReplay {
+    /// Mean frame time in milliseconds.
+    pub fn mean_ms(&self) -> f64 {
+        self.frames.iter().map(Duration::as_secs_f64).sum::<f64>() * 1e3 / self.frames.len().max(1) as f64
+    }
+
+    /// The `q`-quantile frame time in milliseconds (`q` in `[0, 1]`).
+    pub fn quantile_ms(&self, q: f64) -> f64 {
+        let mut v: Vec<f64> = self.frames.iter().map(|d| d.as_secs_f64() * 1e3).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(0.0)
+    }
+}
+
+/// Replays `instructions`, timing edit + remesh of affected chunks per instruction.
+pub fn replay_frames(instructions: &[Instruction], parallel: bool) -> FrameReplay {
+    let mut volume = Volume::new();
+    let mut cache = strata_mesh::MeshCache::new();
+    let settings = EditSettings { parallel, ..Default::default() };
+    let mut frames = Vec::with_capacity(instructions.len());
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(if parallel { 0 } else { 1 }).build().expect("thread pool");
+    for ins in instructions {
+        let brush = ins.brush();
+        let t0 = Instant::now();
+        let report = volume.apply(ins.op, &brush, &settings).expect("workload edits are valid");
+        pool.install(|| cache.update(&volume, &report.changed));
+        frames.push(t0.elapsed());
+    }
+    FrameReplay { frames, triangles: cache.triangle_count() }
+}
+
 fn extract(volume: &Volume, keys: &[ChunkKey], parallel: bool, block: &mut VoxelBlock, blocks: &mut Vec<VoxelBlock>) {
     if parallel {
         blocks.resize_with(keys.len().max(blocks.len()), VoxelBlock::default);

@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use strata_bench::{replay, table1_instructions};
+use strata_bench::{replay, replay_frames, table1_instructions};
 
 #[derive(Parser)]
 #[command(about = "Strata benchmark suite: prints markdown tables")]
@@ -27,11 +27,24 @@ enum Suite {
         #[arg(long, default_value_t = 2021)]
         seed: u64,
     },
+    /// Table 2 (marching cubes): whole-frame time of edit + voxel blocks + remesh, per radius.
+    FrameMc {
+        /// Instructions per radius.
+        #[arg(long, default_value_t = 1000)]
+        count: usize,
+        /// Radii to run.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![5.0, 10.0, 15.0, 20.0])]
+        radii: Vec<f64>,
+        /// Workload seed.
+        #[arg(long, default_value_t = 2021)]
+        seed: u64,
+    },
 }
 
 fn main() -> Result<()> {
     match Cli::parse().suite {
         Suite::Table1 { count, radii, seed } => table1(count, &radii, seed),
+        Suite::FrameMc { count, radii, seed } => frame_mc(count, &radii, seed),
     }
     Ok(())
 }
@@ -59,6 +72,26 @@ fn table1(count: usize, radii: &[f64], seed: u64) {
             mem.bytes_per_crossing(true),
             mem.bytes_per_crossing(false),
             stats.max_line,
+        );
+    }
+}
+
+fn frame_mc(count: usize, radii: &[f64], seed: u64) {
+    println!(
+        "| radius | mean 1 thread (ms) | p99 1 thread (ms) | mean rayon (ms) | p99 rayon (ms) | triangles at end |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|");
+    for &r in radii {
+        let ins = table1_instructions(count, r, seed);
+        let single = replay_frames(&ins, false);
+        let par = replay_frames(&ins, true);
+        println!(
+            "| {r} | {:.2} | {:.2} | {:.2} | {:.2} | {} |",
+            single.mean_ms(),
+            single.quantile_ms(0.99),
+            par.mean_ms(),
+            par.quantile_ms(0.99),
+            single.triangles
         );
     }
 }

@@ -23,10 +23,12 @@
 //! ```
 #![warn(missing_docs)]
 
+mod cache;
 mod cases;
 pub mod checks;
 mod marching;
 mod mesh;
 
+pub use cache::MeshCache;
 pub use marching::{mesh_block, mesh_volume, surface_chunks};
 pub use mesh::Mesh;

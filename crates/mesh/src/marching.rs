@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 
-use glam::{I64Vec3, IVec3};
+use glam::I64Vec3;
 use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, Volume, VoxelBlock};
@@ -74,13 +74,8 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
 /// The chunks whose cells can hold surface: every stored chunk and the chunks before it on
 /// each axis (their last cells end on the stored chunk's nodes).
 pub fn surface_chunks(volume: &Volume) -> Vec<ChunkKey> {
-    let mut keys: Vec<ChunkKey> = volume
-        .chunks()
-        .flat_map(|(k, _)| (0..8).map(move |d| k.offset(-IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
-        .collect();
-    keys.sort();
-    keys.dedup();
-    keys
+    let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
+    crate::MeshCache::dependents(&stored)
 }
 
 /// A crossing's identity in the whole volume: its axis and the global node at its lower end.

@@ -1,0 +1,123 @@
+//! Per-chunk meshes kept up to date incrementally after edits.
+
+use std::collections::HashMap;
+
+use glam::IVec3;
+use rayon::prelude::*;
+use strata_volume::{ChunkKey, Volume, VoxelBlock};
+
+use crate::{Mesh, mesh_block};
+
+/// Marching-cubes meshes by chunk. Positions are chunk-local (grid units from the chunk's
+/// origin), so far-away chunks keep full f32 precision; the renderer places each chunk.
+#[derive(Debug, Default, Clone)]
+pub struct MeshCache {
+    meshes: HashMap<ChunkKey, Mesh>,
+}
+
+impl MeshCache {
+    /// An empty cache.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Meshes every chunk of `volume` that can hold surface.
+    pub fn build(volume: &Volume) -> Self {
+        let mut cache = Self::new();
+        let keys = crate::surface_chunks(volume);
+        cache.remesh(volume, &keys);
+        cache
+    }
+
+    /// The chunks whose meshes depend on the chunks in `changed`: each changed chunk and the
+    /// seven chunks before it, which read it as their apron. Sorted, without repeats.
+    pub fn dependents(changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        let mut keys: Vec<ChunkKey> = changed
+            .iter()
+            .flat_map(|k| (0..8).map(move |d| k.offset(-IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
+            .collect();
+        keys.sort();
+        keys.dedup();
+        keys
+    }
+
+    /// Remeshes what an edit that changed `changed` can have affected, in parallel. Returns the
+    /// chunks whose mesh was rebuilt (upload those).
+    pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        let keys = Self::dependents(changed);
+        self.remesh(volume, &keys);
+        keys
+    }
+
+    fn remesh(&mut self, volume: &Volume, keys: &[ChunkKey]) {
+        let fresh: Vec<(ChunkKey, Mesh)> = keys
+            .par_iter()
+            .map_init(VoxelBlock::default, |block, &key| {
+                volume.extract_block_into(key, block);
+                let mut mesh = Mesh::default();
+                mesh_block(block, &mut mesh);
+                (key, mesh)
+            })
+            .collect();
+        for (key, mesh) in fresh {
+            if mesh.indices.is_empty() {
+                self.meshes.remove(&key);
+            } else {
+                self.meshes.insert(key, mesh);
+            }
+        }
+    }
+
+    /// The mesh of `key`, if it has triangles.
+    pub fn mesh(&self, key: ChunkKey) -> Option<&Mesh> {
+        self.meshes.get(&key)
+    }
+
+    /// All chunk meshes.
+    pub fn iter(&self) -> impl Iterator<Item = (ChunkKey, &Mesh)> {
+        self.meshes.iter().map(|(k, m)| (*k, m))
+    }
+
+    /// Number of chunks with triangles.
+    pub fn len(&self) -> usize {
+        self.meshes.len()
+    }
+
+    /// Whether no chunk has triangles.
+    pub fn is_empty(&self) -> bool {
+        self.meshes.is_empty()
+    }
+
+    /// Total triangles over all chunks.
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.values().map(Mesh::triangle_count).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+    use strata_volume::brush::Sphere;
+
+    #[test]
+    fn incremental_updates_equal_a_full_rebuild() {
+        let mut volume = Volume::new();
+        let mut cache = MeshCache::new();
+        let mut seed = 3u64;
+        for i in 0..60 {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let r = |s: u64| (s % 1000) as f64 / 1000.0;
+            let c = DVec3::new(r(seed >> 10), r(seed >> 20), r(seed >> 30)) * 60.0 - 10.0;
+            let s = Sphere::new(c, 3.0 + 9.0 * r(seed >> 40)).unwrap();
+            let report = if i % 3 == 2 { volume.subtract(&s) } else { volume.add(&s) }.unwrap();
+            cache.update(&volume, &report.changed);
+        }
+        let full = MeshCache::build(&volume);
+        assert_eq!(cache.len(), full.len());
+        for (k, m) in full.iter() {
+            assert_eq!(cache.mesh(k), Some(m), "chunk {k:?}");
+        }
+        assert!(cache.triangle_count() > 1000);
+    }
+}
