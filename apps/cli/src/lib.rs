@@ -4,8 +4,12 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
+use std::path::PathBuf;
+
 use anyhow::{Context, Result};
 use glam::{DQuat, DVec3};
+use strata_mesh::export::save_mesh;
+use strata_mesh::{checks, mesh_volume};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Cylinder, Sphere, Torus};
 use strata_volume::{Axis, CsgOp, EditSettings, Volume};
 
@@ -54,9 +58,10 @@ fn demo_steps(scale: f64) -> Result<Vec<Step>> {
     ])
 }
 
-/// Sculpts the demo scene at `scale` (1 = a body of radius 24 cells), checks it, and returns a
-/// report of what each edit did and what the volume holds.
-pub fn demo(scale: f64) -> Result<String> {
+/// Sculpts the demo scene at `scale` (1 = a body of radius 24 cells), checks it, meshes it with
+/// marching cubes, writes the mesh to each of `outputs` (format from the extension: .glb, .obj,
+/// .stl, .ply) and returns a report of what each edit did and what the volume and mesh hold.
+pub fn demo(scale: f64, outputs: &[PathBuf]) -> Result<String> {
     anyhow::ensure!(scale.is_finite() && scale > 0.0 && scale <= 40.0, "scale must be in (0, 40], got {scale}");
     let mut volume = Volume::new();
     let mut out = String::new();
@@ -68,9 +73,9 @@ pub fn demo(scale: f64) -> Result<String> {
             .with_context(|| format!("applying {}", step.what))?;
         writeln!(
             out,
-            "  {:<32} {:>9?} {:>5} chunks changed in {:.2} ms",
+            "  {:<32} {:>9} {:>5} chunks changed in {:.2} ms",
             step.what,
-            step.op,
+            format!("{:?}", step.op),
             report.changed.len(),
             t.elapsed().as_secs_f64() * 1e3
         )?;
@@ -115,6 +120,23 @@ pub fn demo(scale: f64) -> Result<String> {
         None => writeln!(out, "  ray from {origin} along +x misses")?,
     }
     writeln!(out, "  invariants             hold")?;
+    let t = Instant::now();
+    let mesh = mesh_volume(&volume);
+    let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
+    checks::check_closed_manifold(&mesh).context("the marching-cubes mesh")?;
+    writeln!(out, "\nMarching cubes ({mesh_ms:.1} ms):")?;
+    writeln!(out, "  triangles / vertices   {} / {}", mesh.triangle_count(), mesh.vertex_count())?;
+    writeln!(out, "  closed, edge-manifold  yes")?;
+    writeln!(
+        out,
+        "  mesh volume / area     {:.0} cells³ / {:.0} cells²",
+        checks::signed_volume(&mesh),
+        checks::surface_area(&mesh)
+    )?;
+    for path in outputs {
+        save_mesh(&mesh, path).with_context(|| format!("writing {}", path.display()))?;
+        writeln!(out, "  wrote                  {}", path.display())?;
+    }
     Ok(out)
 }
 
@@ -124,10 +146,16 @@ mod tests {
 
     #[test]
     fn the_demo_sculpts_a_consistent_volume_and_reports_it() {
-        let report = demo(0.5).unwrap();
+        let dir = std::env::temp_dir().join(format!("strata-cli-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let glb = dir.join("demo.glb");
+        let report = demo(0.5, std::slice::from_ref(&glb)).unwrap();
         assert!(report.contains("invariants             hold"), "{report}");
         assert!(report.contains("hits at"), "{report}");
-        assert!(demo(f64::NAN).is_err());
-        assert!(demo(0.0).is_err());
+        assert!(report.contains("closed, edge-manifold  yes"), "{report}");
+        assert!(std::fs::metadata(&glb).unwrap().len() > 1000);
+        assert!(demo(f64::NAN, &[]).is_err());
+        assert!(demo(0.0, &[]).is_err());
+        assert!(demo(0.5, &[dir.join("demo.nope")]).is_err());
     }
 }

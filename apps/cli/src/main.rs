@@ -17,12 +17,15 @@ enum Command {
         /// Size multiplier (1: a body of radius 24 cells).
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
+        /// Write the marching-cubes mesh here (repeatable; .glb, .obj, .stl or .ply).
+        #[arg(long = "out")]
+        outputs: Vec<std::path::PathBuf>,
     },
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Command::Demo { scale } => print!("{}", strata::demo(scale)?),
+        Command::Demo { scale, outputs } => print!("{}", strata::demo(scale, &outputs)?),
     }
     Ok(())
 }

@@ -26,6 +26,7 @@
 mod cache;
 mod cases;
 pub mod checks;
+pub mod export;
 mod marching;
 mod mesh;
 
