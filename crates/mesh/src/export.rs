@@ -167,7 +167,7 @@ fn write_glb(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
     }
     let indices_at = bin.len();
     mesh.indices.iter().for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let (mut min, mut max) = ([f32::MAX; 3], [f32::MIN; 3]);
@@ -203,7 +203,7 @@ fn write_glb(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
         ]
     });
     let mut text = serde_json::to_vec(&json).map_err(io::Error::other)?;
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let total = 12 + 8 + text.len() + 8 + bin.len();
