@@ -117,3 +117,34 @@ pub fn aspect_stats(mesh: &Mesh) -> AspectStats {
     s.above_4 = if s.triangles > 0 { bad as f64 / s.triangles as f64 } else { 0.0 };
     s
 }
+
+/// Edge statistics of a mesh that may not be manifold.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ManifoldReport {
+    /// Distinct undirected edges.
+    pub edges: usize,
+    /// Edges used by exactly one triangle (holes).
+    pub boundary: usize,
+    /// Edges used by more than two triangles, or twice in the same direction.
+    pub non_manifold: usize,
+}
+
+/// Counts boundary and non-manifold edges (for meshers that do not guarantee manifoldness).
+pub fn manifold_report(mesh: &Mesh) -> ManifoldReport {
+    let mut uses: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
+    for [a, b, c] in mesh.triangles() {
+        for (p, q) in [(a, b), (b, c), (c, a)] {
+            let e = uses.entry((p.min(q), p.max(q))).or_default();
+            if p < q { e.0 += 1 } else { e.1 += 1 }
+        }
+    }
+    let mut r = ManifoldReport { edges: uses.len(), ..Default::default() };
+    for (f, b) in uses.values() {
+        match (f, b) {
+            (1, 1) => {}
+            _ if f + b == 1 => r.boundary += 1,
+            _ => r.non_manifold += 1,
+        }
+    }
+    r
+}

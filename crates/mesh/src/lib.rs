@@ -26,10 +26,13 @@
 mod cache;
 mod cases;
 pub mod checks;
+mod dual;
 pub mod export;
 mod marching;
 mod mesh;
+pub mod qef;
 
 pub use cache::MeshCache;
+pub use dual::{CELL_MARGIN, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, surface_chunks};
 pub use mesh::Mesh;
