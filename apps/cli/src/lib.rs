@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use glam::{DQuat, DVec3};
 use strata_mesh::export::save_mesh;
+use strata_mesh::normals::{DEFAULT_CREASE_DEGREES, crease_normals};
 use strata_mesh::{checks, mesh_volume};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Cylinder, Sphere, Torus};
 use strata_volume::{Axis, CsgOp, EditSettings, Volume};
@@ -133,8 +134,9 @@ pub fn demo(scale: f64, outputs: &[PathBuf]) -> Result<String> {
         checks::signed_volume(&mesh),
         checks::surface_area(&mesh)
     )?;
+    let shaded = crease_normals(&mesh, DEFAULT_CREASE_DEGREES);
     for path in outputs {
-        save_mesh(&mesh, path).with_context(|| format!("writing {}", path.display()))?;
+        save_mesh(&shaded, path).with_context(|| format!("writing {}", path.display()))?;
         writeln!(out, "  wrote                  {}", path.display())?;
     }
     Ok(out)

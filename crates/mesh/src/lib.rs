@@ -30,6 +30,7 @@ mod dual;
 pub mod export;
 mod marching;
 mod mesh;
+pub mod normals;
 pub mod qef;
 
 pub use cache::MeshCache;

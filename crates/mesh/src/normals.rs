@@ -1,0 +1,116 @@
+//! Shading normals: area-weighted averages of face normals, split at creases.
+
+use glam::Vec3;
+
+use crate::Mesh;
+
+/// The paper's crease angle: faces meeting at less than this are smoothed together.
+pub const DEFAULT_CREASE_DEGREES: f32 = 30.0;
+
+/// Triangles with less than this share of the largest incident triangle's area never start a
+/// crease group of their own. 0.05 cuts spurious splits on a marching-cubes sphere of radius 10
+/// from 370 to 18 (of 1,902 vertices) while box edges from dual contouring still split.
+const SLIVER_AREA_RATIO: f32 = 0.05;
+
+/// A render mesh with normals recomputed from the faces: at each vertex, the incident triangles
+/// are grouped so that every triangle's face normal is within `crease_degrees` of its group's
+/// running mean (seeded by the largest triangles first); each group gets its own copy of the
+/// vertex with the area-weighted mean normal of its triangles. Smooth surfaces keep shared
+/// vertices; sharp edges and corners (box edges from dual contouring) shade sharply.
+///
+/// The result is for shading: split vertices make it non-manifold by index, so run mesh checks
+/// on the mesh before this step.
+pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
+    let cos_limit = crease_degrees.to_radians().cos();
+    let tris: Vec<[u32; 3]> = mesh.triangles().collect();
+    // Area-weighted face normals (the cross product's length is twice the area).
+    let face: Vec<Vec3> = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| Vec3::from(mesh.positions[i as usize]));
+            (b - a).cross(c - a)
+        })
+        .collect();
+    let mut incident: Vec<Vec<(u32, u8)>> = vec![Vec::new(); mesh.positions.len()];
+    for (ti, t) in tris.iter().enumerate() {
+        for (k, &v) in t.iter().enumerate() {
+            incident[v as usize].push((ti as u32, k as u8));
+        }
+    }
+    let mut out = Mesh { indices: vec![0; mesh.indices.len()], ..Default::default() };
+    for (v, list) in incident.iter_mut().enumerate() {
+        list.sort_by(|a, b| face[b.0 as usize].length().total_cmp(&face[a.0 as usize].length()));
+        let mut groups: Vec<(Vec3, u32)> = Vec::new();
+        let largest = list.first().map_or(0.0, |&(ti, _)| face[ti as usize].length());
+        for &(ti, k) in list.iter() {
+            let f = face[ti as usize];
+            let dir = f.normalize_or_zero();
+            let closeness = |g: &(Vec3, u32)| g.0.normalize_or_zero().dot(dir);
+            let mut slot = groups.iter().position(|g| closeness(g) >= cos_limit);
+            // Slivers (marching cubes makes some next to nodes) have unreliable normals: they
+            // join the closest group instead of starting a crease.
+            if slot.is_none() && f.length() < SLIVER_AREA_RATIO * largest {
+                slot = (0..groups.len()).max_by(|&a, &b| closeness(&groups[a]).total_cmp(&closeness(&groups[b])));
+            }
+            let index = match slot {
+                Some(g) => {
+                    groups[g].0 += f;
+                    groups[g].1
+                }
+                None => {
+                    let index = out.positions.len() as u32;
+                    out.positions.push(mesh.positions[v]);
+                    out.normals.push([0.0; 3]);
+                    groups.push((f, index));
+                    index
+                }
+            };
+            out.indices[ti as usize * 3 + k as usize] = index;
+        }
+        for (sum, index) in groups {
+            out.normals[index as usize] = sum.normalize_or(Vec3::Z).to_array();
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{checks, dual_contour_volume, mesh_volume};
+    use glam::DVec3;
+    use strata_volume::Volume;
+    use strata_volume::brush::{Cuboid, Sphere};
+
+    #[test]
+    fn box_corners_split_into_three_normals_and_spheres_stay_smooth() {
+        let mut v = Volume::new();
+        v.add(&Cuboid::new(DVec3::new(8.37, 7.71, 8.29), DVec3::new(5.21, 4.63, 6.11)).unwrap()).unwrap();
+        let dc = dual_contour_volume(&v);
+        let shaded = crease_normals(&dc, DEFAULT_CREASE_DEGREES);
+        assert_eq!(shaded.triangle_count(), dc.triangle_count());
+        // Every shading normal of a box is (close to) an axis.
+        for n in &shaded.normals {
+            let m = Vec3::from(*n).abs().max_element();
+            assert!(m > 0.99, "normal {n:?} is not axis-aligned");
+        }
+        // Each of the 8 corners is split into three copies and each of the 12 edges into two.
+        assert!(shaded.vertex_count() >= dc.vertex_count() + 8 * 2);
+
+        let mut s = Volume::new();
+        s.add(&Sphere::new(DVec3::new(8.0, 8.0, 8.0), 10.0).unwrap()).unwrap();
+        let mc = mesh_volume(&s);
+        let shaded = crease_normals(&mc, DEFAULT_CREASE_DEGREES);
+        // Marching cubes makes a few badly shaped triangles next to nodes; they may still split
+        // a vertex here and there, but the shading follows the sphere.
+        let splits = shaded.vertex_count() - mc.vertex_count();
+        assert!(splits * 50 < mc.vertex_count(), "{splits} splits on a smooth sphere");
+        let mut mean = 0.0;
+        for (p, n) in shaded.positions.iter().zip(&shaded.normals) {
+            let radial = (Vec3::from(*p) - Vec3::splat(8.0)).normalize();
+            mean += radial.dot(Vec3::from(*n)).clamp(-1.0, 1.0).acos().to_degrees() / shaded.vertex_count() as f32;
+        }
+        assert!(mean < 5.0, "mean shading error {mean} degrees");
+        assert!((checks::signed_volume(&shaded) - checks::signed_volume(&mc)).abs() < 1e-6);
+    }
+}
