@@ -39,12 +39,20 @@ enum Suite {
         #[arg(long, default_value_t = 2021)]
         seed: u64,
     },
+    /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
+    /// dual contouring over every chunk that can hold surface, one thread and all cores.
+    MeshSpeed {
+        /// Workload seed.
+        #[arg(long, default_value_t = 2021)]
+        seed: u64,
+    },
 }
 
 fn main() -> Result<()> {
     match Cli::parse().suite {
         Suite::Table1 { count, radii, seed } => table1(count, &radii, seed),
         Suite::FrameMc { count, radii, seed } => frame_mc(count, &radii, seed),
+        Suite::MeshSpeed { seed } => mesh_speed(seed),
     }
     Ok(())
 }
@@ -92,6 +100,37 @@ fn frame_mc(count: usize, radii: &[f64], seed: u64) {
             par.mean_ms(),
             par.quantile_ms(0.99),
             single.triangles
+        );
+    }
+}
+
+fn mesh_speed(seed: u64) {
+    use std::time::Instant;
+    let volume = replay(&table1_instructions(1000, 20.0, seed), true).volume;
+    let keys = strata_mesh::surface_chunks(&volume);
+    let cells = keys.len() as f64 * 4096.0;
+    println!("| mesher | threads | chunks | ms | Mcells/s | triangles |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for threads in [1, 0] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+        let label = if threads == 1 { "1".to_string() } else { rayon::current_num_threads().to_string() };
+        let t = Instant::now();
+        let cache = pool.install(|| strata_mesh::MeshCache::build(&volume));
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        println!(
+            "| marching cubes (blocks + mesh) | {label} | {} | {ms:.1} | {:.1} | {} |",
+            keys.len(),
+            cells / ms / 1e3,
+            cache.triangle_count()
+        );
+        let t = Instant::now();
+        let dc = pool.install(|| strata_mesh::dual_contour_volume(&volume));
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        println!(
+            "| dual contouring (blocks + QEF + weld) | {label} | {} | {ms:.1} | {:.1} | {} |",
+            keys.len(),
+            cells / ms / 1e3,
+            dc.triangle_count()
         );
     }
 }

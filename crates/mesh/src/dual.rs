@@ -10,11 +10,12 @@
 //! ([`crate::checks::manifold_report`] counts them).
 
 use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
 
 use glam::{DVec3, I64Vec3, Vec3};
 use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
-use strata_volume::{Axis, Volume, VoxelBlock};
+use strata_volume::{Axis, KeyHasher, Volume, VoxelBlock};
 
 use crate::Mesh;
 use crate::qef::Qef;
@@ -102,7 +103,7 @@ pub fn dual_contour_volume(volume: &Volume) -> Mesh {
         })
         .collect();
     let mut out = Mesh::default();
-    let mut cell_index: HashMap<I64Vec3, u32> = HashMap::new();
+    let mut cell_index: HashMap<I64Vec3, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
     for (vertices, _) in &parts {
         for (cell, pos, normal) in vertices {
             cell_index.insert(*cell, out.positions.len() as u32);

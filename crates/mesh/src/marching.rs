@@ -2,11 +2,12 @@
 //! crossing, shared by every triangle that uses it.
 
 use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
 
 use glam::I64Vec3;
 use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
-use strata_volume::{Axis, ChunkKey, Volume, VoxelBlock};
+use strata_volume::{Axis, ChunkKey, KeyHasher, Volume, VoxelBlock};
 
 use crate::Mesh;
 use crate::cases::cases;
@@ -109,7 +110,7 @@ pub fn mesh_volume(volume: &Volume) -> Mesh {
         })
         .collect();
     let mut out = Mesh::default();
-    let mut welded: HashMap<EdgeKey, u32> = HashMap::new();
+    let mut welded: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
     for (key, m, ids) in parts {
         let origin = key.origin_grid().as_vec3();
         let remap: Vec<u32> = ids
