@@ -39,34 +39,19 @@ fn block_part(block: &VoxelBlock) -> (Vec<CellVertex>, Vec<OwnedEdge>) {
     let mut edges = Vec::new();
     for z in 0..n {
         for y in 0..n {
-            let (r00, r10, r01, r11) =
-                (block.row(y, z), block.row(y + 1, z), block.row(y, z + 1), block.row(y + 1, z + 1));
-            let any = r00 | r10 | r01 | r11;
-            let all = r00 & r10 & r01 & r11;
-            let mut mixed = (any | (any >> 1)) & !(all & (all >> 1)) & ((1u128 << n) - 1);
+            let mut mixed = block.mixed_cells(y, z);
             while mixed != 0 {
                 let x = mixed.trailing_zeros() as usize;
                 mixed &= mixed - 1;
                 let mut qef = Qef::default();
                 let mut normal = DVec3::ZERO;
-                for axis in Axis::ALL {
-                    let (ua, va) = axis.across();
-                    for k in 0..4 {
-                        let mut lower = [x, y, z];
-                        lower[ua.index()] += k & 1;
-                        lower[va.index()] += k >> 1;
-                        if let Some(c) = block.crossing(axis, lower[0], lower[1], lower[2]) {
-                            let mut p = DVec3::new(
-                                lower[0] as f64 - x as f64,
-                                lower[1] as f64 - y as f64,
-                                lower[2] as f64 - z as f64,
-                            );
-                            p[axis.index()] += c.t as f64;
-                            let nrm = unpack_normal(c.normal);
-                            qef.add(p, nrm);
-                            normal += nrm;
-                        }
-                    }
+                for (axis, lower, c) in block.cell_crossings(x, y, z) {
+                    let mut p =
+                        DVec3::new(lower[0] as f64 - x as f64, lower[1] as f64 - y as f64, lower[2] as f64 - z as f64);
+                    p[axis.index()] += c.t as f64;
+                    let nrm = unpack_normal(c.normal);
+                    qef.add(p, nrm);
+                    normal += nrm;
                 }
                 // Clamp to the cell grown by CELL_MARGIN: a corner whose tip holds no node lies in
                 // a cell without a sign change, and the neighbouring cell's vertex must be free

@@ -30,15 +30,12 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
     }
     let base = [0, block.crossings(Axis::X).len(), block.crossings(Axis::X).len() + block.crossings(Axis::Y).len()];
     let table = cases();
-    let mask = (1u128 << n) - 1;
     let mut ids: Vec<u32> = Vec::with_capacity(12);
     for z in 0..n {
         for y in 0..n {
             let (r00, r10, r01, r11) =
                 (block.row(y, z), block.row(y + 1, z), block.row(y, z + 1), block.row(y + 1, z + 1));
-            let any = r00 | r10 | r01 | r11;
-            let all = r00 & r10 & r01 & r11;
-            let mut mixed = (any | (any >> 1)) & !(all & (all >> 1)) & mask;
+            let mut mixed = block.mixed_cells(y, z);
             while mixed != 0 {
                 let x = mixed.trailing_zeros() as usize;
                 mixed &= mixed - 1;

@@ -82,6 +82,35 @@ impl VoxelBlock {
         self.rows[y + (self.n + 1) * z]
     }
 
+    /// Cells of the row `(y, z)` (`y`, `z` in `0..n`) whose eight corners are not all alike: bit
+    /// `x` for cell `(x, y, z)`.
+    #[inline]
+    pub fn mixed_cells(&self, y: usize, z: usize) -> u128 {
+        let (r00, r10, r01, r11) = (self.row(y, z), self.row(y + 1, z), self.row(y, z + 1), self.row(y + 1, z + 1));
+        let any = r00 | r10 | r01 | r11;
+        let all = r00 & r10 & r01 & r11;
+        (any | (any >> 1)) & !(all & (all >> 1)) & ((1u128 << self.n) - 1)
+    }
+
+    /// The crossings on the twelve edges of cell `(x, y, z)`: axis, the edge's lower node, and
+    /// the crossing.
+    pub fn cell_crossings(
+        &self,
+        x: usize,
+        y: usize,
+        z: usize,
+    ) -> impl Iterator<Item = (Axis, [usize; 3], &EdgeCrossing)> {
+        Axis::ALL.into_iter().flat_map(move |axis| {
+            let (ua, va) = axis.across();
+            (0..4).filter_map(move |k| {
+                let mut lower = [x, y, z];
+                lower[ua.index()] += k & 1;
+                lower[va.index()] += k >> 1;
+                self.crossing(axis, lower[0], lower[1], lower[2]).map(|c| (axis, lower, c))
+            })
+        })
+    }
+
     /// The crossings on edges along `axis`.
     pub fn crossings(&self, axis: Axis) -> &[EdgeCrossing] {
         &self.crossings[axis.index()]

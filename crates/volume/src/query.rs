@@ -194,20 +194,12 @@ fn hit_in_cell(
     }
     // Fit a plane to the crossings on the cell's twelve edges.
     let (mut sum_p, mut sum_n, mut count) = (DVec3::ZERO, DVec3::ZERO, 0.0);
-    for axis in Axis::ALL {
-        let (ua, va) = axis.across();
-        for k in 0..4 {
-            let mut lower = [x, y, z];
-            lower[ua.index()] += k & 1;
-            lower[va.index()] += k >> 1;
-            if let Some(e) = b.crossing(axis, lower[0], lower[1], lower[2]) {
-                let mut p = DVec3::new(lower[0] as f64, lower[1] as f64, lower[2] as f64);
-                p[axis.index()] += e.t as f64;
-                sum_p += p;
-                sum_n += unpack_normal(e.normal);
-                count += 1.0;
-            }
-        }
+    for (axis, lower, e) in b.cell_crossings(x, y, z) {
+        let mut p = DVec3::new(lower[0] as f64, lower[1] as f64, lower[2] as f64);
+        p[axis.index()] += e.t as f64;
+        sum_p += p;
+        sum_n += unpack_normal(e.normal);
+        count += 1.0;
     }
     let normal = sum_n.normalize_or(normal_in);
     if count > 0.0 {
