@@ -48,7 +48,11 @@ pub enum EditError {
     /// The brush's bounds are NaN, infinite or inverted.
     #[error("the brush's bounds are not finite")]
     BadBounds,
-    /// The brush covers more chunks than [`EditSettings::max_chunks`] or lies beyond the key range.
+    /// The brush lies (partly) beyond the chunk key range (about ±3.4·10¹⁰ cells; the outermost
+    /// chunk on each side is kept free so every chunk has neighbours).
+    #[error("the brush reaches beyond the volume's chunk key range")]
+    OutOfRange,
+    /// The brush covers more chunks than [`EditSettings::max_chunks`].
     #[error("the brush spans {chunks} chunks, more than the limit of {limit}")]
     TooLarge {
         /// Chunks the brush's box spans (saturating).
@@ -348,10 +352,13 @@ fn chunk_range(bounds: &Aabb, limit: u64) -> Result<(IVec3, IVec3), EditError> {
     let c = CHUNK_CELLS as f64;
     let lo = (bounds.min / c).ceil() - DVec3::ONE;
     let hi = (bounds.max / c).floor();
-    let ok = lo.cmpge(DVec3::splat(i32::MIN as f64)).all() && hi.cmple(DVec3::splat(i32::MAX as f64)).all();
+    let ok = lo.cmpge(DVec3::splat(i32::MIN as f64 + 1.0)).all() && hi.cmple(DVec3::splat(i32::MAX as f64 - 1.0)).all();
+    if !ok {
+        return Err(EditError::OutOfRange);
+    }
     let span = (hi - lo + DVec3::ONE).max(DVec3::ZERO);
     let chunks = span.x * span.y * span.z;
-    if !ok || chunks > limit as f64 {
+    if chunks > limit as f64 {
         return Err(EditError::TooLarge { chunks: chunks.min(u64::MAX as f64) as u64, limit });
     }
     Ok((lo.as_ivec3(), hi.as_ivec3()))

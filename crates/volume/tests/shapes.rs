@@ -208,8 +208,12 @@ fn huge_and_degenerate_brushes_are_refused_and_leave_the_volume_unchanged() {
     let mut v = Volume::new();
     v.add(&Sphere::new(DVec3::ZERO, 5.0).unwrap()).unwrap();
     let before = v.clone();
-    let huge = Sphere::new(DVec3::ZERO, 1e12).unwrap();
+    let huge = Sphere::new(DVec3::ZERO, 1e5).unwrap();
     assert!(matches!(v.add(&huge), Err(EditError::TooLarge { .. })));
+    let beyond = Sphere::new(DVec3::ZERO, 1e12).unwrap();
+    assert_eq!(v.add(&beyond).unwrap_err(), EditError::OutOfRange);
+    let edge_of_world = Sphere::new(DVec3::splat(16.0 * i32::MAX as f64), 3.0).unwrap();
+    assert_eq!(v.add(&edge_of_world).unwrap_err(), EditError::OutOfRange);
     let bad = SdfBrush::new(|p| p.length() - 1.0, strata_volume::brush::Aabb::new(DVec3::ONE, DVec3::ZERO), 1.0);
     assert!(bad.is_err());
     assert!(Sphere::new(DVec3::ZERO, f64::NAN).is_err());
