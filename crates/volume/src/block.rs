@@ -229,9 +229,9 @@ impl Volume {
             let mut expected_ok = true;
             for v in 0..=n {
                 // Lines u in 0..n come from one chunk, u = n from its neighbour along `ua`.
-                let base = key.0 + if v == n { unit(va) } else { IVec3::ZERO };
-                for (source, us) in [(base, 0..n), (base + unit(ua), n..n + 1)] {
-                    let view = self.view(ChunkKey(source));
+                let base = key.offset(if v == n { unit(va) } else { IVec3::ZERO });
+                for (source, us) in [(base, 0..n), (base.offset(unit(ua)), n..n + 1)] {
+                    let view = self.view(source);
                     if let ChunkView::Lists(l) = view
                         && l.level() != level
                     {

@@ -47,10 +47,11 @@ impl ChunkKey {
         self.0.as_i64vec3() * CHUNK_CELLS
     }
 
-    /// The neighbouring key offset by `d` chunks.
+    /// The neighbouring key offset by `d` chunks (wrapping at the ends of the `i32` range,
+    /// which edits never reach: they keep the outermost keys free).
     #[inline]
     pub fn offset(self, d: IVec3) -> ChunkKey {
-        ChunkKey(self.0 + d)
+        ChunkKey(self.0.wrapping_add(d))
     }
 
     /// The chunk holding the grid point `p_grid` (a point on a chunk's minimum face belongs to it).
