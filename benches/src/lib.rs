@@ -116,7 +116,7 @@ pub fn replay(instructions: &[Instruction], parallel: bool) -> Replay {
     r
 }
 
-/// Whole-frame times with marching cubes: per instruction, the edit plus the voxel blocks and
+/// Whole-frame times: per instruction, the edit plus the voxel blocks and
 /// meshes of every chunk whose mesh depends on a changed chunk (the paper's Table 2 work,
 /// without rendering).
 #[derive(Clone, Debug, Default)]
@@ -141,10 +141,20 @@ impl FrameReplay {
     }
 }
 
+/// Which mesher a frame runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mesher {
+    /// Marching cubes ([`strata_mesh::MeshCache`]).
+    MarchingCubes,
+    /// Dual contouring ([`strata_mesh::DualCache`]).
+    DualContouring,
+}
+
 /// Replays `instructions`, timing edit + remesh of affected chunks per instruction.
-pub fn replay_frames(instructions: &[Instruction], parallel: bool) -> FrameReplay {
+pub fn replay_frames(instructions: &[Instruction], parallel: bool, mesher: Mesher) -> FrameReplay {
     let mut volume = Volume::new();
-    let mut cache = strata_mesh::MeshCache::new();
+    let mut mc = strata_mesh::MeshCache::new();
+    let mut dc = strata_mesh::DualCache::new();
     let settings = EditSettings { parallel, ..Default::default() };
     let mut frames = Vec::with_capacity(instructions.len());
     let pool = rayon::ThreadPoolBuilder::new().num_threads(if parallel { 0 } else { 1 }).build().expect("thread pool");
@@ -152,10 +162,17 @@ pub fn replay_frames(instructions: &[Instruction], parallel: bool) -> FrameRepla
         let brush = ins.brush();
         let t0 = Instant::now();
         let report = volume.apply(ins.op, &brush, &settings).expect("workload edits are valid");
-        pool.install(|| cache.update(&volume, &report.changed));
+        pool.install(|| match mesher {
+            Mesher::MarchingCubes => mc.update(&volume, &report.changed),
+            Mesher::DualContouring => dc.update(&volume, &report.changed),
+        });
         frames.push(t0.elapsed());
     }
-    FrameReplay { frames, triangles: cache.triangle_count() }
+    let triangles = match mesher {
+        Mesher::MarchingCubes => mc.triangle_count(),
+        Mesher::DualContouring => dc.triangle_count(),
+    };
+    FrameReplay { frames, triangles }
 }
 
 fn extract(volume: &Volume, keys: &[ChunkKey], parallel: bool, block: &mut VoxelBlock, blocks: &mut Vec<VoxelBlock>) {

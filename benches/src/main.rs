@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use strata_bench::{replay, replay_frames, table1_instructions};
+use strata_bench::{Mesher, replay, replay_frames, table1_instructions};
 
 #[derive(Parser)]
 #[command(about = "Strata benchmark suite: prints markdown tables")]
@@ -27,8 +27,9 @@ enum Suite {
         #[arg(long, default_value_t = 2021)]
         seed: u64,
     },
-    /// Table 2 (marching cubes): whole-frame time of edit + voxel blocks + remesh, per radius.
-    FrameMc {
+    /// Table 2: whole-frame time of edit + voxel blocks + remesh, per radius, with marching
+    /// cubes and with dual contouring.
+    Frame {
         /// Instructions per radius.
         #[arg(long, default_value_t = 1000)]
         count: usize,
@@ -51,7 +52,7 @@ enum Suite {
 fn main() -> Result<()> {
     match Cli::parse().suite {
         Suite::Table1 { count, radii, seed } => table1(count, &radii, seed),
-        Suite::FrameMc { count, radii, seed } => frame_mc(count, &radii, seed),
+        Suite::Frame { count, radii, seed } => frame(count, &radii, seed),
         Suite::MeshSpeed { seed } => mesh_speed(seed),
     }
     Ok(())
@@ -84,23 +85,25 @@ fn table1(count: usize, radii: &[f64], seed: u64) {
     }
 }
 
-fn frame_mc(count: usize, radii: &[f64], seed: u64) {
+fn frame(count: usize, radii: &[f64], seed: u64) {
     println!(
-        "| radius | mean 1 thread (ms) | p99 1 thread (ms) | mean rayon (ms) | p99 rayon (ms) | triangles at end |"
+        "| mesher | radius | mean 1 thread (ms) | p99 1 thread (ms) | mean rayon (ms) | p99 rayon (ms) | triangles at end |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|");
-    for &r in radii {
-        let ins = table1_instructions(count, r, seed);
-        let single = replay_frames(&ins, false);
-        let par = replay_frames(&ins, true);
-        println!(
-            "| {r} | {:.2} | {:.2} | {:.2} | {:.2} | {} |",
-            single.mean_ms(),
-            single.quantile_ms(0.99),
-            par.mean_ms(),
-            par.quantile_ms(0.99),
-            single.triangles
-        );
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for (name, mesher) in [("marching cubes", Mesher::MarchingCubes), ("dual contouring", Mesher::DualContouring)] {
+        for &r in radii {
+            let ins = table1_instructions(count, r, seed);
+            let single = replay_frames(&ins, false, mesher);
+            let par = replay_frames(&ins, true, mesher);
+            println!(
+                "| {name} | {r} | {:.2} | {:.2} | {:.2} | {:.2} | {} |",
+                single.mean_ms(),
+                single.quantile_ms(0.99),
+                par.mean_ms(),
+                par.quantile_ms(0.99),
+                single.triangles
+            );
+        }
     }
 }
 

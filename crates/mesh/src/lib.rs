@@ -34,6 +34,6 @@ pub mod normals;
 pub mod qef;
 
 pub use cache::MeshCache;
-pub use dual::{CELL_MARGIN, dual_contour_volume};
+pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, surface_chunks};
 pub use mesh::Mesh;
