@@ -168,6 +168,8 @@ impl DualCache {
         let Some(own) = self.duals.get(&key) else { return out };
         let n = own.n as i64;
         let cell0 = key.0.as_i64vec3() * n;
+        // Mesh vertex of each of the chunk's own cells (dense), and of borrowed cells (sparse).
+        let mut own_ids = vec![u32::MAX; own.n * own.n * own.n];
         let mut ids: FastMap<I64Vec3, u32> = FastMap::default();
         for &(axis, lower, lower_inside) in &own.edges {
             let (ua, va) = axis.across();
@@ -179,17 +181,22 @@ impl DualCache {
             let mut complete = true;
             for (slot, &cell) in q.iter_mut().zip(&ring) {
                 let global = cell0 + cell;
-                if let Some(&i) = ids.get(&global) {
+                let inside_chunk = cell.cmpge(I64Vec3::ZERO).all();
+                let local_slot = (cell.x + n * (cell.y + n * cell.z)) as usize;
+                let known = if inside_chunk {
+                    Some(own_ids[local_slot]).filter(|&i| i != u32::MAX)
+                } else {
+                    ids.get(&global).copied()
+                };
+                if let Some(i) = known {
                     *slot = i;
                     continue;
                 }
                 // Cells at -1 on an across axis belong to the chunk before.
                 let chunk = IVec3::new(-((cell.x < 0) as i32), -((cell.y < 0) as i32), -((cell.z < 0) as i32));
                 let local = cell - chunk.as_i64vec3() * n;
-                let found = self
-                    .duals
-                    .get(&key.offset(chunk))
-                    .and_then(|d| d.vertex([local.x as usize, local.y as usize, local.z as usize]));
+                let source = if inside_chunk { Some(own) } else { self.duals.get(&key.offset(chunk)) };
+                let found = source.and_then(|d| d.vertex([local.x as usize, local.y as usize, local.z as usize]));
                 let Some((_, pos, normal)) = found else {
                     complete = false;
                     break;
@@ -198,7 +205,11 @@ impl DualCache {
                 out.mesh.positions.push((pos + chunk.as_vec3() * 16.0).to_array());
                 out.mesh.normals.push(normal.to_array());
                 out.cells.push(global);
-                ids.insert(global, i);
+                if inside_chunk {
+                    own_ids[local_slot] = i;
+                } else {
+                    ids.insert(global, i);
+                }
                 *slot = i;
             }
             if !complete {
