@@ -7,7 +7,7 @@ use glam::{DQuat, DVec3};
 use strata_mesh::checks::{check_closed_manifold, manifold_report, signed_volume};
 use strata_mesh::dual_contour_volume;
 use strata_volume::Volume;
-use strata_volume::brush::{Brush, Cuboid, Sphere, Torus};
+use strata_volume::brush::{Brush, Capsule, Cuboid, Sphere, Torus};
 
 fn volume_of(b: &dyn Brush) -> Volume {
     let mut v = Volume::new();
@@ -16,11 +16,16 @@ fn volume_of(b: &dyn Brush) -> Volume {
 }
 
 #[test]
-fn spheres_and_tori_give_closed_manifold_meshes_with_their_volume() {
+fn spheres_tori_capsules_and_boxes_give_closed_manifold_meshes_with_their_volume() {
     let c = DVec3::new(15.7, -0.4, 16.3);
     for (brush, exact) in [
         (Box::new(Sphere::new(c, 20.0).unwrap()) as Box<dyn Brush>, 4.0 / 3.0 * PI * 8000.0),
         (Box::new(Torus::new(c, DVec3::new(0.3, 1.0, 0.2), 20.0, 7.0).unwrap()), 2.0 * PI * PI * 20.0 * 49.0),
+        (
+            Box::new(Capsule::new(c, c + DVec3::new(20.0, 10.0, -5.0), 9.0).unwrap()),
+            PI * 81.0 * (DVec3::new(20.0, 10.0, -5.0).length() + 12.0),
+        ),
+        (Box::new(Cuboid::new(c, DVec3::new(20.3, 13.1, 17.7)).unwrap()), 8.0 * 20.3 * 13.1 * 17.7),
     ] {
         let mesh = dual_contour_volume(&volume_of(brush.as_ref()));
         check_closed_manifold(&mesh).unwrap();

@@ -214,9 +214,17 @@ impl SpanTable {
             let ((u0, nu), (v0, nv)) = (range(ua.index()), range(va.index()));
             // One row of lines: appends span counts and packed spans.
             let row = |v: i64, counts: &mut Vec<u32>, packed: &mut Vec<PackedSpan>, spans: &mut Vec<Span>| {
+                let n = level.cells() as i64;
                 for u in u0..u0 + nu {
-                    let start = DVec3::from_array(compose(axis, 0.0, u as f64 * sp, v as f64 * sp));
-                    brush.spans(origin, start, axis.unit(), spans);
+                    // Across the line, measure from the origin of the chunk that owns the line,
+                    // exactly as the node predicate does; along it, from the table's base. A box
+                    // face that falls on a node plane then includes or excludes the line exactly
+                    // as `contains` includes or excludes its nodes.
+                    let chunk = compose(axis, 0, u.div_euclid(n), v.div_euclid(n));
+                    let line_origin = origin + (I64Vec3::from_array(chunk) * CHUNK_CELLS).as_dvec3();
+                    let start =
+                        DVec3::from_array(compose(axis, 0.0, u.rem_euclid(n) as f64 * sp, v.rem_euclid(n) as f64 * sp));
+                    brush.spans(line_origin, start, axis.unit(), spans);
                     counts.push(spans.len() as u32);
                     for s in spans.iter() {
                         packed.push(PackedSpan::pack(s, flip));

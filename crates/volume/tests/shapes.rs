@@ -329,3 +329,24 @@ fn volumes_round_trip_through_serde_and_corrupted_bytes_never_panic() {
     }
     assert!(accepted < 3000);
 }
+
+#[test]
+fn box_faces_that_land_on_node_planes_after_rounding_keep_the_axes_consistent() {
+    // 16.3 + 17.7 and -0.4 + 13.1 round to (or next to) node coordinates: the face test must
+    // come out the same along every axis.
+    let b = Cuboid::new(DVec3::new(15.7, -0.4, 16.3), DVec3::new(20.3, 13.1, 17.7)).unwrap();
+    let mut v = Volume::new();
+    v.add(&b).unwrap();
+    v.check_invariants().unwrap();
+    for (k, _) in v.chunks().collect::<Vec<_>>() {
+        assert_eq!(v.extract_block(k).repaired(), 0, "chunk {k:?}");
+    }
+    for z in [33, 34, 35] {
+        for y in [-14, -13, 12, 13] {
+            for x in [-5, -4, 35, 36, 37] {
+                let node = I64Vec3::new(x, y, z);
+                assert_eq!(v.node_inside(node), brush_contains_node(&b, node, v.level()), "node {node}");
+            }
+        }
+    }
+}
