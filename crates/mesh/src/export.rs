@@ -52,6 +52,10 @@ pub enum ExportError {
 }
 
 fn validate(mesh: &Mesh) -> Result<(), ExportError> {
+    if mesh.indices.is_empty() {
+        // glTF forbids zero-count accessors, and an empty file helps nobody.
+        return Err(ExportError::Malformed("the mesh has no triangles (nothing to export)"));
+    }
     if !mesh.indices.len().is_multiple_of(3) {
         return Err(ExportError::Malformed("index count is not a multiple of 3"));
     }
@@ -176,9 +180,6 @@ fn write_glb(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
             min[k] = min[k].min(p[k]);
             max[k] = max[k].max(p[k]);
         }
-    }
-    if nv == 0 {
-        (min, max) = ([0.0; 3], [0.0; 3]);
     }
     let json = serde_json::json!({
         "asset": { "version": "2.0", "generator": "Strata" },

@@ -111,4 +111,6 @@ fn bad_paths_and_meshes_are_errors_and_keep_the_old_file() {
     assert!(save_mesh(&broken, &path).is_err());
     assert_eq!(std::fs::read(&path).unwrap(), before, "a failed save leaves the old file");
     assert_eq!(MeshFormat::from_path(std::path::Path::new("a.GLB")), Some(MeshFormat::Glb));
+    assert!(save_mesh(&Mesh::default(), &temp("empty.glb")).is_err(), "an empty mesh is refused");
+    assert!(!temp("empty.glb").exists());
 }
