@@ -23,13 +23,14 @@ pub struct Qef {
     atb: DVec3,
     btb: f64,
     mass: DVec3,
+    normal_sum: DVec3,
     count: u32,
 }
 
 impl Default for Qef {
     /// No planes. (`DMat3::default()` is the identity, so this cannot be derived.)
     fn default() -> Self {
-        Qef { ata: DMat3::ZERO, atb: DVec3::ZERO, btb: 0.0, mass: DVec3::ZERO, count: 0 }
+        Qef { ata: DMat3::ZERO, atb: DVec3::ZERO, btb: 0.0, mass: DVec3::ZERO, normal_sum: DVec3::ZERO, count: 0 }
     }
 }
 
@@ -41,6 +42,7 @@ impl Qef {
         self.atb += n * d;
         self.btb += d * d;
         self.mass += p;
+        self.normal_sum += n;
         self.count += 1;
     }
 
@@ -54,6 +56,17 @@ impl Qef {
         let c = self.mass_point();
         // Solve A (x - c) = b - A c.
         let rhs = self.atb - self.ata * c;
+        // Nearly parallel planes (smooth surface, most cells): if every normal is within about
+        // 5.7 degrees of their mean `m`, the other eigenvalues are below the cut-off
+        // (k sin² 5.7° ≈ 0.01 k < 0.02 k), so the pseudo-inverse keeps only the direction `m`:
+        // no eigen-decomposition needed. The spread bound: k (1 - |mean|) ≥ 1 - cos(max angle).
+        let k = self.count as f64;
+        let resultant = self.normal_sum.length();
+        if k > 0.0 && k * (1.0 - resultant / k) < 1.0 - 5.7f64.to_radians().cos() {
+            let m = self.normal_sum / resultant;
+            let lambda = m.dot(self.ata * m);
+            return if lambda > 0.0 { c + m * (m.dot(rhs) / lambda) } else { c };
+        }
         let (values, vectors) = symmetric_eigen(self.ata);
         let largest = values.abs().max_element();
         if largest <= 0.0 {
@@ -154,6 +167,29 @@ mod tests {
         assert!((x.x - 0.3).abs() < 1e-9 && (x.y - 0.7).abs() < 1e-9, "{x}");
         assert!((x.z - e.mass_point().z).abs() < 1e-9, "free direction stays at the mass point");
         assert!(e.error(x) < 1e-18);
+    }
+
+    #[test]
+    fn nearly_parallel_planes_take_the_fast_path_and_agree_with_the_eigen_solve() {
+        let mut q = Qef::default();
+        let normals = [DVec3::new(0.02, 0.0, 1.0), DVec3::new(-0.01, 0.03, 1.0), DVec3::new(0.0, -0.02, 1.0)];
+        for (i, n) in normals.iter().enumerate() {
+            q.add(DVec3::new(0.2 + 0.3 * i as f64, 0.7 - 0.2 * i as f64, 0.41 + 0.01 * i as f64), n.normalize());
+        }
+        let fast = q.solve();
+        // The general path on the same data: force it by asking for the eigen pseudo-inverse.
+        let c = q.mass_point();
+        let rhs = q.atb - q.ata * c;
+        let (values, vectors) = symmetric_eigen(q.ata);
+        let largest = values.abs().max_element();
+        let mut x = DVec3::ZERO;
+        for i in 0..3 {
+            if values[i].abs() > EIGEN_CUTOFF * largest {
+                let v = vectors.col(i);
+                x += v * (v.dot(rhs) / values[i]);
+            }
+        }
+        assert!((fast - (c + x)).length() < 1e-3, "{fast} vs {}", c + x);
     }
 
     #[test]
