@@ -41,7 +41,12 @@ struct ChunkDual {
 }
 
 impl ChunkDual {
-    fn of(block: &VoxelBlock) -> ChunkDual {
+    /// Vertices of the cells and the owned edges of `block` that the filters accept.
+    fn of(
+        block: &VoxelBlock,
+        cell_ok: &dyn Fn([usize; 3]) -> bool,
+        edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
+    ) -> ChunkDual {
         let n = block.cells();
         let sp = block.level().spacing();
         let mut d = ChunkDual { n, ..Default::default() };
@@ -51,6 +56,9 @@ impl ChunkDual {
                 while mixed != 0 {
                     let x = mixed.trailing_zeros() as usize;
                     mixed &= mixed - 1;
+                    if !cell_ok([x, y, z]) {
+                        continue;
+                    }
                     let mut qef = Qef::default();
                     let mut normal = DVec3::ZERO;
                     for (axis, lower, c) in block.cell_crossings(x, y, z) {
@@ -81,16 +89,66 @@ impl ChunkDual {
                 if lower[ua.index()] >= n || lower[va.index()] >= n {
                     continue; // on the + faces: owned by a neighbour
                 }
-                d.edges.push((axis, c.lower.map(u16::from), block.inside(lower[0], lower[1], lower[2])));
+                if edge_ok(axis, lower) {
+                    d.edges.push((axis, c.lower.map(u16::from), block.inside(lower[0], lower[1], lower[2])));
+                }
             }
         }
+        d.sort_edges();
         d
+    }
+
+    fn sort_edges(&mut self) {
+        self.edges.sort_unstable_by_key(|&(a, l, _)| (a.index(), l[2], l[1], l[0]));
+    }
+
+    /// Replaces the cells and edges the filters accept with those of `part`.
+    fn merge(
+        &mut self,
+        part: ChunkDual,
+        cell_ok: &dyn Fn([usize; 3]) -> bool,
+        edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
+    ) {
+        let n = self.n;
+        let cell_of = |i: u32| {
+            let i = i as usize;
+            [i % n, (i / n) % n, i / (n * n)]
+        };
+        self.cells.retain(|c| !cell_ok(cell_of(c.0)));
+        self.cells.extend(part.cells);
+        self.cells.sort_unstable_by_key(|c| c.0);
+        self.edges.retain(|&(a, l, _)| !edge_ok(a, l.map(usize::from)));
+        self.edges.extend(part.edges);
+        self.sort_edges();
     }
 
     fn vertex(&self, cell: [usize; 3]) -> Option<(u32, Vec3, Vec3)> {
         let index = (cell[0] + self.n * (cell[1] + self.n * cell[2])) as u32;
         self.cells.binary_search_by_key(&index, |c| c.0).ok().map(|i| self.cells[i])
     }
+}
+
+type CellFilter = Box<dyn Fn([usize; 3]) -> bool + Send + Sync>;
+type EdgeFilter = Box<dyn Fn(Axis, [usize; 3]) -> bool + Send + Sync>;
+
+/// Which cells and owned edges of a chunk depend on the chunks at offsets `ds` after it (all of
+/// them when `ds` is empty): cells on the last layer towards each such chunk, and edges that end
+/// on the face shared with a face neighbour.
+fn border_filters(ds: &[IVec3], n: usize) -> (CellFilter, EdgeFilter) {
+    if ds.is_empty() {
+        return (Box::new(|_| true), Box::new(|_, _| true));
+    }
+    let cells = ds.to_vec();
+    let edges = ds.to_vec();
+    let last = n - 1;
+    (
+        Box::new(move |c| cells.iter().any(|d| (0..3).all(|i| d[i] == 0 || c[i] == last))),
+        Box::new(move |a, l| {
+            let mut unit = IVec3::ZERO;
+            unit[a.index()] = 1;
+            l[a.index()] == last && edges.contains(&unit)
+        }),
+    )
 }
 
 /// A chunk's dual-contouring mesh: chunk-local positions, and for each vertex the global cell it
@@ -125,19 +183,41 @@ impl DualCache {
     }
 
     /// Recomputes what an edit that changed `changed` can have affected, in parallel: cell
-    /// vertices of the changed chunks and the seven before each (they read it as apron), then the
-    /// meshes of those chunks and the seven after each (their quads use those vertices). Returns
+    /// vertices of the changed chunks, and of the border cells of the seven chunks before each
+    /// (they read the changed chunk as apron); then the meshes of those chunks and of the six
+    /// chunks after each that share a face or an edge (their quads use those vertices). Returns
     /// the chunks whose mesh was rebuilt.
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
         let vertex_keys = MeshCache::dependents(changed);
-        let fresh: Vec<(ChunkKey, ChunkDual)> = vertex_keys
+        let changed_set: std::collections::HashSet<ChunkKey> = changed.iter().copied().collect();
+        let fresh: Vec<(ChunkKey, ChunkDual, Vec<IVec3>)> = vertex_keys
             .par_iter()
             .map_init(VoxelBlock::default, |block, &key| {
                 volume.extract_block_into(key, block);
-                (key, ChunkDual::of(block))
+                // A chunk before a changed one only depends on it through its border cells (and,
+                // for a face neighbour, the edges that end on that face): recompute just those.
+                let ds: Vec<IVec3> = if changed_set.contains(&key) || !self.duals.contains_key(&key) {
+                    Vec::new()
+                } else {
+                    (1..8)
+                        .map(|d| IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))
+                        .filter(|&d| changed_set.contains(&key.offset(d)))
+                        .collect()
+                };
+                let n = block.cells();
+                let (cell_ok, edge_ok) = border_filters(&ds, n);
+                (key, ChunkDual::of(block, &cell_ok, &edge_ok), ds)
             })
             .collect();
-        for (key, d) in fresh {
+        for (key, part, ds) in fresh {
+            let d = if ds.is_empty() {
+                part
+            } else {
+                let mut d = self.duals.remove(&key).expect("partial updates only for known chunks");
+                let (cell_ok, edge_ok) = border_filters(&ds, d.n);
+                d.merge(part, &cell_ok, &edge_ok);
+                d
+            };
             if d.cells.is_empty() && d.edges.is_empty() {
                 self.duals.remove(&key);
             } else {
@@ -146,7 +226,10 @@ impl DualCache {
         }
         let mut mesh_keys: Vec<ChunkKey> = vertex_keys
             .iter()
-            .flat_map(|k| (0..8).map(move |d| k.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
+            // A chunk's quads use cells of the chunk and of the chunks before it on at most two
+            // axes (a quad lies in a plane): so a vertex change reaches the seven offsets short of
+            // (1, 1, 1).
+            .flat_map(|k| (0..7).map(move |d| k.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
             .collect();
         mesh_keys.sort();
         mesh_keys.dedup();
