@@ -50,6 +50,8 @@ impl ChunkDual {
         let n = block.cells();
         let sp = block.level().spacing();
         let mut d = ChunkDual { n, ..Default::default() };
+        let normals: [Vec<DVec3>; 3] =
+            Axis::ALL.map(|a| block.crossings(a).iter().map(|c| unpack_normal(c.normal)).collect());
         for z in 0..n {
             for y in 0..n {
                 let mut mixed = block.mixed_cells(y, z);
@@ -61,16 +63,25 @@ impl ChunkDual {
                     }
                     let mut qef = Qef::default();
                     let mut normal = DVec3::ZERO;
-                    for (axis, lower, c) in block.cell_crossings(x, y, z) {
-                        let mut p = DVec3::new(
-                            lower[0] as f64 - x as f64,
-                            lower[1] as f64 - y as f64,
-                            lower[2] as f64 - z as f64,
-                        );
-                        p[axis.index()] += c.t as f64;
-                        let nrm = unpack_normal(c.normal);
-                        qef.add(p, nrm);
-                        normal += nrm;
+                    for axis in Axis::ALL {
+                        let (ua, va) = axis.across();
+                        for k in 0..4 {
+                            let mut lower = [x, y, z];
+                            lower[ua.index()] += k & 1;
+                            lower[va.index()] += k >> 1;
+                            let Some(i) = block.crossing_index(axis, lower[0], lower[1], lower[2]) else { continue };
+                            let c = &block.crossings(axis)[i as usize];
+                            let mut p = DVec3::new(
+                                lower[0] as f64 - x as f64,
+                                lower[1] as f64 - y as f64,
+                                lower[2] as f64 - z as f64,
+                            );
+                            p[axis.index()] += c.t as f64;
+                            // Each crossing serves four cells: unpack its normal once.
+                            let nrm = normals[axis.index()][i as usize];
+                            qef.add(p, nrm);
+                            normal += nrm;
+                        }
                     }
                     // Clamp to the cell grown by CELL_MARGIN: a corner whose tip holds no node
                     // lies in a cell without a sign change, and the neighbouring cell's vertex
