@@ -112,6 +112,31 @@ fn mesh_speed(seed: u64) {
     let volume = replay(&table1_instructions(1000, 20.0, seed), true).volume;
     let keys = strata_mesh::surface_chunks(&volume);
     let cells = keys.len() as f64 * 4096.0;
+    // One chunk: the stored chunk with the most crossings, meshed repeatedly on one thread.
+    let busiest = volume
+        .chunks()
+        .filter_map(|(k, c)| match c {
+            strata_volume::Chunk::Lists(l) => Some((l.crossing_count(), k)),
+            _ => None,
+        })
+        .max()
+        .expect("the canvas has list chunks");
+    let (busiest_crossings, busiest) = busiest;
+    let mut block = strata_volume::VoxelBlock::default();
+    let mut mesh = strata_mesh::Mesh::default();
+    let reps = 2000;
+    let t = Instant::now();
+    for _ in 0..reps {
+        volume.extract_block_into(busiest, &mut block);
+        strata_mesh::mesh_block(&block, &mut mesh);
+    }
+    let per = t.elapsed().as_secs_f64() * 1e3 / reps as f64;
+    println!(
+        "One chunk (the busiest, {} crossings), extract + marching cubes: {per:.3} ms = {:.1} Mcells/s, {} triangles\n",
+        busiest_crossings,
+        4096.0 / per / 1e3,
+        mesh.triangle_count()
+    );
     println!("| mesher | threads | chunks | ms | Mcells/s | triangles |");
     println!("|---|---:|---:|---:|---:|---:|");
     for threads in [1, 0] {
