@@ -110,7 +110,14 @@ mod tests {
             let r = |s: u64| (s % 1000) as f64 / 1000.0;
             let c = DVec3::new(r(seed >> 10), r(seed >> 20), r(seed >> 30)) * 60.0 - 10.0;
             let s = Sphere::new(c, 3.0 + 9.0 * r(seed >> 40)).unwrap();
-            let report = if i % 3 == 2 { volume.subtract(&s) } else { volume.add(&s) }.unwrap();
+            let report = if i == 40 {
+                volume.intersect(&strata_volume::brush::Cuboid::new(DVec3::splat(20.0), DVec3::splat(26.0)).unwrap())
+            } else if i % 3 == 2 {
+                volume.subtract(&s)
+            } else {
+                volume.add(&s)
+            }
+            .unwrap();
             cache.update(&volume, &report.changed);
         }
         let full = MeshCache::build(&volume);

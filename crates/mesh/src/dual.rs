@@ -391,6 +391,7 @@ mod tests {
             let r = |s: u64| (s % 1000) as f64 / 1000.0;
             let c = DVec3::new(r(seed >> 10), r(seed >> 20), r(seed >> 30)) * 60.0 - 10.0;
             let report = match i % 4 {
+                _ if i == 30 => volume.intersect(&Cuboid::new(DVec3::splat(20.0), DVec3::splat(26.0)).unwrap()),
                 0 => volume.add(&Cuboid::new(c, DVec3::new(4.0, 6.0, 3.5)).unwrap()),
                 3 => volume.subtract(&Sphere::new(c, 5.0).unwrap()),
                 _ => volume.add(&Sphere::new(c, 3.0 + 9.0 * r(seed >> 40)).unwrap()),
