@@ -11,7 +11,7 @@ use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineCursor, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos};
-use crate::normal::{PackedNormal, pack_normal, unpack_normal};
+use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, PackedSpan};
 use crate::volume::Volume;
 
@@ -507,7 +507,7 @@ fn edit_chunk(
                         None => sampler.sample(at(axis, u, v), &mut brush_line),
                     }
                     if ctx.reconcile && axis != Axis::X {
-                        repaired += reconcile_line(&s.x_states, axis, u, v, n, sampler.flip, &mut brush_line);
+                        repaired += reconcile_line(&s.x_states, axis, u, v, level, sampler.flip, &mut brush_line);
                     }
                 } else {
                     brush_line.states = 0;
@@ -610,7 +610,16 @@ fn covers_chunk(t: &SpanTable, offset: I64Vec3, origin: I64Vec3, n: usize) -> bo
 }
 
 /// Forces a y or z brush line to the node states of the x lines; returns how many nodes moved.
-fn reconcile_line(x_states: &[u128], axis: Axis, u: usize, v: usize, n: usize, flip: bool, line: &mut WorkLine) -> u64 {
+fn reconcile_line(
+    x_states: &[u128],
+    axis: Axis,
+    u: usize,
+    v: usize,
+    level: Level,
+    flip: bool,
+    line: &mut WorkLine,
+) -> u64 {
+    let n = level.cells();
     let m = n + 1;
     let mut expect = 0u128;
     for j in 0..=n {
@@ -628,7 +637,6 @@ fn reconcile_line(x_states: &[u128], axis: Axis, u: usize, v: usize, n: usize, f
     let before = line.changes(n);
     line.states = expect;
     let mut c = line.changes(n);
-    let level = Level::new((n / 16).trailing_zeros() as u8).expect("valid level");
     while c != 0 {
         let e = c.trailing_zeros() as usize;
         c &= c - 1;
@@ -640,7 +648,7 @@ fn reconcile_line(x_states: &[u128], axis: Axis, u: usize, v: usize, n: usize, f
             line.pos[e] = crate::coords::quantize_into_edge((e as f64 + 0.5) * level.spacing(), e, level);
             line.nrm[e] = pack_normal(outward);
         } else if unpack_normal(line.nrm[e]).dot(outward) < 0.0 {
-            line.nrm[e] = pack_normal(-unpack_normal(line.nrm[e]));
+            line.nrm[e] = flip_normal(line.nrm[e]);
         }
     }
     moved
