@@ -147,8 +147,21 @@ impl VoxelBlock {
         crossing: impl Fn(Axis, [usize; 3]) -> (f32, glam::Vec3),
     ) -> VoxelBlock {
         let mut b = VoxelBlock::default();
-        b.reset(key, level);
-        let n = b.n;
+        b.fill_from_fn(key, level, inside, crossing);
+        b
+    }
+
+    /// [`VoxelBlock::from_fn`] into an existing block, reusing its allocations. Crossings are
+    /// visited per axis in node order (`x` fastest), the order extraction from a volume uses.
+    pub fn fill_from_fn(
+        &mut self,
+        key: ChunkKey,
+        level: Level,
+        inside: impl Fn(usize, usize, usize) -> bool,
+        crossing: impl Fn(Axis, [usize; 3]) -> (f32, glam::Vec3),
+    ) {
+        self.reset(key, level);
+        let n = self.n;
         let m = n + 1;
         for z in 0..m {
             for y in 0..m {
@@ -156,24 +169,29 @@ impl VoxelBlock {
                 for x in 0..m {
                     row |= (inside(x, y, z) as u128) << x;
                 }
-                b.rows[y + m * z] = row;
+                self.rows[y + m * z] = row;
             }
         }
         for axis in Axis::ALL {
             let a = axis.index();
             for z in 0..m {
                 for y in 0..m {
-                    for x in 0..m {
+                    let row = self.rows[y + m * z];
+                    // Bit x: the edge along `axis` from node (x, y, z) changes state.
+                    let mut changes = match axis {
+                        Axis::X => (row ^ (row >> 1)) & ((1u128 << n) - 1),
+                        Axis::Y if y < n => row ^ self.rows[y + 1 + m * z],
+                        Axis::Z if z < n => row ^ self.rows[y + m * (z + 1)],
+                        _ => 0,
+                    };
+                    while changes != 0 {
+                        let x = changes.trailing_zeros() as usize;
+                        changes &= changes - 1;
                         let lower = [x, y, z];
-                        let mut upper = lower;
-                        upper[a] += 1;
-                        if upper[a] > n || b.inside(x, y, z) == b.inside(upper[0], upper[1], upper[2]) {
-                            continue;
-                        }
                         let (t, normal) = crossing(axis, lower);
-                        let idx = b.node_index(x, y, z);
-                        b.lookup[a][idx] = b.crossings[a].len() as u32;
-                        b.crossings[a].push(EdgeCrossing {
+                        let idx = self.node_index(x, y, z);
+                        self.lookup[a][idx] = self.crossings[a].len() as u32;
+                        self.crossings[a].push(EdgeCrossing {
                             lower: lower.map(|c| c as u8),
                             t: t.clamp(1e-6, 1.0 - 1e-6),
                             normal: crate::normal::pack_normal(normal.as_dvec3()),
@@ -182,7 +200,6 @@ impl VoxelBlock {
                 }
             }
         }
-        b
     }
 
     fn reset(&mut self, key: ChunkKey, level: Level) {

@@ -49,7 +49,7 @@ pub use chunk::{Chunk, ChunkLists, LineRef};
 pub use coords::{ChunkKey, Level};
 pub use edit::{CsgOp, EditError, EditReport, EditSettings, UndoRecord};
 pub use invariants::InvariantViolation;
-pub use memory::MemoryReport;
+pub use memory::{MemoryReport, hash_table_bytes};
 pub use query::{CrossingStats, RayHit};
 pub use sample::brush_contains_node;
 pub use volume::{ChunkMap, KeyHasher, Volume};

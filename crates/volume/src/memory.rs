@@ -44,7 +44,7 @@ impl MemoryReport {
 }
 
 /// Bytes of a hashbrown table of `capacity` usable slots holding `slot` bytes each.
-pub(crate) fn hash_table_bytes(capacity: usize, slot: usize) -> usize {
+pub fn hash_table_bytes(capacity: usize, slot: usize) -> usize {
     if capacity == 0 {
         return 0;
     }
