@@ -28,6 +28,7 @@ mod cases;
 pub mod checks;
 mod dual;
 pub mod export;
+pub mod import;
 mod marching;
 mod mesh;
 pub mod normals;
