@@ -7,6 +7,9 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
+
+pub mod baselines;
+pub mod suite;
 use strata_volume::brush::Sphere;
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Volume, VoxelBlock};
 
@@ -81,6 +84,8 @@ pub struct Replay {
     pub changed_chunks: usize,
     /// The volume afterwards.
     pub volume: Volume,
+    /// The largest [`Volume::memory`] total seen after any instruction (bytes).
+    pub max_memory: usize,
 }
 
 impl Replay {
@@ -112,6 +117,7 @@ pub fn replay(instructions: &[Instruction], parallel: bool) -> Replay {
         r.edit += t1 - t0;
         r.extract += t2 - t1;
         r.changed_chunks += report.changed.len();
+        r.max_memory = r.max_memory.max(r.volume.memory().total());
     }
     r
 }

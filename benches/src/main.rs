@@ -10,11 +10,11 @@ use strata_bench::{Mesher, replay, replay_frames, table1_instructions};
 #[command(about = "Strata benchmark suite: prints markdown tables")]
 struct Cli {
     #[command(subcommand)]
-    suite: Suite,
+    suite: Command,
 }
 
 #[derive(Subcommand)]
-enum Suite {
+enum Command {
     /// Table 1: 1000 random sphere draw/erase instructions on a 160³ canvas, per radius.
     Table1 {
         /// Instructions per radius.
@@ -40,6 +40,24 @@ enum Suite {
         #[arg(long, default_value_t = 2021)]
         seed: u64,
     },
+    /// The side-by-side suite: Tables 1–5 (segments, dense and narrow band; meshing against
+    /// fast-surface-nets). Rewrites the suite's section of docs/BENCHMARKS.md and writes the raw
+    /// numbers as JSON.
+    Suite {
+        /// Every table at reduced size (under a minute); writes no docs unless --docs is given.
+        #[arg(long)]
+        quick: bool,
+        /// The scanned mesh of Table 3.
+        #[arg(long)]
+        mesh: Option<std::path::PathBuf>,
+        /// Where to write the JSON (default: docs/benchmarks.json for a full run).
+        #[arg(long)]
+        json: Option<std::path::PathBuf>,
+        /// The markdown file whose suite section to rewrite (default: docs/BENCHMARKS.md for a
+        /// full run).
+        #[arg(long)]
+        docs: Option<std::path::PathBuf>,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -51,10 +69,44 @@ enum Suite {
 
 fn main() -> Result<()> {
     match Cli::parse().suite {
-        Suite::Table1 { count, radii, seed } => table1(count, &radii, seed),
-        Suite::Frame { count, radii, seed } => frame(count, &radii, seed),
-        Suite::MeshSpeed { seed } => mesh_speed(seed),
+        Command::Table1 { count, radii, seed } => table1(count, &radii, seed),
+        Command::Frame { count, radii, seed } => frame(count, &radii, seed),
+        Command::MeshSpeed { seed } => mesh_speed(seed),
+        Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
     }
+    Ok(())
+}
+
+fn suite(
+    quick: bool,
+    mesh: Option<std::path::PathBuf>,
+    json: Option<std::path::PathBuf>,
+    docs: Option<std::path::PathBuf>,
+) -> Result<()> {
+    use strata_bench::suite;
+    let root = suite::repo_root();
+    let config = if quick { suite::SuiteConfig::quick() } else { suite::SuiteConfig::full() };
+    let mesh = mesh.unwrap_or_else(|| root.join("tests/data/bunny.ply"));
+    let start = std::time::Instant::now();
+    let results = suite::run(&config, &mesh, &mut |step| {
+        eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64());
+    })?;
+    let md = suite::markdown(&results);
+    println!("{md}");
+    let json = json.or_else(|| (!quick).then(|| root.join("docs/benchmarks.json")));
+    if let Some(path) = json {
+        std::fs::write(&path, serde_json::to_string_pretty(&results)?)?;
+        eprintln!("wrote {}", path.display());
+    }
+    let docs = docs.or_else(|| (!quick).then(|| root.join("docs/BENCHMARKS.md")));
+    if let Some(path) = docs {
+        let old = std::fs::read_to_string(&path).unwrap_or_default();
+        let tmp = path.with_extension("md.tmp");
+        std::fs::write(&tmp, suite::splice(&old, &md))?;
+        std::fs::rename(&tmp, &path)?;
+        eprintln!("rewrote the suite section of {}", path.display());
+    }
+    eprintln!("suite done in {:.1} s", start.elapsed().as_secs_f64());
     Ok(())
 }
 
