@@ -49,7 +49,9 @@ impl MeshCache {
         keys
     }
 
-    fn remesh(&mut self, volume: &Volume, keys: &[ChunkKey]) {
+    /// Remeshes exactly `keys` (for example a share of [`MeshCache::dependents`] that fits a
+    /// frame's time budget), in parallel.
+    pub fn remesh(&mut self, volume: &Volume, keys: &[ChunkKey]) {
         let fresh: Vec<(ChunkKey, Mesh)> = keys
             .par_iter()
             .map_init(VoxelBlock::default, |block, &key| {

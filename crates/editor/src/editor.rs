@@ -1,0 +1,338 @@
+//! The editor: a scene, the tool, the stroke in progress, history and mesh caches.
+
+use std::collections::BTreeSet;
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use strata_mesh::{Mesh, MeshCache, dual_contour_volume};
+use strata_volume::brush::BrushError;
+use strata_volume::{ChunkKey, EditError, EditSettings};
+use thiserror::Error;
+
+use crate::history::{History, HistoryEntry};
+use crate::pose::ToolPose;
+use crate::scene::Scene;
+use crate::tool::ToolSettings;
+
+/// Why the editor refused something. The scene is unchanged.
+#[derive(Debug, Error)]
+pub enum EditorError {
+    /// No layer with this index.
+    #[error("there is no layer {0}")]
+    NoLayer(usize),
+    /// The layer is locked.
+    #[error("layer {0} is locked")]
+    Locked(usize),
+    /// A pose with NaN or infinite values.
+    #[error("the tool pose is not finite")]
+    BadPose,
+    /// The tool's settings make no brush (zero or NaN radius, …).
+    #[error(transparent)]
+    Brush(#[from] BrushError),
+    /// The edit was refused (too large, out of range).
+    #[error(transparent)]
+    Edit(#[from] EditError),
+}
+
+/// What one frame did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameReport {
+    /// Brush dabs applied this frame.
+    pub dabs: usize,
+    /// Time spent editing.
+    pub edit_time: Duration,
+    /// Time spent remeshing.
+    pub remesh_time: Duration,
+    /// Chunks remeshed this frame (their GPU buffers need uploading).
+    pub remeshed: Vec<(usize, ChunkKey)>,
+    /// Chunks still waiting for a remesh after this frame.
+    pub pending: usize,
+}
+
+/// A surface point found by [`Editor::pick`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pick {
+    /// The layer hit.
+    pub layer: usize,
+    /// Ray parameter of the hit (world units for a unit direction).
+    pub t: f64,
+    /// World point.
+    pub point: DVec3,
+    /// World outward normal.
+    pub normal: DVec3,
+}
+
+struct Stroke {
+    layer: usize,
+    last: DVec3,
+    inverted: bool,
+    records: Vec<strata_volume::UndoRecord>,
+}
+
+/// The editor core: feed it one [`ToolPose`] per frame.
+pub struct Editor {
+    /// The scene being edited.
+    pub scene: Scene,
+    /// The current tool.
+    pub tool: ToolSettings,
+    /// The layer tools edit.
+    pub active_layer: usize,
+    history: History,
+    stroke: Option<Stroke>,
+    caches: Vec<MeshCache>,
+    dirty: Vec<BTreeSet<ChunkKey>>,
+    settings: EditSettings,
+}
+
+impl std::fmt::Debug for Editor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Editor")
+            .field("layers", &self.scene.layers.len())
+            .field("tool", &self.tool)
+            .field("active_layer", &self.active_layer)
+            .field("history", &self.history)
+            .finish()
+    }
+}
+
+impl Default for Editor {
+    fn default() -> Self {
+        Editor::new(Scene::default())
+    }
+}
+
+impl Editor {
+    /// An editor on `scene`, every layer queued for meshing.
+    pub fn new(scene: Scene) -> Self {
+        let mut e = Editor {
+            scene,
+            tool: ToolSettings::default(),
+            active_layer: 0,
+            history: History::default(),
+            stroke: None,
+            caches: Vec::new(),
+            dirty: Vec::new(),
+            settings: EditSettings::default(),
+        };
+        e.reset_caches();
+        e
+    }
+
+    /// Replaces the scene (new or loaded): clears history and remeshes everything.
+    pub fn set_scene(&mut self, scene: Scene) {
+        self.scene = scene;
+        self.history.clear();
+        self.stroke = None;
+        self.active_layer = 0;
+        self.reset_caches();
+    }
+
+    /// Rebuilds the per-layer caches and queues every chunk (after layers are added or removed).
+    pub fn reset_caches(&mut self) {
+        self.caches = self.scene.layers.iter().map(|_| MeshCache::new()).collect();
+        self.dirty = self
+            .scene
+            .layers
+            .iter()
+            .map(|l| {
+                let keys: Vec<ChunkKey> = l.volume.chunks().map(|(k, _)| k).collect();
+                MeshCache::dependents(&keys).into_iter().collect()
+            })
+            .collect();
+    }
+
+    /// Sets the history's memory budget (bytes), keeping what fits.
+    pub fn set_history_budget(&mut self, bytes: usize) {
+        let old = std::mem::replace(&mut self.history, History::with_budget(bytes));
+        drop(old);
+    }
+
+    /// The history.
+    pub fn history(&self) -> &History {
+        &self.history
+    }
+
+    /// Whether a stroke is in progress.
+    pub fn stroking(&self) -> bool {
+        self.stroke.is_some()
+    }
+
+    /// One frame: applies the tool along the path from the previous pose (dabs every
+    /// [`ToolSettings::dab_spacing`]), ends the stroke when no button is held (one undo step per
+    /// stroke), then remeshes queued chunks until `remesh_budget` is spent.
+    pub fn frame(&mut self, pose: &ToolPose, remesh_budget: Duration) -> Result<FrameReport, EditorError> {
+        if !pose.is_valid() {
+            return Err(EditorError::BadPose);
+        }
+        let mut report = FrameReport::default();
+        let t0 = Instant::now();
+        let down = pose.buttons.primary || pose.buttons.secondary;
+        let result = if down { self.stroke_to(pose, &mut report) } else { Ok(()) };
+        if !down || result.is_err() {
+            self.end_stroke();
+        }
+        report.edit_time = t0.elapsed();
+        self.remesh(remesh_budget, &mut report);
+        result.map(|_| report)
+    }
+
+    fn stroke_to(&mut self, pose: &ToolPose, report: &mut FrameReport) -> Result<(), EditorError> {
+        let layer = self.active_layer;
+        let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
+        if l.locked {
+            return Err(EditorError::Locked(layer));
+        }
+        let inverted = pose.buttons.secondary && !pose.buttons.primary;
+        let spacing = self.tool.dab_spacing();
+        let mut dabs = Vec::new();
+        match &self.stroke {
+            Some(s) if s.layer == layer && s.inverted == inverted => {
+                let d = pose.position - s.last;
+                let len = d.length();
+                let steps = (len / spacing).floor() as usize;
+                // A jump of more than 10,000 dabs is a teleport, not a stroke: dab at the end only.
+                if steps > 10_000 {
+                    dabs.push(pose.position);
+                } else {
+                    dabs.extend((1..=steps).map(|k| s.last + d * (k as f64 * spacing / len)));
+                }
+            }
+            _ => {
+                self.end_stroke();
+                self.stroke = Some(Stroke { layer, last: pose.position, inverted, records: Vec::new() });
+                dabs.push(pose.position);
+            }
+        }
+        let op = self.tool.kind.op(inverted);
+        for p in dabs {
+            let brush = self.tool.brush(&self.scene.layers[layer].transform, p, pose.orientation, pose.pressure)?;
+            let edit = self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?;
+            self.queue(layer, &edit.changed);
+            let s = self.stroke.as_mut().expect("a stroke is in progress");
+            s.records.push(edit.undo);
+            s.last = p;
+            report.dabs += 1;
+        }
+        Ok(())
+    }
+
+    /// Ends the stroke in progress, making it one undo step.
+    pub fn end_stroke(&mut self) {
+        if let Some(s) = self.stroke.take() {
+            self.history.push(HistoryEntry { layer: s.layer, records: s.records });
+        }
+    }
+
+    /// Undoes the newest step. Returns whether anything changed.
+    pub fn undo(&mut self) -> bool {
+        self.end_stroke();
+        let layers = &mut self.scene.layers;
+        let changed = self.history.undo(|i| layers.get_mut(i).map(|l| &mut l.volume));
+        self.after_history(changed)
+    }
+
+    /// Redoes the newest undone step. Returns whether anything changed.
+    pub fn redo(&mut self) -> bool {
+        self.end_stroke();
+        let layers = &mut self.scene.layers;
+        let changed = self.history.redo(|i| layers.get_mut(i).map(|l| &mut l.volume));
+        self.after_history(changed)
+    }
+
+    fn after_history(&mut self, layer: Option<usize>) -> bool {
+        let Some(layer) = layer else { return false };
+        // The restored chunks are not known here cheaply; requeue the layer's stored chunks
+        // plus what the caches hold (chunks that became empty).
+        let mut keys: Vec<ChunkKey> = self.scene.layers[layer].volume.chunks().map(|(k, _)| k).collect();
+        keys.extend(self.caches[layer].iter().map(|(k, _)| k));
+        let keys = MeshCache::dependents(&keys);
+        self.dirty[layer].extend(keys);
+        true
+    }
+
+    fn queue(&mut self, layer: usize, changed: &[ChunkKey]) {
+        self.dirty[layer].extend(MeshCache::dependents(changed));
+    }
+
+    /// Remeshes queued chunks, in batches, until `budget` is spent (at least one batch).
+    fn remesh(&mut self, budget: Duration, report: &mut FrameReport) {
+        let t0 = Instant::now();
+        const BATCH: usize = 16;
+        for layer in 0..self.dirty.len() {
+            while !self.dirty[layer].is_empty() {
+                if !report.remeshed.is_empty() && t0.elapsed() >= budget {
+                    break;
+                }
+                let batch: Vec<ChunkKey> = std::iter::from_fn(|| self.dirty[layer].pop_first()).take(BATCH).collect();
+                self.caches[layer].remesh(&self.scene.layers[layer].volume, &batch);
+                report.remeshed.extend(batch.into_iter().map(|k| (layer, k)));
+            }
+        }
+        report.remesh_time = t0.elapsed();
+        report.pending = self.dirty.iter().map(BTreeSet::len).sum();
+    }
+
+    /// Remeshes everything queued, whatever it takes (before a screenshot or an export).
+    pub fn finish_meshing(&mut self) -> Vec<(usize, ChunkKey)> {
+        let mut report = FrameReport::default();
+        self.remesh(Duration::MAX, &mut report);
+        report.remeshed
+    }
+
+    /// Chunks waiting for a remesh.
+    pub fn pending(&self) -> usize {
+        self.dirty.iter().map(BTreeSet::len).sum()
+    }
+
+    /// The marching-cubes mesh cache of a layer.
+    pub fn mesh_cache(&self, layer: usize) -> Option<&MeshCache> {
+        self.caches.get(layer)
+    }
+
+    /// Triangles in all layers' caches.
+    pub fn triangle_count(&self) -> usize {
+        self.caches.iter().map(MeshCache::triangle_count).sum()
+    }
+
+    /// A dual-contoured, welded mesh of a layer in world coordinates (sharp features; on request,
+    /// not per frame).
+    pub fn dual_contour_layer(&self, layer: usize) -> Result<Mesh, EditorError> {
+        let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
+        let mut mesh = dual_contour_volume(&l.volume);
+        to_world(&mut mesh, &l.transform);
+        Ok(mesh)
+    }
+
+    /// The first surface hit of the world ray `origin + t · dir` (`t ≤ max_t`) on a visible layer.
+    pub fn pick(&self, origin: DVec3, dir: DVec3, max_t: f64) -> Option<Pick> {
+        if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0) {
+            return None;
+        }
+        self.scene
+            .layers
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.visible)
+            .filter_map(|(i, l)| {
+                let tr = &l.transform;
+                let hit = l.volume.raycast(tr.to_grid(origin), tr.dir_to_grid(dir), max_t)?;
+                Some(Pick {
+                    layer: i,
+                    t: hit.t,
+                    point: tr.to_world(hit.point),
+                    normal: (tr.rotation * hit.normal).normalize_or(hit.normal),
+                })
+            })
+            .min_by(|a, b| a.t.total_cmp(&b.t))
+    }
+}
+
+/// Moves a grid-space mesh into world space.
+pub fn to_world(mesh: &mut Mesh, tr: &crate::scene::LayerTransform) {
+    for p in &mut mesh.positions {
+        *p = tr.to_world(glam::Vec3::from(*p).as_dvec3()).as_vec3().into();
+    }
+    for n in &mut mesh.normals {
+        *n = (tr.rotation * glam::Vec3::from(*n).as_dvec3()).as_vec3().into();
+    }
+}

@@ -1,0 +1,107 @@
+//! Undo/redo over whole strokes, within a memory budget.
+
+use strata_volume::{UndoRecord, Volume};
+
+/// One undoable step: the records of every edit of a stroke on one layer, in the order applied.
+#[derive(Debug, Default)]
+pub struct HistoryEntry {
+    /// The layer the step edited.
+    pub layer: usize,
+    /// Records in edit order; undoing restores them in reverse.
+    pub records: Vec<UndoRecord>,
+}
+
+impl HistoryEntry {
+    /// Heap bytes held.
+    pub fn bytes(&self) -> usize {
+        self.records.iter().map(UndoRecord::heap_bytes).sum::<usize>()
+            + self.records.capacity() * std::mem::size_of::<UndoRecord>()
+    }
+
+    /// Restores the records in reverse order; returns the entry that undoes this one.
+    fn apply(self, volume: &mut Volume) -> HistoryEntry {
+        let records = self.records.into_iter().rev().map(|r| volume.restore(r)).collect();
+        HistoryEntry { layer: self.layer, records }
+    }
+}
+
+/// Undo and redo stacks. When their bytes exceed the budget, the oldest undo steps are dropped.
+#[derive(Debug)]
+pub struct History {
+    undo: Vec<HistoryEntry>,
+    redo: Vec<HistoryEntry>,
+    budget: usize,
+}
+
+impl Default for History {
+    fn default() -> Self {
+        History::with_budget(512 << 20)
+    }
+}
+
+impl History {
+    /// Empty stacks that hold at most `budget` bytes.
+    pub fn with_budget(budget: usize) -> Self {
+        History { undo: Vec::new(), redo: Vec::new(), budget }
+    }
+
+    /// Records a finished step; clears the redo stack.
+    pub fn push(&mut self, entry: HistoryEntry) {
+        if entry.records.iter().all(UndoRecord::is_empty) {
+            return;
+        }
+        self.redo.clear();
+        self.undo.push(entry);
+        self.trim();
+    }
+
+    fn trim(&mut self) {
+        let mut total = self.bytes();
+        // Keep at least the newest step, whatever its size.
+        while total > self.budget && self.undo.len() > 1 {
+            total -= self.undo.remove(0).bytes();
+        }
+    }
+
+    /// Undoes the newest step on `layers` (indexed by entry layer). Returns the layer changed.
+    pub fn undo<'a>(&mut self, volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>) -> Option<usize> {
+        let entry = self.undo.pop()?;
+        let layer = entry.layer;
+        // A step on a layer that no longer exists is dropped.
+        let volume = volume_of(layer)?;
+        self.redo.push(entry.apply(volume));
+        Some(layer)
+    }
+
+    /// Redoes the newest undone step. Returns the layer changed.
+    pub fn redo<'a>(&mut self, volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>) -> Option<usize> {
+        let entry = self.redo.pop()?;
+        let layer = entry.layer;
+        // A step on a layer that no longer exists is dropped.
+        let volume = volume_of(layer)?;
+        self.undo.push(entry.apply(volume));
+        self.trim();
+        Some(layer)
+    }
+
+    /// Steps that can be undone.
+    pub fn undo_len(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Steps that can be redone.
+    pub fn redo_len(&self) -> usize {
+        self.redo.len()
+    }
+
+    /// Bytes held by both stacks.
+    pub fn bytes(&self) -> usize {
+        self.undo.iter().chain(&self.redo).map(HistoryEntry::bytes).sum()
+    }
+
+    /// Forgets everything (a new or loaded scene).
+    pub fn clear(&mut self) {
+        self.undo.clear();
+        self.redo.clear();
+    }
+}

@@ -1,0 +1,22 @@
+//! # strata-editor
+//!
+//! The editor core, independent of any window, GPU or input device: a [`Scene`] of layers
+//! (each a segment volume with a name, transform, visibility and lock), tools driven by a stream
+//! of device-neutral [`ToolPose`]s (a mouse, a pen or a VR controller produce the same poses),
+//! strokes that sweep a brush along the pose path with even spacing, undo/redo with a memory
+//! budget, a per-layer mesh cache remeshed within a per-frame time budget, picking, and
+//! versioned binary scene files (see [`file`]).
+#![warn(missing_docs)]
+
+mod editor;
+pub mod file;
+mod history;
+mod pose;
+mod scene;
+mod tool;
+
+pub use editor::{Editor, FrameReport, Pick};
+pub use history::{History, HistoryEntry};
+pub use pose::{Buttons, ToolPose};
+pub use scene::{Layer, LayerTransform, Material, Scene, View};
+pub use tool::{BrushShape, ToolKind, ToolSettings};

@@ -1,0 +1,100 @@
+//! Tools: what a pose does to a layer.
+
+use glam::{DQuat, DVec3};
+use strata_volume::CsgOp;
+use strata_volume::brush::{Brush, BrushError, Capsule, Cuboid, Cylinder, Sphere};
+
+use crate::pose::ToolPose;
+use crate::scene::LayerTransform;
+
+/// What the primary button does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ToolKind {
+    /// Add material.
+    Add,
+    /// Remove material.
+    Erase,
+}
+
+impl ToolKind {
+    /// The CSG operation, with the secondary button inverting it.
+    pub fn op(self, inverted: bool) -> CsgOp {
+        match (self, inverted) {
+            (ToolKind::Add, false) | (ToolKind::Erase, true) => CsgOp::Add,
+            _ => CsgOp::Subtract,
+        }
+    }
+}
+
+/// The brush's shape, sized by the tool radius and oriented by the pose.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BrushShape {
+    /// A ball of the radius.
+    Sphere,
+    /// A cube of half-size the radius.
+    Box,
+    /// A capsule along the pose's y axis: length twice the radius, thickness the radius.
+    Capsule,
+    /// A cylinder along the pose's y axis: height and diameter twice the radius.
+    Cylinder,
+}
+
+/// The tool's settings (what the palette edits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolSettings {
+    /// Add or erase.
+    pub kind: ToolKind,
+    /// Brush shape.
+    pub shape: BrushShape,
+    /// Brush radius in world units.
+    pub radius: f64,
+    /// How much pressure scales the radius: 0 ignores pressure, 1 scales it fully.
+    pub strength: f64,
+    /// Distance between stroke dabs as a fraction of the radius.
+    pub spacing: f64,
+}
+
+impl Default for ToolSettings {
+    fn default() -> Self {
+        ToolSettings { kind: ToolKind::Add, shape: BrushShape::Sphere, radius: 6.0, strength: 0.0, spacing: 0.25 }
+    }
+}
+
+impl ToolSettings {
+    /// The radius at `pressure`.
+    pub fn radius_at(&self, pressure: f64) -> f64 {
+        let s = self.strength.clamp(0.0, 1.0);
+        self.radius * (1.0 - s + s * pressure.clamp(0.0, 1.0))
+    }
+
+    /// Distance between dabs (world units), never below a hundredth of the radius.
+    pub fn dab_spacing(&self) -> f64 {
+        self.radius * self.spacing.max(0.01)
+    }
+
+    /// The brush of a dab at `position` with `orientation` and `pressure`, in the grid
+    /// coordinates of a layer placed by `layer`.
+    pub fn brush(
+        &self,
+        layer: &LayerTransform,
+        position: DVec3,
+        orientation: DQuat,
+        pressure: f64,
+    ) -> Result<Box<dyn Brush>, BrushError> {
+        let r = self.radius_at(pressure) / layer.scale;
+        let c = layer.to_grid(position);
+        let q = layer.rotation.inverse() * orientation;
+        let axis = q * DVec3::Y;
+        Ok(match self.shape {
+            BrushShape::Sphere => Box::new(Sphere::new(c, r)?),
+            BrushShape::Box => Box::new(Cuboid::oriented(c, DVec3::splat(r), q, 0.0)?),
+            BrushShape::Capsule => Box::new(Capsule::new(c - axis * r * 0.5, c + axis * r * 0.5, r * 0.5)?),
+            BrushShape::Cylinder => Box::new(Cylinder::new(c, axis, r, r)?),
+        })
+    }
+
+    /// [`ToolSettings::brush`] for a pose.
+    pub fn brush_at(&self, layer: &LayerTransform, pose: &ToolPose) -> Result<Box<dyn Brush>, BrushError> {
+        self.brush(layer, pose.position, pose.orientation, pose.pressure)
+    }
+}

@@ -1,0 +1,214 @@
+//! The editor core driven by synthetic pose streams, compared with brushes applied directly.
+
+use std::time::Duration;
+
+use glam::{DQuat, DVec3, I64Vec3};
+use strata_editor::{BrushShape, Buttons, Editor, Layer, LayerTransform, Scene, ToolKind, ToolPose};
+use strata_mesh::MeshCache;
+use strata_volume::Volume;
+use strata_volume::brush::Sphere;
+
+const BUDGET: Duration = Duration::from_millis(50);
+
+fn states(v: &Volume, lo: i64, hi: i64) -> Vec<bool> {
+    let mut out = Vec::new();
+    for z in lo..hi {
+        for y in lo..hi {
+            for x in lo..hi {
+                out.push(v.node_inside(I64Vec3::new(x, y, z)));
+            }
+        }
+    }
+    out
+}
+
+/// Frames moving the tool from `a` to `b` in `steps` frames with `buttons` held, then a release.
+fn drag(e: &mut Editor, a: DVec3, b: DVec3, steps: usize, buttons: Buttons) {
+    for i in 0..=steps {
+        let p = a.lerp(b, i as f64 / steps as f64);
+        let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+        e.frame(&pose, BUDGET).unwrap();
+    }
+    e.frame(&ToolPose::at(b, false), BUDGET).unwrap();
+}
+
+const DOWN: Buttons = Buttons { primary: true, secondary: false };
+const ERASE: Buttons = Buttons { primary: false, secondary: true };
+
+#[test]
+fn a_stroke_places_evenly_spaced_dabs_like_direct_edits() {
+    let mut e = Editor::default();
+    e.tool.radius = 4.3;
+    e.tool.spacing = 0.25; // a dab every 1.075 cells
+    let (a, b) = (DVec3::new(10.2, 12.1, 11.7), DVec3::new(31.6, 12.1, 11.7));
+    drag(&mut e, a, b, 31, DOWN);
+    assert_eq!(e.history().undo_len(), 1, "one stroke is one undo step");
+    let mut direct = Volume::new();
+    let spacing = 4.3 * 0.25;
+    let dabs = ((b - a).length() / spacing).floor() as usize;
+    for k in 0..=dabs {
+        direct.add(&Sphere::new(a + DVec3::X * (k as f64 * spacing), 4.3).unwrap()).unwrap();
+    }
+    let got = &e.scene.layers[0].volume;
+    got.check_invariants().unwrap();
+    assert_eq!(states(got, 0, 40), states(&direct, 0, 40));
+    assert!(!got.node_inside(I64Vec3::new(37, 12, 12)), "no dab beyond the path's end");
+}
+
+#[test]
+fn erase_undo_and_redo_restore_exact_volumes() {
+    let mut e = Editor::default();
+    e.tool.radius = 5.0;
+    drag(&mut e, DVec3::new(5.0, 8.0, 8.0), DVec3::new(40.0, 8.0, 8.0), 20, DOWN);
+    let after_add = e.scene.layers[0].volume.clone();
+    // The secondary button erases while the tool adds.
+    e.tool.radius = 3.0;
+    drag(&mut e, DVec3::new(20.0, 4.0, 8.0), DVec3::new(20.0, 14.0, 8.0), 10, ERASE);
+    let after_erase = e.scene.layers[0].volume.clone();
+    assert_ne!(after_add, after_erase);
+    assert!(!after_erase.node_inside(I64Vec3::new(20, 8, 8)));
+    // Erasing directly gives the same node states.
+    let mut direct = after_add.clone();
+    for k in 0..=13 {
+        direct.subtract(&Sphere::new(DVec3::new(20.0, 4.0 + k as f64 * 0.75, 8.0), 3.0).unwrap()).unwrap();
+    }
+    assert_eq!(states(&direct, 0, 48), states(&after_erase, 0, 48));
+
+    assert!(e.undo());
+    assert_eq!(e.scene.layers[0].volume, after_add);
+    assert!(e.undo());
+    assert!(e.scene.layers[0].volume.is_empty());
+    assert!(!e.undo(), "nothing left to undo");
+    assert!(e.redo());
+    assert_eq!(e.scene.layers[0].volume, after_add);
+    assert!(e.redo());
+    assert_eq!(e.scene.layers[0].volume, after_erase);
+    assert!(!e.redo());
+    // A new stroke after an undo drops the redo stack.
+    e.undo();
+    drag(&mut e, DVec3::splat(30.0), DVec3::splat(31.0), 2, DOWN);
+    assert_eq!(e.history().redo_len(), 0);
+    // The erase tool erases with the primary button.
+    e.tool.kind = ToolKind::Erase;
+    assert!(e.scene.layers[0].volume.node_inside(I64Vec3::new(10, 8, 8)));
+    drag(&mut e, DVec3::new(10.0, 8.0, 8.0), DVec3::new(10.0, 8.0, 8.0), 1, DOWN);
+    assert!(!e.scene.layers[0].volume.node_inside(I64Vec3::new(10, 8, 8)));
+}
+
+#[test]
+fn the_history_budget_drops_the_oldest_steps() {
+    let mut e = Editor::default();
+    e.set_history_budget(20_000);
+    for i in 0..12 {
+        let p = DVec3::new(8.0 + 9.0 * i as f64, 8.0, 8.0);
+        drag(&mut e, p, p + DVec3::Y, 1, DOWN);
+    }
+    let h = e.history();
+    assert!(h.undo_len() < 12 && h.undo_len() >= 1, "{} steps kept", h.undo_len());
+    assert!(h.bytes() <= 20_000 || h.undo_len() == 1);
+    let kept = h.undo_len();
+    for _ in 0..kept {
+        assert!(e.undo());
+    }
+    // The oldest strokes are still there: their steps were forgotten, not their edits.
+    assert!(e.scene.layers[0].volume.node_inside(I64Vec3::new(8, 8, 8)));
+    assert!(!e.undo());
+}
+
+#[test]
+fn shapes_pressure_and_layer_transforms() {
+    let mut scene = Scene::default();
+    let mut moved = Layer::new("moved");
+    moved.transform =
+        LayerTransform { translation: DVec3::new(100.0, 0.0, 0.0), rotation: DQuat::from_rotation_y(0.5), scale: 0.5 };
+    scene.layers.push(moved);
+    let mut e = Editor::new(scene);
+    e.active_layer = 1;
+    for shape in [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder] {
+        e.tool.shape = shape;
+        e.tool.radius = 2.0;
+        let p = DVec3::new(110.0, 5.0, 3.0);
+        e.frame(&ToolPose::at(p, true), BUDGET).unwrap();
+        e.frame(&ToolPose::at(p, false), BUDGET).unwrap();
+        let l = &e.scene.layers[1];
+        // A world radius of 2 is 4 cells in a layer of half-unit cells.
+        let g = l.transform.to_grid(p).round().as_i64vec3();
+        assert!(l.volume.node_inside(g), "{shape:?}");
+        assert!(l.volume.is_inside(l.transform.to_grid(p + DVec3::new(0.0, 1.5, 0.0))), "{shape:?}");
+        assert!(!l.volume.is_inside(l.transform.to_grid(p + DVec3::new(0.0, 0.0, 3.0))), "{shape:?}");
+        e.undo();
+    }
+    assert!(e.scene.layers[0].volume.is_empty(), "the inactive layer is untouched");
+    // Pressure scales the radius by the strength.
+    e.tool.shape = BrushShape::Sphere;
+    e.tool.strength = 1.0;
+    e.tool.radius = 4.0;
+    let p = DVec3::new(120.0, 0.0, 0.0);
+    let pose = ToolPose { pressure: 0.25, ..ToolPose::at(p, true) };
+    e.frame(&pose, BUDGET).unwrap();
+    e.end_stroke();
+    let l = &e.scene.layers[1];
+    assert!(l.volume.is_inside(l.transform.to_grid(p + DVec3::X * 0.8)));
+    assert!(!l.volume.is_inside(l.transform.to_grid(p + DVec3::X * 1.5)));
+}
+
+#[test]
+fn bad_input_is_refused_and_changes_nothing() {
+    let mut scene = Scene::default();
+    scene.layers[0].locked = true;
+    let mut e = Editor::new(scene);
+    assert!(e.frame(&ToolPose::at(DVec3::splat(5.0), true), BUDGET).is_err());
+    assert!(e.frame(&ToolPose::at(DVec3::new(f64::NAN, 0.0, 0.0), true), BUDGET).is_err());
+    e.scene.layers[0].locked = false;
+    e.tool.radius = f64::NAN;
+    assert!(e.frame(&ToolPose::at(DVec3::splat(5.0), true), BUDGET).is_err());
+    e.tool.radius = 0.0;
+    assert!(e.frame(&ToolPose::at(DVec3::splat(5.0), true), BUDGET).is_err());
+    e.tool.radius = 1e12;
+    assert!(e.frame(&ToolPose::at(DVec3::splat(5.0), true), BUDGET).is_err());
+    e.active_layer = 7;
+    e.tool.radius = 3.0;
+    assert!(e.frame(&ToolPose::at(DVec3::splat(5.0), true), BUDGET).is_err());
+    assert!(e.scene.layers[0].volume.is_empty());
+    assert_eq!(e.history().undo_len(), 0);
+    assert!(!e.stroking());
+}
+
+#[test]
+fn remeshing_respects_the_budget_and_catches_up() {
+    let mut e = Editor::default();
+    e.tool.radius = 20.0;
+    e.frame(&ToolPose::at(DVec3::splat(30.0), true), Duration::ZERO).unwrap();
+    let first = e.frame(&ToolPose::at(DVec3::splat(30.0), false), Duration::ZERO).unwrap();
+    assert_eq!(first.remeshed.len(), 16, "a zero budget still remeshes one batch a frame");
+    assert!(first.pending > 0);
+    let mut frames = 0;
+    while e.pending() > 0 {
+        e.frame(&ToolPose::at(DVec3::splat(30.0), false), Duration::ZERO).unwrap();
+        frames += 1;
+        assert!(frames < 1000);
+    }
+    assert_eq!(e.triangle_count(), MeshCache::build(&e.scene.layers[0].volume).triangle_count());
+}
+
+#[test]
+fn picking_hits_the_nearest_visible_surface() {
+    let mut scene = Scene::default();
+    scene.layers[0].volume.add(&Sphere::new(DVec3::new(20.0, 20.0, 20.0), 6.0).unwrap()).unwrap();
+    let mut near = Layer::new("near");
+    near.volume.add(&Sphere::new(DVec3::new(20.0, 20.0, 5.0), 3.0).unwrap()).unwrap();
+    scene.layers.push(near);
+    let mut e = Editor::new(scene);
+    let hit = e.pick(DVec3::new(20.0, 20.0, -10.0), DVec3::Z, 100.0).unwrap();
+    assert_eq!(hit.layer, 1);
+    assert!((hit.point.z - 2.0).abs() < 0.1, "{hit:?}");
+    assert!(hit.normal.z < -0.9);
+    e.scene.layers[1].visible = false;
+    let hit = e.pick(DVec3::new(20.0, 20.0, -10.0), DVec3::Z, 100.0).unwrap();
+    assert_eq!(hit.layer, 0);
+    assert!((hit.point.z - 14.0).abs() < 0.1, "{hit:?}");
+    assert!(e.pick(DVec3::new(20.0, 20.0, -10.0), DVec3::X, 100.0).is_none());
+    assert!(e.pick(DVec3::splat(f64::NAN), DVec3::Z, 100.0).is_none());
+    let mesh = e.dual_contour_layer(0).unwrap();
+    assert!(mesh.triangle_count() > 100);
+}
