@@ -10,11 +10,13 @@ cargo fmt --all -- --check
 echo "== clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 
-echo "== layering: the volume core depends on no GPU, UI or windowing crate"
-if cargo tree -p strata-volume -e normal | grep -E '(wgpu|egui|eframe|winit) v'; then
-  echo "strata-volume must not depend on the crates above" >&2
-  exit 1
-fi
+echo "== layering: the volume core and the editor core depend on no GPU, UI or windowing crate"
+for core in strata-volume strata-editor; do
+  if cargo tree -p "$core" -e normal | grep -E '(wgpu|egui|eframe|winit) v'; then
+    echo "$core must not depend on the crates above" >&2
+    exit 1
+  fi
+done
 
 echo "== tests"
 cargo test --workspace
