@@ -58,6 +58,13 @@ enum Command {
         #[arg(long)]
         docs: Option<std::path::PathBuf>,
     },
+    /// A recorded 10-second stroke (poses at 90 Hz, radius 10) replayed through the editor core
+    /// with marching cubes: per-frame cost (edit + remesh; no GPU upload yet), p50 and p99.
+    Stroke {
+        /// Seconds of stroke.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -72,6 +79,7 @@ fn main() -> Result<()> {
         Command::Table1 { count, radii, seed } => table1(count, &radii, seed),
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
+        Command::Stroke { seconds } => stroke(seconds),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
     }
     Ok(())
@@ -213,4 +221,45 @@ fn mesh_speed(seed: u64) {
             dc.triangle_count()
         );
     }
+}
+
+fn stroke(seconds: f64) {
+    use glam::{DQuat, DVec3};
+    use std::time::{Duration, Instant};
+    use strata_editor::{Buttons, Editor, ToolPose};
+    let mut editor = Editor::default();
+    editor.tool.radius = 10.0;
+    let frames = (seconds * 90.0).round() as usize;
+    let mut costs = Vec::with_capacity(frames);
+    let mut dabs = 0;
+    for i in 0..frames {
+        // A figure-eight over a 160-cell canvas at about 60 cells per second, pen down,
+        // lifting for a moment every two seconds (a new stroke each time).
+        let t = i as f64 / 90.0;
+        let position = DVec3::new(80.0 + 60.0 * (0.5 * t).sin(), 40.0 + 8.0 * (1.3 * t).sin(), 80.0 + 40.0 * t.sin());
+        let down = (t % 2.0) < 1.9;
+        let pose = ToolPose {
+            position,
+            orientation: DQuat::IDENTITY,
+            pressure: 1.0,
+            buttons: Buttons { primary: down, secondary: false },
+        };
+        let t0 = Instant::now();
+        let report = editor.frame(&pose, Duration::from_millis(8)).expect("valid stroke");
+        costs.push(t0.elapsed().as_secs_f64() * 1e3);
+        dabs += report.dabs;
+    }
+    let mut sorted = costs.clone();
+    sorted.sort_by(f64::total_cmp);
+    let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
+    println!("| frames | dabs | p50 (ms) | p99 (ms) | max (ms) | triangles at end | strokes (undo steps) |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| {frames} | {dabs} | {:.2} | {:.2} | {:.2} | {} | {} |",
+        q(0.5),
+        q(0.99),
+        q(1.0),
+        editor.triangle_count(),
+        editor.history().undo_len()
+    );
 }
