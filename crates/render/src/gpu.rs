@@ -1,0 +1,189 @@
+//! A headless GPU context and offscreen rendering to an image.
+
+use std::path::Path;
+
+use thiserror::Error;
+
+use crate::renderer::{DEPTH_FORMAT, FrameSettings, Renderer};
+
+/// Why rendering could not happen.
+#[derive(Debug, Error)]
+pub enum RenderError {
+    /// No GPU adapter (not even a software one such as lavapipe) was found.
+    #[error("no GPU adapter found ({0}); install a Vulkan driver, e.g. Debian's mesa-vulkan-drivers")]
+    NoAdapter(String),
+    /// The adapter refused to create a device.
+    #[error("the GPU adapter refused a device: {0}")]
+    NoDevice(String),
+    /// Reading the image back failed.
+    #[error("reading the rendered image back failed: {0}")]
+    Readback(String),
+    /// A size of zero or beyond the adapter's limits.
+    #[error("image size {0}×{1} is not renderable (1 to {2} pixels per side)")]
+    BadSize(u32, u32, u32),
+    /// Writing the PNG failed.
+    #[error("writing the PNG failed: {0}")]
+    Png(String),
+    /// File system error.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+/// A device and queue without any window.
+#[derive(Debug)]
+pub struct Gpu {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// What the adapter is (name, backend, device type).
+    pub info: wgpu::AdapterInfo,
+    max_texture: u32,
+}
+
+impl Gpu {
+    /// A headless context on the first adapter found (`WGPU_BACKEND` etc. are honoured).
+    pub fn headless() -> Result<Gpu, RenderError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        let limits = wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits());
+        let max_texture = limits.max_texture_dimension_2d;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("strata headless"),
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoDevice(e.to_string()))?;
+        Ok(Gpu { device, queue, info: adapter.get_info(), max_texture })
+    }
+
+    /// The largest image side this device renders.
+    pub fn max_size(&self) -> u32 {
+        self.max_texture
+    }
+}
+
+/// An RGBA8 image (sRGB), rows top to bottom.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Pixels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// `4 · width · height` bytes.
+    pub rgba: Vec<u8>,
+}
+
+impl Image {
+    /// The pixel at `(x, y)` (y down).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = 4 * (y as usize * self.width as usize + x as usize);
+        [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
+    }
+
+    /// Encodes as PNG and writes it atomically (temporary file beside `path`, then rename).
+    pub fn save_png(&self, path: &Path) -> Result<(), RenderError> {
+        let mut bytes = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut bytes, self.width, self.height);
+            enc.set_color(png::ColorType::Rgba);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut w = enc.write_header().map_err(|e| RenderError::Png(e.to_string()))?;
+            w.write_image_data(&self.rgba).map_err(|e| RenderError::Png(e.to_string()))?;
+        }
+        let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+        name.push(".tmp");
+        let tmp = path.with_file_name(name);
+        std::fs::write(&tmp, &bytes)?;
+        std::fs::rename(&tmp, path).inspect_err(|_| {
+            let _ = std::fs::remove_file(&tmp);
+        })?;
+        Ok(())
+    }
+}
+
+/// Renders one frame of `renderer` into a `width × height` offscreen texture and reads it back.
+pub fn render_offscreen(
+    gpu: &Gpu,
+    renderer: &mut Renderer,
+    width: u32,
+    height: u32,
+    settings: &FrameSettings<'_>,
+) -> Result<Image, RenderError> {
+    if width == 0 || height == 0 || width > gpu.max_texture || height > gpu.max_texture {
+        return Err(RenderError::BadSize(width, height, gpu.max_texture));
+    }
+    let device = &gpu.device;
+    let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+    let texture = |format, usage, label| {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let color = texture(
+        wgpu::TextureFormat::Rgba8UnormSrgb,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        "offscreen colour",
+    );
+    let depth = texture(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT, "offscreen depth");
+    let color_view = color.create_view(&Default::default());
+    let depth_view = depth.create_view(&Default::default());
+    renderer.render(device, &gpu.queue, &color_view, &depth_view, (width, height), settings);
+    // Rows of the read-back buffer are padded to 256 bytes.
+    let row = 4 * width;
+    let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("offscreen readback"),
+        size: padded as u64 * height as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: &color,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(height),
+            },
+        },
+        size,
+    );
+    gpu.queue.submit([encoder.finish()]);
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| RenderError::Readback(e.to_string()))?;
+    rx.recv().map_err(|e| RenderError::Readback(e.to_string()))?.map_err(|e| RenderError::Readback(e.to_string()))?;
+    let data = slice.get_mapped_range().map_err(|e| RenderError::Readback(e.to_string()))?;
+    let mut rgba = Vec::with_capacity((row * height) as usize);
+    for r in 0..height as usize {
+        let start = r * padded as usize;
+        rgba.extend_from_slice(&data[start..start + row as usize]);
+    }
+    drop(data);
+    buffer.unmap();
+    Ok(Image { width, height, rgba })
+}

@@ -1,0 +1,33 @@
+//! # strata-render
+//!
+//! A wgpu renderer for chunk meshes, used on screen (inside the egui desktop app) and headless
+//! (an offscreen texture read back to a PNG). GPU buffers live per chunk and are replaced only
+//! for the chunks a remesh touched. Lighting is a key light over a hemispheric ambient; a ground
+//! grid gives scale, a translucent brush preview shows where the tool will act, and a wireframe
+//! overlay shows the triangles. The WGSL source is `shaders/mesh.wgsl`, embedded here.
+#![warn(missing_docs)]
+
+mod camera;
+mod gpu;
+mod renderer;
+
+pub use camera::Camera;
+pub use gpu::{Gpu, Image, RenderError, render_offscreen};
+pub use renderer::{DEPTH_FORMAT, FrameSettings, Preview, Renderer, Vertex};
+
+/// The WGSL source of every pipeline.
+pub const SHADER: &str = include_str!("../../../shaders/mesh.wgsl");
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_shader_parses_and_validates() {
+        let module = naga::front::wgsl::parse_str(super::SHADER).expect("WGSL parses");
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+            .validate(&module)
+            .expect("WGSL validates");
+        for entry in ["vs_mesh", "fs_mesh", "vs_line", "fs_wire", "fs_grid", "fs_preview"] {
+            assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
+        }
+    }
+}
