@@ -47,9 +47,9 @@ fn fs_mesh(in: VertexOut) -> @location(0) vec4<f32> {
     let h = normalize(l + v);
     let sky = vec3<f32>(0.62, 0.70, 0.85);
     let ground = vec3<f32>(0.30, 0.26, 0.22);
-    let ambient = mix(ground, sky, 0.5 + 0.5 * n.y) * 0.45;
-    let diffuse = max(dot(n, l), 0.0) * 0.85;
-    let spec = pow(max(dot(n, h), 0.0), 48.0) * 0.18;
+    let ambient = mix(ground, sky, 0.5 + 0.5 * n.y) * 0.38;
+    let diffuse = max(dot(n, l), 0.0) * 1.05;
+    let spec = pow(max(dot(n, h), 0.0), 40.0) * 0.12;
     let rgb = in.color.rgb * (ambient + vec3<f32>(diffuse)) + vec3<f32>(spec);
     return vec4<f32>(rgb, in.color.a);
 }

@@ -303,6 +303,21 @@ impl Editor {
         Ok(mesh)
     }
 
+    /// One mesh of every visible layer in world coordinates, for export: marching cubes
+    /// (welded) or, with `dual`, dual contouring (sharp features).
+    pub fn export_mesh(&self, dual: bool) -> Mesh {
+        let mut out = Mesh::default();
+        for l in self.scene.layers.iter().filter(|l| l.visible) {
+            let mut m = if dual { dual_contour_volume(&l.volume) } else { strata_mesh::mesh_volume(&l.volume) };
+            to_world(&mut m, &l.transform);
+            let base = out.positions.len() as u32;
+            out.positions.extend_from_slice(&m.positions);
+            out.normals.extend_from_slice(&m.normals);
+            out.indices.extend(m.indices.iter().map(|i| i + base));
+        }
+        out
+    }
+
     /// The first surface hit of the world ray `origin + t · dir` (`t ≤ max_t`) on a visible layer.
     pub fn pick(&self, origin: DVec3, dir: DVec3, max_t: f64) -> Option<Pick> {
         if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0) {

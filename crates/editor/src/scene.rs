@@ -121,7 +121,7 @@ impl Default for Scene {
     fn default() -> Self {
         Scene {
             layers: vec![Layer::new("Layer 1")],
-            materials: vec![Material { name: "Clay".into(), color: [0.72, 0.62, 0.52] }],
+            materials: vec![Material { name: "Clay".into(), color: [0.50, 0.36, 0.26] }],
             view: View::default(),
         }
     }

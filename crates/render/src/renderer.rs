@@ -279,7 +279,11 @@ impl Renderer {
     /// Writes the frame's uniforms and preview buffers; call before [`Renderer::draw`].
     pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, settings: &FrameSettings<'_>, aspect: f32) {
         let cam = settings.camera;
-        let light = (Vec3::new(0.45, 0.85, 0.35) + (cam.eye() - cam.target).normalize_or(Vec3::Y) * 0.35).normalize();
+        // The key light comes from above and to the upper left of the view, so the lit side,
+        // the terminator and the shadowed side all show.
+        let toward_eye = (cam.eye() - cam.target).normalize_or(Vec3::Z);
+        let right = Vec3::Y.cross(toward_eye).normalize_or(Vec3::X);
+        let light = (Vec3::Y * 0.8 - right * 0.55 + toward_eye * 0.45).normalize();
         let u = FrameUniforms {
             view_proj: cam.view_proj(aspect).to_cols_array_2d(),
             eye: cam.eye().extend(1.0).to_array(),
@@ -408,9 +412,9 @@ fn grid_vertices() -> Vec<Vertex> {
         let color = if i == 0 {
             None
         } else if i % 8 == 0 {
-            Some([0.5, 0.5, 0.55, 0.55])
+            Some([0.5, 0.5, 0.55, 0.45])
         } else {
-            Some([0.4, 0.4, 0.45, 0.25])
+            Some([0.4, 0.4, 0.45, 0.14])
         };
         let x_axis = color.unwrap_or([0.85, 0.25, 0.25, 0.9]);
         let z_axis = color.unwrap_or([0.25, 0.4, 0.9, 0.9]);

@@ -1,0 +1,55 @@
+//! The `--screenshot` mode: load or build a scene, render one frame offscreen, write a PNG. No
+//! window is opened, so it works without a display.
+
+use std::path::Path;
+
+use glam::Mat4;
+use strata_editor::{Scene, file};
+use strata_render::{FrameSettings, Gpu, Renderer, render_offscreen};
+
+use crate::studio::{Studio, default_scene};
+
+/// Renders `scene` (or the default scene) at `size` into the PNG at `out`. Returns the adapter's
+/// name.
+pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe: bool) -> anyhow::Result<String> {
+    let scene: Scene = match scene {
+        Some(p) => file::load(p).map_err(|e| anyhow::anyhow!("could not open {}: {e}", p.display()))?,
+        None => default_scene(),
+    };
+    let mut studio = Studio::new(scene);
+    studio.editor.finish_meshing();
+    let gpu = Gpu::headless()?;
+    let mut renderer = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    upload_all(&studio, &gpu.device, &mut renderer);
+    let settings = FrameSettings { camera: studio.camera, wireframe, ..Default::default() };
+    let image = render_offscreen(&gpu, &mut renderer, size.0, size.1, &settings)?;
+    image.save_png(out)?;
+    Ok(gpu.info.name.clone())
+}
+
+/// Uploads every chunk mesh of every visible layer.
+pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, renderer: &mut Renderer) {
+    renderer.clear();
+    let scene = &studio.editor.scene;
+    for (i, layer) in scene.layers.iter().enumerate() {
+        if !layer.visible {
+            continue;
+        }
+        let Some(cache) = studio.editor.mesh_cache(i) else { continue };
+        let color = scene.materials.get(layer.material as usize).map_or([0.7, 0.6, 0.5], |m| m.color);
+        let model = layer_model(layer);
+        for (key, mesh) in cache.iter() {
+            renderer.upload_chunk(device, i as u32, key, mesh, model, color);
+        }
+    }
+}
+
+/// A layer's grid-to-world matrix.
+pub(crate) fn layer_model(layer: &strata_editor::Layer) -> Mat4 {
+    let t = &layer.transform;
+    Mat4::from_scale_rotation_translation(
+        glam::Vec3::splat(t.scale as f32),
+        t.rotation.as_quat(),
+        t.translation.as_vec3(),
+    )
+}

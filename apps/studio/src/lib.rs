@@ -1,0 +1,16 @@
+//! # strata-studio
+//!
+//! The desktop editor: an eframe/egui window around the editor core (`strata-editor`) with the
+//! wgpu renderer (`strata-render`) drawing the 3D viewport. `main.rs` is a thin shell: the state
+//! and its actions ([`Studio`]) are plain Rust, testable without a window, and the headless
+//! `--screenshot` mode ([`screenshot`]) renders with the renderer's offscreen path, opening no
+//! window at all.
+#![warn(missing_docs)]
+
+mod app;
+mod headless;
+mod studio;
+
+pub use app::{StudioApp, run_window};
+pub use headless::screenshot;
+pub use studio::{Action, Studio, default_scene};

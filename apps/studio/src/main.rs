@@ -1,0 +1,49 @@
+//! `strata-studio`: the desktop editor. See `--help`.
+
+use std::path::PathBuf;
+
+use clap::Parser;
+use strata_studio::{Studio, default_scene, run_window, screenshot};
+
+#[derive(Parser)]
+#[command(about = "Strata Studio: sculpt volumes with the mouse or a pen")]
+struct Cli {
+    /// Render one frame headless into this PNG and exit (opens no window).
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+    /// A scene file to open (or to render with --screenshot).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Screenshot size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x800")]
+    size: String,
+    /// Draw the wireframe in the screenshot.
+    #[arg(long)]
+    wireframe: bool,
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    if let Some(out) = cli.screenshot {
+        let (w, h) = cli
+            .size
+            .split_once('x')
+            .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+            .ok_or_else(|| anyhow::anyhow!("--size must look like 1280x800"))?;
+        let adapter = screenshot(cli.scene.as_deref(), &out, (w, h), cli.wireframe)?;
+        eprintln!("wrote {} ({w}×{h}, {adapter})", out.display());
+        return Ok(());
+    }
+    let mut studio = match &cli.scene {
+        Some(path) => {
+            let scene = strata_editor::file::load(path)
+                .map_err(|e| anyhow::anyhow!("could not open {}: {e}", path.display()))?;
+            let mut s = Studio::new(scene);
+            s.path = Some(path.clone());
+            s
+        }
+        None => Studio::new(default_scene()),
+    };
+    studio.editor.finish_meshing();
+    run_window(studio)
+}

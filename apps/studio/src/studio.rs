@@ -1,0 +1,341 @@
+//! The studio's state and actions, independent of egui and wgpu.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use glam::{DQuat, DVec3};
+use strata_editor::file::{self, SceneFileError};
+use strata_editor::{Buttons, Editor, Layer, Scene, ToolKind, ToolPose, View};
+use strata_mesh::Mesh;
+use strata_render::Camera;
+use strata_volume::ChunkKey;
+use strata_volume::brush::Sphere;
+
+/// What a menu item, a key or a button asks for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// A fresh default scene (history cleared).
+    New,
+    /// Load a scene file; on failure the open scene stays.
+    Open(PathBuf),
+    /// Save to the current path (or fail asking for one).
+    Save,
+    /// Save to a new path and make it current.
+    SaveAs(PathBuf),
+    /// Export visible layers as a mesh (format from the extension: glb, obj, stl, ply).
+    Export(PathBuf),
+    /// Undo the last stroke.
+    Undo,
+    /// Redo.
+    Redo,
+    /// Multiply the brush radius.
+    ScaleRadius(f64),
+    /// Toggle the wireframe overlay.
+    ToggleWireframe,
+    /// Add an empty layer and make it active.
+    AddLayer,
+}
+
+/// The default scene: a ball of clay resting on the grid, ready to sculpt.
+pub fn default_scene() -> Scene {
+    let mut scene = Scene::default();
+    scene.layers[0].name = "Clay".into();
+    scene.layers[0]
+        .volume
+        .add(&Sphere::new(DVec3::new(32.0, 18.0, 32.0), 16.0).expect("valid default sphere"))
+        .expect("the default sphere is a valid edit");
+    scene.view = View { target: DVec3::new(32.0, 18.0, 32.0), distance: 90.0, yaw: 0.7, pitch: 0.45 };
+    scene
+}
+
+/// Everything the studio knows besides the GPU.
+#[derive(Debug)]
+pub struct Studio {
+    /// The editor core.
+    pub editor: Editor,
+    /// The viewport camera.
+    pub camera: Camera,
+    /// Where the scene was loaded from or last saved to.
+    pub path: Option<PathBuf>,
+    /// Wireframe overlay on.
+    pub wireframe: bool,
+    /// Export with dual contouring instead of marching cubes.
+    pub export_dual: bool,
+    /// The last message for the status bar (errors included).
+    pub message: String,
+    /// Last frame's edit time (ms).
+    pub last_edit_ms: f64,
+    /// Last frame's remesh time (ms).
+    pub last_remesh_ms: f64,
+    /// Chunks remeshed but not yet uploaded to the GPU.
+    pub uploads: Vec<(usize, ChunkKey)>,
+    /// Every chunk must be uploaded again (new scene, layer change).
+    pub full_upload: bool,
+    /// Where the tool would act (world), for the brush preview.
+    pub hover: Option<DVec3>,
+    preview: Option<(strata_editor::BrushShape, u64, Mesh)>,
+}
+
+impl Studio {
+    /// A studio on `scene`, with the camera the scene was saved with.
+    pub fn new(scene: Scene) -> Self {
+        let camera = camera_of(&scene.view);
+        let mut s = Studio {
+            editor: Editor::new(scene),
+            camera,
+            path: None,
+            wireframe: false,
+            export_dual: false,
+            message: "Ready. Left drag: sculpt · right drag: orbit · middle drag: pan · wheel: zoom".into(),
+            last_edit_ms: 0.0,
+            last_remesh_ms: 0.0,
+            uploads: Vec::new(),
+            full_upload: true,
+            hover: None,
+            preview: None,
+        };
+        s.editor.tool.radius = 4.0;
+        s
+    }
+
+    /// Carries out an action; errors go to the status message and leave the scene unchanged.
+    pub fn act(&mut self, action: Action) -> Result<(), String> {
+        let r = self.try_act(action);
+        if let Err(e) = &r {
+            self.message = e.clone();
+        }
+        r
+    }
+
+    fn try_act(&mut self, action: Action) -> Result<(), String> {
+        match action {
+            Action::New => {
+                self.replace_scene(default_scene());
+                self.path = None;
+                self.message = "New scene".into();
+            }
+            Action::Open(path) => {
+                let scene = file::load(&path).map_err(|e| format!("Could not open {}: {e}", path.display()))?;
+                self.replace_scene(scene);
+                self.message = format!("Opened {}", path.display());
+                self.path = Some(path);
+            }
+            Action::Save => {
+                let path = self.path.clone().ok_or("Save as… first: the scene has no file yet")?;
+                self.save_to(&path)?;
+            }
+            Action::SaveAs(path) => {
+                self.save_to(&path)?;
+                self.path = Some(path);
+            }
+            Action::Export(path) => {
+                let mesh = self.editor.export_mesh(self.export_dual);
+                strata_mesh::export::save_mesh(&mesh, &path)
+                    .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
+                self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
+            }
+            Action::Undo => {
+                self.message = if self.editor.undo() { "Undone".into() } else { "Nothing to undo".into() };
+            }
+            Action::Redo => {
+                self.message = if self.editor.redo() { "Redone".into() } else { "Nothing to redo".into() };
+            }
+            Action::ScaleRadius(f) => {
+                let r = (self.editor.tool.radius * f).clamp(0.25, 256.0);
+                self.editor.tool.radius = r;
+                self.message = format!("Brush radius {r:.2}");
+            }
+            Action::ToggleWireframe => self.wireframe = !self.wireframe,
+            Action::AddLayer => {
+                let n = self.editor.scene.layers.len() + 1;
+                self.editor.scene.layers.push(Layer::new(format!("Layer {n}")));
+                self.editor.reset_caches();
+                self.editor.active_layer = n - 1;
+                self.full_upload = true;
+            }
+        }
+        Ok(())
+    }
+
+    fn save_to(&mut self, path: &Path) -> Result<(), String> {
+        self.editor.scene.view = view_of(&self.camera);
+        file::save(&self.editor.scene, path)
+            .map_err(|e: SceneFileError| format!("Could not save {}: {e}", path.display()))?;
+        self.message = format!("Saved {}", path.display());
+        Ok(())
+    }
+
+    fn replace_scene(&mut self, scene: Scene) {
+        self.camera = camera_of(&scene.view);
+        self.editor.set_scene(scene);
+        self.full_upload = true;
+        self.uploads.clear();
+    }
+
+    /// One frame of pointer input over the viewport: `ndc` the pointer in normalised device
+    /// coordinates (`None` when outside), the buttons held, and the viewport's aspect ratio.
+    /// The tool acts at the surface under the pointer (or on the ground plane when nothing is
+    /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
+    pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
+        let target = ndc.and_then(|(x, y)| self.surface_point(x, y, aspect));
+        self.hover = target;
+        let held = buttons.primary || buttons.secondary;
+        let pose = match target {
+            Some(p) => ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons },
+            None => {
+                ToolPose { position: DVec3::ZERO, orientation: DQuat::IDENTITY, pressure, buttons: Buttons::default() }
+            }
+        };
+        let pose = if held && target.is_some() { pose } else { ToolPose { buttons: Buttons::default(), ..pose } };
+        match self.editor.frame(&pose, budget) {
+            Ok(report) => {
+                self.last_edit_ms = report.edit_time.as_secs_f64() * 1e3;
+                self.last_remesh_ms = report.remesh_time.as_secs_f64() * 1e3;
+                self.uploads.extend(report.remeshed);
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+    }
+
+    /// The world point the tool acts on under viewport point `(x, y)` (NDC).
+    pub fn surface_point(&self, x: f32, y: f32, aspect: f32) -> Option<DVec3> {
+        let (o, d) = self.camera.ray(x, y, aspect);
+        let (o, d) = (o.as_dvec3(), d.as_dvec3());
+        if let Some(hit) = self.editor.pick(o, d, 1.0e4) {
+            return Some(hit.point);
+        }
+        // The ground plane y = 0.
+        (d.y < -1e-6).then(|| o + d * (-o.y / d.y))
+    }
+
+    /// The brush preview mesh for the current shape and radius (rebuilt when they change),
+    /// centred on the origin, in world units.
+    pub fn preview_mesh(&mut self) -> &Mesh {
+        let tool = self.editor.tool;
+        let key = (tool.shape, tool.radius.to_bits());
+        if self.preview.as_ref().is_none_or(|(s, r, _)| (*s, *r) != key) {
+            let mut v = strata_volume::Volume::new();
+            let brush = tool.brush(&Default::default(), DVec3::ZERO, DQuat::IDENTITY, 1.0);
+            let mesh = match brush.map(|b| v.add(b.as_ref()).map(|_| ())) {
+                Ok(Ok(())) => strata_mesh::mesh_volume(&v),
+                _ => Mesh::default(),
+            };
+            self.preview = Some((key.0, key.1, mesh));
+        }
+        &self.preview.as_ref().expect("set above").2
+    }
+
+    /// The status bar's live figures.
+    pub fn status(&self) -> String {
+        let scene = &self.editor.scene;
+        format!(
+            "{} · memory {:.2} MiB · {} crossings · {} triangles · edit {:.2} ms · remesh {:.2} ms · {} chunks queued · history {} steps",
+            self.message,
+            scene.volume_bytes() as f64 / (1024.0 * 1024.0),
+            scene.crossings(),
+            self.editor.triangle_count(),
+            self.last_edit_ms,
+            self.last_remesh_ms,
+            self.editor.pending(),
+            self.editor.history().undo_len(),
+        )
+    }
+
+    /// Switches add/erase.
+    pub fn set_kind(&mut self, kind: ToolKind) {
+        self.editor.tool.kind = kind;
+    }
+}
+
+fn camera_of(v: &View) -> Camera {
+    Camera {
+        target: v.target.as_vec3(),
+        distance: v.distance as f32,
+        yaw: v.yaw as f32,
+        pitch: v.pitch as f32,
+        ..Camera::default()
+    }
+}
+
+fn view_of(c: &Camera) -> View {
+    View { target: c.target.as_dvec3(), distance: c.distance as f64, yaw: c.yaw as f64, pitch: c.pitch as f64 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("strata-studio-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    const DOWN: Buttons = Buttons { primary: true, secondary: false };
+    const BUDGET: Duration = Duration::from_millis(20);
+
+    #[test]
+    fn dragging_over_the_clay_sculpts_and_undo_takes_it_back() {
+        let mut s = Studio::new(default_scene());
+        let before = s.editor.scene.layers[0].volume.clone();
+        // The centre of the view looks at the ball.
+        let p = s.surface_point(0.0, 0.0, 1.5).expect("the ball is under the centre");
+        assert!((p - DVec3::new(32.0, 18.0, 32.0)).length() < 16.5);
+        for i in 0..10 {
+            s.pointer(Some((i as f32 * 0.01, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        }
+        s.pointer(Some((0.1, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert_eq!(s.editor.history().undo_len(), 1);
+        assert!(!s.uploads.is_empty(), "remeshed chunks are queued for upload");
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers[0].volume, before);
+        s.act(Action::Redo).unwrap();
+        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert!(s.status().contains("crossings"));
+    }
+
+    #[test]
+    fn radius_keys_wireframe_and_layers() {
+        let mut s = Studio::new(default_scene());
+        let r = s.editor.tool.radius;
+        s.act(Action::ScaleRadius(1.25)).unwrap();
+        assert!((s.editor.tool.radius - r * 1.25).abs() < 1e-12);
+        s.act(Action::ScaleRadius(1e9)).unwrap();
+        assert_eq!(s.editor.tool.radius, 256.0);
+        s.act(Action::ToggleWireframe).unwrap();
+        assert!(s.wireframe);
+        s.act(Action::AddLayer).unwrap();
+        assert_eq!((s.editor.scene.layers.len(), s.editor.active_layer), (2, 1));
+        assert!(!s.preview_mesh().indices.is_empty());
+    }
+
+    #[test]
+    fn files_save_open_and_fail_without_losing_the_scene() {
+        let mut s = Studio::new(default_scene());
+        assert!(s.act(Action::Save).is_err(), "no path yet");
+        let path = temp("scene.strata");
+        s.camera.yaw = 1.25;
+        s.act(Action::SaveAs(path.clone())).unwrap();
+        let saved = s.editor.scene.clone();
+        s.act(Action::New).unwrap();
+        s.act(Action::Open(path.clone())).unwrap();
+        assert_eq!(s.editor.scene, saved);
+        assert!((s.camera.yaw - 1.25).abs() < 1e-6, "the view comes back");
+        // A corrupted file fails and the open scene stays.
+        let bad = temp("bad.strata");
+        let mut bytes = std::fs::read(&path).unwrap();
+        let n = bytes.len();
+        bytes[n - 3] ^= 0xff;
+        std::fs::write(&bad, bytes).unwrap();
+        let err = s.act(Action::Open(bad)).unwrap_err();
+        assert!(err.contains("corrupted"), "{err}");
+        assert_eq!(s.editor.scene, saved);
+        assert_eq!(s.path.as_deref(), Some(path.as_path()));
+        // Export in every format.
+        for ext in ["glb", "obj", "stl", "ply"] {
+            s.act(Action::Export(temp(&format!("out.{ext}")))).unwrap();
+        }
+        assert!(s.act(Action::Export(temp("out.xyz"))).is_err());
+    }
+}
