@@ -55,35 +55,19 @@ impl StudioApp {
     }
 
     fn shortcuts(&mut self, ctx: &egui::Context) {
-        let (undo, redo, smaller, larger, wire, save) = ctx.input(|i| {
-            let cmd = i.modifiers.command;
-            (
-                cmd && !i.modifiers.shift && i.key_pressed(egui::Key::Z),
-                cmd && (i.modifiers.shift && i.key_pressed(egui::Key::Z) || i.key_pressed(egui::Key::Y)),
-                i.key_pressed(egui::Key::OpenBracket),
-                i.key_pressed(egui::Key::CloseBracket),
-                !cmd && i.key_pressed(egui::Key::W),
-                cmd && i.key_pressed(egui::Key::S),
-            )
-        });
+        use egui::{Key, Modifiers};
+        // Each key event carries the modifiers held when it happened, so consume by event:
+        // a fast Ctrl+Z can be released before the frame that sees it.
         let typing = ctx.egui_wants_keyboard_input();
-        if undo {
-            let _ = self.studio.act(Action::Undo);
-        }
+        let mut pressed = |mods: Modifiers, key: Key| ctx.input_mut(|i| i.consume_key(mods, key));
+        let redo = pressed(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z) || pressed(Modifiers::COMMAND, Key::Y);
+        let undo = pressed(Modifiers::COMMAND, Key::Z);
+        let save = pressed(Modifiers::COMMAND, Key::S);
         if redo {
             let _ = self.studio.act(Action::Redo);
         }
-        if typing {
-            return;
-        }
-        if smaller {
-            let _ = self.studio.act(Action::ScaleRadius(1.0 / 1.15));
-        }
-        if larger {
-            let _ = self.studio.act(Action::ScaleRadius(1.15));
-        }
-        if wire {
-            let _ = self.studio.act(Action::ToggleWireframe);
+        if undo {
+            let _ = self.studio.act(Action::Undo);
         }
         if save {
             if self.studio.path.is_some() {
@@ -92,20 +76,33 @@ impl StudioApp {
                 self.prompt = Some((Prompt::SaveAs, "scene.strata".into()));
             }
         }
-        let keys = ctx.input(|i| {
-            [egui::Key::Num1, egui::Key::Num2, egui::Key::Num3, egui::Key::Num4, egui::Key::A, egui::Key::E]
-                .map(|k| i.key_pressed(k) && !i.modifiers.command)
-        });
-        let shapes = [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder];
-        for (k, shape) in keys[..4].iter().zip(shapes) {
-            if *k {
+        if typing {
+            return;
+        }
+        if pressed(Modifiers::NONE, Key::OpenBracket) {
+            let _ = self.studio.act(Action::ScaleRadius(1.0 / 1.15));
+        }
+        if pressed(Modifiers::NONE, Key::CloseBracket) {
+            let _ = self.studio.act(Action::ScaleRadius(1.15));
+        }
+        if pressed(Modifiers::NONE, Key::W) {
+            let _ = self.studio.act(Action::ToggleWireframe);
+        }
+        let shapes = [
+            (Key::Num1, BrushShape::Sphere),
+            (Key::Num2, BrushShape::Box),
+            (Key::Num3, BrushShape::Capsule),
+            (Key::Num4, BrushShape::Cylinder),
+        ];
+        for (key, shape) in shapes {
+            if pressed(Modifiers::NONE, key) {
                 self.studio.editor.tool.shape = shape;
             }
         }
-        if keys[4] {
+        if pressed(Modifiers::NONE, Key::A) {
             self.studio.set_kind(ToolKind::Add);
         }
-        if keys[5] {
+        if pressed(Modifiers::NONE, Key::E) {
             self.studio.set_kind(ToolKind::Erase);
         }
     }
@@ -168,7 +165,7 @@ impl StudioApp {
             ui.selectable_value(&mut tool.shape, shape, name);
         }
         ui.add(egui::Slider::new(&mut tool.radius, 0.25..=64.0).logarithmic(true).text("radius [ ]"));
-        ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure → size"));
+        ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"));
         ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"));
         ui.separator();
         ui.label("Right button erases while adding (and adds while erasing).");
@@ -285,7 +282,7 @@ impl StudioApp {
         let ppp = ui.ctx().pixels_per_point();
         let size = (((rect.width() * ppp) as u32).max(1), ((rect.height() * ppp) as u32).max(1));
         if vp.size != size || vp.color.is_none() {
-            let make = |format, usage, label| {
+            let make = |format, usage, label, view_formats: &[wgpu::TextureFormat]| {
                 rs.device.create_texture(&wgpu::TextureDescriptor {
                     label: Some(label),
                     size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
@@ -294,24 +291,34 @@ impl StudioApp {
                     dimension: wgpu::TextureDimension::D2,
                     format,
                     usage,
-                    view_formats: &[],
+                    view_formats,
                 })
             };
             let color = make(
                 wgpu::TextureFormat::Rgba8UnormSrgb,
                 wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
                 "viewport colour",
+                &[wgpu::TextureFormat::Rgba8Unorm],
             );
-            let depth = make(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT, "viewport depth");
+            let depth = make(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT, "viewport depth", &[]);
             let (cv, dv) = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
+            // The renderer writes sRGB-encoded bytes; egui composites in gamma space, so it reads
+            // them through a plain (non-sRGB) view and shows exactly what the PNG path writes.
+            let egui_view = color.create_view(&wgpu::TextureViewDescriptor {
+                format: Some(wgpu::TextureFormat::Rgba8Unorm),
+                ..Default::default()
+            });
             let mut egui_renderer = rs.renderer.write();
             match vp.texture_id {
-                Some(id) => {
-                    egui_renderer.update_egui_texture_from_wgpu_texture(&rs.device, &cv, wgpu::FilterMode::Linear, id)
-                }
+                Some(id) => egui_renderer.update_egui_texture_from_wgpu_texture(
+                    &rs.device,
+                    &egui_view,
+                    wgpu::FilterMode::Linear,
+                    id,
+                ),
                 None => {
                     vp.texture_id =
-                        Some(egui_renderer.register_native_texture(&rs.device, &cv, wgpu::FilterMode::Linear))
+                        Some(egui_renderer.register_native_texture(&rs.device, &egui_view, wgpu::FilterMode::Linear))
                 }
             }
             vp.color = Some((color, cv, dv));

@@ -73,6 +73,8 @@ pub struct Studio {
     pub full_upload: bool,
     /// Where the tool would act (world), for the brush preview.
     pub hover: Option<DVec3>,
+    /// Distance along the pointer ray at which the stroke in progress acts.
+    stroke_depth: Option<f64>,
     preview: Option<(strata_editor::BrushShape, u64, Mesh)>,
 }
 
@@ -92,6 +94,7 @@ impl Studio {
             uploads: Vec::new(),
             full_upload: true,
             hover: None,
+            stroke_depth: None,
             preview: None,
         };
         s.editor.tool.radius = 4.0;
@@ -177,34 +180,62 @@ impl Studio {
     /// The tool acts at the surface under the pointer (or on the ground plane when nothing is
     /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
     pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
-        let target = ndc.and_then(|(x, y)| self.surface_point(x, y, aspect));
-        self.hover = target;
         let held = buttons.primary || buttons.secondary;
-        let pose = match target {
-            Some(p) => ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons },
-            None => {
-                ToolPose { position: DVec3::ZERO, orientation: DQuat::IDENTITY, pressure, buttons: Buttons::default() }
+        // A stroke acts at the depth where it started: picking the surface every frame would
+        // climb onto the material the stroke itself just added.
+        let ray = ndc.map(|(x, y)| {
+            let (o, d) = self.camera.ray(x, y, aspect);
+            (o.as_dvec3(), d.as_dvec3())
+        });
+        let target = match (ray, self.stroke_depth.filter(|_| held)) {
+            (Some((o, d)), Some(depth)) => Some(o + d * depth),
+            (Some((o, d)), None) => {
+                let p = self.ray_target(o, d);
+                if held {
+                    self.stroke_depth = p.map(|p| (p - o).length());
+                }
+                p
             }
+            (None, _) => None,
         };
-        let pose = if held && target.is_some() { pose } else { ToolPose { buttons: Buttons::default(), ..pose } };
+        if !held {
+            self.stroke_depth = None;
+        }
+        self.hover = target;
+        let pose = match target {
+            Some(p) if held => ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons },
+            _ => ToolPose {
+                position: target.unwrap_or_default(),
+                orientation: DQuat::IDENTITY,
+                pressure,
+                buttons: Buttons::default(),
+            },
+        };
         match self.editor.frame(&pose, budget) {
             Ok(report) => {
-                self.last_edit_ms = report.edit_time.as_secs_f64() * 1e3;
-                self.last_remesh_ms = report.remesh_time.as_secs_f64() * 1e3;
+                if report.dabs > 0 {
+                    self.last_edit_ms = report.edit_time.as_secs_f64() * 1e3;
+                }
+                if !report.remeshed.is_empty() {
+                    self.last_remesh_ms = report.remesh_time.as_secs_f64() * 1e3;
+                }
                 self.uploads.extend(report.remeshed);
             }
             Err(e) => self.message = e.to_string(),
         }
     }
 
-    /// The world point the tool acts on under viewport point `(x, y)` (NDC).
+    /// The world point the tool acts on under viewport point `(x, y)` (NDC): the first surface
+    /// hit, or the ground plane y = 0 when nothing is hit.
     pub fn surface_point(&self, x: f32, y: f32, aspect: f32) -> Option<DVec3> {
         let (o, d) = self.camera.ray(x, y, aspect);
-        let (o, d) = (o.as_dvec3(), d.as_dvec3());
+        self.ray_target(o.as_dvec3(), d.as_dvec3())
+    }
+
+    fn ray_target(&self, o: DVec3, d: DVec3) -> Option<DVec3> {
         if let Some(hit) = self.editor.pick(o, d, 1.0e4) {
             return Some(hit.point);
         }
-        // The ground plane y = 0.
         (d.y < -1e-6).then(|| o + d * (-o.y / d.y))
     }
 
@@ -293,6 +324,23 @@ mod tests {
         s.act(Action::Redo).unwrap();
         assert_ne!(s.editor.scene.layers[0].volume, before);
         assert!(s.status().contains("crossings"));
+    }
+
+    #[test]
+    fn a_stroke_keeps_its_depth_instead_of_climbing_its_own_material() {
+        let mut s = Studio::new(default_scene());
+        s.editor.tool.radius = 3.0;
+        let start = s.surface_point(0.0, 0.0, 1.0).unwrap();
+        // Holding still for many frames adds at the same place: nothing grows towards the eye.
+        for _ in 0..30 {
+            s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.0, BUDGET);
+        }
+        s.pointer(Some((0.0, 0.0)), Buttons::default(), 1.0, 1.0, BUDGET);
+        let eye = s.camera.eye().as_dvec3();
+        let front = s.surface_point(0.0, 0.0, 1.0).unwrap();
+        let grown = (start - eye).length() - (front - eye).length();
+        assert!(grown < 3.5, "the surface moved {grown} towards the eye (brush radius 3)");
+        assert!(grown > 1.0, "the dab added material in front of the start ({grown})");
     }
 
     #[test]
