@@ -62,7 +62,7 @@ fn demo_steps(scale: f64) -> Result<Vec<Step>> {
 /// Sculpts the demo scene at `scale` (1 = a body of radius 24 cells), checks it, meshes it with
 /// marching cubes, writes the mesh to each of `outputs` (format from the extension: .glb, .obj,
 /// .stl, .ply) and returns a report of what each edit did and what the volume and mesh hold.
-pub fn demo(scale: f64, outputs: &[PathBuf]) -> Result<String> {
+pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) -> Result<String> {
     anyhow::ensure!(scale.is_finite() && scale > 0.0 && scale <= 40.0, "scale must be in (0, 40], got {scale}");
     let mut volume = Volume::new();
     let mut out = String::new();
@@ -139,7 +139,26 @@ pub fn demo(scale: f64, outputs: &[PathBuf]) -> Result<String> {
         save_mesh(&shaded, path).with_context(|| format!("writing {}", path.display()))?;
         writeln!(out, "  wrote                  {}", path.display())?;
     }
+    if let Some(path) = scene {
+        // A scene for the studio: the sculpture as one layer, the camera on its bounds.
+        let (lo, hi) = (checks_bounds(&mesh).0, checks_bounds(&mesh).1);
+        let centre = (lo + hi) * 0.5;
+        let mut s = strata_editor::Scene::default();
+        s.layers[0].name = "Demo".into();
+        s.layers[0].volume = volume;
+        s.view = strata_editor::View { target: centre, distance: (hi - lo).length() * 1.3, yaw: 0.6, pitch: 0.35 };
+        strata_editor::file::save(&s, path).with_context(|| format!("writing {}", path.display()))?;
+        writeln!(out, "  wrote scene            {}", path.display())?;
+    }
     Ok(out)
+}
+
+/// The bounding box of a mesh's vertices.
+fn checks_bounds(mesh: &strata_mesh::Mesh) -> (DVec3, DVec3) {
+    mesh.positions.iter().fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(lo, hi), p| {
+        let p = glam::Vec3::from(*p).as_dvec3();
+        (lo.min(p), hi.max(p))
+    })
 }
 
 #[cfg(test)]
@@ -151,13 +170,17 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("strata-cli-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let glb = dir.join("demo.glb");
-        let report = demo(0.5, std::slice::from_ref(&glb)).unwrap();
+        let scene = dir.join("demo.strata");
+        let report = demo(0.5, std::slice::from_ref(&glb), Some(&scene)).unwrap();
+        let loaded = strata_editor::file::load(&scene).unwrap();
+        assert_eq!(loaded.layers.len(), 1);
+        assert!(!loaded.layers[0].volume.is_empty());
         assert!(report.contains("invariants             hold"), "{report}");
         assert!(report.contains("hits at"), "{report}");
         assert!(report.contains("closed, edge-manifold  yes"), "{report}");
         assert!(std::fs::metadata(&glb).unwrap().len() > 1000);
-        assert!(demo(f64::NAN, &[]).is_err());
-        assert!(demo(0.0, &[]).is_err());
-        assert!(demo(0.5, &[dir.join("demo.nope")]).is_err());
+        assert!(demo(f64::NAN, &[], None).is_err());
+        assert!(demo(0.0, &[], None).is_err());
+        assert!(demo(0.5, &[dir.join("demo.nope")], None).is_err());
     }
 }

@@ -20,12 +20,15 @@ enum Command {
         /// Write the marching-cubes mesh here (repeatable; .glb, .obj, .stl or .ply).
         #[arg(long = "out")]
         outputs: Vec<std::path::PathBuf>,
+        /// Also save the sculpture as a scene file for the studio (`strata-studio --scene`).
+        #[arg(long)]
+        scene: Option<std::path::PathBuf>,
     },
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Command::Demo { scale, outputs } => print!("{}", strata::demo(scale, &outputs)?),
+        Command::Demo { scale, outputs, scene } => print!("{}", strata::demo(scale, &outputs, scene.as_deref())?),
     }
     Ok(())
 }

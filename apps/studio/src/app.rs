@@ -59,7 +59,7 @@ impl StudioApp {
         // Each key event carries the modifiers held when it happened, so consume by event:
         // a fast Ctrl+Z can be released before the frame that sees it.
         let typing = ctx.egui_wants_keyboard_input();
-        let mut pressed = |mods: Modifiers, key: Key| ctx.input_mut(|i| i.consume_key(mods, key));
+        let pressed = |mods: Modifiers, key: Key| ctx.input_mut(|i| i.consume_key(mods, key));
         let redo = pressed(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z) || pressed(Modifiers::COMMAND, Key::Y);
         let undo = pressed(Modifiers::COMMAND, Key::Z);
         let save = pressed(Modifiers::COMMAND, Key::S);
