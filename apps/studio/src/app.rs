@@ -168,7 +168,7 @@ impl StudioApp {
         ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"));
         ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"));
         ui.separator();
-        ui.label("Right button erases while adding (and adds while erasing).");
+        ui.label("Alt + right drag: the opposite tool (erase while adding, add while erasing).");
     }
 
     fn layers(&mut self, ui: &mut egui::Ui) {
