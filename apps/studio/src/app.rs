@@ -326,7 +326,7 @@ impl StudioApp {
         }
         // Upload what the editor remeshed.
         if self.studio.full_upload {
-            upload_all(&self.studio, &rs.device, &mut vp.renderer);
+            upload_all(&self.studio, &rs.device, &rs.queue, &mut vp.renderer);
             self.studio.full_upload = false;
             self.studio.uploads.clear();
         } else {
@@ -337,7 +337,7 @@ impl StudioApp {
                 match mesh.filter(|_| l.visible) {
                     Some(mesh) => {
                         let color = scene.materials.get(l.material as usize).map_or([0.7, 0.6, 0.5], |m| m.color);
-                        vp.renderer.upload_chunk(&rs.device, layer as u32, key, mesh, layer_model(l), color);
+                        vp.renderer.upload_chunk(&rs.device, &rs.queue, layer as u32, key, mesh, layer_model(l), color);
                     }
                     None => vp.renderer.remove_chunk(layer as u32, key),
                 }

@@ -20,7 +20,7 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
     studio.editor.finish_meshing();
     let gpu = Gpu::headless()?;
     let mut renderer = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
-    upload_all(&studio, &gpu.device, &mut renderer);
+    upload_all(&studio, &gpu.device, &gpu.queue, &mut renderer);
     let settings = FrameSettings { camera: studio.camera, wireframe, ..Default::default() };
     let image = render_offscreen(&gpu, &mut renderer, size.0, size.1, &settings)?;
     image.save_png(out)?;
@@ -28,7 +28,7 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
 }
 
 /// Uploads every chunk mesh of every visible layer.
-pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, renderer: &mut Renderer) {
+pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, queue: &wgpu::Queue, renderer: &mut Renderer) {
     renderer.clear();
     let scene = &studio.editor.scene;
     for (i, layer) in scene.layers.iter().enumerate() {
@@ -39,7 +39,7 @@ pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, renderer: &mut 
         let color = scene.materials.get(layer.material as usize).map_or([0.7, 0.6, 0.5], |m| m.color);
         let model = layer_model(layer);
         for (key, mesh) in cache.iter() {
-            renderer.upload_chunk(device, i as u32, key, mesh, model, color);
+            renderer.upload_chunk(device, queue, i as u32, key, mesh, model, color);
         }
     }
 }

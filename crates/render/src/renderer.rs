@@ -213,12 +213,16 @@ impl Renderer {
         }
     }
 
-    /// Replaces the GPU buffers of chunk `key` of `layer` with `mesh` (relative to the chunk's
+    /// Replaces the GPU data of chunk `key` of `layer` with `mesh` (relative to the chunk's
     /// origin, as the mesh caches store it; the layer's grid is placed in the world by `model`),
-    /// coloured `color`. An empty mesh removes the chunk.
+    /// coloured `color`. An empty mesh removes the chunk. The chunk's buffers are rewritten in
+    /// place when the new mesh fits them (a remeshed chunk rarely grows much) and reallocated
+    /// half as large again as needed otherwise, so a stroke mostly writes, not allocates.
+    #[allow(clippy::too_many_arguments)]
     pub fn upload_chunk(
         &mut self,
         device: &wgpu::Device,
+        queue: &wgpu::Queue,
         layer: u32,
         key: ChunkKey,
         mesh: &Mesh,
@@ -232,17 +236,46 @@ impl Renderer {
         let model = model * Mat4::from_translation(key.origin_grid().as_vec3());
         let vertices = world_vertices(mesh, model, [color[0], color[1], color[2], 1.0]);
         let edges = edge_indices(&mesh.indices);
-        let buffer = |label: &str, contents: &[u8], usage| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        let data: [(&[u8], wgpu::BufferUsages); 3] = [
+            (bytemuck::cast_slice(&vertices), wgpu::BufferUsages::VERTEX),
+            (bytemuck::cast_slice(&mesh.indices), wgpu::BufferUsages::INDEX),
+            (bytemuck::cast_slice(&edges), wgpu::BufferUsages::INDEX),
+        ];
+        let create = |(bytes, usage): (&[u8], wgpu::BufferUsages)| {
+            let size = ((bytes.len() * 3 / 2).div_ceil(4) * 4) as u64;
+            let b = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("chunk buffer"),
+                size,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&b, 0, bytes);
+            b
         };
-        let chunk = GpuChunk {
-            vertices: buffer("chunk vertices", bytemuck::cast_slice(&vertices), wgpu::BufferUsages::VERTEX),
-            triangles: buffer("chunk triangles", bytemuck::cast_slice(&mesh.indices), wgpu::BufferUsages::INDEX),
-            edges: buffer("chunk edges", bytemuck::cast_slice(&edges), wgpu::BufferUsages::INDEX),
-            triangle_indices: mesh.indices.len() as u32,
-            edge_indices: edges.len() as u32,
-        };
-        self.chunks.insert((layer, key), chunk);
+        match self.chunks.get_mut(&(layer, key)) {
+            Some(c) => {
+                for (buffer, d) in [&mut c.vertices, &mut c.triangles, &mut c.edges].into_iter().zip(data) {
+                    if buffer.size() >= d.0.len() as u64 {
+                        queue.write_buffer(buffer, 0, d.0);
+                    } else {
+                        *buffer = create(d);
+                    }
+                }
+                c.triangle_indices = mesh.indices.len() as u32;
+                c.edge_indices = edges.len() as u32;
+            }
+            None => {
+                let [v, t, e] = data.map(create);
+                let chunk = GpuChunk {
+                    vertices: v,
+                    triangles: t,
+                    edges: e,
+                    triangle_indices: mesh.indices.len() as u32,
+                    edge_indices: edges.len() as u32,
+                };
+                self.chunks.insert((layer, key), chunk);
+            }
+        }
         self.uploads += 1;
     }
 

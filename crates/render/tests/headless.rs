@@ -35,7 +35,7 @@ fn scene(gpu: &Gpu) -> Renderer {
     let cache = MeshCache::build(&volume);
     let mut r = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
     for (key, mesh) in cache.iter() {
-        r.upload_chunk(&gpu.device, 0, key, mesh, Mat4::IDENTITY, [0.72, 0.62, 0.52]);
+        r.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [0.72, 0.62, 0.52]);
     }
     assert_eq!(r.triangle_count(), cache.triangle_count());
     r
@@ -135,7 +135,7 @@ fn chunk_buffers_are_replaced_and_removed() {
     assert!(n > 0);
     let uploads = r.uploads();
     let key = strata_volume::ChunkKey::new(1, 1, 1);
-    r.upload_chunk(&gpu.device, 0, key, &strata_mesh::Mesh::default(), Mat4::IDENTITY, [1.0; 3]);
+    r.upload_chunk(&gpu.device, &gpu.queue, 0, key, &strata_mesh::Mesh::default(), Mat4::IDENTITY, [1.0; 3]);
     assert_eq!(r.uploads(), uploads, "an empty mesh uploads nothing");
     assert!(r.chunk_count() < n);
     r.clear_layer(0);
