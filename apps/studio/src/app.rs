@@ -188,6 +188,12 @@ impl StudioApp {
         if let Some(i) = select {
             self.studio.editor.active_layer = i;
         }
+        if let Some(layer) = self.studio.editor.scene.layers.get_mut(self.studio.editor.active_layer) {
+            ui.horizontal(|ui| {
+                ui.label("Name");
+                ui.text_edit_singleline(&mut layer.name);
+            });
+        }
         if ui.button("Add layer").clicked() {
             let _ = self.studio.act(Action::AddLayer);
         }
