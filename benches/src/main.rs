@@ -65,6 +65,16 @@ enum Command {
         #[arg(long, default_value_t = 10.0)]
         seconds: f64,
     },
+    /// Converts the scanned mesh of Table 3 at one resolution and prints where the time and the
+    /// bytes go.
+    Convert {
+        /// Cells along the longest side.
+        #[arg(long, default_value_t = 1024)]
+        res: u32,
+        /// The mesh (PLY, OBJ or STL); the shipped bunny by default.
+        #[arg(long)]
+        mesh: Option<std::path::PathBuf>,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -80,6 +90,7 @@ fn main() -> Result<()> {
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
         Command::Stroke { seconds } => stroke(seconds),
+        Command::Convert { res, mesh } => return convert(res, mesh),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
     }
     Ok(())
@@ -282,4 +293,40 @@ fn stroke(seconds: f64) {
         editor.triangle_count(),
         editor.history().undo_len()
     );
+}
+
+fn convert(res: u32, mesh: Option<std::path::PathBuf>) -> Result<()> {
+    use glam::DVec3;
+    use std::time::Instant;
+    use strata_volume::brush::{MeshBrush, MeshRule};
+    let path = mesh.unwrap_or_else(|| strata_bench::suite::repo_root().join("tests/data/bunny.ply"));
+    let m = strata_mesh::import::load_mesh(&path)?;
+    let (lo, hi) = m.bounds().expect("vertices");
+    let scale = res as f64 / (hi - lo).max_element();
+    let verts: Vec<DVec3> = m.vertices.iter().map(|&v| (v - lo) * scale + DVec3::splat(2.0)).collect();
+    let t = Instant::now();
+    let brush = MeshBrush::new(&verts, &m.triangles, MeshRule::EvenOdd)?;
+    let build = t.elapsed();
+    let mut volume = strata_volume::Volume::new();
+    let t = Instant::now();
+    let settings = strata_volume::EditSettings { parallel: false, ..Default::default() };
+    volume.apply(strata_volume::CsgOp::Add, &brush, &settings)?;
+    let edit = t.elapsed();
+    let mem = volume.memory();
+    let stats = volume.crossing_stats();
+    println!("{} at {res}: BVH {:.1} ms, edit {:.1} ms (one thread)", path.display(), build.as_secs_f64() * 1e3, edit.as_secs_f64() * 1e3);
+    println!(
+        "crossings {}, list chunks {}, solid chunks {}; bytes: positions {}, normals {}, headers {}, chunk map {}, total {} ({:.2} MiB, {:.2} B/crossing)",
+        mem.crossings,
+        stats.list_chunks,
+        stats.solid_chunks,
+        mem.positions,
+        mem.normals,
+        mem.headers,
+        mem.chunk_map,
+        mem.total(),
+        mem.total() as f64 / (1024.0 * 1024.0),
+        mem.bytes_per_crossing(true)
+    );
+    Ok(())
 }

@@ -1,12 +1,11 @@
 //! Memory accounting from the real allocations.
 
 use crate::chunk::Chunk;
-use crate::coords::ChunkKey;
 use crate::volume::Volume;
 
 /// Bytes held by a volume, by category. Every figure is the size of a live allocation
-/// (capacity, not length): boxed slices are allocated exactly, and the chunk map is counted
-/// from its capacity using hashbrown's layout (one slot and one control byte per bucket, plus a
+/// (capacity, not length): boxed slices are allocated exactly, and the chunk map's two tables
+/// (list chunks, solid keys) are counted from their capacities using hashbrown's layout (one slot and one control byte per bucket, plus a
 /// 16-byte control group).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MemoryReport {
@@ -16,7 +15,7 @@ pub struct MemoryReport {
     pub normals: usize,
     /// Start bits, unary-coded counts and the per-chunk list struct.
     pub headers: usize,
-    /// The chunk map's table.
+    /// The chunk map's tables.
     pub chunk_map: usize,
     /// Crossings stored (not bytes).
     pub crossings: usize,
@@ -57,7 +56,7 @@ impl Volume {
     /// Bytes held, by category.
     pub fn memory(&self) -> MemoryReport {
         let mut r = MemoryReport {
-            chunk_map: hash_table_bytes(self.chunks.capacity(), std::mem::size_of::<(ChunkKey, Chunk)>()),
+            chunk_map: self.chunks.table_bytes(),
             ..Default::default()
         };
         for chunk in self.chunks.values() {

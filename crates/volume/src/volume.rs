@@ -1,6 +1,6 @@
 //! The volume: a sparse map from chunk keys to chunks.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::chunk::{Chunk, ChunkView};
@@ -39,8 +39,114 @@ impl Hasher for KeyHasher {
     }
 }
 
-/// The chunk map type.
-pub type ChunkMap = HashMap<ChunkKey, Chunk, BuildHasherDefault<KeyHasher>>;
+type Hash = BuildHasherDefault<KeyHasher>;
+
+/// The every-solid chunk, for references into [`ChunkMap`].
+static SOLID: Chunk = Chunk::Solid;
+
+/// The chunks of a volume: a map from key to crossing lists, and a set of the keys of all-solid
+/// chunks. Solid chunks are most of a large converted model (46,111 of 59,150 chunks for the
+/// bunny at 1,024 cells), so keeping them as bare keys (12 bytes a slot) instead of map entries
+/// (24 bytes) halves the map's memory there. Keys in neither are all empty.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "RawChunkMap")]
+pub struct ChunkMap {
+    lists: HashMap<ChunkKey, Chunk, Hash>,
+    solid: HashSet<ChunkKey, Hash>,
+}
+
+/// Unchecked deserialised form of [`ChunkMap`].
+#[derive(serde::Deserialize)]
+struct RawChunkMap {
+    lists: HashMap<ChunkKey, Chunk, Hash>,
+    solid: HashSet<ChunkKey, Hash>,
+}
+
+impl TryFrom<RawChunkMap> for ChunkMap {
+    type Error = String;
+
+    fn try_from(r: RawChunkMap) -> Result<Self, String> {
+        if r.lists.values().any(|c| matches!(c, Chunk::Solid)) {
+            return Err("a solid chunk stored among the list chunks".into());
+        }
+        if r.solid.iter().any(|k| r.lists.contains_key(k)) {
+            return Err("a chunk stored both as lists and as solid".into());
+        }
+        Ok(ChunkMap { lists: r.lists, solid: r.solid })
+    }
+}
+
+impl ChunkMap {
+    /// The chunk at `key` (`None`: all empty).
+    #[inline]
+    pub fn get(&self, key: &ChunkKey) -> Option<&Chunk> {
+        self.lists.get(key).or_else(|| self.solid.contains(key).then_some(&SOLID))
+    }
+
+    /// Whether `key` holds anything.
+    #[inline]
+    pub fn contains_key(&self, key: &ChunkKey) -> bool {
+        self.lists.contains_key(key) || self.solid.contains(key)
+    }
+
+    /// Stores `chunk` at `key`; returns what was there.
+    pub fn insert(&mut self, key: ChunkKey, chunk: Chunk) -> Option<Chunk> {
+        let old = self.remove(&key);
+        match chunk {
+            Chunk::Solid => {
+                self.solid.insert(key);
+            }
+            lists => {
+                self.lists.insert(key, lists);
+            }
+        }
+        old
+    }
+
+    /// Empties `key`; returns what was there.
+    pub fn remove(&mut self, key: &ChunkKey) -> Option<Chunk> {
+        self.lists.remove(key).or_else(|| self.solid.remove(key).then_some(Chunk::Solid))
+    }
+
+    /// Every stored key.
+    pub fn keys(&self) -> impl Iterator<Item = &ChunkKey> {
+        self.lists.keys().chain(self.solid.iter())
+    }
+
+    /// Every stored chunk.
+    pub fn iter(&self) -> impl Iterator<Item = (&ChunkKey, &Chunk)> {
+        self.lists.iter().chain(self.solid.iter().map(|k| (k, &SOLID)))
+    }
+
+    /// Every stored chunk's data.
+    pub fn values(&self) -> impl Iterator<Item = &Chunk> {
+        self.iter().map(|(_, c)| c)
+    }
+
+    /// Stored chunks.
+    pub fn len(&self) -> usize {
+        self.lists.len() + self.solid.len()
+    }
+
+    /// Whether nothing is stored.
+    pub fn is_empty(&self) -> bool {
+        self.lists.is_empty() && self.solid.is_empty()
+    }
+
+    /// Bytes of the two hash tables (from their capacities).
+    pub fn table_bytes(&self) -> usize {
+        crate::memory::hash_table_bytes(self.lists.capacity(), std::mem::size_of::<(ChunkKey, Chunk)>())
+            + crate::memory::hash_table_bytes(self.solid.capacity(), std::mem::size_of::<ChunkKey>())
+    }
+}
+
+impl<'a> IntoIterator for &'a ChunkMap {
+    type Item = (&'a ChunkKey, &'a Chunk);
+    type IntoIter = Box<dyn Iterator<Item = (&'a ChunkKey, &'a Chunk)> + 'a>;
+    fn into_iter(self) -> Self::IntoIter {
+        Box::new(self.iter())
+    }
+}
 
 /// A solid stored as crossing lists on the grid lines of sparse 16³-cell chunks.
 ///
