@@ -314,7 +314,12 @@ fn convert(res: u32, mesh: Option<std::path::PathBuf>) -> Result<()> {
     let edit = t.elapsed();
     let mem = volume.memory();
     let stats = volume.crossing_stats();
-    println!("{} at {res}: BVH {:.1} ms, edit {:.1} ms (one thread)", path.display(), build.as_secs_f64() * 1e3, edit.as_secs_f64() * 1e3);
+    println!(
+        "{} at {res}: BVH {:.1} ms, edit {:.1} ms (one thread)",
+        path.display(),
+        build.as_secs_f64() * 1e3,
+        edit.as_secs_f64() * 1e3
+    );
     println!(
         "crossings {}, list chunks {}, solid chunks {}; bytes: positions {}, normals {}, headers {}, chunk map {}, total {} ({:.2} MiB, {:.2} B/crossing)",
         mem.crossings,

@@ -5,8 +5,8 @@
 //!   three families are stored one after the other (x, y, z): `3 n²` lines in all;
 //! - `bits` holds one *start bit* per line (is the line's first node inside), then the crossing
 //!   count of every line in unary (`count` one bits and a zero), so an empty line costs two bits;
-//! - `positions` and `normals` hold every crossing in line order: a chunk-local fixed-point
-//!   position ([`LocalPos`]) and an octahedral normal.
+//! - `crossings` holds every crossing in line order, in one allocation: first all chunk-local
+//!   fixed-point positions ([`LocalPos`]), then all octahedral normals in the same order.
 //!
 //! A line covers the nodes `0..=n` of its chunk (node `n` belongs to the next chunk along the
 //! axis) and so the cells `0..n`. Because of the node-state invariant a line has at most one
@@ -30,8 +30,8 @@ pub struct ChunkLists {
     bits: Box<[u64]>,
     /// Per axis: bit offset (into the unary part of `bits`) and crossing index of its first line.
     axis_start: [(u32, u32); 3],
-    positions: Box<[LocalPos]>,
-    normals: Box<[PackedNormal]>,
+    /// Positions, then normals: `2 m` values for `m` crossings.
+    crossings: Box<[u16]>,
 }
 
 /// Unchecked deserialised form of [`ChunkLists`].
@@ -40,23 +40,19 @@ struct RawChunkLists {
     level: Level,
     bits: Box<[u64]>,
     axis_start: [(u32, u32); 3],
-    positions: Box<[LocalPos]>,
-    normals: Box<[PackedNormal]>,
+    crossings: Box<[u16]>,
 }
 
 impl TryFrom<RawChunkLists> for ChunkLists {
     type Error = String;
 
     fn try_from(r: RawChunkLists) -> Result<Self, String> {
-        let lists = ChunkLists {
-            level: r.level,
-            bits: r.bits,
-            axis_start: r.axis_start,
-            positions: r.positions,
-            normals: r.normals,
-        };
+        let lists = ChunkLists { level: r.level, bits: r.bits, axis_start: r.axis_start, crossings: r.crossings };
+        if lists.crossings.len() % 2 != 0 {
+            return Err("positions and normals differ in length".into());
+        }
         let n = lists.level.cells();
-        if lists.bits.len() * 64 < 6 * n * n + lists.positions.len() {
+        if lists.bits.len() * 64 < 6 * n * n + lists.positions().len() {
             return Err("chunk bit stream too short".into());
         }
         check_lists(&lists)?;
@@ -92,13 +88,18 @@ impl ChunkLists {
 
     /// Number of crossings stored, all axes.
     pub fn crossing_count(&self) -> usize {
-        self.positions.len()
+        self.crossings.len() / 2
+    }
+
+    /// Normals of all crossings in storage order.
+    fn normals(&self) -> &[PackedNormal] {
+        &self.crossings[self.crossings.len() / 2..]
     }
 
     /// Number of crossings on lines along `axis`.
     pub fn axis_crossing_count(&self, axis: Axis) -> usize {
         let a = axis.index();
-        let end = if a == 2 { self.positions.len() as u32 } else { self.axis_start[a + 1].1 };
+        let end = if a == 2 { self.crossing_count() as u32 } else { self.axis_start[a + 1].1 };
         (end - self.axis_start[a].1) as usize
     }
 
@@ -133,15 +134,15 @@ impl ChunkLists {
     /// Bytes held by positions, normals and the bit stream plus this struct (its box).
     pub(crate) fn heap_bytes(&self) -> (usize, usize, usize) {
         (
-            std::mem::size_of_val(&*self.positions),
-            std::mem::size_of_val(&*self.normals),
+            std::mem::size_of_val(self.positions()),
+            std::mem::size_of_val(self.normals()),
             std::mem::size_of_val(&*self.bits) + std::mem::size_of::<ChunkLists>(),
         )
     }
 
     /// All crossing positions in storage order (for tests and statistics).
     pub fn positions(&self) -> &[LocalPos] {
-        &self.positions
+        &self.crossings[..self.crossings.len() / 2]
     }
 }
 
@@ -171,8 +172,8 @@ impl<'a> LineCursor<'a> {
         let count = ones_run(&self.lists.bits, self.bit);
         let r = LineRef {
             start_inside: self.lists.start_inside(self.axis, self.index),
-            positions: &self.lists.positions[self.cross..self.cross + count],
-            normals: &self.lists.normals[self.cross..self.cross + count],
+            positions: &self.lists.positions()[self.cross..self.cross + count],
+            normals: &self.lists.normals()[self.cross..self.cross + count],
         };
         self.bit += count + 1;
         self.cross += count;
@@ -349,8 +350,8 @@ impl ChunkBuilder {
         self.starts.extend_from(&src.bits, axis.index() * src.lines_per_axis() + cursor.index, count);
         cursor.advance_to(cursor.index + count);
         self.unary.extend_from(&src.bits, bit, cursor.bit - bit);
-        self.positions.extend_from_slice(&src.positions[cross..cursor.cross]);
-        self.normals.extend_from_slice(&src.normals[cross..cursor.cross]);
+        self.positions.extend_from_slice(&src.positions()[cross..cursor.cross]);
+        self.normals.extend_from_slice(&src.normals()[cross..cursor.cross]);
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.
@@ -365,8 +366,7 @@ impl ChunkBuilder {
             level: self.level,
             bits: all.words.into_boxed_slice(),
             axis_start: self.axis_start,
-            positions: self.positions.as_slice().into(),
-            normals: self.normals.as_slice().into(),
+            crossings: self.positions.iter().chain(&self.normals).copied().collect(),
         })
     }
 }
@@ -380,10 +380,10 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
     let mut cross = 0usize;
     let total_bits = lists.bits.len() * 64;
     let s = lists.level.steps_per_cell();
-    if lists.positions.len() != lists.normals.len() {
+    if lists.crossings.len() % 2 != 0 {
         return Err("positions and normals differ in length".into());
     }
-    if lists.positions.is_empty() {
+    if lists.crossing_count() == 0 {
         return Err("a chunk without crossings must be stored as uniform".into());
     }
     for axis in Axis::ALL {
@@ -401,7 +401,7 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
             }
             bitpos += 1;
             let pos =
-                lists.positions.get(cross..cross + count).ok_or("count stream names more crossings than stored")?;
+                lists.positions().get(cross..cross + count).ok_or("count stream names more crossings than stored")?;
             let mut last_edge: Option<usize> = None;
             for &q in pos {
                 if (q as u32).is_multiple_of(s) {
@@ -416,7 +416,7 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
             cross += count;
         }
     }
-    if cross != lists.positions.len() {
+    if cross != lists.crossing_count() {
         return Err("stored crossings not all named by the count stream".into());
     }
     Ok(())

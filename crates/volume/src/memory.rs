@@ -55,10 +55,7 @@ pub fn hash_table_bytes(capacity: usize, slot: usize) -> usize {
 impl Volume {
     /// Bytes held, by category.
     pub fn memory(&self) -> MemoryReport {
-        let mut r = MemoryReport {
-            chunk_map: self.chunks.table_bytes(),
-            ..Default::default()
-        };
+        let mut r = MemoryReport { chunk_map: self.chunks.table_bytes(), ..Default::default() };
         for chunk in self.chunks.values() {
             if let Chunk::Lists(l) = chunk {
                 let (p, n, h) = l.heap_bytes();
