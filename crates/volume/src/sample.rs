@@ -133,11 +133,17 @@ impl<'a> LineSampler<'a> {
     }
 
     /// Fills `out` from spans whose parameter is `shift` grid units ahead of the line's node 0.
-    pub(crate) fn fill_from_spans(&self, spans: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
+    pub(crate) fn fill_from_spans(&self, all: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
         let n = at.level.cells();
         let sp = at.level.spacing();
         let inv_sp = at.level.nodes_per_unit();
         let end = crate::coords::CHUNK_CELLS as f64;
+        // Only spans reaching within a cell of this chunk's part of the line can decide its
+        // nodes or crossings (the spans are sorted and disjoint): a long line through a complex
+        // mesh then costs each chunk only the spans it holds.
+        let first = all.partition_point(|s| s.exit - shift < -1.0);
+        let last = all.partition_point(|s| s.enter - shift <= end + 1.0);
+        let spans = &all[first..last.max(first)];
         if let [s] = spans
             && s.enter - shift < -SNAP_DISTANCE
             && s.exit - shift > end + SNAP_DISTANCE
@@ -192,7 +198,7 @@ impl<'a> LineSampler<'a> {
             let mid = (e as f64 + 0.5) * sp + shift;
             let (t, normal) = pick.unwrap_or_else(|| {
                 // The predicate moved the change away from any root: use the nearest end.
-                let nearest = spans
+                let nearest = all
                     .iter()
                     .flat_map(|s| [(s.enter, s.enter_normal), (s.exit, s.exit_normal)])
                     .min_by(|a, b| (a.0 - mid).abs().total_cmp(&(b.0 - mid).abs()));
