@@ -48,7 +48,7 @@ impl TryFrom<RawChunkLists> for ChunkLists {
 
     fn try_from(r: RawChunkLists) -> Result<Self, String> {
         let lists = ChunkLists { level: r.level, bits: r.bits, axis_start: r.axis_start, crossings: r.crossings };
-        if lists.crossings.len() % 2 != 0 {
+        if !lists.crossings.len().is_multiple_of(2) {
             return Err("positions and normals differ in length".into());
         }
         let n = lists.level.cells();
@@ -380,7 +380,7 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
     let mut cross = 0usize;
     let total_bits = lists.bits.len() * 64;
     let s = lists.level.steps_per_cell();
-    if lists.crossings.len() % 2 != 0 {
+    if !lists.crossings.len().is_multiple_of(2) {
         return Err("positions and normals differ in length".into());
     }
     if lists.crossing_count() == 0 {
