@@ -370,7 +370,9 @@ impl StudioApp {
                 egui::Color32::WHITE,
             );
         }
-        if self.studio.editor.pending() > 0 || response.hovered() {
+        // Repaint on our own only while meshing catches up or a stroke is in progress; pointer
+        // and key events repaint anyway, so an idle editor uses no CPU.
+        if self.studio.editor.pending() > 0 || self.studio.editor.stroking() {
             ui.ctx().request_repaint();
         }
     }
