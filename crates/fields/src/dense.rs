@@ -7,7 +7,9 @@ use glam::I64Vec3;
 use strata_volume::brush::Brush;
 use strata_volume::{ChunkKey, CsgOp, KeyHasher, VoxelBlock, hash_table_bytes};
 
-use crate::{FieldError, N, NODES, PaddedValues, edit_chunks, edit_values, gather, index, local_range, neighbourhood};
+use crate::{
+    FieldError, N, NODES, PaddedValues, edit_chunks, edit_targets, edit_values, gather, index, neighbourhood, outside,
+};
 
 /// Nodes within this many cells of a brush's bounds are updated: the crossings next to the
 /// brush interpolate fresh values, and so do the central differences that give their normals.
@@ -37,34 +39,24 @@ impl DenseField {
     /// Applies `brush` with `op` to every node within two cells of its bounds (intersection also
     /// empties every chunk beyond them) and returns the chunks whose values changed, sorted.
     pub fn apply<B: Brush + ?Sized>(&mut self, op: CsgOp, brush: &B) -> Result<Vec<ChunkKey>, FieldError> {
-        let (lo, hi) = edit_chunks(brush, MARGIN)?;
-        let bounds = brush.bounds();
+        let boxed = edit_chunks(brush, MARGIN)?;
         let mut changed = Vec::new();
         if op == CsgOp::Intersect {
-            let outside: Vec<ChunkKey> =
-                self.chunks.keys().copied().filter(|k| k.0.cmplt(lo).any() || k.0.cmpgt(hi).any()).collect();
-            for k in outside {
+            let gone: Vec<ChunkKey> = self.chunks.keys().copied().filter(|k| outside(k, boxed)).collect();
+            for k in gone {
                 self.chunks.remove(&k);
                 changed.push(k);
             }
         }
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    let key = ChunkKey::new(x, y, z);
-                    let range =
-                        if op == CsgOp::Intersect { Some(([0; 3], [N; 3])) } else { local_range(key, &bounds, MARGIN) };
-                    let Some(range) = range else { continue };
-                    let values = match (op, self.chunks.get_mut(&key)) {
-                        (_, Some(v)) => v,
-                        // Subtracting from or intersecting with empty space changes nothing.
-                        (CsgOp::Subtract | CsgOp::Intersect, None) => continue,
-                        (CsgOp::Add, None) => self.chunks.entry(key).or_insert_with(|| vec![FAR; NODES].into()),
-                    };
-                    if edit_values(values, key, range, op, brush, None) {
-                        changed.push(key);
-                    }
-                }
+        for (key, range) in edit_targets(op, brush.bounds(), boxed, MARGIN) {
+            let values = match (op, self.chunks.get_mut(&key)) {
+                (_, Some(v)) => v,
+                // Subtracting from or intersecting with empty space changes nothing.
+                (CsgOp::Subtract | CsgOp::Intersect, None) => continue,
+                (CsgOp::Add, None) => self.chunks.entry(key).or_insert_with(|| vec![FAR; NODES].into()),
+            };
+            if edit_values(values, key, range, op, brush, None) {
+                changed.push(key);
             }
         }
         changed.sort_by_key(|k| (k.0.z, k.0.y, k.0.x));

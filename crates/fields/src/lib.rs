@@ -107,6 +107,31 @@ pub(crate) fn local_range(key: ChunkKey, bounds: &Aabb, margin: f64) -> Option<(
     Some((lo, hi))
 }
 
+/// Every chunk of the key box `lo..=hi` with the node range an edit must visit there: all of it
+/// for an intersection, else the nodes within `margin` of the brush's `bounds`.
+pub(crate) fn edit_targets(
+    op: CsgOp,
+    bounds: Aabb,
+    (lo, hi): (glam::IVec3, glam::IVec3),
+    margin: f64,
+) -> impl Iterator<Item = (ChunkKey, ([usize; 3], [usize; 3]))> {
+    (lo.z..=hi.z).flat_map(move |z| {
+        (lo.y..=hi.y).flat_map(move |y| {
+            (lo.x..=hi.x).filter_map(move |x| {
+                let key = ChunkKey::new(x, y, z);
+                let range =
+                    if op == CsgOp::Intersect { Some(([0; 3], [N; 3])) } else { local_range(key, &bounds, margin) };
+                range.map(|r| (key, r))
+            })
+        })
+    })
+}
+
+/// Whether `key` lies outside the key box `lo..=hi` (an intersection empties it).
+pub(crate) fn outside(key: &ChunkKey, (lo, hi): (glam::IVec3, glam::IVec3)) -> bool {
+    key.0.cmplt(lo).any() || key.0.cmpgt(hi).any()
+}
+
 /// How an edit combines an old value with the brush's (possibly clamped) distance `f`.
 #[inline]
 pub(crate) fn combine(op: CsgOp, old: f32, f: f32) -> f32 {

@@ -7,7 +7,9 @@ use glam::I64Vec3;
 use strata_volume::brush::Brush;
 use strata_volume::{ChunkKey, CsgOp, KeyHasher, VoxelBlock, hash_table_bytes};
 
-use crate::{FieldError, N, NODES, PaddedValues, edit_chunks, edit_values, gather, index, local_range, neighbourhood};
+use crate::{
+    FieldError, N, NODES, PaddedValues, edit_chunks, edit_targets, edit_values, gather, index, neighbourhood, outside,
+};
 
 type Map<V> = HashMap<ChunkKey, V, BuildHasherDefault<KeyHasher>>;
 
@@ -164,31 +166,22 @@ impl NarrowBandField {
     /// [`NarrowBandField::commit`]; the split lets a benchmark time encoding apart.
     pub fn edit<B: Brush + ?Sized>(&self, op: CsgOp, brush: &B) -> Result<DecodedEdit, FieldError> {
         let margin = self.band as f64;
-        let (lo, hi) = edit_chunks(brush, margin)?;
-        let bounds = brush.bounds();
+        let boxed = edit_chunks(brush, margin)?;
         let mut out = DecodedEdit::default();
         if op == CsgOp::Intersect {
-            out.removed = self.chunks.keys().copied().filter(|k| k.0.cmplt(lo).any() || k.0.cmpgt(hi).any()).collect();
+            out.removed = self.chunks.keys().copied().filter(|k| outside(k, boxed)).collect();
         }
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    let key = ChunkKey::new(x, y, z);
-                    let range =
-                        if op == CsgOp::Intersect { Some(([0; 3], [N; 3])) } else { local_range(key, &bounds, margin) };
-                    let Some(range) = range else { continue };
-                    let existing = self.chunks.get(&key);
-                    if existing.is_none() && op != CsgOp::Add {
-                        continue;
-                    }
-                    let mut values: Box<[f32]> = vec![self.band; NODES].into();
-                    if let Some(c) = existing {
-                        c.decode(self.band, &mut values);
-                    }
-                    if edit_values(&mut values, key, range, op, brush, Some(self.band)) {
-                        out.chunks.push((key, values));
-                    }
-                }
+        for (key, range) in edit_targets(op, brush.bounds(), boxed, margin) {
+            let existing = self.chunks.get(&key);
+            if existing.is_none() && op != CsgOp::Add {
+                continue;
+            }
+            let mut values: Box<[f32]> = vec![self.band; NODES].into();
+            if let Some(c) = existing {
+                c.decode(self.band, &mut values);
+            }
+            if edit_values(&mut values, key, range, op, brush, Some(self.band)) {
+                out.chunks.push((key, values));
             }
         }
         Ok(out)
