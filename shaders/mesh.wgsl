@@ -27,14 +27,19 @@ struct VertexOut {
     @location(2) color: vec4<f32>,
 };
 
-@vertex
-fn vs_mesh(v: VertexIn) -> VertexOut {
+// World to clip space, passing the attributes on.
+fn transform(v: VertexIn) -> VertexOut {
     var out: VertexOut;
     out.clip = frame.view_proj * vec4<f32>(v.position, 1.0);
     out.world = v.position;
     out.normal = v.normal;
     out.color = v.color;
     return out;
+}
+
+@vertex
+fn vs_mesh(v: VertexIn) -> VertexOut {
+    return transform(v);
 }
 
 // A key light (Lambert plus a soft Blinn-Phong highlight) over a hemispheric ambient: sky
@@ -58,13 +63,8 @@ fn fs_mesh(in: VertexOut) -> @location(0) vec4<f32> {
 // they win the depth test against the surface they lie on.
 @vertex
 fn vs_line(v: VertexIn) -> VertexOut {
-    var out: VertexOut;
-    var clip = frame.view_proj * vec4<f32>(v.position, 1.0);
-    clip.z = clip.z - 0.0004 * clip.w;
-    out.clip = clip;
-    out.world = v.position;
-    out.normal = v.normal;
-    out.color = v.color;
+    var out = transform(v);
+    out.clip.z = out.clip.z - 0.0004 * out.clip.w;
     return out;
 }
 

@@ -353,9 +353,9 @@ impl StudioApp {
         let erase = self.studio.editor.tool.kind == ToolKind::Erase;
         let wireframe = self.studio.wireframe;
         let camera = self.studio.camera;
-        let preview_mesh = self.studio.preview_mesh().clone();
+        let preview_mesh = self.studio.preview_mesh();
         let preview = hover.map(|p| Preview {
-            mesh: &preview_mesh,
+            mesh: preview_mesh,
             model: Mat4::from_translation(p.as_vec3()),
             color: if erase { [1.0, 0.35, 0.3, 0.28] } else { [0.35, 0.65, 1.0, 0.28] },
         });

@@ -239,14 +239,10 @@ impl Editor {
         self.after_history(changed)
     }
 
-    fn after_history(&mut self, layer: Option<usize>) -> bool {
-        let Some(layer) = layer else { return false };
-        // The restored chunks are not known here cheaply; requeue the layer's stored chunks
-        // plus what the caches hold (chunks that became empty).
-        let mut keys: Vec<ChunkKey> = self.scene.layers[layer].volume.chunks().map(|(k, _)| k).collect();
-        keys.extend(self.caches[layer].iter().map(|(k, _)| k));
-        let keys = MeshCache::dependents(&keys);
-        self.dirty[layer].extend(keys);
+    fn after_history(&mut self, restored: Option<(usize, Vec<ChunkKey>)>) -> bool {
+        let Some((layer, keys)) = restored else { return false };
+        // Only the restored chunks changed: remesh them and the chunks that read them.
+        self.queue(layer, &keys);
         true
     }
 

@@ -1,6 +1,6 @@
 //! Undo/redo over whole strokes, within a memory budget.
 
-use strata_volume::{UndoRecord, Volume};
+use strata_volume::{ChunkKey, UndoRecord, Volume};
 
 /// One undoable step: the records of every edit of a stroke on one layer, in the order applied.
 #[derive(Debug, Default)]
@@ -16,6 +16,14 @@ impl HistoryEntry {
     pub fn bytes(&self) -> usize {
         self.records.iter().map(UndoRecord::heap_bytes).sum::<usize>()
             + self.records.capacity() * std::mem::size_of::<UndoRecord>()
+    }
+
+    /// The chunks the step's records restore, sorted, without repeats.
+    fn keys(&self) -> Vec<ChunkKey> {
+        let mut keys: Vec<ChunkKey> = self.records.iter().flat_map(UndoRecord::keys).collect();
+        keys.sort();
+        keys.dedup();
+        keys
     }
 
     /// Restores the records in reverse order; returns the entry that undoes this one.
@@ -63,25 +71,36 @@ impl History {
         }
     }
 
-    /// Undoes the newest step on `layers` (indexed by entry layer). Returns the layer changed.
-    pub fn undo<'a>(&mut self, volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>) -> Option<usize> {
+    /// Undoes the newest step on the volume `volume_of` gives for its layer. Returns the layer
+    /// and the chunks restored.
+    pub fn undo<'a>(
+        &mut self,
+        volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>,
+    ) -> Option<(usize, Vec<ChunkKey>)> {
         let entry = self.undo.pop()?;
         let layer = entry.layer;
         // A step on a layer that no longer exists is dropped.
         let volume = volume_of(layer)?;
-        self.redo.push(entry.apply(volume));
-        Some(layer)
+        let redo = entry.apply(volume);
+        let keys = redo.keys();
+        self.redo.push(redo);
+        Some((layer, keys))
     }
 
-    /// Redoes the newest undone step. Returns the layer changed.
-    pub fn redo<'a>(&mut self, volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>) -> Option<usize> {
+    /// Redoes the newest undone step. Returns the layer and the chunks restored.
+    pub fn redo<'a>(
+        &mut self,
+        volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>,
+    ) -> Option<(usize, Vec<ChunkKey>)> {
         let entry = self.redo.pop()?;
         let layer = entry.layer;
         // A step on a layer that no longer exists is dropped.
         let volume = volume_of(layer)?;
-        self.undo.push(entry.apply(volume));
+        let undo = entry.apply(volume);
+        let keys = undo.keys();
+        self.undo.push(undo);
         self.trim();
-        Some(layer)
+        Some((layer, keys))
     }
 
     /// Steps that can be undone.

@@ -76,6 +76,14 @@ fn erase_undo_and_redo_restore_exact_volumes() {
 
     assert!(e.undo());
     assert_eq!(e.scene.layers[0].volume, after_add);
+    // Undo queues exactly the chunks it restored (and those that read them): the cache catches
+    // up to a fresh build of the restored volume.
+    e.finish_meshing();
+    let fresh = MeshCache::build(&e.scene.layers[0].volume);
+    assert_eq!(e.triangle_count(), fresh.triangle_count());
+    for (k, m) in fresh.iter() {
+        assert_eq!(e.mesh_cache(0).unwrap().mesh(k), Some(m), "chunk {k:?} after undo");
+    }
     assert!(e.undo());
     assert!(e.scene.layers[0].volume.is_empty());
     assert!(!e.undo(), "nothing left to undo");
