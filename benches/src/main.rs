@@ -26,6 +26,9 @@ enum Command {
         /// Workload seed.
         #[arg(long, default_value_t = 2021)]
         seed: u64,
+        /// Skip the rayon run (one thread only; for profiling).
+        #[arg(long)]
+        single: bool,
     },
     /// Table 2: whole-frame time of edit + voxel blocks + remesh, per radius, with marching
     /// cubes and with dual contouring.
@@ -86,7 +89,7 @@ enum Command {
 
 fn main() -> Result<()> {
     match Cli::parse().suite {
-        Command::Table1 { count, radii, seed } => table1(count, &radii, seed),
+        Command::Table1 { count, radii, seed, single } => table1(count, &radii, seed, single),
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
         Command::Stroke { seconds } => stroke(seconds),
@@ -129,7 +132,7 @@ fn suite(
     Ok(())
 }
 
-fn table1(count: usize, radii: &[f64], seed: u64) {
+fn table1(count: usize, radii: &[f64], seed: u64, single_only: bool) {
     println!(
         "| radius | Time_d 1 thread (ms) | Time_v 1 thread (ms) | Time_d rayon (ms) | Time_v rayon (ms) | chunks changed / edit | crossings | B/crossing | B/crossing w/o normals | longest chunk line |"
     );
@@ -137,7 +140,7 @@ fn table1(count: usize, radii: &[f64], seed: u64) {
     for &r in radii {
         let ins = table1_instructions(count, r, seed);
         let single = replay(&ins, false);
-        let par = replay(&ins, true);
+        let par = if single_only { single.clone() } else { replay(&ins, true) };
         assert_eq!(single.volume, par.volume, "parallel and single-threaded edits must agree");
         let mem = single.volume.memory();
         let stats = single.volume.crossing_stats();

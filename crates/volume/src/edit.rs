@@ -10,7 +10,7 @@ use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineCursor, WorkLine, node_mask};
-use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos};
+use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, quantize_into_edge};
 use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, PackedSpan};
 use crate::volume::Volume;
@@ -155,6 +155,10 @@ struct AxisSpans {
     nv: usize,
     offsets: Vec<u32>,
     spans: Vec<PackedSpan>,
+    /// Per line: the nodes `j0..=j1` (relative to the table base along the axis, level units)
+    /// inside its one span when no span end lies within the snapping distance of a node, so any
+    /// chunk piece of the line follows by integer arithmetic; `j0 == NOT_SIMPLE` otherwise.
+    simple: Vec<(i32, i32)>,
     /// Per row `v`: the first and one past the last `u` whose line has spans (empty if none).
     rows: Vec<(i64, i64)>,
 }
@@ -173,13 +177,43 @@ impl AxisSpans {
 
     #[inline]
     fn line(&self, u: i64, v: i64) -> &[PackedSpan] {
+        self.line_simple(u, v).0
+    }
+
+    /// The spans of line `(u, v)` and its [`AxisSpans::simple`] node range.
+    #[inline]
+    fn line_simple(&self, u: i64, v: i64) -> (&[PackedSpan], (i32, i32)) {
         let (u, v) = (u - self.u0, v - self.v0);
         if u < 0 || v < 0 || u as usize >= self.nu || v as usize >= self.nv {
-            return &[];
+            return (&[], (NOT_SIMPLE, 0));
         }
         let i = u as usize + self.nu * v as usize;
-        &self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+        (&self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize], self.simple[i])
     }
+}
+
+/// Marks a line of a span table whose pieces need the general sampler.
+const NOT_SIMPLE: i32 = i32::MIN;
+
+/// The simple node range of a line with one span (see [`AxisSpans::simple`]).
+fn simple_range(spans: &[PackedSpan], inv_sp: f64) -> (i32, i32) {
+    let [s] = spans else { return (NOT_SIMPLE, 0) };
+    let snap = SNAP_DISTANCE * inv_sp;
+    let (enter, exit) = (s.enter * inv_sp, s.exit * inv_sp);
+    let near = |x: f64| (x - (x + 0.5).floor()).abs() <= snap;
+    let limit = (i32::MAX / 2) as f64;
+    if near(enter) || near(exit) || !(enter.abs() < limit && exit.abs() < limit) {
+        return (NOT_SIMPLE, 0);
+    }
+    (enter.ceil() as i32, exit.floor() as i32)
+}
+
+/// What the rows of a span table produce.
+#[derive(Default)]
+struct RowOut {
+    counts: Vec<u32>,
+    packed: Vec<PackedSpan>,
+    simple: Vec<(i32, i32)>,
 }
 
 /// Lines beyond which the table is not built (each costs a few bytes even when empty); larger
@@ -213,46 +247,72 @@ impl SpanTable {
             let (ua, va) = axis.across();
             let ((u0, nu), (v0, nv)) = (range(ua.index()), range(va.index()));
             // One row of lines: appends span counts and packed spans.
-            let row = |v: i64, counts: &mut Vec<u32>, packed: &mut Vec<PackedSpan>, spans: &mut Vec<Span>| {
-                let n = level.cells() as i64;
+            let n = level.cells() as i64;
+            let shift = n.trailing_zeros();
+            let dir = axis.unit();
+            // One row of lines: appends span counts, packed spans and simple ranges.
+            let row = |v: i64, out: &mut RowOut, lines: &mut Vec<(DVec3, DVec3)>, spans: &mut Vec<Span>| {
+                // Chunk and local line of `i` (n is a power of two: shifts, no divisions).
+                let split = |i: i64| (i >> shift, (i & (n - 1)) as f64 * sp);
+                let (cv, lv) = split(v);
+                lines.clear();
                 for u in u0..u0 + nu {
                     // Across the line, measure from the origin of the chunk that owns the line,
                     // exactly as the node predicate does; along it, from the table's base. A box
                     // face that falls on a node plane then includes or excludes the line exactly
                     // as `contains` includes or excludes its nodes.
-                    let chunk = compose(axis, 0, u.div_euclid(n), v.div_euclid(n));
+                    let (cu, lu) = split(u);
+                    let chunk = compose(axis, 0, cu, cv);
                     let line_origin = origin + (I64Vec3::from_array(chunk) * CHUNK_CELLS).as_dvec3();
-                    let start =
-                        DVec3::from_array(compose(axis, 0.0, u.rem_euclid(n) as f64 * sp, v.rem_euclid(n) as f64 * sp));
-                    brush.spans(line_origin, start, axis.unit(), spans);
-                    counts.push(spans.len() as u32);
-                    for s in spans.iter() {
-                        packed.push(PackedSpan::pack(s, flip));
+                    lines.push((line_origin, DVec3::from_array(compose(axis, 0.0, lu, lv))));
+                }
+                spans.clear();
+                let first_count = out.counts.len();
+                brush.spans_batch(lines, dir, spans, &mut out.counts);
+                let mut next = 0;
+                for &c in &out.counts[first_count..] {
+                    let first = out.packed.len();
+                    for s in &spans[next..next + c as usize] {
+                        out.packed.push(PackedSpan::pack(s, flip));
                     }
+                    next += c as usize;
+                    out.simple.push(simple_range(&out.packed[first..], level.nodes_per_unit()));
                 }
             };
             let a = &mut axes[axis.index()];
             *a = AxisSpans { u0, v0, nu: nu as usize, nv: nv as usize, ..Default::default() };
-            let mut counts = Vec::with_capacity((nu * nv) as usize);
+            let lines_total = (nu * nv) as usize;
+            let mut out = RowOut {
+                counts: Vec::with_capacity(lines_total),
+                packed: Vec::with_capacity(lines_total),
+                simple: Vec::with_capacity(lines_total),
+            };
             if parallel {
-                let rows: Vec<(Vec<u32>, Vec<PackedSpan>)> = (v0..v0 + nv)
+                let rows: Vec<RowOut> = (v0..v0 + nv)
                     .into_par_iter()
-                    .map_init(Vec::new, |spans, v| {
-                        let (mut c, mut p) = (Vec::with_capacity(nu as usize), Vec::new());
-                        row(v, &mut c, &mut p, spans);
-                        (c, p)
-                    })
+                    .map_init(
+                        || (Vec::new(), Vec::new()),
+                        |(lines, spans), v| {
+                            let mut o = RowOut::default();
+                            row(v, &mut o, lines, spans);
+                            o
+                        },
+                    )
                     .collect();
-                for (c, p) in rows {
-                    counts.extend(c);
-                    a.spans.extend(p);
+                for o in rows {
+                    out.counts.extend(o.counts);
+                    out.packed.extend(o.packed);
+                    out.simple.extend(o.simple);
                 }
             } else {
-                let mut spans = Vec::new();
+                let (mut lines, mut spans) = (Vec::with_capacity(nu as usize), Vec::new());
                 for v in v0..v0 + nv {
-                    row(v, &mut counts, &mut a.spans, &mut spans);
+                    row(v, &mut out, &mut lines, &mut spans);
                 }
             }
+            let counts = out.counts;
+            a.spans = out.packed;
+            a.simple = out.simple;
             a.offsets.reserve(counts.len() + 1);
             a.offsets.push(0);
             let mut total = 0;
@@ -492,31 +552,40 @@ fn edit_chunk(
             for u in u0..=u1 {
                 let inside_box = ranges.0.is_some_and(|(a, b)| (a..=b).contains(&u))
                     && ranges.1.is_some_and(|(a, b)| (a..=b).contains(&v));
-                if inside_box {
-                    match table_level {
-                        Some((t, offset)) => {
-                            let spans =
-                                t.axes[axis.index()].line(offset[ua.index()] + u as i64, offset[va.index()] + v as i64);
-                            let shift = (origin[axis.index()] - t.base[axis.index()]) as f64;
-                            if spans.is_empty() {
-                                brush_line.states = 0;
-                            } else {
-                                sampler.fill_from_spans(spans, shift, at(axis, u, v), &mut brush_line);
-                            }
+                let index = u + n * v;
+                // Where the brush line is taken from: nothing, a simple span, or the sampler.
+                let mut simple = None;
+                if !inside_box {
+                    brush_line.states = 0;
+                } else if let Some((t, offset)) = table_level {
+                    let (spans, range) =
+                        t.axes[axis.index()].line_simple(offset[ua.index()] + u as i64, offset[va.index()] + v as i64);
+                    if spans.is_empty() {
+                        brush_line.states = 0;
+                    } else if range.0 != NOT_SIMPLE && !ctx.reconcile && ctx.op != CsgOp::Intersect {
+                        // Chunk-relative node range of the span (the table's shift is exact).
+                        let off = offset[axis.index()];
+                        let (a, b) = (range.0 as i64 - off, range.1 as i64 - off);
+                        if b < 0 || a > n as i64 || a > b {
+                            // The span misses this chunk's piece of the line.
+                            continue;
                         }
-                        None => sampler.sample(at(axis, u, v), &mut brush_line),
-                    }
-                    if ctx.reconcile && axis != Axis::X {
-                        repaired += reconcile_line(&s.x_states, axis, u, v, level, sampler.flip, &mut brush_line);
+                        simple = Some((&spans[0], (a.max(0) as usize, b.min(n as i64) as usize), off));
+                        brush_line.states = u128::MAX;
+                    } else {
+                        let shift = (origin[axis.index()] - t.base[axis.index()]) as f64;
+                        sampler.fill_from_spans(spans, shift, at(axis, u, v), &mut brush_line);
                     }
                 } else {
-                    brush_line.states = 0;
+                    sampler.sample(at(axis, u, v), &mut brush_line);
+                }
+                if ctx.reconcile && inside_box && axis != Axis::X {
+                    repaired += reconcile_line(&s.x_states, axis, u, v, level, sampler.flip, &mut brush_line);
                 }
                 if brush_line.states == 0 && ctx.op != CsgOp::Intersect {
                     // An empty brush line leaves a union or difference unchanged.
                     continue;
                 }
-                let index = u + n * v;
                 let line = match (&mut cursor, old) {
                     (Some(c), _) => {
                         c.advance_to(index);
@@ -524,10 +593,27 @@ fn edit_chunk(
                     }
                     (None, view) => view.line(axis, u, v),
                 };
+                let uniform = line.positions.is_empty();
+                if uniform && ctx.op != CsgOp::Intersect && line.start_inside == (ctx.op == CsgOp::Add) {
+                    // Adding to a full line or subtracting from an empty one changes nothing.
+                    continue;
+                }
+                if let Some((span, (lo, hi), off)) = simple {
+                    brush_line.states = node_mask(hi) & !((1u128 << lo) - 1);
+                    let shift = ((off >> n.trailing_zeros()) * CHUNK_CELLS) as f64;
+                    if lo > 0 {
+                        brush_line.pos[lo - 1] = quantize_into_edge(span.enter - shift, lo - 1, level);
+                        brush_line.nrm[lo - 1] = span.enter_normal;
+                    }
+                    if hi < n {
+                        brush_line.pos[hi] = quantize_into_edge(span.exit - shift, hi, level);
+                        brush_line.nrm[hi] = span.exit_normal;
+                    }
+                }
                 if brush_line.states == full && ctx.op != CsgOp::Intersect {
                     // The brush fills the line: the result is a full or an empty line.
                     let now = ctx.op == CsgOp::Add;
-                    if line.start_inside != now || !line.positions.is_empty() {
+                    if line.start_inside != now || !uniform {
                         s.changed.push(ChangedLine {
                             axis: axis as u8,
                             index: index as u32,
@@ -538,24 +624,35 @@ fn edit_chunk(
                     }
                     continue;
                 }
-                old_line.load(line, level);
-                combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
-                if !new_line.same_as(&old_line, n) {
-                    let first = s.crossings.len() as u32;
-                    let mut c = new_line.changes(n);
-                    while c != 0 {
-                        let e = c.trailing_zeros() as usize;
-                        c &= c - 1;
-                        s.crossings.push((new_line.pos[e], new_line.nrm[e]));
+                let result = if uniform && ctx.op != CsgOp::Intersect {
+                    // An empty line gains the brush's piece, a full line loses it: the crossings
+                    // are the brush's (its normals are already flipped for subtraction).
+                    if ctx.op == CsgOp::Subtract {
+                        brush_line.states = !brush_line.states & full;
                     }
-                    s.changed.push(ChangedLine {
-                        axis: axis as u8,
-                        index: index as u32,
-                        start_inside: new_line.states & 1 == 1,
-                        first,
-                        count: s.crossings.len() as u32 - first,
-                    });
+                    &brush_line
+                } else {
+                    old_line.load(line, level);
+                    combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
+                    if new_line.same_as(&old_line, n) {
+                        continue;
+                    }
+                    &new_line
+                };
+                let first = s.crossings.len() as u32;
+                let mut c = result.changes(n);
+                while c != 0 {
+                    let e = c.trailing_zeros() as usize;
+                    c &= c - 1;
+                    s.crossings.push((result.pos[e], result.nrm[e]));
                 }
+                s.changed.push(ChangedLine {
+                    axis: axis as u8,
+                    index: index as u32,
+                    start_inside: result.states & 1 == 1,
+                    first,
+                    count: s.crossings.len() as u32 - first,
+                });
             }
         }
     }

@@ -157,6 +157,23 @@ pub trait Brush: Send + Sync {
         false
     }
 
+    /// [`Brush::spans`] for many lines with one direction: line `i` is
+    /// `lines[i].0 + lines[i].1 + t · dir` (origin, start). Appends each line's spans to `out`
+    /// and their number to `counts`, in line order; returns `false` (appending nothing) if the
+    /// brush samples instead. Must give exactly what `spans` gives line by line (the default
+    /// does just that); closed forms override it to save a call and a copy per line.
+    fn spans_batch(&self, lines: &[(DVec3, DVec3)], dir: DVec3, out: &mut Vec<Span>, counts: &mut Vec<u32>) -> bool {
+        let mut line = Vec::new();
+        for &(origin, start) in lines {
+            if !self.spans(origin, start, dir, &mut line) {
+                return false;
+            }
+            counts.push(line.len() as u32);
+            out.extend_from_slice(&line);
+        }
+        true
+    }
+
     /// Whether lines along x, y and z always agree on node states. Brushes that cannot promise
     /// it (meshes with holes, user fields whose Lipschitz bound may be wrong) return `false`, and
     /// the volume then takes node states from the x lines and repairs the y and z lines.
@@ -189,6 +206,15 @@ macro_rules! forward_brush {
             }
             fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
                 (**self).spans(origin, start, dir, out)
+            }
+            fn spans_batch(
+                &self,
+                lines: &[(DVec3, DVec3)],
+                dir: DVec3,
+                out: &mut Vec<Span>,
+                counts: &mut Vec<u32>,
+            ) -> bool {
+                (**self).spans_batch(lines, dir, out, counts)
             }
             fn lines_agree(&self) -> bool {
                 (**self).lines_agree()

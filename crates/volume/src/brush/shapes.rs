@@ -48,10 +48,30 @@ impl Brush for Sphere {
 
     fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
         out.clear();
+        if let Some(s) = self.line_span(origin, start, dir) {
+            out.push(s);
+        }
+        true
+    }
+
+    fn spans_batch(&self, lines: &[(DVec3, DVec3)], dir: DVec3, out: &mut Vec<Span>, counts: &mut Vec<u32>) -> bool {
+        for &(origin, start) in lines {
+            let s = self.line_span(origin, start, dir);
+            counts.push(s.is_some() as u32);
+            out.extend(s);
+        }
+        true
+    }
+}
+
+impl Sphere {
+    /// The one span of a line, if it meets the ball.
+    #[inline]
+    fn line_span(&self, origin: DVec3, start: DVec3, dir: DVec3) -> Option<Span> {
         let q = start - (self.center - origin);
         let a = dir.length_squared();
         if !(a > 0.0) {
-            return true;
+            return None;
         }
         // Closest approach first, then the half chord from the perpendicular distance: no
         // cancellation, and no division for the unit axis directions the volume uses.
@@ -59,18 +79,12 @@ impl Brush for Sphere {
         let perp = q + dir * t_mid;
         let disc = self.radius * self.radius - perp.length_squared();
         if !(disc >= 0.0) {
-            return true;
+            return None;
         }
         let h = if a == 1.0 { disc.sqrt() } else { (disc / a).sqrt() };
         let (t0, t1) = (t_mid - h, t_mid + h);
         let inv_r = 1.0 / self.radius;
-        out.push(Span {
-            enter: t0,
-            exit: t1,
-            enter_normal: (q + dir * t0) * inv_r,
-            exit_normal: (q + dir * t1) * inv_r,
-        });
-        true
+        Some(Span { enter: t0, exit: t1, enter_normal: (q + dir * t0) * inv_r, exit_normal: (q + dir * t1) * inv_r })
     }
 }
 
