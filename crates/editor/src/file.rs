@@ -21,7 +21,10 @@ use crate::scene::Scene;
 /// The first eight bytes of every scene file.
 pub const MAGIC: [u8; 8] = *b"STRATA\x00S";
 /// The format version this build writes and the newest it reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
+/// The oldest version this build reads. Version 1 stored chunk lists with per-line start bits
+/// and unary counts (before the layout of `strata-volume`'s `ChunkLists` changed).
+pub const OLDEST_VERSION: u32 = 2;
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 8 + 4 + 8 + 4;
 
@@ -38,6 +41,16 @@ pub enum SceneFileError {
         found: u32,
         /// The newest this build reads.
         supported: u32,
+    },
+    /// Written by an older Strata in a layout this build no longer reads.
+    #[error(
+        "scene file format version {found} is older than this build reads (oldest {oldest}); re-export it from the build that wrote it"
+    )]
+    OldVersion {
+        /// The file's version.
+        found: u32,
+        /// The oldest this build reads.
+        oldest: u32,
     },
     /// Shorter or longer than its header says.
     #[error("scene file is truncated or has trailing bytes: header says {expected} payload bytes, file has {found}")]
@@ -82,6 +95,9 @@ pub fn decode(bytes: &[u8]) -> Result<Scene, SceneFileError> {
     let version = word(8);
     if version > VERSION {
         return Err(SceneFileError::NewerVersion { found: version, supported: VERSION });
+    }
+    if version < OLDEST_VERSION {
+        return Err(SceneFileError::OldVersion { found: version, oldest: OLDEST_VERSION });
     }
     let expected = u64::from_le_bytes(bytes[12..20].try_into().expect("8 bytes"));
     let payload = &bytes[HEADER_LEN..];

@@ -61,6 +61,11 @@ fn corrupted_truncated_and_newer_files_fail_cleanly() {
     let err = decode(&newer).unwrap_err();
     assert!(matches!(err, SceneFileError::NewerVersion { .. }));
     assert!(err.to_string().contains("newer"), "{err}");
+    let mut older = bytes.clone();
+    older[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let err = decode(&older).unwrap_err();
+    assert!(matches!(err, SceneFileError::OldVersion { found: 1, .. }), "{err}");
+    assert!(err.to_string().contains("older"), "{err}");
     // A payload that checks out but does not decode.
     let mut junk = bytes[..file::HEADER_LEN].to_vec();
     let payload = vec![0xff; 40];

@@ -10,7 +10,7 @@ use glam::{I64Vec3, IVec3};
 use rayon::prelude::*;
 
 use crate::axis::{Axis, compose};
-use crate::chunk::{ChunkView, node_mask};
+use crate::chunk::{ChunkView, ViewCursor, node_mask};
 use crate::coords::{ChunkKey, Level, edge_of};
 use crate::normal::PackedNormal;
 use crate::volume::Volume;
@@ -244,10 +244,13 @@ impl Volume {
             let (ua, va) = axis.across();
             let a = axis.index();
             let mut expected_ok = true;
+            // One cursor per source chunk: this chunk, its neighbours along `ua`, `va` and both.
+            let mut cursors: [Option<ViewCursor<'_>>; 4] = [None, None, None, None];
             for v in 0..=n {
                 // Lines u in 0..n come from one chunk, u = n from its neighbour along `ua`.
                 let base = key.offset(if v == n { unit(va) } else { IVec3::ZERO });
-                for (source, us) in [(base, 0..n), (base.offset(unit(ua)), n..n + 1)] {
+                let sources = [(base, 0..n), (base.offset(unit(ua)), n..n + 1)];
+                for (k, (source, us)) in sources.into_iter().enumerate() {
                     let view = self.view(source);
                     if let ChunkView::Lists(l) = view
                         && l.level() != level
@@ -256,17 +259,21 @@ impl Volume {
                         // misread (the extractor's repair then closes the surface).
                         continue;
                     }
-                    let mut cursor = match view {
-                        ChunkView::Lists(l) => Some(l.cursor(axis, (us.start % n) + n * (v % n))),
-                        ChunkView::Uniform(_) => None,
-                    };
+                    // x lines derive their start states; y and z lines start on nodes the x
+                    // lines have already given.
+                    let make = || if axis == Axis::X { view.cursor(axis, 0) } else { view.raw_cursor(axis, 0) };
+                    let cursor = cursors[2 * usize::from(v == n) + k].get_or_insert_with(make);
+                    cursor.advance_to((us.start % n) + n * (v % n));
                     for u in us {
-                        let line = match &mut cursor {
-                            Some(c) => c.next_line(),
-                            None => view.line(axis, u % n, v % n),
+                        let line = match axis {
+                            Axis::X => cursor.next_line(),
+                            // y line (u, v) = (z, x) starts at node (x, 0, z).
+                            Axis::Y => cursor.next_with((out.rows[m * u] >> v) & 1 == 1),
+                            // z line (u, v) = (x, y) starts at node (x, y, 0).
+                            Axis::Z => cursor.next_with((out.rows[v] >> u) & 1 == 1),
                         };
                         let mut states = if line.start_inside { node_mask(n) } else { 0 };
-                        for (&q, &nr) in line.positions.iter().zip(line.normals) {
+                        for (q, &nr) in line.positions().zip(line.normals) {
                             let e = edge_of(q, level);
                             if axis == Axis::X {
                                 states ^= node_mask(n) & !((1u128 << (e + 1)) - 1);

@@ -1,12 +1,21 @@
 //! Storage of one chunk: the sorted crossing lists of every grid line through it, along x, y, z.
 //!
-//! Layout of a [`ChunkLists`] at level `k` (`n = 16 << k` cells per side):
-//! - lines along `axis` are indexed by `(u, v)` over [`Axis::across`], `index = u + n v`, and the
-//!   three families are stored one after the other (x, y, z): `3 n²` lines in all;
-//! - `bits` holds one *start bit* per line (is the line's first node inside), then the crossing
-//!   count of every line in unary (`count` one bits and a zero), so an empty line costs two bits;
-//! - `crossings` holds every crossing in line order, in one allocation: first all chunk-local
-//!   fixed-point positions ([`LocalPos`]), then all octahedral normals in the same order.
+//! A [`ChunkLists`] at level `k` (`n = 16 << k` cells per side) is one allocation of 64-bit
+//! words:
+//! - two header words: the level, the state of the chunk's corner node `(0, 0, 0)`, the
+//!   crossing count `m`, and the index of the first crossing of the y and z line families;
+//! - one *nonempty bit* per line: lines along `axis` are indexed by `(u, v)` over
+//!   [`Axis::across`], `index = u + n v`, and the three families follow each other (x, y, z),
+//!   `3 n²` bits in all;
+//! - the crossings in line order as 16-bit values, first all `m` positions, then all `m`
+//!   octahedral normals in the same order. A position is a chunk-local fixed-point
+//!   [`LocalPos`], always even; its bit 0 ([`LAST`]) marks the last crossing of its line, which
+//!   is how a reader finds where one nonempty line ends and the next begins.
+//!
+//! An empty line therefore costs one bit and a crossing 32 bits plus nothing else. No line
+//! stores its start state: the node states of a chunk agree across the three axes (the
+//! volume's invariant), so every line's first node can be read off other lines starting from
+//! the corner node (see [`ChunkLists::family_starts`]).
 //!
 //! A line covers the nodes `0..=n` of its chunk (node `n` belongs to the next chunk along the
 //! axis) and so the cells `0..n`. Because of the node-state invariant a line has at most one
@@ -15,48 +24,63 @@
 use serde::{Deserialize, Serialize};
 
 use crate::axis::Axis;
-use crate::bits::{BitBuf, bit, ones_run, skip_zeros};
+use crate::bits::{BitBuf, bit};
 use crate::coords::{Level, LocalPos, edge_of};
 use crate::normal::PackedNormal;
+
+/// Words before the nonempty bits.
+const HEADER_WORDS: usize = 2;
+/// Bit 0 of a stored position: set on the last crossing of a line.
+pub(crate) const LAST: u16 = 1;
+/// Words of one family's start states at the finest level (`64²` bits).
+const START_WORDS: usize = 64;
 
 /// The crossing lists of a chunk that is neither all empty nor all solid.
 ///
 /// Deserialisation checks the structure (see [`crate::Volume::check_invariants`] for what) and
 /// rejects malformed data with an error instead of storing it.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(try_from = "RawChunkLists")]
+#[derive(Clone, PartialEq, Eq)]
 pub struct ChunkLists {
-    level: Level,
-    bits: Box<[u64]>,
-    /// Per axis: bit offset (into the unary part of `bits`) and crossing index of its first line.
-    axis_start: [(u32, u32); 3],
-    /// Positions, then normals: `2 m` values for `m` crossings.
-    crossings: Box<[u16]>,
+    data: Box<[u64]>,
 }
 
-/// Unchecked deserialised form of [`ChunkLists`].
-#[derive(Deserialize)]
+impl std::fmt::Debug for ChunkLists {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ChunkLists").field("level", &self.level()).field("crossings", &self.crossing_count()).finish()
+    }
+}
+
+/// The serialised form of [`ChunkLists`]: its fields one by one, independent of byte order.
+#[derive(Serialize, Deserialize)]
 struct RawChunkLists {
     level: Level,
-    bits: Box<[u64]>,
-    axis_start: [(u32, u32); 3],
-    crossings: Box<[u16]>,
+    corner: bool,
+    /// First crossing of the y and z families.
+    family_start: [u32; 2],
+    nonempty: Box<[u64]>,
+    positions: Box<[u16]>,
+    normals: Box<[u16]>,
 }
 
-impl TryFrom<RawChunkLists> for ChunkLists {
-    type Error = String;
+impl Serialize for ChunkLists {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let starts = self.data[1];
+        RawChunkLists {
+            level: self.level(),
+            corner: self.corner(),
+            family_start: [starts as u32, (starts >> 32) as u32],
+            nonempty: self.nonempty().into(),
+            positions: self.raw_positions().into(),
+            normals: self.normals().into(),
+        }
+        .serialize(serializer)
+    }
+}
 
-    fn try_from(r: RawChunkLists) -> Result<Self, String> {
-        let lists = ChunkLists { level: r.level, bits: r.bits, axis_start: r.axis_start, crossings: r.crossings };
-        if !lists.crossings.len().is_multiple_of(2) {
-            return Err("positions and normals differ in length".into());
-        }
-        let n = lists.level.cells();
-        if lists.bits.len() * 64 < 6 * n * n + lists.positions().len() {
-            return Err("chunk bit stream too short".into());
-        }
-        check_lists(&lists)?;
-        Ok(lists)
+impl<'de> Deserialize<'de> for ChunkLists {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let r = RawChunkLists::deserialize(deserializer)?;
+        ChunkLists::from_raw(r).map_err(serde::de::Error::custom)
     }
 }
 
@@ -74,111 +98,353 @@ pub enum Chunk {
 pub struct LineRef<'a> {
     /// Whether node 0 of the line is inside.
     pub start_inside: bool,
-    /// Chunk-local fixed-point positions, strictly increasing, at most one per cell.
-    pub positions: &'a [LocalPos],
+    /// Stored positions (bit 0 is the end-of-line mark; read them through [`LineRef::positions`]).
+    raw: &'a [u16],
     /// The outward normal at each crossing.
     pub normals: &'a [PackedNormal],
 }
 
+impl<'a> LineRef<'a> {
+    /// A line without crossings.
+    pub(crate) fn uniform(inside: bool) -> Self {
+        LineRef { start_inside: inside, raw: &[], normals: &[] }
+    }
+
+    /// Chunk-local fixed-point positions, strictly increasing, at most one per cell.
+    #[inline]
+    pub fn positions(&self) -> impl ExactSizeIterator<Item = LocalPos> + 'a {
+        self.raw.iter().map(|&q| q & !LAST)
+    }
+
+    /// Number of crossings.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.raw.len()
+    }
+
+    /// Whether the line has no crossing (its nodes all share `start_inside`).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.raw.is_empty()
+    }
+
+    /// The state after the line's last cell.
+    #[inline]
+    pub fn end_inside(&self) -> bool {
+        self.start_inside ^ (self.raw.len() % 2 == 1)
+    }
+}
+
+/// The start states of one line family, bit `index`.
+pub(crate) type Starts = [u64; START_WORDS];
+
 impl ChunkLists {
     /// The chunk's resolution level.
+    #[inline]
     pub fn level(&self) -> Level {
-        self.level
+        Level::new(self.data[0] as u8).expect("levels are checked when a chunk is built")
+    }
+
+    /// Whether the corner node `(0, 0, 0)` is inside.
+    #[inline]
+    fn corner(&self) -> bool {
+        (self.data[0] >> 8) & 1 == 1
     }
 
     /// Number of crossings stored, all axes.
+    #[inline]
     pub fn crossing_count(&self) -> usize {
-        self.crossings.len() / 2
+        (self.data[0] >> 32) as usize
     }
 
-    /// Normals of all crossings in storage order.
-    fn normals(&self) -> &[PackedNormal] {
-        &self.crossings[self.crossings.len() / 2..]
+    /// Index of the first crossing of the `axis` family.
+    #[inline]
+    fn family_start(&self, axis: Axis) -> usize {
+        match axis {
+            Axis::X => 0,
+            Axis::Y => self.data[1] as u32 as usize,
+            Axis::Z => (self.data[1] >> 32) as usize,
+        }
     }
 
     /// Number of crossings on lines along `axis`.
     pub fn axis_crossing_count(&self, axis: Axis) -> usize {
-        let a = axis.index();
-        let end = if a == 2 { self.crossing_count() as u32 } else { self.axis_start[a + 1].1 };
-        (end - self.axis_start[a].1) as usize
+        let end = match axis {
+            Axis::X => self.family_start(Axis::Y),
+            Axis::Y => self.family_start(Axis::Z),
+            Axis::Z => self.crossing_count(),
+        };
+        end - self.family_start(axis)
     }
 
     fn lines_per_axis(&self) -> usize {
-        let n = self.level.cells();
+        let n = self.level().cells();
         n * n
     }
 
-    fn unary_offset(&self) -> usize {
-        3 * self.lines_per_axis()
+    fn nonempty_words(level: Level) -> usize {
+        let n = level.cells();
+        3 * n * n / 64
     }
 
-    /// Whether node 0 of line `index` along `axis` is inside.
+    /// The nonempty bit of every line, families in x, y, z order.
     #[inline]
-    pub fn start_inside(&self, axis: Axis, index: usize) -> bool {
-        bit(&self.bits, axis.index() * self.lines_per_axis() + index)
+    fn nonempty(&self) -> &[u64] {
+        &self.data[HEADER_WORDS..HEADER_WORDS + Self::nonempty_words(self.level())]
     }
 
-    /// The line `(u, v)` along `axis`.
+    /// Positions (with end marks), then normals, then up to three zero values of padding.
+    #[inline]
+    fn values(&self) -> &[u16] {
+        bytemuck::cast_slice(&self.data[HEADER_WORDS + Self::nonempty_words(self.level())..])
+    }
+
+    /// Stored positions with their end-of-line marks.
+    #[inline]
+    fn raw_positions(&self) -> &[u16] {
+        &self.values()[..self.crossing_count()]
+    }
+
+    /// Normals of all crossings in storage order.
+    #[inline]
+    fn normals(&self) -> &[PackedNormal] {
+        let m = self.crossing_count();
+        &self.values()[m..2 * m]
+    }
+
+    /// The line `(u, v)` along `axis` (derives the family's start states: for one-off reads;
+    /// walk a [`LineCursor`] to read many lines).
     pub fn line(&self, axis: Axis, u: usize, v: usize) -> LineRef<'_> {
-        let n = self.level.cells();
+        let n = self.level().cells();
         self.cursor(axis, u + n * v).next_line()
     }
 
     /// A cursor positioned at line `index` along `axis`, reading lines in index order.
     pub(crate) fn cursor(&self, axis: Axis, index: usize) -> LineCursor<'_> {
-        let (b0, c0) = self.axis_start[axis.index()];
-        let (bitpos, ones) = skip_zeros(&self.bits, self.unary_offset() + b0 as usize, index);
-        LineCursor { lists: self, axis, index, bit: bitpos, cross: c0 as usize + ones }
+        let mut c = LineCursor { raw: self.raw_cursor(axis, 0), starts: self.family_starts(axis) };
+        c.advance_to(index);
+        c
     }
 
-    /// Bytes held by positions, normals and the bit stream plus this struct (its box).
-    pub(crate) fn heap_bytes(&self) -> (usize, usize, usize) {
-        (
-            std::mem::size_of_val(self.positions()),
-            std::mem::size_of_val(self.normals()),
-            std::mem::size_of_val(&*self.bits) + std::mem::size_of::<ChunkLists>(),
-        )
+    /// A cursor that reads crossings only (no start states) from line 0 of `axis`.
+    pub(crate) fn raw_cursor(&self, axis: Axis, index: usize) -> RawCursor<'_> {
+        let mut c = RawCursor {
+            lists: self,
+            nonempty: self.nonempty(),
+            raw: self.raw_positions(),
+            normals: self.normals(),
+            base: axis.index() * self.lines_per_axis(),
+            index: 0,
+            cross: self.family_start(axis),
+        };
+        c.advance_to(index);
+        c
     }
 
-    /// All crossing positions in storage order (for tests and statistics).
-    pub fn positions(&self) -> &[LocalPos] {
-        &self.crossings[..self.crossings.len() / 2]
+    /// Node states of a line given its start state: bit `j` is node `j`.
+    fn states_of(&self, start: bool, raw: &[u16]) -> u128 {
+        let level = self.level();
+        let n = level.cells();
+        let mut s = if start { node_mask(n) } else { 0 };
+        for &q in raw {
+            s ^= node_mask(n) & !((1u128 << (edge_of(q & !LAST, level) + 1)) - 1);
+        }
+        s
+    }
+
+    /// The start state of every line along `axis` (bit `u + n v`), read off other lines from
+    /// the corner node: node `(0, y, 0)` from y line 0; x lines start on the face `x = 0`, read
+    /// from the z lines at `x = 0`; y lines on `y = 0`, from the x lines at `y = 0` (which start
+    /// at `(0, 0, z)`, from z line 0); z lines on `z = 0`, from the x lines at `z = 0`.
+    pub(crate) fn family_starts(&self, axis: Axis) -> Starts {
+        let n = self.level().cells();
+        let corner = self.corner();
+        let mut out = [0u64; START_WORDS];
+        // Node states along the first line of `first` (from the corner), then, for each `k`,
+        // along line `k * stride` of `along`, starting from bit `k` of those.
+        let sweep = |first: Axis, along: Axis, stride: usize, put: &mut dyn FnMut(usize, u128)| {
+            let edge = self.states_of(corner, self.raw_cursor(first, 0).next_raw());
+            let mut c = self.raw_cursor(along, 0);
+            for k in 0..n {
+                c.advance_to(k * stride);
+                put(k, self.states_of((edge >> k) & 1 == 1, c.next_raw()));
+            }
+        };
+        let mask = node_mask(n) >> 1;
+        match axis {
+            // z line (0, y) gives node (0, y, z): x line (y, z) starts there.
+            Axis::X => sweep(Axis::Y, Axis::Z, n, &mut |y, s| {
+                let mut s = s & mask;
+                while s != 0 {
+                    let i = y + n * s.trailing_zeros() as usize;
+                    out[i >> 6] |= 1 << (i & 63);
+                    s &= s - 1;
+                }
+            }),
+            // x line (0, z) gives node (x, 0, z): y line (z, x) starts there.
+            Axis::Y => sweep(Axis::Z, Axis::X, n, &mut |z, s| {
+                let mut s = s & mask;
+                while s != 0 {
+                    let i = z + n * s.trailing_zeros() as usize;
+                    out[i >> 6] |= 1 << (i & 63);
+                    s &= s - 1;
+                }
+            }),
+            // x line (y, 0) gives node (x, y, 0): z lines (0..n, y) start there, a run of bits.
+            Axis::Z => sweep(Axis::Y, Axis::X, 1, &mut |y, s| {
+                let i = n * y;
+                out[i >> 6] |= ((s & mask) as u64) << (i & 63);
+            }),
+        }
+        out
+    }
+
+    /// Bytes of the one allocation plus this struct (its box).
+    pub(crate) fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(&*self.data) + std::mem::size_of::<ChunkLists>()
+    }
+
+    /// Bytes of positions and of normals (each `2 m`), for memory reports.
+    pub(crate) fn crossing_bytes(&self) -> usize {
+        2 * self.crossing_count()
+    }
+
+    /// Builds and checks a chunk from its serialised fields.
+    fn from_raw(r: RawChunkLists) -> Result<Self, String> {
+        let m = r.positions.len();
+        if r.normals.len() != m {
+            return Err("positions and normals differ in length".into());
+        }
+        if r.nonempty.len() != Self::nonempty_words(r.level) {
+            return Err("wrong number of nonempty bits".into());
+        }
+        if m == 0 || m > u32::MAX as usize / 2 {
+            return Err("a chunk without crossings must be stored as uniform".into());
+        }
+        let [ys, zs] = r.family_start;
+        if ys as usize > m || zs as usize > m || ys > zs {
+            return Err("family start offsets out of range".into());
+        }
+        let lists = assemble(r.level, r.corner, [ys, zs], &r.nonempty, &r.positions, &r.normals);
+        check_lists(&lists)?;
+        Ok(lists)
     }
 }
 
-/// Reads the lines of one axis family in index order.
-#[derive(Debug)]
-pub(crate) struct LineCursor<'a> {
+/// Lays out a chunk's allocation.
+fn assemble(
+    level: Level,
+    corner: bool,
+    family_start: [u32; 2],
+    nonempty: &[u64],
+    positions: &[u16],
+    normals: &[u16],
+) -> ChunkLists {
+    let m = positions.len();
+    let value_words = (2 * m).div_ceil(4);
+    let mut data = vec![0u64; HEADER_WORDS + nonempty.len() + value_words].into_boxed_slice();
+    data[0] = level.get() as u64 | (corner as u64) << 8 | (m as u64) << 32;
+    data[1] = family_start[0] as u64 | (family_start[1] as u64) << 32;
+    data[HEADER_WORDS..HEADER_WORDS + nonempty.len()].copy_from_slice(nonempty);
+    let values: &mut [u16] = bytemuck::cast_slice_mut(&mut data[HEADER_WORDS + nonempty.len()..]);
+    values[..m].copy_from_slice(positions);
+    values[m..2 * m].copy_from_slice(normals);
+    ChunkLists { data }
+}
+
+/// Walks the lines of one family in index order, reading crossings only.
+#[derive(Clone, Debug)]
+pub(crate) struct RawCursor<'a> {
     lists: &'a ChunkLists,
-    axis: Axis,
+    nonempty: &'a [u64],
+    raw: &'a [u16],
+    normals: &'a [u16],
+    /// Bit of the family's line 0 in the nonempty bits.
+    base: usize,
+    /// The next line to read.
     index: usize,
-    bit: usize,
+    /// Its first crossing.
     cross: usize,
+}
+
+impl<'a> RawCursor<'a> {
+    /// Moves forward to line `index` (not backwards).
+    #[inline]
+    pub(crate) fn advance_to(&mut self, index: usize) {
+        debug_assert!(index >= self.index);
+        let mut lines = count_ones(self.nonempty, self.base + self.index, self.base + index);
+        let mut i = self.cross;
+        while lines > 0 {
+            lines -= (self.raw[i] & LAST) as usize;
+            i += 1;
+        }
+        self.cross = i;
+        self.index = index;
+    }
+
+    /// The crossings of the next line (with end marks) and moves past it.
+    #[inline]
+    pub(crate) fn next_raw(&mut self) -> &'a [u16] {
+        let start = self.cross;
+        let i = self.base + self.index;
+        if (self.nonempty[i >> 6] >> (i & 63)) & 1 == 1 {
+            let mut j = start;
+            while self.raw[j] & LAST == 0 {
+                j += 1;
+            }
+            self.cross = j + 1;
+        }
+        self.index += 1;
+        &self.raw[start..self.cross]
+    }
+
+    /// The next line's crossings as a line with the given start state.
+    #[inline]
+    pub(crate) fn next_with(&mut self, start_inside: bool) -> LineRef<'a> {
+        let first = self.cross;
+        let raw = self.next_raw();
+        LineRef { start_inside, raw, normals: &self.normals[first..first + raw.len()] }
+    }
+}
+
+/// Ones among bits `[from, to)`.
+#[inline]
+fn count_ones(words: &[u64], from: usize, to: usize) -> usize {
+    if from >= to {
+        return 0;
+    }
+    let (wa, wb) = (from >> 6, (to - 1) >> 6);
+    let lo = u64::MAX << (from & 63);
+    let hi = u64::MAX >> (63 - ((to - 1) & 63));
+    if wa == wb {
+        return (words[wa] & lo & hi).count_ones() as usize;
+    }
+    let mut c = (words[wa] & lo).count_ones() + (words[wb] & hi).count_ones();
+    for w in &words[wa + 1..wb] {
+        c += w.count_ones();
+    }
+    c as usize
+}
+
+/// Reads the lines of one axis family in index order, with their start states.
+#[derive(Clone, Debug)]
+pub(crate) struct LineCursor<'a> {
+    raw: RawCursor<'a>,
+    starts: Starts,
 }
 
 impl<'a> LineCursor<'a> {
     /// Moves forward to line `index` (not backwards).
     #[inline]
     pub(crate) fn advance_to(&mut self, index: usize) {
-        debug_assert!(index >= self.index);
-        let (bit, ones) = skip_zeros(&self.lists.bits, self.bit, index - self.index);
-        self.bit = bit;
-        self.cross += ones;
-        self.index = index;
+        self.raw.advance_to(index);
     }
 
     #[inline]
     pub(crate) fn next_line(&mut self) -> LineRef<'a> {
-        let count = ones_run(&self.lists.bits, self.bit);
-        let r = LineRef {
-            start_inside: self.lists.start_inside(self.axis, self.index),
-            positions: &self.lists.positions()[self.cross..self.cross + count],
-            normals: &self.lists.normals()[self.cross..self.cross + count],
-        };
-        self.bit += count + 1;
-        self.cross += count;
-        self.index += 1;
-        r
+        let i = self.raw.index;
+        let start = (self.starts[i >> 6] >> (i & 63)) & 1 == 1;
+        self.raw.next_with(start)
     }
 }
 
@@ -198,10 +464,66 @@ impl<'a> ChunkView<'a> {
         }
     }
 
-    pub(crate) fn line(self, axis: Axis, u: usize, v: usize) -> LineRef<'a> {
+    /// A cursor over the lines of `axis` from line `index`, whatever the storage.
+    pub(crate) fn cursor(self, axis: Axis, index: usize) -> ViewCursor<'a> {
         match self {
-            ChunkView::Uniform(s) => LineRef { start_inside: s, positions: &[], normals: &[] },
-            ChunkView::Lists(l) => l.line(axis, u, v),
+            ChunkView::Uniform(s) => ViewCursor::Uniform(s),
+            ChunkView::Lists(l) => ViewCursor::Lists(Box::new(l.cursor(axis, index))),
+        }
+    }
+
+    /// A cursor that leaves start states to the caller ([`ViewCursor::next_with`]): cheaper to
+    /// make when the caller knows them already.
+    pub(crate) fn raw_cursor(self, axis: Axis, index: usize) -> ViewCursor<'a> {
+        match self {
+            ChunkView::Uniform(s) => ViewCursor::Uniform(s),
+            ChunkView::Lists(l) => ViewCursor::Raw(l.raw_cursor(axis, index)),
+        }
+    }
+}
+
+/// A cursor over any chunk view (uniform chunks give uniform lines).
+#[derive(Clone, Debug)]
+pub(crate) enum ViewCursor<'a> {
+    Uniform(bool),
+    Lists(Box<LineCursor<'a>>),
+    Raw(RawCursor<'a>),
+}
+
+impl<'a> ViewCursor<'a> {
+    #[inline]
+    pub(crate) fn advance_to(&mut self, index: usize) {
+        match self {
+            ViewCursor::Uniform(_) => {}
+            ViewCursor::Lists(c) => c.advance_to(index),
+            ViewCursor::Raw(c) => c.advance_to(index),
+        }
+    }
+
+    /// The next line with its own start state (not for cursors made by
+    /// [`ChunkView::raw_cursor`]).
+    #[inline]
+    pub(crate) fn next_line(&mut self) -> LineRef<'a> {
+        match self {
+            ViewCursor::Uniform(s) => LineRef::uniform(*s),
+            ViewCursor::Lists(c) => c.next_line(),
+            ViewCursor::Raw(c) => {
+                // Not the intended use: derive the family's start states for this one line.
+                let per_axis = c.nonempty.len() * 64 / 3;
+                let (axis, i) = (Axis::ALL[c.base / per_axis], c.index);
+                let start = (c.lists.family_starts(axis)[i >> 6] >> (i & 63)) & 1 == 1;
+                c.next_with(start)
+            }
+        }
+    }
+
+    /// The next line, starting in the state `start_inside` (uniform chunks keep their own).
+    #[inline]
+    pub(crate) fn next_with(&mut self, start_inside: bool) -> LineRef<'a> {
+        match self {
+            ViewCursor::Uniform(s) => LineRef::uniform(*s),
+            ViewCursor::Lists(c) => c.raw.next_with(start_inside),
+            ViewCursor::Raw(c) => c.next_with(start_inside),
         }
     }
 }
@@ -231,7 +553,7 @@ impl WorkLine {
     pub(crate) fn load(&mut self, line: LineRef<'_>, level: Level) {
         let n = level.cells();
         let mut s = if line.start_inside { node_mask(n) } else { 0 };
-        for (&q, &nr) in line.positions.iter().zip(line.normals) {
+        for (q, &nr) in line.positions().zip(line.normals) {
             let e = edge_of(q, level);
             self.pos[e] = q;
             self.nrm[e] = nr;
@@ -284,24 +606,23 @@ impl Built {
 #[derive(Debug)]
 pub(crate) struct ChunkBuilder {
     level: Level,
-    starts: BitBuf,
-    unary: BitBuf,
-    positions: Vec<LocalPos>,
+    /// The start state of x line 0 once it is pushed.
+    corner: Option<bool>,
+    nonempty: BitBuf,
+    positions: Vec<u16>,
     normals: Vec<PackedNormal>,
-    axis_start: [(u32, u32); 3],
-    axis: usize,
+    family_start: [u32; 2],
 }
 
 impl Default for ChunkBuilder {
     fn default() -> Self {
         ChunkBuilder {
             level: Level::BASE,
-            starts: BitBuf::default(),
-            unary: BitBuf::default(),
+            corner: None,
+            nonempty: BitBuf::default(),
             positions: Vec::new(),
             normals: Vec::new(),
-            axis_start: [(0, 0); 3],
-            axis: 0,
+            family_start: [0; 2],
         }
     }
 }
@@ -309,115 +630,211 @@ impl Default for ChunkBuilder {
 impl ChunkBuilder {
     pub(crate) fn begin(&mut self, level: Level) {
         self.level = level;
-        self.starts.clear();
-        self.unary.clear();
+        self.corner = None;
+        self.nonempty.clear();
         self.positions.clear();
         self.normals.clear();
-        self.axis = 0;
     }
 
     /// Marks the start of the lines along `axis` (call in x, y, z order).
     pub(crate) fn begin_axis(&mut self, axis: Axis) {
-        self.axis = axis.index();
-        self.axis_start[self.axis] = (self.unary.len as u32, self.positions.len() as u32);
+        if axis != Axis::X {
+            self.family_start[axis.index() - 1] = self.positions.len() as u32;
+        }
     }
 
-    /// Appends a line given by its start state and crossings.
+    /// Appends a line given by its start state and crossings (positions even).
     pub(crate) fn push_line(&mut self, start_inside: bool, crossings: &[(LocalPos, PackedNormal)]) {
-        self.starts.push(start_inside);
+        self.corner.get_or_insert(start_inside);
+        self.nonempty.push(!crossings.is_empty());
         for &(q, n) in crossings {
+            debug_assert_eq!(q & LAST, 0, "positions are even");
             self.positions.push(q);
             self.normals.push(n);
         }
-        self.unary.push_run(true, crossings.len());
-        self.unary.push(false);
+        if let Some(last) = self.positions.last_mut()
+            && !crossings.is_empty()
+        {
+            *last |= LAST;
+        }
     }
 
     /// Appends `count` uniform lines without crossings.
     pub(crate) fn push_uniform(&mut self, state: bool, count: usize) {
-        self.starts.push_run(state, count);
-        self.unary.push_run(false, count);
+        if count > 0 {
+            self.corner.get_or_insert(state);
+        }
+        self.nonempty.push_run(false, count);
     }
 
-    /// Appends `count` lines read from `cursor` (along `axis`) and moves it past them.
-    pub(crate) fn copy_from(&mut self, cursor: &mut LineCursor<'_>, axis: Axis, count: usize) {
+    /// Appends `count` lines read from `cursor` and moves it past them. `corner` is the source
+    /// chunk's corner state, which line 0 of the x family (if copied) carries.
+    pub(crate) fn copy_from(&mut self, cursor: &mut RawCursor<'_>, count: usize) {
         if count == 0 {
             return;
         }
         let src = cursor.lists;
-        debug_assert_eq!(src.level, self.level);
-        let (bit, cross) = (cursor.bit, cursor.cross);
-        self.starts.extend_from(&src.bits, axis.index() * src.lines_per_axis() + cursor.index, count);
+        debug_assert_eq!(src.level(), self.level);
+        self.corner.get_or_insert(src.corner());
+        let (first, cross) = (cursor.base + cursor.index, cursor.cross);
         cursor.advance_to(cursor.index + count);
-        self.unary.extend_from(&src.bits, bit, cursor.bit - bit);
-        self.positions.extend_from_slice(&src.positions()[cross..cursor.cross]);
+        self.nonempty.extend_from(src.nonempty(), first, count);
+        self.positions.extend_from_slice(&src.raw_positions()[cross..cursor.cross]);
         self.normals.extend_from_slice(&src.normals()[cross..cursor.cross]);
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.
     pub(crate) fn finish(&mut self) -> Built {
+        let corner = self.corner.unwrap_or(false);
         if self.positions.is_empty() {
-            return Built::Uniform(self.starts.len > 0 && bit(&self.starts.words, 0));
+            return Built::Uniform(corner);
         }
-        let mut all = BitBuf { words: Vec::with_capacity((self.starts.len + self.unary.len).div_ceil(64)), len: 0 };
-        all.extend_from(&self.starts.words, 0, self.starts.len);
-        all.extend_from(&self.unary.words, 0, self.unary.len);
-        Built::Lists(ChunkLists {
-            level: self.level,
-            bits: all.words.into_boxed_slice(),
-            axis_start: self.axis_start,
-            crossings: self.positions.iter().chain(&self.normals).copied().collect(),
-        })
+        Built::Lists(assemble(
+            self.level,
+            corner,
+            self.family_start,
+            &self.nonempty.words,
+            &self.positions,
+            &self.normals,
+        ))
     }
 }
 
 /// Structural problems found in a chunk's own data (see [`crate::Volume::check_invariants`]).
 pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
-    let n = lists.level.cells();
+    let level = lists.level();
+    let n = level.cells();
     let per_axis = n * n;
-    let unary = 3 * per_axis;
-    let mut bitpos = unary;
-    let mut cross = 0usize;
-    let total_bits = lists.bits.len() * 64;
-    let s = lists.level.steps_per_cell();
-    if !lists.crossings.len().is_multiple_of(2) {
-        return Err("positions and normals differ in length".into());
-    }
-    if lists.crossing_count() == 0 {
+    let s = level.steps_per_cell();
+    let m = lists.crossing_count();
+    if m == 0 {
         return Err("a chunk without crossings must be stored as uniform".into());
     }
+    let values = lists.values();
+    if values.len() < 2 * m || values[2 * m..].iter().any(|&v| v != 0) {
+        return Err("crossing storage has the wrong size".into());
+    }
+    let raw = lists.raw_positions();
+    let mut cross = 0usize;
     for axis in Axis::ALL {
-        if lists.axis_start[axis.index()] != ((bitpos - unary) as u32, cross as u32) {
-            return Err(format!("axis {axis:?} start offsets are wrong"));
+        if lists.family_start(axis) != cross {
+            return Err(format!("axis {axis:?} start offset is wrong"));
         }
         for index in 0..per_axis {
-            let mut count = 0;
-            while bitpos < total_bits && bit(&lists.bits, bitpos) {
-                count += 1;
-                bitpos += 1;
+            if !bit(lists.nonempty(), axis.index() * per_axis + index) {
+                continue;
             }
-            if bitpos >= total_bits {
-                return Err("unary count stream ends early".into());
-            }
-            bitpos += 1;
-            let pos =
-                lists.positions().get(cross..cross + count).ok_or("count stream names more crossings than stored")?;
             let mut last_edge: Option<usize> = None;
-            for &q in pos {
+            loop {
+                let Some(&stored) = raw.get(cross) else {
+                    return Err("the nonempty bits name more lines than the crossings end".into());
+                };
+                cross += 1;
+                let q = stored & !LAST;
                 if (q as u32).is_multiple_of(s) {
                     return Err(format!("{axis:?} line {index}: crossing {q} sits on a node"));
                 }
-                let e = edge_of(q, lists.level);
+                let e = edge_of(q, level);
                 if last_edge.is_some_and(|l| l >= e) {
                     return Err(format!("{axis:?} line {index}: crossings unsorted or two in one cell"));
                 }
                 last_edge = Some(e);
+                if stored & LAST != 0 {
+                    break;
+                }
             }
-            cross += count;
         }
     }
-    if cross != lists.crossing_count() {
-        return Err("stored crossings not all named by the count stream".into());
+    if cross != m {
+        return Err("stored crossings not all named by the nonempty lines".into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Volume;
+    use crate::brush::Sphere;
+    use glam::{DVec3, I64Vec3};
+
+    fn spheres() -> [Sphere; 2] {
+        [Sphere::new(DVec3::new(7.3, 9.1, 5.6), 6.2).unwrap(), Sphere::new(DVec3::new(3.0, 12.5, 4.0), 3.1).unwrap()]
+    }
+
+    fn sample_lists() -> (Volume, ChunkLists) {
+        let mut v = Volume::new();
+        let [a, b] = spheres();
+        v.add(&a).unwrap();
+        v.subtract(&b).unwrap();
+        let lists = match v.chunk(crate::ChunkKey::new(0, 0, 0)) {
+            Some(Chunk::Lists(l)) => (**l).clone(),
+            other => panic!("expected lists, got {other:?}"),
+        };
+        (v, lists)
+    }
+
+    #[test]
+    fn derived_start_states_equal_the_node_states() {
+        let (_, lists) = sample_lists();
+        let [a, b] = spheres();
+        let n = lists.level().cells();
+        for axis in Axis::ALL {
+            let starts = lists.family_starts(axis);
+            let mut cursor = lists.cursor(axis, 0);
+            for index in 0..n * n {
+                let (u, w) = (index % n, index / n);
+                let node = I64Vec3::from_array(crate::axis::compose(axis, 0, u as i64, w as i64));
+                let inside = |s: &Sphere| crate::brush_contains_node(s, node, Level::BASE);
+                let expect = inside(&a) && !inside(&b);
+                assert_eq!((starts[index >> 6] >> (index & 63)) & 1 == 1, expect, "{axis:?} line {index}");
+                assert_eq!(cursor.next_line().start_inside, expect);
+            }
+        }
+    }
+
+    #[test]
+    fn serialised_lists_round_trip_and_tampering_is_refused() {
+        let (_, lists) = sample_lists();
+        let bytes = postcard::to_allocvec(&lists).unwrap();
+        assert_eq!(postcard::from_bytes::<ChunkLists>(&bytes).unwrap(), lists);
+        let raw = || postcard::from_bytes::<RawChunkLists>(&bytes).unwrap();
+        let refuse = |r: RawChunkLists, why: &str| {
+            let b = postcard::to_allocvec(&r).unwrap();
+            assert!(postcard::from_bytes::<ChunkLists>(&b).is_err(), "accepted: {why}");
+        };
+        let mut r = raw();
+        let last = r.positions.iter().position(|&q| q & LAST != 0).unwrap();
+        r.positions[last] &= !LAST;
+        refuse(r, "a line without its end mark");
+        let mut r = raw();
+        r.positions[0] |= LAST;
+        refuse(r, "an extra end mark");
+        let mut r = raw();
+        r.nonempty[0] ^= 1 << r.nonempty[0].trailing_zeros();
+        refuse(r, "a nonempty line marked empty");
+        let mut r = raw();
+        r.family_start[0] += 1;
+        refuse(r, "a wrong family offset");
+        let mut r = raw();
+        r.normals = r.normals[1..].into();
+        refuse(r, "normals missing");
+        let mut r = raw();
+        r.positions[0] = 0;
+        refuse(r, "a crossing on a node");
+        let mut r = raw();
+        r.nonempty = r.nonempty[1..].into();
+        refuse(r, "nonempty bits cut short");
+    }
+
+    #[test]
+    fn counting_ones_agrees_with_a_bit_loop() {
+        let words = [0x0123_4567_89ab_cdefu64, u64::MAX, 0, 0xf0f0_0000_ffff_0001];
+        for from in 0..256 {
+            for to in from..=256 {
+                let expect = (from..to).filter(|&i| bit(&words, i)).count();
+                assert_eq!(count_ones(&words, from, to), expect, "{from}..{to}");
+            }
+        }
+    }
 }

@@ -122,7 +122,9 @@ impl Level {
     }
 }
 
-/// A position along a chunk's extent: `value / 65536` of the chunk side.
+/// A position along a chunk's extent: `value / 65536` of the chunk side. Stored positions are
+/// always even (2,048 steps per base cell): chunk storage uses bit 0 to mark the last crossing
+/// of a line.
 pub type LocalPos = u16;
 
 /// Grid-unit offset (from the chunk's minimum face) of a fixed-point position.
@@ -132,18 +134,19 @@ pub fn local_pos_to_grid(q: LocalPos) -> f64 {
 }
 
 /// Quantises a grid-unit offset along a chunk line into the open cell `edge` of `level`: the
-/// result lies strictly between the fixed-point positions of the edge's two nodes, so a crossing
-/// never sits on a node.
+/// result is even and lies strictly between the fixed-point positions of the edge's two nodes,
+/// so a crossing never sits on a node.
 #[inline]
 pub fn quantize_into_edge(t_grid: f64, edge: usize, level: Level) -> LocalPos {
-    let s = level.steps_per_cell() as i64;
+    // In units of two fixed-point steps.
+    let s = level.steps_per_cell() as i64 / 2;
     let lo = edge as i64 * s + 1;
     let hi = (edge as i64 + 1) * s - 1;
     // Round half up without a libm call; the clamp makes the cast's truncation of negative
     // values harmless.
-    let q = t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64) + 0.5;
+    let q = t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64 / 2.0) + 0.5;
     let q = if q.is_nan() { (lo + hi) / 2 } else { (q.clamp(lo as f64, hi as f64 + 0.5)) as i64 };
-    q.clamp(lo, hi) as LocalPos
+    (q.clamp(lo, hi) * 2) as LocalPos
 }
 
 /// The cell (edge index along the line) a fixed-point position lies in.
@@ -166,6 +169,7 @@ mod tests {
                     let q = quantize_into_edge(t, edge, level);
                     assert_eq!(edge_of(q, level), edge);
                     assert_ne!(q as u32 % s, 0, "a crossing must not sit on a node");
+                    assert_eq!(q % 2, 0, "positions are even");
                 }
             }
         }

@@ -9,7 +9,7 @@ use thiserror::Error;
 use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
-use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineCursor, WorkLine, node_mask};
+use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineRef, RawCursor, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, quantize_into_edge};
 use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, PackedSpan};
@@ -96,10 +96,7 @@ impl UndoRecord {
                 .previous
                 .iter()
                 .map(|(_, c)| match c {
-                    Some(Chunk::Lists(l)) => {
-                        let (p, n, h) = l.heap_bytes();
-                        p + n + h
-                    }
+                    Some(Chunk::Lists(l)) => l.heap_bytes(),
                     _ => 0,
                 })
                 .sum::<usize>()
@@ -530,10 +527,8 @@ fn edit_chunk(
             (_, (Some(ur), Some(vr))) => (ur, vr),
             _ => continue,
         };
-        let mut cursor = match old {
-            ChunkView::Lists(l) => Some(l.cursor(axis, 0)),
-            ChunkView::Uniform(_) => None,
-        };
+        // Created at the first line read (deriving a family's start states costs a few lines).
+        let mut cursor = None;
         for v in v0..=v1 {
             let (u0, u1) = match (ctx.op, table_level) {
                 (CsgOp::Intersect, _) | (_, None) => (u0, u1),
@@ -586,14 +581,15 @@ fn edit_chunk(
                     // An empty brush line leaves a union or difference unchanged.
                     continue;
                 }
-                let line = match (&mut cursor, old) {
-                    (Some(c), _) => {
+                let line = match old {
+                    ChunkView::Lists(l) => {
+                        let c = cursor.get_or_insert_with(|| l.cursor(axis, 0));
                         c.advance_to(index);
                         c.next_line()
                     }
-                    (None, view) => view.line(axis, u, v),
+                    ChunkView::Uniform(state) => LineRef::uniform(state),
                 };
-                let uniform = line.positions.is_empty();
+                let uniform = line.is_empty();
                 if uniform && ctx.op != CsgOp::Intersect && line.start_inside == (ctx.op == CsgOp::Add) {
                     // Adding to a full line or subtracting from an empty one changes nothing.
                     continue;
@@ -665,12 +661,12 @@ fn edit_chunk(
     for axis in Axis::ALL {
         b.begin_axis(axis);
         let mut cursor = match old {
-            ChunkView::Lists(l) => Ok(l.cursor(axis, 0)),
+            ChunkView::Lists(l) => Ok(l.raw_cursor(axis, 0)),
             ChunkView::Uniform(state) => Err(state),
         };
         let mut index = 0;
-        let copy = |b: &mut ChunkBuilder, cursor: &mut Result<LineCursor<'_>, bool>, count: usize| match cursor {
-            Ok(c) => b.copy_from(c, axis, count),
+        let copy = |b: &mut ChunkBuilder, cursor: &mut Result<RawCursor<'_>, bool>, count: usize| match cursor {
+            Ok(c) => b.copy_from(c, count),
             Err(state) => b.push_uniform(*state, count),
         };
         while let Some(line) = next.next_if(|c| c.axis == axis as u8) {

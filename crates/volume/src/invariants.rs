@@ -17,21 +17,18 @@ pub struct InvariantViolation {
     pub what: String,
 }
 
-fn end_state(line: crate::chunk::LineRef<'_>) -> bool {
-    line.start_inside ^ (line.positions.len() % 2 == 1)
-}
-
 /// Node states of a chunk's own nodes (`0..n` on each axis) as read from the lines along one
 /// axis, as `rows[y + n z]` with bit `x`.
 fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
     let level = lists.level();
     let n = level.cells();
     let mut rows = vec![0u128; n * n];
+    let mut cursor = lists.cursor(axis, 0);
     for v in 0..n {
         for u in 0..n {
-            let line = lists.line(axis, u, v);
+            let line = cursor.next_line();
             let mut s = line.start_inside;
-            let mut next = line.positions.iter().map(|&q| edge_of(q, level)).peekable();
+            let mut next = line.positions().map(|q| edge_of(q, level)).peekable();
             for j in 0..n {
                 if s {
                     let [x, y, z] = compose(axis, j, u, v);
@@ -73,10 +70,11 @@ impl Volume {
                 let step = axis.unit_i64().as_ivec3();
                 let next = self.view(key.offset(step));
                 let prev_missing = !self.chunks.contains_key(&key.offset(-step));
+                let (mut here, mut next) = (here.cursor(axis, 0), next.cursor(axis, 0));
                 for v in 0..n {
                     for u in 0..n {
-                        let line = here.line(axis, u, v);
-                        if end_state(line) != next.line(axis, u, v).start_inside {
+                        let line = here.next_line();
+                        if line.end_inside() != next.next_line().start_inside {
                             return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
                         }
                         if prev_missing && line.start_inside {

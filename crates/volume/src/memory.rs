@@ -13,7 +13,7 @@ pub struct MemoryReport {
     pub positions: usize,
     /// Crossing normals (2 bytes each).
     pub normals: usize,
-    /// Start bits, unary-coded counts and the per-chunk list struct.
+    /// Chunk headers, nonempty-line bits, padding and the per-chunk list struct.
     pub headers: usize,
     /// The chunk map's tables.
     pub chunk_map: usize,
@@ -58,10 +58,10 @@ impl Volume {
         let mut r = MemoryReport { chunk_map: self.chunks.table_bytes(), ..Default::default() };
         for chunk in self.chunks.values() {
             if let Chunk::Lists(l) = chunk {
-                let (p, n, h) = l.heap_bytes();
-                r.positions += p;
-                r.normals += n;
-                r.headers += h;
+                let (all, c) = (l.heap_bytes(), l.crossing_bytes());
+                r.positions += c;
+                r.normals += c;
+                r.headers += all - 2 * c;
                 r.crossings += l.crossing_count();
             }
         }

@@ -48,7 +48,7 @@ impl Volume {
             ChunkView::Uniform(s) => s,
             ChunkView::Lists(l) => {
                 let line = l.line(Axis::X, local.y as usize, local.z as usize);
-                let before = line.positions.iter().take_while(|&&q| edge_of(q, l.level()) < local.x as usize).count();
+                let before = line.positions().take_while(|&q| edge_of(q, l.level()) < local.x as usize).count();
                 line.start_inside ^ (before % 2 == 1)
             }
         }
@@ -75,7 +75,7 @@ impl Volume {
             ChunkView::Lists(l) => {
                 let line = l.line(Axis::X, ny.rem_euclid(n) as usize, nz.rem_euclid(n) as usize);
                 let t = (p_grid.x - kx * CHUNK_CELLS as f64) * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64);
-                let before = line.positions.iter().take_while(|&&q| (q as f64) < t).count();
+                let before = line.positions().take_while(|&q| (q as f64) < t).count();
                 line.start_inside ^ (before % 2 == 1)
             }
         }
@@ -92,9 +92,9 @@ impl Volume {
                     let n = l.level().cells();
                     for axis in Axis::ALL {
                         s.per_axis[axis.index()] += l.axis_crossing_count(axis) as u64;
-                        let mut cursor = l.cursor(axis, 0);
+                        let mut cursor = l.raw_cursor(axis, 0);
                         for _ in 0..n * n {
-                            let k = cursor.next_line().positions.len();
+                            let k = cursor.next_raw().len();
                             if s.histogram.len() <= k {
                                 s.histogram.resize(k + 1, 0);
                             }
@@ -307,7 +307,7 @@ impl Volume {
                     for _ in 0..n * n {
                         let line = cursor.next_line();
                         let mut inside_from = line.start_inside.then_some(0u64);
-                        for &q in line.positions {
+                        for q in line.positions() {
                             match inside_from.take() {
                                 Some(s) => steps += q as u64 - s,
                                 None => inside_from = Some(q as u64),
