@@ -372,13 +372,8 @@ impl<'a> RawCursor<'a> {
     #[inline]
     pub(crate) fn advance_to(&mut self, index: usize) {
         debug_assert!(index >= self.index);
-        let mut lines = count_ones(self.nonempty, self.base + self.index, self.base + index);
-        let mut i = self.cross;
-        while lines > 0 {
-            lines -= (self.raw[i] & LAST) as usize;
-            i += 1;
-        }
-        self.cross = i;
+        let lines = count_ones(self.nonempty, self.base + self.index, self.base + index);
+        self.cross = skip_marks(self.raw, self.cross, lines);
         self.index = index;
     }
 
@@ -405,6 +400,44 @@ impl<'a> RawCursor<'a> {
         let raw = self.next_raw();
         LineRef { start_inside, raw, normals: &self.normals[first..first + raw.len()] }
     }
+}
+
+/// The index just after the `k`-th end mark at or after `from` (`from` itself for `k = 0`).
+/// Reads four positions per step where the slice is word-aligned (it is when it starts a
+/// chunk's value storage, as every cursor's does).
+#[inline]
+fn skip_marks(raw: &[u16], from: usize, mut k: usize) -> usize {
+    let mut i = from;
+    // Scalar up to a multiple of four, and for short skips.
+    while k > 0 && (i & 3 != 0 || k < 3) {
+        k -= (raw[i] & LAST) as usize;
+        i += 1;
+    }
+    if k == 0 {
+        return i;
+    }
+    const MARKS: u64 = 0x0001_0001_0001_0001;
+    let whole = (raw.len() - i) / 4 * 4;
+    if let Ok(words) = bytemuck::try_cast_slice::<u16, u64>(&raw[i..i + whole]) {
+        for (w_index, &w) in words.iter().enumerate() {
+            let marks = w & MARKS;
+            let c = marks.count_ones() as usize;
+            if c >= k {
+                let mut m = marks;
+                for _ in 1..k {
+                    m &= m - 1;
+                }
+                return i + 4 * w_index + m.trailing_zeros() as usize / 16 + 1;
+            }
+            k -= c;
+        }
+        i += whole;
+    }
+    while k > 0 {
+        k -= (raw[i] & LAST) as usize;
+        i += 1;
+    }
+    i
 }
 
 /// Ones among bits `[from, to)`.
@@ -825,6 +858,33 @@ mod tests {
         let mut r = raw();
         r.nonempty = r.nonempty[1..].into();
         refuse(r, "nonempty bits cut short");
+    }
+
+    #[test]
+    fn skipping_end_marks_agrees_with_a_scalar_loop() {
+        // A word-aligned buffer, read from several offsets (aligned and not).
+        let mut words = vec![0u64; 40];
+        let raw: &mut [u16] = bytemuck::cast_slice_mut(&mut words);
+        let mut seed = 3u64;
+        for q in raw.iter_mut() {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            *q = ((seed >> 40) as u16) & !LAST | u16::from((seed >> 20).is_multiple_of(3));
+        }
+        let raw: &[u16] = raw;
+        let marks = raw.iter().filter(|&&q| q & LAST != 0).count();
+        for from in [0, 1, 3, 4, 5, 17, 64] {
+            let ahead = raw[from..].iter().filter(|&&q| q & LAST != 0).count();
+            for k in 0..=ahead {
+                let mut i = from;
+                let mut left = k;
+                while left > 0 {
+                    left -= (raw[i] & LAST) as usize;
+                    i += 1;
+                }
+                assert_eq!(skip_marks(raw, from, k), i, "from {from} k {k}");
+            }
+        }
+        assert!(marks > 20);
     }
 
     #[test]

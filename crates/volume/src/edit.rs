@@ -490,6 +490,10 @@ fn edit_chunk(
     level: Level,
     s: &mut Scratch,
 ) -> Option<(Built, u64)> {
+    if !ctx.reconcile && old == ChunkView::Uniform(ctx.op == CsgOp::Add) && ctx.op != CsgOp::Intersect {
+        // Adding to a solid chunk or subtracting from an empty one changes nothing.
+        return None;
+    }
     let n = level.cells();
     let origin = key.origin_grid();
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
