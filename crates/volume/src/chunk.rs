@@ -41,7 +41,122 @@ const START_WORDS: usize = 64;
 /// rejects malformed data with an error instead of storing it.
 #[derive(Clone, PartialEq, Eq)]
 pub struct ChunkLists {
-    data: Box<[u64]>,
+    words: thin::Words,
+}
+
+/// Bits 9..32 of header word 0: the allocation's length in words.
+const LEN_SHIFT: u32 = 9;
+const LEN_BITS: u32 = 23;
+
+/// The allocation length recorded in header word 0.
+#[inline]
+fn stored_len(word0: u64) -> usize {
+    ((word0 >> LEN_SHIFT) & ((1 << LEN_BITS) - 1)) as usize
+}
+
+/// A boxed word slice behind a thin pointer: the one place in the crate with `unsafe` code.
+#[allow(unsafe_code)]
+mod thin {
+    use std::ptr::NonNull;
+
+    use super::{HEADER_WORDS, stored_len};
+
+    /// Owns a `Box<[u64]>` whose word 0 records its length (see [`stored_len`]), through an
+    /// 8-byte pointer: a chunk map slot then holds the value in 8 bytes (a `Box<[u64]>` takes
+    /// 16) without a second allocation per chunk.
+    pub(super) struct Words {
+        /// The first word of a `Box<[u64]>` released with `Box::into_raw`.
+        ptr: NonNull<u64>,
+    }
+
+    impl Words {
+        /// Takes ownership of `words`, whose word 0 must record `words.len()`.
+        pub(super) fn new(words: Box<[u64]>) -> Self {
+            assert!(
+                words.len() >= HEADER_WORDS && stored_len(words[0]) == words.len(),
+                "a chunk allocation records its own length"
+            );
+            let raw: *mut [u64] = Box::into_raw(words);
+            Words { ptr: NonNull::new(raw.cast::<u64>()).expect("a boxed slice pointer is never null") }
+        }
+
+        /// The whole allocation.
+        #[inline]
+        pub(super) fn get(&self) -> &[u64] {
+            // SAFETY: `ptr` is the start of a live `Box<[u64]>` allocation (made in `new`, freed
+            // only in `drop`) of at least HEADER_WORDS words, whose word 0 records its exact
+            // length; nothing writes to the words after `new` (no method hands out `&mut`).
+            // Reading word 0 is therefore in bounds, the slice covers exactly the allocation,
+            // and the shared borrow of `self` keeps it alive with no writer.
+            unsafe {
+                let len = stored_len(*self.ptr.as_ptr());
+                std::slice::from_raw_parts(self.ptr.as_ptr(), len)
+            }
+        }
+    }
+
+    impl Drop for Words {
+        fn drop(&mut self) {
+            let len = self.get().len();
+            // SAFETY: `ptr` and `len` are exactly the pointer and length of the `Box<[u64]>`
+            // that `new` released (see `get`), and this is the only place that frees it, once.
+            unsafe { drop(Box::from_raw(std::ptr::slice_from_raw_parts_mut(self.ptr.as_ptr(), len))) }
+        }
+    }
+
+    impl Clone for Words {
+        fn clone(&self) -> Self {
+            Words::new(self.get().into())
+        }
+    }
+
+    impl PartialEq for Words {
+        fn eq(&self, other: &Self) -> bool {
+            self.get() == other.get()
+        }
+    }
+
+    impl Eq for Words {}
+
+    // SAFETY: `Words` owns its allocation exclusively, exactly like the `Box<[u64]>` it was made
+    // from (which is Send and Sync): sending it moves that ownership, and shared references
+    // only read words that never change.
+    unsafe impl Send for Words {}
+    // SAFETY: as above; there is no interior mutability.
+    unsafe impl Sync for Words {}
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn words_clone_compare_move_across_threads_and_free() {
+            let make = |len: usize, fill: u64| {
+                let mut b = vec![fill; len].into_boxed_slice();
+                b[0] = (len as u64) << super::super::LEN_SHIFT;
+                Words::new(b)
+            };
+            let a = make(5, 7);
+            let b = a.clone();
+            assert!(a == b);
+            assert_eq!(a.get().len(), 5);
+            assert_eq!(a.get()[4], 7);
+            assert!(a != make(5, 8));
+            assert!(a != make(6, 7));
+            let moved = std::thread::spawn(move || b.get().iter().skip(1).sum::<u64>()).join().unwrap();
+            assert_eq!(moved, 28);
+            // Many allocations made and freed (run under valgrind or Miri to see no leak).
+            let all: Vec<Words> = (2..200).map(|n| make(n, n as u64)).collect();
+            let copies = all.clone();
+            assert!(all.iter().zip(&copies).all(|(x, y)| x == y && x.get().len() == y.get().len()));
+        }
+
+        #[test]
+        #[should_panic(expected = "records its own length")]
+        fn words_refuse_an_allocation_that_misstates_its_length() {
+            let _ = Words::new(vec![0u64; 3].into_boxed_slice());
+        }
+    }
 }
 
 impl std::fmt::Debug for ChunkLists {
@@ -64,7 +179,7 @@ struct RawChunkLists {
 
 impl Serialize for ChunkLists {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let starts = self.data[1];
+        let starts = self.words.get()[1];
         RawChunkLists {
             level: self.level(),
             corner: self.corner(),
@@ -90,7 +205,7 @@ pub enum Chunk {
     /// Every node of the chunk is inside.
     Solid,
     /// Crossing lists.
-    Lists(Box<ChunkLists>),
+    Lists(ChunkLists),
 }
 
 /// One line of a chunk: its first node's state and its crossings in increasing order.
@@ -142,19 +257,19 @@ impl ChunkLists {
     /// The chunk's resolution level.
     #[inline]
     pub fn level(&self) -> Level {
-        Level::new(self.data[0] as u8).expect("levels are checked when a chunk is built")
+        Level::new(self.words.get()[0] as u8).expect("levels are checked when a chunk is built")
     }
 
     /// Whether the corner node `(0, 0, 0)` is inside.
     #[inline]
     fn corner(&self) -> bool {
-        (self.data[0] >> 8) & 1 == 1
+        (self.words.get()[0] >> 8) & 1 == 1
     }
 
     /// Number of crossings stored, all axes.
     #[inline]
     pub fn crossing_count(&self) -> usize {
-        (self.data[0] >> 32) as usize
+        (self.words.get()[0] >> 32) as usize
     }
 
     /// Index of the first crossing of the `axis` family.
@@ -162,8 +277,8 @@ impl ChunkLists {
     fn family_start(&self, axis: Axis) -> usize {
         match axis {
             Axis::X => 0,
-            Axis::Y => self.data[1] as u32 as usize,
-            Axis::Z => (self.data[1] >> 32) as usize,
+            Axis::Y => self.words.get()[1] as u32 as usize,
+            Axis::Z => (self.words.get()[1] >> 32) as usize,
         }
     }
 
@@ -190,13 +305,13 @@ impl ChunkLists {
     /// The nonempty bit of every line, families in x, y, z order.
     #[inline]
     fn nonempty(&self) -> &[u64] {
-        &self.data[HEADER_WORDS..HEADER_WORDS + Self::nonempty_words(self.level())]
+        &self.words.get()[HEADER_WORDS..HEADER_WORDS + Self::nonempty_words(self.level())]
     }
 
     /// Positions (with end marks), then normals, then up to three zero values of padding.
     #[inline]
     fn values(&self) -> &[u16] {
-        bytemuck::cast_slice(&self.data[HEADER_WORDS + Self::nonempty_words(self.level())..])
+        bytemuck::cast_slice(&self.words.get()[HEADER_WORDS + Self::nonempty_words(self.level())..])
     }
 
     /// Stored positions with their end-of-line marks.
@@ -299,9 +414,9 @@ impl ChunkLists {
         out
     }
 
-    /// Bytes of the one allocation plus this struct (its box).
+    /// Bytes of the one allocation.
     pub(crate) fn heap_bytes(&self) -> usize {
-        std::mem::size_of_val(&*self.data) + std::mem::size_of::<ChunkLists>()
+        std::mem::size_of_val(self.words.get())
     }
 
     /// Bytes of positions and of normals (each `2 m`), for memory reports.
@@ -318,8 +433,12 @@ impl ChunkLists {
         if r.nonempty.len() != Self::nonempty_words(r.level) {
             return Err("wrong number of nonempty bits".into());
         }
-        if m == 0 || m > u32::MAX as usize / 2 {
+        if m == 0 {
             return Err("a chunk without crossings must be stored as uniform".into());
+        }
+        let n = r.level.cells();
+        if m > 3 * n * n * n {
+            return Err("more crossings than the chunk's lines have cells".into());
         }
         let [ys, zs] = r.family_start;
         if ys as usize > m || zs as usize > m || ys > zs {
@@ -342,14 +461,15 @@ fn assemble(
 ) -> ChunkLists {
     let m = positions.len();
     let value_words = (2 * m).div_ceil(4);
-    let mut data = vec![0u64; HEADER_WORDS + nonempty.len() + value_words].into_boxed_slice();
-    data[0] = level.get() as u64 | (corner as u64) << 8 | (m as u64) << 32;
+    let len = HEADER_WORDS + nonempty.len() + value_words;
+    let mut data = vec![0u64; len].into_boxed_slice();
+    data[0] = level.get() as u64 | (corner as u64) << 8 | (len as u64) << LEN_SHIFT | (m as u64) << 32;
     data[1] = family_start[0] as u64 | (family_start[1] as u64) << 32;
     data[HEADER_WORDS..HEADER_WORDS + nonempty.len()].copy_from_slice(nonempty);
     let values: &mut [u16] = bytemuck::cast_slice_mut(&mut data[HEADER_WORDS + nonempty.len()..]);
     values[..m].copy_from_slice(positions);
     values[m..2 * m].copy_from_slice(normals);
-    ChunkLists { data }
+    ChunkLists { words: thin::Words::new(data) }
 }
 
 /// Walks the lines of one family in index order, reading crossings only.
@@ -630,7 +750,7 @@ impl Built {
         match self {
             Built::Uniform(false) => None,
             Built::Uniform(true) => Some(Chunk::Solid),
-            Built::Lists(l) => Some(Chunk::Lists(Box::new(l))),
+            Built::Lists(l) => Some(Chunk::Lists(l)),
         }
     }
 }
@@ -801,7 +921,7 @@ mod tests {
         v.add(&a).unwrap();
         v.subtract(&b).unwrap();
         let lists = match v.chunk(crate::ChunkKey::new(0, 0, 0)) {
-            Some(Chunk::Lists(l)) => (**l).clone(),
+            Some(Chunk::Lists(l)) => l.clone(),
             other => panic!("expected lists, got {other:?}"),
         };
         (v, lists)
@@ -858,6 +978,10 @@ mod tests {
         let mut r = raw();
         r.nonempty = r.nonempty[1..].into();
         refuse(r, "nonempty bits cut short");
+        let mut r = raw();
+        r.positions = vec![2; 3 * 16 * 16 * 16 + 1].into();
+        r.normals = r.positions.clone();
+        refuse(r, "more crossings than cells");
     }
 
     #[test]
