@@ -6,24 +6,22 @@ use glam::DVec3;
 pub type PackedNormal = u16;
 
 /// Packs a normal. Zero or non-finite input packs to +z.
-///
-/// Branch-free on the hot path (edits pack two normals per grid line, and the sign of `z` is as
-/// good as random there, so a branch on it would be mispredicted half the time).
 #[inline]
 pub fn pack_normal(n: DVec3) -> PackedNormal {
     let l1 = n.x.abs() + n.y.abs() + n.z.abs();
     if !(l1.is_finite() && l1 > 0.0) {
         return pack_normal(DVec3::Z);
     }
-    let inv = 1.0 / l1;
+    // Scale straight to the 0..=255 grid: one division, then branch-free folding.
+    let inv = 127.5 / l1;
     let (x, y) = (n.x * inv, n.y * inv);
-    // Lower hemisphere: fold over the diagonals (selects, not branches).
-    let fx = (1.0 - y.abs()) * sign(x);
-    let fy = (1.0 - x.abs()) * sign(y);
+    let fx = (127.5 - y.abs()).copysign(x);
+    let fy = (127.5 - x.abs()).copysign(y);
     let lower = n.z < 0.0;
     let (x, y) = (if lower { fx } else { x }, if lower { fy } else { y });
-    let qx = ((x * 0.5 + 0.5) * 255.0 + 0.5).clamp(0.0, 255.0) as u16;
-    let qy = ((y * 0.5 + 0.5) * 255.0 + 0.5).clamp(0.0, 255.0) as u16;
+    // x + 127.5 lies in [0, 255] up to rounding; + 0.5 rounds, `as` truncates and saturates.
+    let qx = (x + 128.0).min(255.0) as u16;
+    let qy = (y + 128.0).min(255.0) as u16;
     qx | (qy << 8)
 }
 
