@@ -265,7 +265,10 @@ impl SpanTable {
                 }
                 spans.clear();
                 let first_count = out.counts.len();
-                brush.spans_batch(lines, dir, spans, &mut out.counts);
+                if !brush.spans_batch(lines, dir, spans, &mut out.counts) {
+                    // The brush samples after all: no table (the caller samples chunk by chunk).
+                    return false;
+                }
                 let mut next = 0;
                 for &c in &out.counts[first_count..] {
                     let first = out.packed.len();
@@ -275,6 +278,7 @@ impl SpanTable {
                     next += c as usize;
                     out.simple.push(simple_range(&out.packed[first..], level.nodes_per_unit()));
                 }
+                true
             };
             let a = &mut axes[axis.index()];
             *a = AxisSpans { u0, v0, nu: nu as usize, nv: nv as usize, ..Default::default() };
@@ -285,18 +289,17 @@ impl SpanTable {
                 simple: Vec::with_capacity(lines_total),
             };
             if parallel {
-                let rows: Vec<RowOut> = (v0..v0 + nv)
+                let rows: Option<Vec<RowOut>> = (v0..v0 + nv)
                     .into_par_iter()
                     .map_init(
                         || (Vec::new(), Vec::new()),
                         |(lines, spans), v| {
                             let mut o = RowOut::default();
-                            row(v, &mut o, lines, spans);
-                            o
+                            row(v, &mut o, lines, spans).then_some(o)
                         },
                     )
                     .collect();
-                for o in rows {
+                for o in rows? {
                     out.counts.extend(o.counts);
                     out.packed.extend(o.packed);
                     out.simple.extend(o.simple);
@@ -304,7 +307,9 @@ impl SpanTable {
             } else {
                 let (mut lines, mut spans) = (Vec::with_capacity(nu as usize), Vec::new());
                 for v in v0..v0 + nv {
-                    row(v, &mut out, &mut lines, &mut spans);
+                    if !row(v, &mut out, &mut lines, &mut spans) {
+                        return None;
+                    }
                 }
             }
             let counts = out.counts;

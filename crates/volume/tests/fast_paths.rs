@@ -106,3 +106,40 @@ fn batched_spans_equal_spans_line_by_line() {
     }
     assert!(hits > 100 && misses > 100, "hits {hits}, misses {misses}");
 }
+
+/// A sphere that answers some lines in closed form and asks to be sampled on others.
+struct Moody(Sphere);
+
+impl Brush for Moody {
+    fn bounds(&self) -> Aabb {
+        self.0.bounds()
+    }
+    fn field(&self, origin: DVec3, p: DVec3) -> f64 {
+        self.0.field(origin, p)
+    }
+    fn contains(&self, origin: DVec3, p: DVec3) -> bool {
+        self.0.contains(origin, p)
+    }
+    fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
+        (origin + start).y < 20.0 && self.0.spans(origin, start, dir, out)
+    }
+}
+
+#[test]
+fn a_brush_that_answers_only_some_lines_is_sampled_and_still_exact() {
+    let brush = Moody(Sphere::new(DVec3::new(20.3, 19.6, 21.1), 9.4).unwrap());
+    let mut v = Volume::new();
+    for parallel in [false, true] {
+        v.apply(CsgOp::Add, &brush, &EditSettings { parallel, ..Default::default() }).unwrap();
+        v.check_invariants().unwrap();
+        for z in 8..34 {
+            for y in 8..34 {
+                for x in 8..34 {
+                    let node = glam::I64Vec3::new(x, y, z);
+                    let expect = strata_volume::brush_contains_node(&brush, node, strata_volume::Level::BASE);
+                    assert_eq!(v.node_inside(node), expect, "node {node}");
+                }
+            }
+        }
+    }
+}

@@ -163,9 +163,12 @@ pub trait Brush: Send + Sync {
     /// brush samples instead. Must give exactly what `spans` gives line by line (the default
     /// does just that); closed forms override it to save a call and a copy per line.
     fn spans_batch(&self, lines: &[(DVec3, DVec3)], dir: DVec3, out: &mut Vec<Span>, counts: &mut Vec<u32>) -> bool {
+        let (out_len, counts_len) = (out.len(), counts.len());
         let mut line = Vec::new();
         for &(origin, start) in lines {
             if !self.spans(origin, start, dir, &mut line) {
+                out.truncate(out_len);
+                counts.truncate(counts_len);
                 return false;
             }
             counts.push(line.len() as u32);
