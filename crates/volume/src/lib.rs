@@ -13,7 +13,7 @@
 //!   edit anywhere in the world stores the same chunk-local data;
 //! - [`Volume::restore`] with an edit's [`UndoRecord`] gives back the exact previous volume.
 //!
-//! What is not: positions are quantised to 1/4096 of a cell and normals to about 0.7°.
+//! What is not: positions are quantised to 1/2048 of a base cell and normals to about 0.7°.
 //!
 //! ```
 //! use glam::DVec3;
