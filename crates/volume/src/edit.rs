@@ -248,20 +248,24 @@ impl SpanTable {
             let shift = n.trailing_zeros();
             let dir = axis.unit();
             // One row of lines: appends span counts, packed spans and simple ranges.
+            let (step_u, step_v) = (ua.unit() * sp, va.unit() * sp);
+            let (mask, inv_sp) = (n - 1, level.nodes_per_unit());
             let row = |v: i64, out: &mut RowOut, lines: &mut Vec<(DVec3, DVec3)>, spans: &mut Vec<Span>| {
-                // Chunk and local line of `i` (n is a power of two: shifts, no divisions).
-                let split = |i: i64| (i >> shift, (i & (n - 1)) as f64 * sp);
-                let (cv, lv) = split(v);
+                // Across the line, measure from the origin of the chunk that owns the line,
+                // exactly as the node predicate does; along it, from the table's base. A box
+                // face that falls on a node plane then includes or excludes the line exactly as
+                // `contains` includes or excludes its nodes. (n is a power of two: shifts and
+                // masks, no divisions; the start points are exact: small multiples of `sp`.)
+                let (cv, lv) = (v >> shift, step_v * (v & mask) as f64);
                 lines.clear();
-                for u in u0..u0 + nu {
-                    // Across the line, measure from the origin of the chunk that owns the line,
-                    // exactly as the node predicate does; along it, from the table's base. A box
-                    // face that falls on a node plane then includes or excludes the line exactly
-                    // as `contains` includes or excludes its nodes.
-                    let (cu, lu) = split(u);
-                    let chunk = compose(axis, 0, cu, cv);
-                    let line_origin = origin + (I64Vec3::from_array(chunk) * CHUNK_CELLS).as_dvec3();
-                    lines.push((line_origin, DVec3::from_array(compose(axis, 0.0, lu, lv))));
+                let mut u = u0;
+                while u < u0 + nu {
+                    let cu = u >> shift;
+                    let chunk = I64Vec3::from_array(compose(axis, 0, cu, cv));
+                    let line_origin = origin + (chunk * CHUNK_CELLS).as_dvec3();
+                    let end = ((cu + 1) << shift).min(u0 + nu);
+                    lines.extend((u..end).map(|u| (line_origin, lv + step_u * (u & mask) as f64)));
+                    u = end;
                 }
                 spans.clear();
                 let first_count = out.counts.len();
@@ -269,14 +273,12 @@ impl SpanTable {
                     // The brush samples after all: no table (the caller samples chunk by chunk).
                     return false;
                 }
-                let mut next = 0;
+                out.packed.extend(spans.iter().map(|s| PackedSpan::pack(s, flip)));
+                let mut next = out.packed.len() - spans.len();
                 for &c in &out.counts[first_count..] {
-                    let first = out.packed.len();
-                    for s in &spans[next..next + c as usize] {
-                        out.packed.push(PackedSpan::pack(s, flip));
-                    }
-                    next += c as usize;
-                    out.simple.push(simple_range(&out.packed[first..], level.nodes_per_unit()));
+                    let end = next + c as usize;
+                    out.simple.push(simple_range(&out.packed[next..end], inv_sp));
+                    next = end;
                 }
                 true
             };
