@@ -356,60 +356,50 @@ impl ChunkLists {
         c
     }
 
-    /// Node states of a line given its start state: bit `j` is node `j`.
-    fn states_of(&self, start: bool, raw: &[u16]) -> u128 {
-        let level = self.level();
-        let n = level.cells();
-        let mut s = if start { node_mask(n) } else { 0 };
-        for &q in raw {
-            s ^= node_mask(n) & !((1u128 << (edge_of(q & !LAST, level) + 1)) - 1);
-        }
-        s
-    }
-
     /// The start state of every line along `axis` (bit `u + n v`), read off other lines from
     /// the corner node: node `(0, y, 0)` from y line 0; x lines start on the face `x = 0`, read
     /// from the z lines at `x = 0`; y lines on `y = 0`, from the x lines at `y = 0` (which start
     /// at `(0, 0, z)`, from z line 0); z lines on `z = 0`, from the x lines at `z = 0`.
     pub(crate) fn family_starts(&self, axis: Axis) -> Starts {
-        let n = self.level().cells();
-        let corner = self.corner();
-        let mut out = [0u64; START_WORDS];
-        // Node states along the first line of `first` (from the corner), then, for each `k`,
-        // along line `k * stride` of `along`, starting from bit `k` of those.
-        let sweep = |first: Axis, along: Axis, stride: usize, put: &mut dyn FnMut(usize, u128)| {
-            let edge = self.states_of(corner, self.raw_cursor(first, 0).next_raw());
-            let mut c = self.raw_cursor(along, 0);
-            for k in 0..n {
-                c.advance_to(k * stride);
-                put(k, self.states_of((edge >> k) & 1 == 1, c.next_raw()));
+        let level = self.level();
+        let n = level.cells();
+        let full = node_mask(n);
+        let shift = 12 - level.get() as u32;
+        // Node states along a line from its start state: each crossing flips the nodes after it.
+        let states = |start: bool, raw: &[u16]| {
+            let mut s = if start { full } else { 0 };
+            for &q in raw {
+                s ^= full & (u128::MAX << (((q & !LAST) as u32 >> shift) + 1));
             }
+            s
         };
-        let mask = node_mask(n) >> 1;
-        match axis {
-            // z line (0, y) gives node (0, y, z): x line (y, z) starts there.
-            Axis::X => sweep(Axis::Y, Axis::Z, n, &mut |y, s| {
-                let mut s = s & mask;
-                while s != 0 {
-                    let i = y + n * s.trailing_zeros() as usize;
-                    out[i >> 6] |= 1 << (i & 63);
-                    s &= s - 1;
-                }
-            }),
-            // x line (0, z) gives node (x, 0, z): y line (z, x) starts there.
-            Axis::Y => sweep(Axis::Z, Axis::X, n, &mut |z, s| {
-                let mut s = s & mask;
-                while s != 0 {
-                    let i = z + n * s.trailing_zeros() as usize;
-                    out[i >> 6] |= 1 << (i & 63);
-                    s &= s - 1;
-                }
-            }),
-            // x line (y, 0) gives node (x, y, 0): z lines (0..n, y) start there, a run of bits.
-            Axis::Z => sweep(Axis::Y, Axis::X, 1, &mut |y, s| {
-                let i = n * y;
-                out[i >> 6] |= ((s & mask) as u64) << (i & 63);
-            }),
+        // The first line of `first` (from the corner), then lines `k * stride` of `along`, each
+        // starting from bit `k` of the first: `face[k]` holds the node states of line k.
+        let (first, along, stride) = match axis {
+            Axis::X => (Axis::Y, Axis::Z, n),
+            Axis::Y => (Axis::Z, Axis::X, n),
+            Axis::Z => (Axis::Y, Axis::X, 1),
+        };
+        let edge = states(self.corner(), self.raw_cursor(first, 0).next_raw());
+        let mut c = self.raw_cursor(along, 0);
+        let mut out = [0u64; START_WORDS];
+        let mask = full >> 1;
+        for k in 0..n {
+            c.advance_to(k * stride);
+            let mut s = states((edge >> k) & 1 == 1, c.next_raw()) & mask;
+            if axis == Axis::Z {
+                // x line (k, 0) gives node (x, k, 0): z lines (0..n, k) start there, a run of bits.
+                let i = n * k;
+                out[i >> 6] |= (s as u64) << (i & 63);
+                continue;
+            }
+            // X: z line (0, k) gives node (0, k, j): x line (k, j) starts there.
+            // Y: x line (0, k) gives node (j, 0, k): y line (k, j) starts there.
+            while s != 0 {
+                let i = k + n * s.trailing_zeros() as usize;
+                out[i >> 6] |= 1 << (i & 63);
+                s &= s - 1;
+            }
         }
         out
     }
