@@ -540,6 +540,13 @@ fn edit_chunk(
         };
         // Created at the first line read (deriving a family's start states costs a few lines).
         let mut cursor = None;
+        // Per-axis constants of the table lookups (glam vectors indexed by a runtime axis cost a
+        // match each time).
+        let table_axis = table_level.map(|(t, offset)| {
+            (&t.axes[axis.index()], offset[ua.index()], offset[va.index()], offset[axis.index()])
+        });
+        let shift_along = table_level.map_or(0.0, |(t, _)| (origin[axis.index()] - t.base[axis.index()]) as f64);
+        let simple_ok = !ctx.reconcile && ctx.op != CsgOp::Intersect;
         for v in v0..=v1 {
             let (u0, u1) = match (ctx.op, table_level) {
                 (CsgOp::Intersect, _) | (_, None) => (u0, u1),
@@ -556,31 +563,30 @@ fn edit_chunk(
                 }
             };
             for u in u0..=u1 {
-                let inside_box = ranges.0.is_some_and(|(a, b)| (a..=b).contains(&u))
-                    && ranges.1.is_some_and(|(a, b)| (a..=b).contains(&v));
+                // Only an intersection visits lines outside the brush's box.
+                let inside_box = ctx.op != CsgOp::Intersect
+                    || (ranges.0.is_some_and(|(a, b)| (a..=b).contains(&u))
+                        && ranges.1.is_some_and(|(a, b)| (a..=b).contains(&v)));
                 let index = u + n * v;
                 // Where the brush line is taken from: nothing, a simple span, or the sampler.
                 let mut simple = None;
                 if !inside_box {
                     brush_line.states = 0;
-                } else if let Some((t, offset)) = table_level {
-                    let (spans, range) =
-                        t.axes[axis.index()].line_simple(offset[ua.index()] + u as i64, offset[va.index()] + v as i64);
+                } else if let Some((axis_spans, off_u, off_v, off)) = table_axis {
+                    let (spans, range) = axis_spans.line_simple(off_u + u as i64, off_v + v as i64);
                     if spans.is_empty() {
                         brush_line.states = 0;
-                    } else if range.0 != NOT_SIMPLE && !ctx.reconcile && ctx.op != CsgOp::Intersect {
+                    } else if range.0 != NOT_SIMPLE && simple_ok {
                         // Chunk-relative node range of the span (the table's shift is exact).
-                        let off = offset[axis.index()];
                         let (a, b) = (range.0 as i64 - off, range.1 as i64 - off);
                         if b < 0 || a > n as i64 || a > b {
                             // The span misses this chunk's piece of the line.
                             continue;
                         }
-                        simple = Some((&spans[0], (a.max(0) as usize, b.min(n as i64) as usize), off));
+                        simple = Some((&spans[0], (a.max(0) as usize, b.min(n as i64) as usize)));
                         brush_line.states = u128::MAX;
                     } else {
-                        let shift = (origin[axis.index()] - t.base[axis.index()]) as f64;
-                        sampler.fill_from_spans(spans, shift, at(axis, u, v), &mut brush_line);
+                        sampler.fill_from_spans(spans, shift_along, at(axis, u, v), &mut brush_line);
                     }
                 } else {
                     sampler.sample(at(axis, u, v), &mut brush_line);
@@ -605,9 +611,9 @@ fn edit_chunk(
                     // Adding to a full line or subtracting from an empty one changes nothing.
                     continue;
                 }
-                if let Some((span, (lo, hi), off)) = simple {
+                if let Some((span, (lo, hi))) = simple {
                     brush_line.states = node_mask(hi) & !((1u128 << lo) - 1);
-                    let shift = ((off >> n.trailing_zeros()) * CHUNK_CELLS) as f64;
+                    let shift = shift_along;
                     if lo > 0 {
                         brush_line.pos[lo - 1] = quantize_into_edge(span.enter - shift, lo - 1, level);
                         brush_line.nrm[lo - 1] = span.enter_normal;
