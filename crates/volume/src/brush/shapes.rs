@@ -55,8 +55,12 @@ impl Brush for Sphere {
     }
 
     fn spans_batch(&self, lines: &[(DVec3, DVec3)], dir: DVec3, out: &mut Vec<Span>, counts: &mut Vec<u32>) -> bool {
+        // What does not depend on the line, once.
+        let a = dir.length_squared();
+        let (r2, inv_r) = (self.radius * self.radius, 1.0 / self.radius);
+        counts.reserve(lines.len());
         for &(origin, start) in lines {
-            let s = self.line_span(origin, start, dir);
+            let s = self.chord(start - (self.center - origin), dir, a, r2, inv_r);
             counts.push(s.is_some() as u32);
             out.extend(s);
         }
@@ -69,7 +73,13 @@ impl Sphere {
     #[inline]
     fn line_span(&self, origin: DVec3, start: DVec3, dir: DVec3) -> Option<Span> {
         let q = start - (self.center - origin);
-        let a = dir.length_squared();
+        self.chord(q, dir, dir.length_squared(), self.radius * self.radius, 1.0 / self.radius)
+    }
+
+    /// The span of the line `q + t dir` (relative to the centre), given `a = |dir|²`, the
+    /// squared radius and its inverse.
+    #[inline(always)]
+    fn chord(&self, q: DVec3, dir: DVec3, a: f64, r2: f64, inv_r: f64) -> Option<Span> {
         if !(a > 0.0) {
             return None;
         }
@@ -77,13 +87,12 @@ impl Sphere {
         // cancellation, and no division for the unit axis directions the volume uses.
         let t_mid = if a == 1.0 { -q.dot(dir) } else { -q.dot(dir) / a };
         let perp = q + dir * t_mid;
-        let disc = self.radius * self.radius - perp.length_squared();
+        let disc = r2 - perp.length_squared();
         if !(disc >= 0.0) {
             return None;
         }
         let h = if a == 1.0 { disc.sqrt() } else { (disc / a).sqrt() };
         let (t0, t1) = (t_mid - h, t_mid + h);
-        let inv_r = 1.0 / self.radius;
         Some(Span { enter: t0, exit: t1, enter_normal: (q + dir * t0) * inv_r, exit_normal: (q + dir * t1) * inv_r })
     }
 }
