@@ -542,9 +542,8 @@ fn edit_chunk(
         let mut cursor = None;
         // Per-axis constants of the table lookups (glam vectors indexed by a runtime axis cost a
         // match each time).
-        let table_axis = table_level.map(|(t, offset)| {
-            (&t.axes[axis.index()], offset[ua.index()], offset[va.index()], offset[axis.index()])
-        });
+        let table_axis = table_level
+            .map(|(t, offset)| (&t.axes[axis.index()], offset[ua.index()], offset[va.index()], offset[axis.index()]));
         let shift_along = table_level.map_or(0.0, |(t, _)| (origin[axis.index()] - t.base[axis.index()]) as f64);
         let simple_ok = !ctx.reconcile && ctx.op != CsgOp::Intersect;
         for v in v0..=v1 {
