@@ -13,7 +13,7 @@ pub struct MemoryReport {
     pub positions: usize,
     /// Crossing normals (2 bytes each).
     pub normals: usize,
-    /// Chunk headers, nonempty-line bits, padding and the per-chunk list struct.
+    /// Chunk headers (16 bytes a chunk), nonempty-line bits and padding to whole words.
     pub headers: usize,
     /// The chunk map's tables.
     pub chunk_map: usize,
