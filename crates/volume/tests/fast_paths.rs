@@ -6,26 +6,37 @@ use glam::DVec3;
 use strata_volume::brush::{Aabb, Brush, Cuboid, Span, Sphere};
 use strata_volume::{CsgOp, EditSettings, Volume};
 
-/// Forwards a brush but declares that its lines may disagree, which sends every edit through
-/// the general sampler with x-line repairs (none are needed for these shapes).
-struct General<B>(B);
+/// Forwards a brush with two changes a test can ask for: `agree: false` declares that its lines
+/// may disagree, which sends every edit through the general sampler with x-line repairs (none
+/// are needed for these shapes); `spans_below_y` answers only lines below that height by spans
+/// and asks to be sampled on the others.
+struct Tweaked<B> {
+    inner: B,
+    agree: bool,
+    spans_below_y: f64,
+}
 
-impl<B: Brush> Brush for General<B> {
+impl<B: Brush> Brush for Tweaked<B> {
     fn bounds(&self) -> Aabb {
-        self.0.bounds()
+        self.inner.bounds()
     }
     fn field(&self, origin: DVec3, p: DVec3) -> f64 {
-        self.0.field(origin, p)
+        self.inner.field(origin, p)
     }
     fn contains(&self, origin: DVec3, p: DVec3) -> bool {
-        self.0.contains(origin, p)
+        self.inner.contains(origin, p)
     }
     fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
-        self.0.spans(origin, start, dir, out)
+        (origin + start).y < self.spans_below_y && self.inner.spans(origin, start, dir, out)
     }
     fn lines_agree(&self) -> bool {
-        false
+        self.agree
     }
+}
+
+/// The general path for `inner`.
+fn general_path<B: Brush>(inner: B) -> Tweaked<B> {
+    Tweaked { inner, agree: false, spans_below_y: f64::INFINITY }
 }
 
 struct Rng(u64);
@@ -57,12 +68,12 @@ fn fast_and_general_edits_build_identical_volumes() {
             let a = if i % 3 == 0 {
                 let b = Cuboid::new(c, DVec3::new(r, r * 0.5, r * 0.8)).unwrap();
                 let x = fast.apply(op, &b, &settings).unwrap();
-                let y = general.apply(op, &General(b), &settings).unwrap();
+                let y = general.apply(op, &general_path(b), &settings).unwrap();
                 (x, y)
             } else {
                 let s = Sphere::new(c, r).unwrap();
                 let x = fast.apply(op, &s, &settings).unwrap();
-                let y = general.apply(op, &General(s), &settings).unwrap();
+                let y = general.apply(op, &general_path(s), &settings).unwrap();
                 (x, y)
             };
             assert_eq!(a.1.repaired_nodes, 0, "edit {i}: these shapes need no repair");
@@ -107,27 +118,11 @@ fn batched_spans_equal_spans_line_by_line() {
     assert!(hits > 100 && misses > 100, "hits {hits}, misses {misses}");
 }
 
-/// A sphere that answers some lines in closed form and asks to be sampled on others.
-struct Moody(Sphere);
-
-impl Brush for Moody {
-    fn bounds(&self) -> Aabb {
-        self.0.bounds()
-    }
-    fn field(&self, origin: DVec3, p: DVec3) -> f64 {
-        self.0.field(origin, p)
-    }
-    fn contains(&self, origin: DVec3, p: DVec3) -> bool {
-        self.0.contains(origin, p)
-    }
-    fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
-        (origin + start).y < 20.0 && self.0.spans(origin, start, dir, out)
-    }
-}
-
 #[test]
 fn a_brush_that_answers_only_some_lines_is_sampled_and_still_exact() {
-    let brush = Moody(Sphere::new(DVec3::new(20.3, 19.6, 21.1), 9.4).unwrap());
+    // A sphere that answers some lines in closed form and asks to be sampled on others.
+    let inner = Sphere::new(DVec3::new(20.3, 19.6, 21.1), 9.4).unwrap();
+    let brush = Tweaked { inner, agree: true, spans_below_y: 20.0 };
     let mut v = Volume::new();
     for parallel in [false, true] {
         v.apply(CsgOp::Add, &brush, &EditSettings { parallel, ..Default::default() }).unwrap();
