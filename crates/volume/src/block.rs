@@ -259,12 +259,11 @@ impl Volume {
                         // misread (the extractor's repair then closes the surface).
                         continue;
                     }
-                    // x lines derive their start states; y and z lines start on nodes the x
-                    // lines have already given.
-                    let make = || if axis == Axis::X { view.cursor(axis, 0) } else { view.raw_cursor(axis, 0) };
-                    let cursor = cursors[2 * usize::from(v == n) + k].get_or_insert_with(make);
+                    let cursor = cursors[2 * usize::from(v == n) + k].get_or_insert_with(|| view.cursor(axis, 0));
                     cursor.advance_to((us.start % n) + n * (v % n));
                     for u in us {
+                        // x lines derive their start states; y and z lines start on nodes the x
+                        // lines have already given.
                         let line = match axis {
                             Axis::X => cursor.next_line(),
                             // y line (u, v) = (z, x) starts at node (x, 0, z).

@@ -335,10 +335,10 @@ impl ChunkLists {
     }
 
     /// A cursor positioned at line `index` along `axis`, reading lines in index order.
+    /// The family's start states are derived at the first [`LineCursor::next_line`]; a reader
+    /// that knows them uses [`LineCursor::next_with`] and never pays for them.
     pub(crate) fn cursor(&self, axis: Axis, index: usize) -> LineCursor<'_> {
-        let mut c = LineCursor { raw: self.raw_cursor(axis, 0), starts: self.family_starts(axis) };
-        c.advance_to(index);
-        c
+        LineCursor { raw: self.raw_cursor(axis, index), axis, starts: None }
     }
 
     /// A cursor that reads crossings only (no start states) from line 0 of `axis`.
@@ -573,7 +573,8 @@ fn count_ones(words: &[u64], from: usize, to: usize) -> usize {
 #[derive(Clone, Debug)]
 pub(crate) struct LineCursor<'a> {
     raw: RawCursor<'a>,
-    starts: Starts,
+    axis: Axis,
+    starts: Option<Box<Starts>>,
 }
 
 impl<'a> LineCursor<'a> {
@@ -583,11 +584,20 @@ impl<'a> LineCursor<'a> {
         self.raw.advance_to(index);
     }
 
+    /// The next line with its own start state (derived for the family on first use).
     #[inline]
     pub(crate) fn next_line(&mut self) -> LineRef<'a> {
+        let (lists, axis) = (self.raw.lists, self.axis);
+        let starts = self.starts.get_or_insert_with(|| Box::new(lists.family_starts(axis)));
         let i = self.raw.index;
-        let start = (self.starts[i >> 6] >> (i & 63)) & 1 == 1;
+        let start = (starts[i >> 6] >> (i & 63)) & 1 == 1;
         self.raw.next_with(start)
+    }
+
+    /// The next line, starting in the state `start_inside` given by the caller.
+    #[inline]
+    pub(crate) fn next_with(&mut self, start_inside: bool) -> LineRef<'a> {
+        self.raw.next_with(start_inside)
     }
 }
 
@@ -611,52 +621,32 @@ impl<'a> ChunkView<'a> {
     pub(crate) fn cursor(self, axis: Axis, index: usize) -> ViewCursor<'a> {
         match self {
             ChunkView::Uniform(s) => ViewCursor::Uniform(s),
-            ChunkView::Lists(l) => ViewCursor::Lists(Box::new(l.cursor(axis, index))),
-        }
-    }
-
-    /// A cursor that leaves start states to the caller ([`ViewCursor::next_with`]): cheaper to
-    /// make when the caller knows them already.
-    pub(crate) fn raw_cursor(self, axis: Axis, index: usize) -> ViewCursor<'a> {
-        match self {
-            ChunkView::Uniform(s) => ViewCursor::Uniform(s),
-            ChunkView::Lists(l) => ViewCursor::Raw(l.raw_cursor(axis, index)),
+            ChunkView::Lists(l) => ViewCursor::Lists(l.cursor(axis, index)),
         }
     }
 }
 
-/// A cursor over any chunk view (uniform chunks give uniform lines).
+/// A [`LineCursor`] over any chunk view (uniform chunks give uniform lines).
 #[derive(Clone, Debug)]
 pub(crate) enum ViewCursor<'a> {
     Uniform(bool),
-    Lists(Box<LineCursor<'a>>),
-    Raw(RawCursor<'a>),
+    Lists(LineCursor<'a>),
 }
 
 impl<'a> ViewCursor<'a> {
     #[inline]
     pub(crate) fn advance_to(&mut self, index: usize) {
-        match self {
-            ViewCursor::Uniform(_) => {}
-            ViewCursor::Lists(c) => c.advance_to(index),
-            ViewCursor::Raw(c) => c.advance_to(index),
+        if let ViewCursor::Lists(c) = self {
+            c.advance_to(index);
         }
     }
 
-    /// The next line with its own start state (not for cursors made by
-    /// [`ChunkView::raw_cursor`]).
+    /// The next line with its own start state.
     #[inline]
     pub(crate) fn next_line(&mut self) -> LineRef<'a> {
         match self {
             ViewCursor::Uniform(s) => LineRef::uniform(*s),
             ViewCursor::Lists(c) => c.next_line(),
-            ViewCursor::Raw(c) => {
-                // Not the intended use: derive the family's start states for this one line.
-                let per_axis = c.nonempty.len() * 64 / 3;
-                let (axis, i) = (Axis::ALL[c.base / per_axis], c.index);
-                let start = (c.lists.family_starts(axis)[i >> 6] >> (i & 63)) & 1 == 1;
-                c.next_with(start)
-            }
         }
     }
 
@@ -665,8 +655,7 @@ impl<'a> ViewCursor<'a> {
     pub(crate) fn next_with(&mut self, start_inside: bool) -> LineRef<'a> {
         match self {
             ViewCursor::Uniform(s) => LineRef::uniform(*s),
-            ViewCursor::Lists(c) => c.raw.next_with(start_inside),
-            ViewCursor::Raw(c) => c.next_with(start_inside),
+            ViewCursor::Lists(c) => c.next_with(start_inside),
         }
     }
 }

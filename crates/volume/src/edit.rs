@@ -9,7 +9,7 @@ use thiserror::Error;
 use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
-use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LineRef, RawCursor, WorkLine, node_mask};
+use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, RawCursor, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, quantize_into_edge};
 use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, PackedSpan};
@@ -243,7 +243,6 @@ impl SpanTable {
         for axis in Axis::ALL {
             let (ua, va) = axis.across();
             let ((u0, nu), (v0, nv)) = (range(ua.index()), range(va.index()));
-            // One row of lines: appends span counts and packed spans.
             let n = level.cells() as i64;
             let shift = n.trailing_zeros();
             let dir = axis.unit();
@@ -538,8 +537,7 @@ fn edit_chunk(
             (_, (Some(ur), Some(vr))) => (ur, vr),
             _ => continue,
         };
-        // Created at the first line read (deriving a family's start states costs a few lines).
-        let mut cursor = None;
+        let mut cursor = old.cursor(axis, 0);
         // Per-axis constants of the table lookups (glam vectors indexed by a runtime axis cost a
         // match each time).
         let table_axis = table_level
@@ -582,8 +580,10 @@ fn edit_chunk(
                             // The span misses this chunk's piece of the line.
                             continue;
                         }
-                        simple = Some((&spans[0], (a.max(0) as usize, b.min(n as i64) as usize)));
-                        brush_line.states = u128::MAX;
+                        let (lo, hi) = (a.max(0) as usize, b.min(n as i64) as usize);
+                        brush_line.states = node_mask(hi) & !((1u128 << lo) - 1);
+                        // The crossings are quantised only if the stored line needs them.
+                        simple = Some((&spans[0], lo, hi));
                     } else {
                         sampler.fill_from_spans(spans, shift_along, at(axis, u, v), &mut brush_line);
                     }
@@ -597,28 +597,20 @@ fn edit_chunk(
                     // An empty brush line leaves a union or difference unchanged.
                     continue;
                 }
-                let line = match old {
-                    ChunkView::Lists(l) => {
-                        let c = cursor.get_or_insert_with(|| l.cursor(axis, 0));
-                        c.advance_to(index);
-                        c.next_line()
-                    }
-                    ChunkView::Uniform(state) => LineRef::uniform(state),
-                };
+                cursor.advance_to(index);
+                let line = cursor.next_line();
                 let uniform = line.is_empty();
                 if uniform && ctx.op != CsgOp::Intersect && line.start_inside == (ctx.op == CsgOp::Add) {
                     // Adding to a full line or subtracting from an empty one changes nothing.
                     continue;
                 }
-                if let Some((span, (lo, hi))) = simple {
-                    brush_line.states = node_mask(hi) & !((1u128 << lo) - 1);
-                    let shift = shift_along;
+                if let Some((span, lo, hi)) = simple {
                     if lo > 0 {
-                        brush_line.pos[lo - 1] = quantize_into_edge(span.enter - shift, lo - 1, level);
+                        brush_line.pos[lo - 1] = quantize_into_edge(span.enter - shift_along, lo - 1, level);
                         brush_line.nrm[lo - 1] = span.enter_normal;
                     }
                     if hi < n {
-                        brush_line.pos[hi] = quantize_into_edge(span.exit - shift, hi, level);
+                        brush_line.pos[hi] = quantize_into_edge(span.exit - shift_along, hi, level);
                         brush_line.nrm[hi] = span.exit_normal;
                     }
                 }
