@@ -357,9 +357,16 @@ impl ChunkLists {
     }
 
     /// The start state of every line along `axis` (bit `u + n v`), read off other lines from
-    /// the corner node: node `(0, y, 0)` from y line 0; x lines start on the face `x = 0`, read
-    /// from the z lines at `x = 0`; y lines on `y = 0`, from the x lines at `y = 0` (which start
-    /// at `(0, 0, z)`, from z line 0); z lines on `z = 0`, from the x lines at `z = 0`.
+    /// the corner node. Only the first line of one family and the first row (`v = 0`, the
+    /// family's first `n` lines, at the front of its crossings) of another are read:
+    /// - x lines start on the face `x = 0`, whose nodes `(0, j, k)` lie on y line `k` (the y
+    ///   lines of the first row have `x = 0`), which starts at `(0, 0, k)` on z line 0;
+    /// - y lines start on `y = 0`: nodes `(k, 0, j)` on z line `k` (first row: `y = 0`), which
+    ///   starts at `(k, 0, 0)` on x line 0;
+    /// - z lines start on `z = 0`: nodes `(j, k, 0)` on x line `k` (first row: `z = 0`), which
+    ///   starts at `(0, k, 0)` on y line 0.
+    ///
+    /// In each case node `j` of row line `k` is the start of line `j + n k` of the family.
     pub(crate) fn family_starts(&self, axis: Axis) -> Starts {
         let level = self.level();
         let n = level.cells();
@@ -373,33 +380,20 @@ impl ChunkLists {
             }
             s
         };
-        // The first line of `first` (from the corner), then lines `k * stride` of `along`, each
-        // starting from bit `k` of the first: `face[k]` holds the node states of line k.
-        let (first, along, stride) = match axis {
-            Axis::X => (Axis::Y, Axis::Z, n),
-            Axis::Y => (Axis::Z, Axis::X, n),
-            Axis::Z => (Axis::Y, Axis::X, 1),
+        let (first, row) = match axis {
+            Axis::X => (Axis::Z, Axis::Y),
+            Axis::Y => (Axis::X, Axis::Z),
+            Axis::Z => (Axis::Y, Axis::X),
         };
         let edge = states(self.corner(), self.raw_cursor(first, 0).next_raw());
-        let mut c = self.raw_cursor(along, 0);
+        let mut c = self.raw_cursor(row, 0);
         let mut out = [0u64; START_WORDS];
         let mask = full >> 1;
         for k in 0..n {
-            c.advance_to(k * stride);
-            let mut s = states((edge >> k) & 1 == 1, c.next_raw()) & mask;
-            if axis == Axis::Z {
-                // x line (k, 0) gives node (x, k, 0): z lines (0..n, k) start there, a run of bits.
-                let i = n * k;
-                out[i >> 6] |= (s as u64) << (i & 63);
-                continue;
-            }
-            // X: z line (0, k) gives node (0, k, j): x line (k, j) starts there.
-            // Y: x line (0, k) gives node (j, 0, k): y line (k, j) starts there.
-            while s != 0 {
-                let i = k + n * s.trailing_zeros() as usize;
-                out[i >> 6] |= 1 << (i & 63);
-                s &= s - 1;
-            }
+            let s = states((edge >> k) & 1 == 1, c.next_raw()) & mask;
+            // n divides 64: the n bits of a row never straddle a word.
+            let i = n * k;
+            out[i >> 6] |= (s as u64) << (i & 63);
         }
         out
     }
