@@ -243,6 +243,18 @@ impl<'a> LineRef<'a> {
         self.raw.is_empty()
     }
 
+    /// Stored positions with the end mark in bit 0 of the last (cell: [`edge_of`]).
+    #[inline]
+    pub(crate) fn stored(&self) -> &'a [u16] {
+        self.raw
+    }
+
+    /// Crossing `i`: its position (without the end mark) and normal.
+    #[inline]
+    pub(crate) fn crossing(&self, i: usize) -> (LocalPos, PackedNormal) {
+        (self.raw[i] & !LAST, self.normals[i])
+    }
+
     /// The state after the line's last cell.
     #[inline]
     pub fn end_inside(&self) -> bool {
@@ -807,6 +819,87 @@ impl ChunkBuilder {
         self.nonempty.extend_from(src.nonempty(), first, count);
         self.positions.extend_from_slice(&src.raw_positions()[cross..cursor.cross]);
         self.normals.extend_from_slice(&src.normals()[cross..cursor.cross]);
+    }
+
+    /// Appends `count` lines read from `cursor` and moves it past them (a uniform view gives
+    /// uniform lines).
+    #[inline]
+    pub(crate) fn copy_view(&mut self, cursor: &mut ViewCursor<'_>, count: usize) {
+        match cursor {
+            ViewCursor::Uniform(state) => self.push_uniform(*state, count),
+            ViewCursor::Lists(c) => self.copy_from(&mut c.raw, count),
+        }
+    }
+
+    /// Appends a stored line unchanged.
+    #[inline]
+    pub(crate) fn push_stored(&mut self, line: LineRef<'_>) {
+        self.corner.get_or_insert(line.start_inside);
+        self.nonempty.push(!line.raw.is_empty());
+        self.positions.extend_from_slice(line.raw);
+        self.normals.extend_from_slice(line.normals);
+    }
+
+    /// Appends the crossings of a work line (at the cells where its node states change).
+    pub(crate) fn push_work(&mut self, line: &WorkLine, n: usize) {
+        self.corner.get_or_insert(line.states & 1 == 1);
+        let mut c = line.changes(n);
+        self.nonempty.push(c != 0);
+        while c != 0 {
+            let e = c.trailing_zeros() as usize;
+            c &= c - 1;
+            debug_assert_eq!(line.pos[e] & LAST, 0, "positions are even");
+            self.positions.push(line.pos[e]);
+            self.normals.push(line.nrm[e]);
+        }
+        if line.changes(n) != 0 {
+            *self.positions.last_mut().expect("a crossing was pushed") |= LAST;
+        }
+    }
+
+    /// Appends `line` with its crossings `p..q` replaced by `mid` (even positions, sorted, in
+    /// cells after those of crossings `..p` and before those of `q..`), starting in `start`.
+    /// Returns whether the result differs from `line`.
+    #[inline]
+    pub(crate) fn push_spliced(
+        &mut self,
+        start: bool,
+        line: LineRef<'_>,
+        p: usize,
+        q: usize,
+        mid: &[(LocalPos, PackedNormal)],
+    ) -> bool {
+        let (raw, normals) = (line.raw, line.normals);
+        let same = start == line.start_inside
+            && q - p == mid.len()
+            && mid.iter().zip(&raw[p..q]).zip(&normals[p..q]).all(|((&(m, mn), &r), &rn)| m == r & !LAST && mn == rn);
+        if same {
+            self.push_stored(line);
+            return false;
+        }
+        self.corner.get_or_insert(start);
+        let k = raw.len();
+        let out = p + mid.len() + (k - q);
+        self.nonempty.push(out > 0);
+        let first = self.positions.len();
+        self.positions.extend_from_slice(&raw[..p]);
+        self.normals.extend_from_slice(&normals[..p]);
+        for &(m, mn) in mid {
+            self.positions.push(m);
+            self.normals.push(mn);
+        }
+        self.positions.extend_from_slice(&raw[q..]);
+        self.normals.extend_from_slice(&normals[q..]);
+        if out > 0 {
+            // Only raw[k - 1] carries the end mark: clear it wherever it landed, then mark the
+            // new last crossing.
+            let written = &mut self.positions[first..];
+            if p == k && k > 0 {
+                written[k - 1] &= !LAST;
+            }
+            *written.last_mut().expect("the line is not empty") |= LAST;
+        }
+        true
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.

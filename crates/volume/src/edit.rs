@@ -9,8 +9,8 @@ use thiserror::Error;
 use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
-use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, RawCursor, WorkLine, node_mask};
-use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, quantize_into_edge};
+use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, RawCursor, WorkLine, node_mask};
+use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, edge_of, quantize_into_edge};
 use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, PackedSpan};
 use crate::volume::Volume;
@@ -164,12 +164,11 @@ impl AxisSpans {
     /// Lines `u` of row `v` (absolute, relative to the table base) that can have spans.
     #[inline]
     fn row_range(&self, v: i64) -> (i64, i64) {
-        let r = v - self.v0;
-        if r < 0 || r as usize >= self.nv {
-            return (0, 0);
+        // (A table without lines across has no rows at all.)
+        match usize::try_from(v - self.v0).ok().and_then(|r| self.rows.get(r)) {
+            Some(&(a, b)) => (a + self.u0, b + self.u0),
+            None => (0, 0),
         }
-        let (a, b) = self.rows[r as usize];
-        (a + self.u0, b + self.u0)
     }
 
     #[inline]
@@ -527,6 +526,12 @@ fn edit_chunk(
         let now = ctx.op == CsgOp::Add;
         return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
     }
+    if let Some((t, offset)) = table_level
+        && ctx.op != CsgOp::Intersect
+        && !ctx.reconcile
+    {
+        return edit_chunk_by_table(ctx, t, offset, origin, old, level, s, &mut sampler).map(|b| (b, 0));
+    }
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
     let full = node_mask(n);
     for axis in Axis::ALL {
@@ -690,6 +695,158 @@ fn edit_chunk(
         copy(b, &mut cursor, n * n - index);
     }
     Some((b.finish(), repaired))
+}
+
+/// A union or difference by a brush with a span table: the lines the brush reaches are visited
+/// in storage order and written straight into the new chunk, the lines between them copied in
+/// runs. A line whose piece of its one span is simple (see [`AxisSpans::simple`]) is spliced
+/// into the stored crossings without unpacking them ([`splice_piece`]); other lines go through
+/// the general sampler and [`combine`].
+#[allow(clippy::too_many_arguments)]
+fn edit_chunk_by_table(
+    ctx: &EditCtx<'_>,
+    t: &SpanTable,
+    offset: I64Vec3,
+    origin: I64Vec3,
+    old: ChunkView<'_>,
+    level: Level,
+    s: &mut Scratch,
+    sampler: &mut LineSampler<'_>,
+) -> Option<Built> {
+    let n = level.cells();
+    let fill = ctx.op == CsgOp::Add;
+    let b = &mut s.builder;
+    b.begin(level);
+    let mut changed = false;
+    let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
+    for axis in Axis::ALL {
+        b.begin_axis(axis);
+        let (ua, va) = axis.across();
+        let spans = &t.axes[axis.index()];
+        // Per-axis constants (glam vectors indexed by a runtime axis cost a match each time).
+        let (off_u, off_v, off) = (offset[ua.index()], offset[va.index()], offset[axis.index()]);
+        let shift_along = (origin[axis.index()] - t.base[axis.index()]) as f64;
+        let mut cursor = old.cursor(axis, 0);
+        // The next line not yet written.
+        let mut next = 0;
+        for v in 0..n {
+            let (a, e) = spans.row_range(off_v + v as i64);
+            let (a, e) = ((a - off_u).max(0), (e - off_u).min(n as i64));
+            for u in a.max(0) as usize..e.max(0) as usize {
+                let (line_spans, range) = spans.line_simple(off_u + u as i64, off_v + v as i64);
+                if line_spans.is_empty() {
+                    continue;
+                }
+                let index = u + n * v;
+                if range.0 != NOT_SIMPLE {
+                    // Chunk-relative node range of the span (the table's shift is exact).
+                    let (ja, jb) = (range.0 as i64 - off, range.1 as i64 - off);
+                    if jb < 0 || ja > n as i64 || ja > jb {
+                        // The span misses this chunk's piece of the line.
+                        continue;
+                    }
+                    let (lo, hi) = (ja.max(0) as usize, jb.min(n as i64) as usize);
+                    b.copy_view(&mut cursor, index - next);
+                    next = index + 1;
+                    let line = cursor.next_line();
+                    if line.is_empty() && line.start_inside == fill {
+                        // Adding to a full line or subtracting from an empty one changes nothing.
+                        b.push_stored(line);
+                        continue;
+                    }
+                    let span = &line_spans[0];
+                    let piece = Piece {
+                        fill,
+                        lo,
+                        hi,
+                        enter: || (quantize_into_edge(span.enter - shift_along, lo - 1, level), span.enter_normal),
+                        exit: || (quantize_into_edge(span.exit - shift_along, hi, level), span.exit_normal),
+                    };
+                    changed |= splice_piece(b, line, &piece, level);
+                } else {
+                    sampler.fill_from_spans(line_spans, shift_along, LineAt { origin_grid: origin, level, axis, u, v }, &mut brush_line);
+                    if brush_line.states == 0 {
+                        continue;
+                    }
+                    b.copy_view(&mut cursor, index - next);
+                    next = index + 1;
+                    let line = cursor.next_line();
+                    old_line.load(line, level);
+                    combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
+                    if new_line.same_as(&old_line, n) {
+                        b.push_stored(line);
+                    } else {
+                        b.push_work(&new_line, n);
+                        changed = true;
+                    }
+                }
+            }
+        }
+        b.copy_view(&mut cursor, n * n - next);
+    }
+    changed.then(|| b.finish())
+}
+
+/// One brush span on one chunk line, simple (no end within the snapping distance of a node):
+/// it covers nodes `lo..=hi`, enters in cell `lo - 1` (if `lo > 0`) and leaves in cell `hi` (if
+/// `hi < n`); `enter` and `exit` quantise those crossings on demand. `fill` is the state the
+/// covered nodes take: inside for a union, outside for a difference (whose brush normals are
+/// already flipped).
+struct Piece<E, X> {
+    fill: bool,
+    lo: usize,
+    hi: usize,
+    enter: E,
+    exit: X,
+}
+
+/// Writes the CSG of a stored line and a simple brush piece into `b`, with the per-cell rule of
+/// [`combine`] (where both change in one cell, the earlier crossing wins on the piece's enter side
+/// and the later on its exit side) but without unpacking the line: the stored crossings before
+/// cell `lo - 1` and after cell `hi` stay, the ones between go, and at most two crossings are
+/// put in their place. Returns whether the line changed.
+fn splice_piece<E, X>(b: &mut ChunkBuilder, line: LineRef<'_>, piece: &Piece<E, X>, level: Level) -> bool
+where
+    E: Fn() -> (LocalPos, PackedNormal),
+    X: Fn() -> (LocalPos, PackedNormal),
+{
+    let n = level.cells();
+    let (lo, hi, fill) = (piece.lo, piece.hi, piece.fill);
+    let stored = line.stored();
+    let k = stored.len();
+    let cell = |i: usize| edge_of(stored[i], level);
+    // Crossings before cell lo - 1 (none when the piece starts at node 0).
+    let mut p = 0;
+    if lo > 0 {
+        while p < k && cell(p) < lo - 1 {
+            p += 1;
+        }
+    }
+    // Crossings up to cell hi (all when the piece reaches node n).
+    let mut q = p;
+    if hi < n {
+        while q < k && cell(q) <= hi {
+            q += 1;
+        }
+    } else {
+        q = k;
+    }
+    let mut mid = [(0, 0); 2];
+    let mut m = 0;
+    // Node lo - 1 keeps its stored state; a crossing is needed where it differs from `fill`.
+    if lo > 0 && line.start_inside ^ (p % 2 == 1) != fill {
+        let brush = (piece.enter)();
+        mid[m] = if p < k && cell(p) == lo - 1 && stored[p] & !LAST <= brush.0 { line.crossing(p) } else { brush };
+        m += 1;
+    }
+    // Node hi + 1 likewise.
+    if hi < n && line.start_inside ^ (q % 2 == 1) != fill {
+        let brush = (piece.exit)();
+        mid[m] = if q > 0 && cell(q - 1) == hi && stored[q - 1] & !LAST >= brush.0 { line.crossing(q - 1) } else { brush };
+        m += 1;
+    }
+    let start = if lo == 0 { fill } else { line.start_inside };
+    b.push_spliced(start, line, p, q, &mid[..m])
 }
 
 /// Whether every x line through the chunk (apron rows included) lies inside one span from
