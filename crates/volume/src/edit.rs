@@ -12,7 +12,7 @@ use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, RawCursor, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, edge_of, quantize_into_edge};
 use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
-use crate::sample::{LineAt, LineSampler, PackedSpan};
+use crate::sample::{LineAt, LineSampler, pack_oriented};
 use crate::volume::Volume;
 
 /// How a brush combines with the volume.
@@ -151,7 +151,7 @@ struct AxisSpans {
     nu: usize,
     nv: usize,
     offsets: Vec<u32>,
-    spans: Vec<PackedSpan>,
+    spans: Vec<Span>,
     /// Per line: the nodes `j0..=j1` (relative to the table base along the axis, level units)
     /// inside its one span when no span end lies within the snapping distance of a node, so any
     /// chunk piece of the line follows by integer arithmetic; `j0 == NOT_SIMPLE` otherwise.
@@ -172,13 +172,13 @@ impl AxisSpans {
     }
 
     #[inline]
-    fn line(&self, u: i64, v: i64) -> &[PackedSpan] {
+    fn line(&self, u: i64, v: i64) -> &[Span] {
         self.line_simple(u, v).0
     }
 
     /// The spans of line `(u, v)` and its [`AxisSpans::simple`] node range.
     #[inline]
-    fn line_simple(&self, u: i64, v: i64) -> (&[PackedSpan], (i32, i32)) {
+    fn line_simple(&self, u: i64, v: i64) -> (&[Span], (i32, i32)) {
         let (u, v) = (u - self.u0, v - self.v0);
         if u < 0 || v < 0 || u as usize >= self.nu || v as usize >= self.nv {
             return (&[], (NOT_SIMPLE, 0));
@@ -192,7 +192,7 @@ impl AxisSpans {
 const NOT_SIMPLE: i32 = i32::MIN;
 
 /// The simple node range of a line with one span (see [`AxisSpans::simple`]).
-fn simple_range(spans: &[PackedSpan], inv_sp: f64) -> (i32, i32) {
+fn simple_range(spans: &[Span], inv_sp: f64) -> (i32, i32) {
     let [s] = spans else { return (NOT_SIMPLE, 0) };
     let snap = SNAP_DISTANCE * inv_sp;
     let (enter, exit) = (s.enter * inv_sp, s.exit * inv_sp);
@@ -208,7 +208,7 @@ fn simple_range(spans: &[PackedSpan], inv_sp: f64) -> (i32, i32) {
 #[derive(Default)]
 struct RowOut {
     counts: Vec<u32>,
-    packed: Vec<PackedSpan>,
+    spans: Vec<Span>,
     simple: Vec<(i32, i32)>,
 }
 
@@ -217,7 +217,7 @@ struct RowOut {
 const TABLE_MAX_LINES: i64 = 1 << 22;
 
 impl SpanTable {
-    fn build(brush: &dyn Brush, flip: bool, bounds: &Aabb, cmin: IVec3, level: Level, parallel: bool) -> Option<Self> {
+    fn build(brush: &dyn Brush, bounds: &Aabb, cmin: IVec3, level: Level, parallel: bool) -> Option<Self> {
         let base = ChunkKey(cmin).origin_grid();
         let origin = base.as_dvec3();
         let mut probe = Vec::new();
@@ -245,10 +245,10 @@ impl SpanTable {
             let n = level.cells() as i64;
             let shift = n.trailing_zeros();
             let dir = axis.unit();
-            // One row of lines: appends span counts, packed spans and simple ranges.
+            // One row of lines: appends span counts, spans and simple ranges.
             let (step_u, step_v) = (ua.unit() * sp, va.unit() * sp);
             let (mask, inv_sp) = (n - 1, level.nodes_per_unit());
-            let row = |v: i64, out: &mut RowOut, lines: &mut Vec<(DVec3, DVec3)>, spans: &mut Vec<Span>| {
+            let row = |v: i64, out: &mut RowOut, lines: &mut Vec<(DVec3, DVec3)>| {
                 // Across the line, measure from the origin of the chunk that owns the line,
                 // exactly as the node predicate does; along it, from the table's base. A box
                 // face that falls on a node plane then includes or excludes the line exactly as
@@ -265,17 +265,14 @@ impl SpanTable {
                     lines.extend((u..end).map(|u| (line_origin, lv + step_u * (u & mask) as f64)));
                     u = end;
                 }
-                spans.clear();
-                let first_count = out.counts.len();
-                if !brush.spans_batch(lines, dir, spans, &mut out.counts) {
+                let (first_count, mut next) = (out.counts.len(), out.spans.len());
+                if !brush.spans_batch(lines, dir, &mut out.spans, &mut out.counts) {
                     // The brush samples after all: no table (the caller samples chunk by chunk).
                     return false;
                 }
-                out.packed.extend(spans.iter().map(|s| PackedSpan::pack(s, flip)));
-                let mut next = out.packed.len() - spans.len();
                 for &c in &out.counts[first_count..] {
                     let end = next + c as usize;
-                    out.simple.push(simple_range(&out.packed[next..end], inv_sp));
+                    out.simple.push(simple_range(&out.spans[next..end], inv_sp));
                     next = end;
                 }
                 true
@@ -285,35 +282,35 @@ impl SpanTable {
             let lines_total = (nu * nv) as usize;
             let mut out = RowOut {
                 counts: Vec::with_capacity(lines_total),
-                packed: Vec::with_capacity(lines_total),
+                spans: Vec::with_capacity(lines_total),
                 simple: Vec::with_capacity(lines_total),
             };
             if parallel {
                 let rows: Option<Vec<RowOut>> = (v0..v0 + nv)
                     .into_par_iter()
                     .map_init(
-                        || (Vec::new(), Vec::new()),
-                        |(lines, spans), v| {
+                        Vec::new,
+                        |lines, v| {
                             let mut o = RowOut::default();
-                            row(v, &mut o, lines, spans).then_some(o)
+                            row(v, &mut o, lines).then_some(o)
                         },
                     )
                     .collect();
                 for o in rows? {
                     out.counts.extend(o.counts);
-                    out.packed.extend(o.packed);
+                    out.spans.extend(o.spans);
                     out.simple.extend(o.simple);
                 }
             } else {
-                let (mut lines, mut spans) = (Vec::with_capacity(nu as usize), Vec::new());
+                let mut lines = Vec::with_capacity(nu as usize);
                 for v in v0..v0 + nv {
-                    if !row(v, &mut out, &mut lines, &mut spans) {
+                    if !row(v, &mut out, &mut lines) {
                         return None;
                     }
                 }
             }
             let counts = out.counts;
-            a.spans = out.packed;
+            a.spans = out.spans;
             a.simple = out.simple;
             a.offsets.reserve(counts.len() + 1);
             a.offsets.push(0);
@@ -371,7 +368,7 @@ impl Volume {
             }
             CsgOp::Intersect => self.chunks.keys().copied().collect(),
         };
-        let table = SpanTable::build(brush, op == CsgOp::Subtract, &bounds, cmin, self.level, settings.parallel);
+        let table = SpanTable::build(brush, &bounds, cmin, self.level, settings.parallel);
         let ctx = EditCtx { brush, op, bounds, reconcile: !brush.lines_agree(), table };
         let run = |scratch: &mut Scratch, key: ChunkKey| -> Option<(ChunkKey, Built, u64)> {
             let view = self.view(key);
@@ -545,50 +542,24 @@ fn edit_chunk(
         let mut cursor = old.cursor(axis, 0);
         // Per-axis constants of the table lookups (glam vectors indexed by a runtime axis cost a
         // match each time).
-        let table_axis = table_level
-            .map(|(t, offset)| (&t.axes[axis.index()], offset[ua.index()], offset[va.index()], offset[axis.index()]));
+        let table_axis = table_level.map(|(t, offset)| (&t.axes[axis.index()], offset[ua.index()], offset[va.index()]));
         let shift_along = table_level.map_or(0.0, |(t, _)| (origin[axis.index()] - t.base[axis.index()]) as f64);
-        let simple_ok = !ctx.reconcile && ctx.op != CsgOp::Intersect;
+        // Every line of the box is visited: an intersection empties lines without spans, and
+        // repairs can give them node states.
         for v in v0..=v1 {
-            let (u0, u1) = match (ctx.op, table_level) {
-                (CsgOp::Intersect, _) | (_, None) => (u0, u1),
-                // Repairs can give lines without spans node states.
-                _ if ctx.reconcile => (u0, u1),
-                (_, Some((t, offset))) => {
-                    // Only the lines of this row that the brush can reach.
-                    let (a, b) = t.axes[axis.index()].row_range(offset[va.index()] + v as i64);
-                    let (a, b) = (a - offset[ua.index()], b - offset[ua.index()]);
-                    if b <= a || b <= u0 as i64 || a > u1 as i64 {
-                        continue;
-                    }
-                    ((a.max(u0 as i64)) as usize, ((b - 1).min(u1 as i64)) as usize)
-                }
-            };
             for u in u0..=u1 {
                 // Only an intersection visits lines outside the brush's box.
                 let inside_box = ctx.op != CsgOp::Intersect
                     || (ranges.0.is_some_and(|(a, b)| (a..=b).contains(&u))
                         && ranges.1.is_some_and(|(a, b)| (a..=b).contains(&v)));
                 let index = u + n * v;
-                // Where the brush line is taken from: nothing, a simple span, or the sampler.
-                let mut simple = None;
+                // Where the brush line is taken from: nothing, the span table, or the sampler.
                 if !inside_box {
                     brush_line.states = 0;
-                } else if let Some((axis_spans, off_u, off_v, off)) = table_axis {
-                    let (spans, range) = axis_spans.line_simple(off_u + u as i64, off_v + v as i64);
+                } else if let Some((axis_spans, off_u, off_v)) = table_axis {
+                    let spans = axis_spans.line(off_u + u as i64, off_v + v as i64);
                     if spans.is_empty() {
                         brush_line.states = 0;
-                    } else if range.0 != NOT_SIMPLE && simple_ok {
-                        // Chunk-relative node range of the span (the table's shift is exact).
-                        let (a, b) = (range.0 as i64 - off, range.1 as i64 - off);
-                        if b < 0 || a > n as i64 || a > b {
-                            // The span misses this chunk's piece of the line.
-                            continue;
-                        }
-                        let (lo, hi) = (a.max(0) as usize, b.min(n as i64) as usize);
-                        brush_line.states = node_mask(hi) & !((1u128 << lo) - 1);
-                        // The crossings are quantised only if the stored line needs them.
-                        simple = Some((&spans[0], lo, hi));
                     } else {
                         sampler.fill_from_spans(spans, shift_along, at(axis, u, v), &mut brush_line);
                     }
@@ -608,16 +579,6 @@ fn edit_chunk(
                 if uniform && ctx.op != CsgOp::Intersect && line.start_inside == (ctx.op == CsgOp::Add) {
                     // Adding to a full line or subtracting from an empty one changes nothing.
                     continue;
-                }
-                if let Some((span, lo, hi)) = simple {
-                    if lo > 0 {
-                        brush_line.pos[lo - 1] = quantize_into_edge(span.enter - shift_along, lo - 1, level);
-                        brush_line.nrm[lo - 1] = span.enter_normal;
-                    }
-                    if hi < n {
-                        brush_line.pos[hi] = quantize_into_edge(span.exit - shift_along, hi, level);
-                        brush_line.nrm[hi] = span.exit_normal;
-                    }
                 }
                 if brush_line.states == full && ctx.op != CsgOp::Intersect {
                     // The brush fills the line: the result is a full or an empty line.
@@ -759,8 +720,14 @@ fn edit_chunk_by_table(
                         fill,
                         lo,
                         hi,
-                        enter: || (quantize_into_edge(span.enter - shift_along, lo - 1, level), span.enter_normal),
-                        exit: || (quantize_into_edge(span.exit - shift_along, hi, level), span.exit_normal),
+                        enter: || {
+                            let q = quantize_into_edge(span.enter - shift_along, lo - 1, level);
+                            (q, pack_oriented(span.enter_normal, !fill))
+                        },
+                        exit: || {
+                            let q = quantize_into_edge(span.exit - shift_along, hi, level);
+                            (q, pack_oriented(span.exit_normal, !fill))
+                        },
                     };
                     changed |= splice_piece(b, line, &piece, level);
                 } else {

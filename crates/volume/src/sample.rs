@@ -40,25 +40,11 @@ pub fn brush_contains_node(brush: &dyn Brush, node: I64Vec3, level: Level) -> bo
     brush.contains(origin, p)
 }
 
-/// A span with its normals already packed (and flipped for subtraction).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PackedSpan {
-    pub(crate) enter: f64,
-    pub(crate) exit: f64,
-    pub(crate) enter_normal: u16,
-    pub(crate) exit_normal: u16,
-}
-
-impl PackedSpan {
-    pub(crate) fn pack(s: &Span, flip: bool) -> Self {
-        let f = if flip { -1.0 } else { 1.0 };
-        PackedSpan {
-            enter: s.enter,
-            exit: s.exit,
-            enter_normal: pack_normal(s.enter_normal * f),
-            exit_normal: pack_normal(s.exit_normal * f),
-        }
-    }
+/// Packs a brush's outward normal as stored: flipped for a subtraction, where the brush's
+/// outside becomes the solid's inside.
+#[inline]
+pub(crate) fn pack_oriented(normal: DVec3, flip: bool) -> u16 {
+    pack_normal(if flip { -normal } else { normal })
 }
 
 /// Samples one brush along chunk lines; keeps scratch space between lines.
@@ -68,7 +54,6 @@ pub(crate) struct LineSampler<'a> {
     /// Flip normals (subtraction: the brush's outside becomes the solid's outside).
     pub(crate) flip: bool,
     spans: Vec<Span>,
-    packed: Vec<PackedSpan>,
 }
 
 /// Where a line sits: the chunk's grid origin, its level, axis and across coordinates (`u`,
@@ -97,7 +82,7 @@ impl LineAt {
 
 impl<'a> LineSampler<'a> {
     pub(crate) fn new(brush: &'a dyn Brush, flip: bool) -> Self {
-        LineSampler { brush, bounds: brush.bounds().expand(SNAP_DISTANCE), flip, spans: Vec::new(), packed: Vec::new() }
+        LineSampler { brush, bounds: brush.bounds().expand(SNAP_DISTANCE), flip, spans: Vec::new() }
     }
 
     /// Fills `out` with the brush's states and crossings on one chunk line, asking the brush.
@@ -121,11 +106,7 @@ impl<'a> LineSampler<'a> {
         let dir = at.axis.unit();
         let mut spans = std::mem::take(&mut self.spans);
         if self.brush.spans(origin, start, dir, &mut spans) {
-            let mut packed = std::mem::take(&mut self.packed);
-            packed.clear();
-            packed.extend(spans.iter().map(|s| PackedSpan::pack(s, self.flip)));
-            self.fill_from_spans(&packed, 0.0, at, out);
-            self.packed = packed;
+            self.fill_from_spans(&spans, 0.0, at, out);
         } else {
             self.fill_from_samples(origin, start, n, lo[a], hi[a], at, out);
         }
@@ -133,7 +114,7 @@ impl<'a> LineSampler<'a> {
     }
 
     /// Fills `out` from spans whose parameter is `shift` grid units ahead of the line's node 0.
-    pub(crate) fn fill_from_spans(&self, all: &[PackedSpan], shift: f64, at: LineAt, out: &mut WorkLine) {
+    pub(crate) fn fill_from_spans(&self, all: &[Span], shift: f64, at: LineAt, out: &mut WorkLine) {
         let n = at.level.cells();
         let sp = at.level.spacing();
         let inv_sp = at.level.nodes_per_unit();
@@ -153,7 +134,7 @@ impl<'a> LineSampler<'a> {
             return;
         }
         if let [s] = spans
-            && let Some(line) = single_span(s, shift, at.level)
+            && let Some(line) = single_span(s, self.flip, shift, at.level)
         {
             line.apply(out);
             return;
@@ -204,12 +185,11 @@ impl<'a> LineSampler<'a> {
                     .min_by(|a, b| (a.0 - mid).abs().total_cmp(&(b.0 - mid).abs()));
                 nearest.unwrap_or_else(|| {
                     let dir = at.axis.unit();
-                    let outward = if entering != self.flip { -dir } else { dir };
-                    (mid, pack_normal(outward))
+                    (mid, if entering { -dir } else { dir })
                 })
             });
             out.pos[e] = quantize_into_edge(t - shift, e, at.level);
-            out.nrm[e] = normal;
+            out.nrm[e] = pack_oriented(normal, self.flip);
         }
     }
 
@@ -275,7 +255,7 @@ impl<'a> LineSampler<'a> {
                 normal = -normal;
             }
             out.pos[e] = quantize_into_edge(t, e, at.level);
-            out.nrm[e] = pack_normal(if self.flip { -normal } else { normal });
+            out.nrm[e] = pack_oriented(normal, self.flip);
         }
     }
 }
@@ -299,7 +279,7 @@ impl SingleSpan {
 }
 
 #[inline]
-fn single_span(s: &PackedSpan, shift: f64, level: Level) -> Option<SingleSpan> {
+fn single_span(s: &Span, flip: bool, shift: f64, level: Level) -> Option<SingleSpan> {
     let n = level.cells();
     let inv_sp = level.nodes_per_unit();
     let (enter, exit) = ((s.enter - shift) * inv_sp, (s.exit - shift) * inv_sp);
@@ -314,8 +294,10 @@ fn single_span(s: &PackedSpan, shift: f64, level: Level) -> Option<SingleSpan> {
         return Some(SingleSpan { states: 0, enter: None, exit: None });
     }
     let states = node_mask(j1) & !((1u128 << j0) - 1);
-    let enter = (j0 > 0).then(|| (j0 - 1, quantize_into_edge(s.enter - shift, j0 - 1, level), s.enter_normal));
-    let exit = (j1 < n).then(|| (j1, quantize_into_edge(s.exit - shift, j1, level), s.exit_normal));
+    let enter = (j0 > 0)
+        .then(|| (j0 - 1, quantize_into_edge(s.enter - shift, j0 - 1, level), pack_oriented(s.enter_normal, flip)));
+    let exit =
+        (j1 < n).then(|| (j1, quantize_into_edge(s.exit - shift, j1, level), pack_oriented(s.exit_normal, flip)));
     Some(SingleSpan { states, enter, exit })
 }
 
