@@ -741,6 +741,10 @@ impl Built {
 }
 
 /// Assembles a chunk line by line, in storage order. Reusable: keeps its buffers' capacity.
+///
+/// Crossings are written into buffers grown ahead of the writes (`positions[..m]` and
+/// `normals[..m]` hold the ones written), so a line costs a length check and slice copies, not
+/// a `Vec` growth check per value.
 #[derive(Debug)]
 pub(crate) struct ChunkBuilder {
     level: Level,
@@ -749,6 +753,8 @@ pub(crate) struct ChunkBuilder {
     nonempty: BitBuf,
     positions: Vec<u16>,
     normals: Vec<PackedNormal>,
+    /// Crossings written.
+    m: usize,
     family_start: [u32; 2],
 }
 
@@ -760,6 +766,7 @@ impl Default for ChunkBuilder {
             nonempty: BitBuf::default(),
             positions: Vec::new(),
             normals: Vec::new(),
+            m: 0,
             family_start: [0; 2],
         }
     }
@@ -770,43 +777,90 @@ impl ChunkBuilder {
         self.level = level;
         self.corner = None;
         self.nonempty.clear();
-        self.positions.clear();
-        self.normals.clear();
+        self.m = 0;
     }
 
     /// Marks the start of the lines along `axis` (call in x, y, z order).
     pub(crate) fn begin_axis(&mut self, axis: Axis) {
         if axis != Axis::X {
-            self.family_start[axis.index() - 1] = self.positions.len() as u32;
+            self.family_start[axis.index() - 1] = self.m as u32;
         }
+    }
+
+    /// Makes room for `k` more crossings.
+    #[inline]
+    fn room(&mut self, k: usize) {
+        if self.m + k > self.positions.len() {
+            self.grow(self.m + k);
+        }
+    }
+
+    #[cold]
+    fn grow(&mut self, need: usize) {
+        let len = need.max(2 * self.positions.len()).max(1024);
+        self.positions.resize(len, 0);
+        self.normals.resize(len, 0);
+    }
+
+    /// Appends stored positions (end marks as they are) and their normals.
+    #[inline]
+    fn write(&mut self, raw: &[u16], normals: &[PackedNormal]) {
+        let (m, k) = (self.m, raw.len());
+        self.room(k);
+        let (dp, dn) = (&mut self.positions[m..m + k], &mut self.normals[m..m + k]);
+        if k <= 8 {
+            // A line's few crossings: a call to memcpy would cost more than the copy.
+            for (i, (&q, &nr)) in raw.iter().zip(normals).enumerate() {
+                dp[i] = q;
+                dn[i] = nr;
+            }
+        } else {
+            dp.copy_from_slice(raw);
+            dn.copy_from_slice(normals);
+        }
+        self.m = m + k;
+    }
+
+    /// Appends one crossing (room must have been made).
+    #[inline]
+    fn write_one(&mut self, q: LocalPos, normal: PackedNormal) {
+        debug_assert_eq!(q & LAST, 0, "positions are even");
+        self.positions[self.m] = q;
+        self.normals[self.m] = normal;
+        self.m += 1;
+    }
+
+    /// Marks the last written crossing as the end of its line.
+    #[inline]
+    fn mark_last(&mut self) {
+        self.positions[self.m - 1] |= LAST;
     }
 
     /// Appends a line given by its start state and crossings (positions even).
     pub(crate) fn push_line(&mut self, start_inside: bool, crossings: &[(LocalPos, PackedNormal)]) {
         self.corner.get_or_insert(start_inside);
         self.nonempty.push(!crossings.is_empty());
+        self.room(crossings.len());
         for &(q, n) in crossings {
-            debug_assert_eq!(q & LAST, 0, "positions are even");
-            self.positions.push(q);
-            self.normals.push(n);
+            self.write_one(q, n);
         }
-        if let Some(last) = self.positions.last_mut()
-            && !crossings.is_empty()
-        {
-            *last |= LAST;
+        if !crossings.is_empty() {
+            self.mark_last();
         }
     }
 
     /// Appends `count` uniform lines without crossings.
+    #[inline]
     pub(crate) fn push_uniform(&mut self, state: bool, count: usize) {
         if count > 0 {
             self.corner.get_or_insert(state);
+            self.nonempty.push_zeros(count);
         }
-        self.nonempty.push_run(false, count);
     }
 
     /// Appends `count` lines read from `cursor` and moves it past them. `corner` is the source
     /// chunk's corner state, which line 0 of the x family (if copied) carries.
+    #[inline]
     pub(crate) fn copy_from(&mut self, cursor: &mut RawCursor<'_>, count: usize) {
         if count == 0 {
             return;
@@ -817,8 +871,7 @@ impl ChunkBuilder {
         let (first, cross) = (cursor.base + cursor.index, cursor.cross);
         cursor.advance_to(cursor.index + count);
         self.nonempty.extend_from(src.nonempty(), first, count);
-        self.positions.extend_from_slice(&src.raw_positions()[cross..cursor.cross]);
-        self.normals.extend_from_slice(&src.normals()[cross..cursor.cross]);
+        self.write(&src.raw_positions()[cross..cursor.cross], &src.normals()[cross..cursor.cross]);
     }
 
     /// Appends `count` lines read from `cursor` and moves it past them (a uniform view gives
@@ -836,8 +889,7 @@ impl ChunkBuilder {
     pub(crate) fn push_stored(&mut self, line: LineRef<'_>) {
         self.corner.get_or_insert(line.start_inside);
         self.nonempty.push(!line.raw.is_empty());
-        self.positions.extend_from_slice(line.raw);
-        self.normals.extend_from_slice(line.normals);
+        self.write(line.raw, line.normals);
     }
 
     /// Appends the crossings of a work line (at the cells where its node states change).
@@ -845,16 +897,16 @@ impl ChunkBuilder {
         self.corner.get_or_insert(line.states & 1 == 1);
         let mut c = line.changes(n);
         self.nonempty.push(c != 0);
+        if c == 0 {
+            return;
+        }
+        self.room(c.count_ones() as usize);
         while c != 0 {
             let e = c.trailing_zeros() as usize;
             c &= c - 1;
-            debug_assert_eq!(line.pos[e] & LAST, 0, "positions are even");
-            self.positions.push(line.pos[e]);
-            self.normals.push(line.nrm[e]);
+            self.write_one(line.pos[e], line.nrm[e]);
         }
-        if line.changes(n) != 0 {
-            *self.positions.last_mut().expect("a crossing was pushed") |= LAST;
-        }
+        self.mark_last();
     }
 
     /// Appends `line` with its crossings `p..q` replaced by `mid` (even positions, sorted, in
@@ -881,31 +933,27 @@ impl ChunkBuilder {
         let k = raw.len();
         let out = p + mid.len() + (k - q);
         self.nonempty.push(out > 0);
-        let first = self.positions.len();
-        self.positions.extend_from_slice(&raw[..p]);
-        self.normals.extend_from_slice(&normals[..p]);
+        if out == 0 {
+            return true;
+        }
+        self.room(out);
+        self.write(&raw[..p], &normals[..p]);
+        if p == k && k > 0 {
+            // Stored crossing k - 1 carried the end mark and is no longer last.
+            self.positions[self.m - 1] &= !LAST;
+        }
         for &(m, mn) in mid {
-            self.positions.push(m);
-            self.normals.push(mn);
+            self.write_one(m, mn);
         }
-        self.positions.extend_from_slice(&raw[q..]);
-        self.normals.extend_from_slice(&normals[q..]);
-        if out > 0 {
-            // Only raw[k - 1] carries the end mark: clear it wherever it landed, then mark the
-            // new last crossing.
-            let written = &mut self.positions[first..];
-            if p == k && k > 0 {
-                written[k - 1] &= !LAST;
-            }
-            *written.last_mut().expect("the line is not empty") |= LAST;
-        }
+        self.write(&raw[q..], &normals[q..]);
+        self.mark_last();
         true
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.
     pub(crate) fn finish(&mut self) -> Built {
         let corner = self.corner.unwrap_or(false);
-        if self.positions.is_empty() {
+        if self.m == 0 {
             return Built::Uniform(corner);
         }
         Built::Lists(assemble(
@@ -913,8 +961,8 @@ impl ChunkBuilder {
             corner,
             self.family_start,
             &self.nonempty.words,
-            &self.positions,
-            &self.normals,
+            &self.positions[..self.m],
+            &self.normals[..self.m],
         ))
     }
 }
