@@ -591,10 +591,12 @@ impl<'a> LineCursor<'a> {
     }
 
     /// The next line with its own start state (derived for the family on first use).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn next_line(&mut self) -> LineRef<'a> {
-        let (lists, axis) = (self.raw.lists, self.axis);
-        let starts = self.starts.get_or_insert_with(|| Box::new(lists.family_starts(axis)));
+        if self.starts.is_none() {
+            self.derive_starts();
+        }
+        let starts = self.starts.as_deref().expect("derived above");
         let i = self.raw.index;
         let start = (starts[i >> 6] >> (i & 63)) & 1 == 1;
         self.raw.next_with(start)
@@ -604,6 +606,11 @@ impl<'a> LineCursor<'a> {
     #[inline]
     pub(crate) fn next_with(&mut self, start_inside: bool) -> LineRef<'a> {
         self.raw.next_with(start_inside)
+    }
+
+    #[cold]
+    fn derive_starts(&mut self) {
+        self.starts = Some(Box::new(self.raw.lists.family_starts(self.axis)));
     }
 }
 
@@ -803,7 +810,7 @@ impl ChunkBuilder {
     }
 
     /// Appends stored positions (end marks as they are) and their normals.
-    #[inline]
+    #[inline(always)]
     fn write(&mut self, raw: &[u16], normals: &[PackedNormal]) {
         let (m, k) = (self.m, raw.len());
         self.room(k);
@@ -878,6 +885,9 @@ impl ChunkBuilder {
     /// uniform lines).
     #[inline]
     pub(crate) fn copy_view(&mut self, cursor: &mut ViewCursor<'_>, count: usize) {
+        if count == 0 {
+            return;
+        }
         match cursor {
             ViewCursor::Uniform(state) => self.push_uniform(*state, count),
             ViewCursor::Lists(c) => self.copy_from(&mut c.raw, count),
@@ -911,7 +921,6 @@ impl ChunkBuilder {
 
     /// Appends `line` with its crossings `p..q` replaced by `mid` (even positions, sorted, in
     /// cells after those of crossings `..p` and before those of `q..`), starting in `start`.
-    /// Returns whether the result differs from `line`.
     #[inline]
     pub(crate) fn push_spliced(
         &mut self,
@@ -920,21 +929,14 @@ impl ChunkBuilder {
         p: usize,
         q: usize,
         mid: &[(LocalPos, PackedNormal)],
-    ) -> bool {
+    ) {
         let (raw, normals) = (line.raw, line.normals);
-        let same = start == line.start_inside
-            && q - p == mid.len()
-            && mid.iter().zip(&raw[p..q]).zip(&normals[p..q]).all(|((&(m, mn), &r), &rn)| m == r & !LAST && mn == rn);
-        if same {
-            self.push_stored(line);
-            return false;
-        }
         self.corner.get_or_insert(start);
         let k = raw.len();
         let out = p + mid.len() + (k - q);
         self.nonempty.push(out > 0);
         if out == 0 {
-            return true;
+            return;
         }
         self.room(out);
         self.write(&raw[..p], &normals[..p]);
@@ -947,7 +949,6 @@ impl ChunkBuilder {
         }
         self.write(&raw[q..], &normals[q..]);
         self.mark_last();
-        true
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.

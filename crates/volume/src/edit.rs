@@ -715,21 +715,8 @@ fn edit_chunk_by_table(
                         b.push_stored(line);
                         continue;
                     }
-                    let span = &line_spans[0];
-                    let piece = Piece {
-                        fill,
-                        lo,
-                        hi,
-                        enter: || {
-                            let q = quantize_into_edge(span.enter - shift_along, lo - 1, level);
-                            (q, pack_oriented(span.enter_normal, !fill))
-                        },
-                        exit: || {
-                            let q = quantize_into_edge(span.exit - shift_along, hi, level);
-                            (q, pack_oriented(span.exit_normal, !fill))
-                        },
-                    };
-                    changed |= splice_piece(b, line, &piece, level);
+                    let piece = Piece { fill, lo, hi, span: &line_spans[0], shift: shift_along };
+                    changed |= splice_piece(b, line, piece, level);
                 } else {
                     sampler.fill_from_spans(line_spans, shift_along, LineAt { origin_grid: origin, level, axis, u, v }, &mut brush_line);
                     if brush_line.states == 0 {
@@ -756,15 +743,15 @@ fn edit_chunk_by_table(
 
 /// One brush span on one chunk line, simple (no end within the snapping distance of a node):
 /// it covers nodes `lo..=hi`, enters in cell `lo - 1` (if `lo > 0`) and leaves in cell `hi` (if
-/// `hi < n`); `enter` and `exit` quantise those crossings on demand. `fill` is the state the
-/// covered nodes take: inside for a union, outside for a difference (whose brush normals are
-/// already flipped).
-struct Piece<E, X> {
+/// `hi < n`); its ends are `shift` grid units ahead of the line's node 0, quantised only where
+/// they are stored. `fill` is the state the covered nodes take: inside for a union, outside for
+/// a difference (whose stored normals are the brush's, flipped).
+struct Piece<'a> {
     fill: bool,
     lo: usize,
     hi: usize,
-    enter: E,
-    exit: X,
+    span: &'a Span,
+    shift: f64,
 }
 
 /// Writes the CSG of a stored line and a simple brush piece into `b`, with the per-cell rule of
@@ -772,13 +759,10 @@ struct Piece<E, X> {
 /// and the later on its exit side) but without unpacking the line: the stored crossings before
 /// cell `lo - 1` and after cell `hi` stay, the ones between go, and at most two crossings are
 /// put in their place. Returns whether the line changed.
-fn splice_piece<E, X>(b: &mut ChunkBuilder, line: LineRef<'_>, piece: &Piece<E, X>, level: Level) -> bool
-where
-    E: Fn() -> (LocalPos, PackedNormal),
-    X: Fn() -> (LocalPos, PackedNormal),
-{
+#[inline(always)]
+fn splice_piece(b: &mut ChunkBuilder, line: LineRef<'_>, piece: Piece<'_>, level: Level) -> bool {
     let n = level.cells();
-    let (lo, hi, fill) = (piece.lo, piece.hi, piece.fill);
+    let Piece { fill, lo, hi, span, shift } = piece;
     let stored = line.stored();
     let k = stored.len();
     let cell = |i: usize| edge_of(stored[i], level);
@@ -799,21 +783,30 @@ where
         q = k;
     }
     let mut mid = [(0, 0); 2];
-    let mut m = 0;
+    let (mut m, mut kept) = (0, 0);
     // Node lo - 1 keeps its stored state; a crossing is needed where it differs from `fill`.
     if lo > 0 && line.start_inside ^ (p % 2 == 1) != fill {
-        let brush = (piece.enter)();
-        mid[m] = if p < k && cell(p) == lo - 1 && stored[p] & !LAST <= brush.0 { line.crossing(p) } else { brush };
-        m += 1;
+        let brush = quantize_into_edge(span.enter - shift, lo - 1, level);
+        let old = p < k && cell(p) == lo - 1 && stored[p] & !LAST <= brush;
+        mid[m] = if old { line.crossing(p) } else { (brush, pack_oriented(span.enter_normal, !fill)) };
+        (m, kept) = (m + 1, kept + old as usize);
     }
     // Node hi + 1 likewise.
     if hi < n && line.start_inside ^ (q % 2 == 1) != fill {
-        let brush = (piece.exit)();
-        mid[m] = if q > 0 && cell(q - 1) == hi && stored[q - 1] & !LAST >= brush.0 { line.crossing(q - 1) } else { brush };
-        m += 1;
+        let brush = quantize_into_edge(span.exit - shift, hi, level);
+        let old = q > 0 && cell(q - 1) == hi && stored[q - 1] & !LAST >= brush;
+        mid[m] = if old { line.crossing(q - 1) } else { (brush, pack_oriented(span.exit_normal, !fill)) };
+        (m, kept) = (m + 1, kept + old as usize);
     }
     let start = if lo == 0 { fill } else { line.start_inside };
-    b.push_spliced(start, line, p, q, &mid[..m])
+    // The stored crossings p..q are replaced by mid: nothing changes when mid is exactly them
+    // (the ones kept are p and q - 1 of the stored line).
+    if start == line.start_inside && kept == m && q - p == m {
+        b.push_stored(line);
+        return false;
+    }
+    b.push_spliced(start, line, p, q, &mid[..m]);
+    true
 }
 
 /// Whether every x line through the chunk (apron rows included) lies inside one span from
