@@ -55,17 +55,31 @@ impl Brush for Sphere {
     }
 
     fn spans_batch(&self, lines: &[(DVec3, DVec3)], dir: DVec3, out: &mut Vec<Span>, counts: &mut Vec<u32>) -> bool {
-        // What does not depend on the line, once.
-        let a = dir.length_squared();
-        let (r2, inv_r) = (self.radius * self.radius, 1.0 / self.radius);
         counts.reserve(lines.len());
-        for &(origin, start) in lines {
-            let s = self.chord(start - (self.center - origin), dir, a, r2, inv_r);
-            counts.push(s.is_some() as u32);
-            out.extend(s);
+        out.reserve(lines.len());
+        // What does not depend on the line, once; the grid's axis directions get a loop each.
+        let (r2, inv_r) = (self.radius * self.radius, 1.0 / self.radius);
+        match unit_axis(dir) {
+            Some(0) => self.axis_chords::<0>(lines, r2, inv_r, out, counts),
+            Some(1) => self.axis_chords::<1>(lines, r2, inv_r, out, counts),
+            Some(_) => self.axis_chords::<2>(lines, r2, inv_r, out, counts),
+            None => {
+                let a = dir.length_squared();
+                for &(origin, start) in lines {
+                    let s = self.chord(start - (self.center - origin), dir, a, r2, inv_r);
+                    counts.push(s.is_some() as u32);
+                    out.extend(s);
+                }
+            }
         }
         true
     }
+}
+
+/// The index of the unit axis `dir` is exactly (`+x`, `+y` or `+z`), if any.
+#[inline]
+fn unit_axis(dir: DVec3) -> Option<usize> {
+    [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == dir)
 }
 
 impl Sphere {
@@ -73,7 +87,56 @@ impl Sphere {
     #[inline]
     fn line_span(&self, origin: DVec3, start: DVec3, dir: DVec3) -> Option<Span> {
         let q = start - (self.center - origin);
-        self.chord(q, dir, dir.length_squared(), self.radius * self.radius, 1.0 / self.radius)
+        let (r2, inv_r) = (self.radius * self.radius, 1.0 / self.radius);
+        match unit_axis(dir) {
+            Some(0) => self.axis_chord::<0>(q, r2, inv_r),
+            Some(1) => self.axis_chord::<1>(q, r2, inv_r),
+            Some(_) => self.axis_chord::<2>(q, r2, inv_r),
+            None => self.chord(q, dir, dir.length_squared(), r2, inv_r),
+        }
+    }
+
+    /// [`Sphere::chord`] for the direction of grid axis `A`, where the dot product and the
+    /// perpendicular part reduce to picking components: no multiplications by 0 and 1, no
+    /// division.
+    #[inline(always)]
+    fn axis_chord<const A: usize>(&self, q: DVec3, r2: f64, inv_r: f64) -> Option<Span> {
+        let (qa, perp2) = match A {
+            0 => (q.x, q.y * q.y + q.z * q.z),
+            1 => (q.y, q.x * q.x + q.z * q.z),
+            _ => (q.z, q.x * q.x + q.y * q.y),
+        };
+        let disc = r2 - perp2;
+        if !(disc >= 0.0) {
+            return None;
+        }
+        let h = disc.sqrt();
+        let (t0, t1) = (-qa - h, -qa + h);
+        let across = q * inv_r;
+        let mut enter_normal = across;
+        let mut exit_normal = across;
+        enter_normal[A] = (qa + t0) * inv_r;
+        exit_normal[A] = (qa + t1) * inv_r;
+        Some(Span { enter: t0, exit: t1, enter_normal, exit_normal })
+    }
+
+    /// [`Sphere::axis_chord`] for a batch of lines.
+    #[inline(always)]
+    fn axis_chords<const A: usize>(
+        &self,
+        lines: &[(DVec3, DVec3)],
+        r2: f64,
+        inv_r: f64,
+        out: &mut Vec<Span>,
+        counts: &mut Vec<u32>,
+    ) {
+        for &(origin, start) in lines {
+            let s = self.axis_chord::<A>(start - (self.center - origin), r2, inv_r);
+            counts.push(s.is_some() as u32);
+            if let Some(s) = s {
+                out.push(s);
+            }
+        }
     }
 
     /// The span of the line `q + t dir` (relative to the centre), given `a = |dir|²`, the
@@ -84,14 +147,14 @@ impl Sphere {
             return None;
         }
         // Closest approach first, then the half chord from the perpendicular distance: no
-        // cancellation, and no division for the unit axis directions the volume uses.
-        let t_mid = if a == 1.0 { -q.dot(dir) } else { -q.dot(dir) / a };
+        // cancellation.
+        let t_mid = -q.dot(dir) / a;
         let perp = q + dir * t_mid;
         let disc = r2 - perp.length_squared();
         if !(disc >= 0.0) {
             return None;
         }
-        let h = if a == 1.0 { disc.sqrt() } else { (disc / a).sqrt() };
+        let h = (disc / a).sqrt();
         let (t0, t1) = (t_mid - h, t_mid + h);
         Some(Span { enter: t0, exit: t1, enter_normal: (q + dir * t0) * inv_r, exit_normal: (q + dir * t1) * inv_r })
     }
