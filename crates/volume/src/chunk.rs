@@ -32,8 +32,6 @@ use crate::normal::PackedNormal;
 const HEADER_WORDS: usize = 2;
 /// Bit 0 of a stored position: set on the last crossing of a line.
 pub(crate) const LAST: u16 = 1;
-/// Words of one family's start states at the finest level (`64²` bits).
-const START_WORDS: usize = 64;
 
 /// The crossing lists of a chunk that is neither all empty nor all solid.
 ///
@@ -262,8 +260,36 @@ impl<'a> LineRef<'a> {
     }
 }
 
-/// The start states of one line family, bit `index`.
-pub(crate) type Starts = [u64; START_WORDS];
+/// The start states of one line family, bit `index`: `n² / 64` words, held inline at level 0
+/// (4 words) and boxed above.
+#[derive(Clone, Debug)]
+pub(crate) enum Starts {
+    Inline([u64; 4]),
+    Boxed(Box<[u64]>),
+}
+
+impl Starts {
+    fn zeroed(words: usize) -> Self {
+        if words <= 4 { Starts::Inline([0; 4]) } else { Starts::Boxed(vec![0; words].into_boxed_slice()) }
+    }
+
+    /// The state of line `index`.
+    #[inline]
+    pub(crate) fn get(&self, index: usize) -> bool {
+        let words = match self {
+            Starts::Inline(w) => &w[..],
+            Starts::Boxed(w) => &w[..],
+        };
+        (words[index >> 6] >> (index & 63)) & 1 == 1
+    }
+
+    fn words_mut(&mut self) -> &mut [u64] {
+        match self {
+            Starts::Inline(w) => &mut w[..],
+            Starts::Boxed(w) => &mut w[..],
+        }
+    }
+}
 
 impl ChunkLists {
     /// The chunk's resolution level.
@@ -399,7 +425,8 @@ impl ChunkLists {
         };
         let edge = states(self.corner(), self.raw_cursor(first, 0).next_raw());
         let mut c = self.raw_cursor(row, 0);
-        let mut out = [0u64; START_WORDS];
+        let mut starts = Starts::zeroed(n * n / 64);
+        let out = starts.words_mut();
         let mask = full >> 1;
         for k in 0..n {
             let s = states((edge >> k) & 1 == 1, c.next_raw()) & mask;
@@ -407,7 +434,7 @@ impl ChunkLists {
             let i = n * k;
             out[i >> 6] |= (s as u64) << (i & 63);
         }
-        out
+        starts
     }
 
     /// Bytes of the one allocation.
@@ -580,7 +607,7 @@ fn count_ones(words: &[u64], from: usize, to: usize) -> usize {
 pub(crate) struct LineCursor<'a> {
     raw: RawCursor<'a>,
     axis: Axis,
-    starts: Option<Box<Starts>>,
+    starts: Option<Starts>,
 }
 
 impl<'a> LineCursor<'a> {
@@ -596,9 +623,7 @@ impl<'a> LineCursor<'a> {
         if self.starts.is_none() {
             self.derive_starts();
         }
-        let starts = self.starts.as_deref().expect("derived above");
-        let i = self.raw.index;
-        let start = (starts[i >> 6] >> (i & 63)) & 1 == 1;
+        let start = self.starts.as_ref().expect("derived above").get(self.raw.index);
         self.raw.next_with(start)
     }
 
@@ -610,7 +635,7 @@ impl<'a> LineCursor<'a> {
 
     #[cold]
     fn derive_starts(&mut self) {
-        self.starts = Some(Box::new(self.raw.lists.family_starts(self.axis)));
+        self.starts = Some(self.raw.lists.family_starts(self.axis));
     }
 }
 
@@ -1055,7 +1080,7 @@ mod tests {
                 let node = I64Vec3::from_array(crate::axis::compose(axis, 0, u as i64, w as i64));
                 let inside = |s: &Sphere| crate::brush_contains_node(s, node, Level::BASE);
                 let expect = inside(&a) && !inside(&b);
-                assert_eq!((starts[index >> 6] >> (index & 63)) & 1 == 1, expect, "{axis:?} line {index}");
+                assert_eq!(starts.get(index), expect, "{axis:?} line {index}");
                 assert_eq!(cursor.next_line().start_inside, expect);
             }
         }
