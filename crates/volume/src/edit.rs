@@ -171,6 +171,15 @@ impl AxisSpans {
         }
     }
 
+    /// Lines `ua..ue` of row `v` (absolute, within [`AxisSpans::row_range`]): their span
+    /// offsets (one more than the lines) and simple ranges.
+    #[inline]
+    fn row_lines(&self, v: i64, ua: i64, ue: i64) -> (&[u32], &[(i32, i32)]) {
+        let i = (ua - self.u0) as usize + self.nu * (v - self.v0) as usize;
+        let len = (ue - ua) as usize;
+        (&self.offsets[i..i + len + 1], &self.simple[i..i + len])
+    }
+
     #[inline]
     fn line(&self, u: i64, v: i64) -> &[Span] {
         self.line_simple(u, v).0
@@ -693,11 +702,16 @@ fn edit_chunk_by_table(
         for v in 0..n {
             let (a, e) = spans.row_range(off_v + v as i64);
             let (a, e) = ((a - off_u).max(0), (e - off_u).min(n as i64));
-            for u in a.max(0) as usize..e.max(0) as usize {
-                let (line_spans, range) = spans.line_simple(off_u + u as i64, off_v + v as i64);
-                if line_spans.is_empty() {
+            if a >= e {
+                continue;
+            }
+            let (offsets, simple) = spans.row_lines(off_v + v as i64, off_u + a, off_u + e);
+            for (j, u) in (a as usize..e as usize).enumerate() {
+                let (first, last) = (offsets[j] as usize, offsets[j + 1] as usize);
+                if first == last {
                     continue;
                 }
+                let (line_spans, range) = (&spans.spans[first..last], simple[j]);
                 let index = u + n * v;
                 if range.0 != NOT_SIMPLE {
                     // Chunk-relative node range of the span (the table's shift is exact).
