@@ -1,12 +1,6 @@
 //! A growable bit vector with zero-run pushes and bit-range copies, used for the nonempty-line bits
 //! of chunk lists.
 
-/// Reads bit `i` of a packed word slice.
-#[inline]
-pub(crate) fn bit(words: &[u64], i: usize) -> bool {
-    (words[i >> 6] >> (i & 63)) & 1 == 1
-}
-
 /// An append-only bit vector.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BitBuf {

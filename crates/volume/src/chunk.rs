@@ -2,17 +2,21 @@
 //!
 //! A [`ChunkLists`] at level `k` (`n = 16 << k` cells per side) is one allocation of 64-bit
 //! words:
-//! - two header words: the level, the state of the chunk's corner node `(0, 0, 0)`, the
-//!   crossing count `m`, and the index of the first crossing of the y and z line families;
-//! - one *nonempty bit* per line: lines along `axis` are indexed by `(u, v)` over
-//!   [`Axis::across`], `index = u + n v`, and the three families follow each other (x, y, z),
-//!   `3 n²` bits in all;
+//! - a header of bit fields (see [`field`]): the level, the state of the chunk's corner node
+//!   `(0, 0, 0)`, the allocation's length, the crossing count `m`, the index of the first
+//!   crossing of the y and z line families, and one *row bit* per run of eight lines;
 //! - the crossings in line order as 16-bit values, first all `m` positions, then all `m`
 //!   octahedral normals in the same order. A position is a chunk-local fixed-point
 //!   [`LocalPos`], always even; its bit 0 ([`LAST`]) marks the last crossing of its line, which
-//!   is how a reader finds where one nonempty line ends and the next begins.
+//!   is how a reader finds where one nonempty line ends and the next begins;
+//! - the *nonempty bits*, one per line, eight lines (a row) to a byte, with only the rows that
+//!   hold a nonempty line stored: their row bits are set in the header. Lines along `axis` are
+//!   indexed by `(u, v)` over [`Axis::across`], `index = u + n v`, and the three families follow
+//!   each other (x, y, z), `3 n²` lines in all. Readers expand one family's bits at a time
+//!   ([`ChunkLists::family_nonempty`]).
 //!
-//! An empty line therefore costs one bit and a crossing 32 bits plus nothing else. No line
+//! An empty line therefore costs at most one bit (nothing where its whole row is empty), and a
+//! crossing 32 bits plus nothing else. No line
 //! stores its start state: the node states of a chunk agree across the three axes (the
 //! volume's invariant), so every line's first node can be read off other lines starting from
 //! the corner node (see [`ChunkLists::family_starts`]).
@@ -24,12 +28,23 @@
 use serde::{Deserialize, Serialize};
 
 use crate::axis::Axis;
-use crate::bits::{BitBuf, bit};
+use crate::bits::BitBuf;
 use crate::coords::{Level, LocalPos, edge_of};
 use crate::normal::PackedNormal;
 
-/// Words before the nonempty bits.
-const HEADER_WORDS: usize = 2;
+/// The header's bit fields: `(first bit, width)`, in word 0 then across into word 1. The row
+/// bits follow from [`field::ROWS`].
+mod field {
+    pub(super) const LEVEL: (usize, u32) = (0, 2);
+    pub(super) const CORNER: (usize, u32) = (2, 1);
+    /// The allocation's length in words (also read by `thin`).
+    pub(super) const LEN: (usize, u32) = (3, 23);
+    pub(super) const CROSSINGS: (usize, u32) = (26, 20);
+    pub(super) const Y_START: (usize, u32) = (46, 20);
+    pub(super) const Z_START: (usize, u32) = (66, 20);
+    /// First row bit.
+    pub(super) const ROWS: usize = 86;
+}
 /// Bit 0 of a stored position: set on the last crossing of a line.
 pub(crate) const LAST: u16 = 1;
 
@@ -42,14 +57,31 @@ pub struct ChunkLists {
     words: thin::Words,
 }
 
-/// Bits 9..32 of header word 0: the allocation's length in words.
-const LEN_SHIFT: u32 = 9;
-const LEN_BITS: u32 = 23;
-
 /// The allocation length recorded in header word 0.
 #[inline]
 fn stored_len(word0: u64) -> usize {
-    ((word0 >> LEN_SHIFT) & ((1 << LEN_BITS) - 1)) as usize
+    ((word0 >> field::LEN.0) & ((1 << field::LEN.1) - 1)) as usize
+}
+
+/// Bits `start..start + width` of a packed word slice (`width` at most 64).
+#[inline]
+fn read_bits(words: &[u64], start: usize, width: u32) -> u64 {
+    let (w, o) = (start >> 6, (start & 63) as u32);
+    let mut v = words[w] >> o;
+    if o + width > 64 {
+        v |= words[w + 1] << (64 - o);
+    }
+    if width == 64 { v } else { v & ((1u64 << width) - 1) }
+}
+
+/// Writes `value` (which fits) into bits `start..start + width` that are still zero.
+fn write_bits(words: &mut [u64], start: usize, width: u32, value: u64) {
+    debug_assert!(width == 64 || value >> width == 0);
+    let (w, o) = (start >> 6, (start & 63) as u32);
+    words[w] |= value << o;
+    if o + width > 64 {
+        words[w + 1] |= value >> (64 - o);
+    }
 }
 
 /// A boxed word slice behind a thin pointer: the one place in the crate with `unsafe` code.
@@ -57,7 +89,7 @@ fn stored_len(word0: u64) -> usize {
 mod thin {
     use std::ptr::NonNull;
 
-    use super::{HEADER_WORDS, stored_len};
+    use super::stored_len;
 
     /// Owns a `Box<[u64]>` whose word 0 records its length (see [`stored_len`]), through an
     /// 8-byte pointer: a chunk map slot then holds the value in 8 bytes (a `Box<[u64]>` takes
@@ -71,7 +103,7 @@ mod thin {
         /// Takes ownership of `words`, whose word 0 must record `words.len()`.
         pub(super) fn new(words: Box<[u64]>) -> Self {
             assert!(
-                words.len() >= HEADER_WORDS && stored_len(words[0]) == words.len(),
+                !words.is_empty() && stored_len(words[0]) == words.len(),
                 "a chunk allocation records its own length"
             );
             let raw: *mut [u64] = Box::into_raw(words);
@@ -131,7 +163,7 @@ mod thin {
         fn words_clone_compare_move_across_threads_and_free() {
             let make = |len: usize, fill: u64| {
                 let mut b = vec![fill; len].into_boxed_slice();
-                b[0] = (len as u64) << super::super::LEN_SHIFT;
+                b[0] = (len as u64) << super::super::field::LEN.0;
                 Words::new(b)
             };
             let a = make(5, 7);
@@ -177,12 +209,11 @@ struct RawChunkLists {
 
 impl Serialize for ChunkLists {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let starts = self.words.get()[1];
         RawChunkLists {
             level: self.level(),
             corner: self.corner(),
-            family_start: [starts as u32, (starts >> 32) as u32],
-            nonempty: self.nonempty().into(),
+            family_start: [self.family_start(Axis::Y) as u32, self.family_start(Axis::Z) as u32],
+            nonempty: self.nonempty_all().into(),
             positions: self.raw_positions().into(),
             normals: self.normals().into(),
         }
@@ -260,33 +291,41 @@ impl<'a> LineRef<'a> {
     }
 }
 
-/// The start states of one line family, bit `index`: `n² / 64` words, held inline at level 0
-/// (4 words) and boxed above.
+/// One bit per line of one family (start states, nonempty bits): `n² / 64` words, held inline
+/// at level 0 (4 words) and boxed above.
 #[derive(Clone, Debug)]
-pub(crate) enum Starts {
+pub(crate) enum FamilyBits {
     Inline([u64; 4]),
     Boxed(Box<[u64]>),
 }
 
-impl Starts {
+/// The start states of one line family.
+pub(crate) type Starts = FamilyBits;
+
+impl FamilyBits {
     fn zeroed(words: usize) -> Self {
-        if words <= 4 { Starts::Inline([0; 4]) } else { Starts::Boxed(vec![0; words].into_boxed_slice()) }
+        if words <= 4 { FamilyBits::Inline([0; 4]) } else { FamilyBits::Boxed(vec![0; words].into_boxed_slice()) }
     }
 
-    /// The state of line `index`.
+    /// The bit of line `index`.
     #[inline]
     pub(crate) fn get(&self, index: usize) -> bool {
-        let words = match self {
-            Starts::Inline(w) => &w[..],
-            Starts::Boxed(w) => &w[..],
-        };
+        let words = self.words();
         (words[index >> 6] >> (index & 63)) & 1 == 1
+    }
+
+    #[inline]
+    fn words(&self) -> &[u64] {
+        match self {
+            FamilyBits::Inline(w) => &w[..],
+            FamilyBits::Boxed(w) => &w[..],
+        }
     }
 
     fn words_mut(&mut self) -> &mut [u64] {
         match self {
-            Starts::Inline(w) => &mut w[..],
-            Starts::Boxed(w) => &mut w[..],
+            FamilyBits::Inline(w) => &mut w[..],
+            FamilyBits::Boxed(w) => &mut w[..],
         }
     }
 }
@@ -295,19 +334,25 @@ impl ChunkLists {
     /// The chunk's resolution level.
     #[inline]
     pub fn level(&self) -> Level {
-        Level::new(self.words.get()[0] as u8).expect("levels are checked when a chunk is built")
+        Level::new(self.field(field::LEVEL) as u8).expect("levels are checked when a chunk is built")
+    }
+
+    /// A header field.
+    #[inline]
+    fn field(&self, (start, width): (usize, u32)) -> u64 {
+        read_bits(self.words.get(), start, width)
     }
 
     /// Whether the corner node `(0, 0, 0)` is inside.
     #[inline]
     fn corner(&self) -> bool {
-        (self.words.get()[0] >> 8) & 1 == 1
+        self.field(field::CORNER) == 1
     }
 
     /// Number of crossings stored, all axes.
     #[inline]
     pub fn crossing_count(&self) -> usize {
-        (self.words.get()[0] >> 32) as usize
+        self.field(field::CROSSINGS) as usize
     }
 
     /// Index of the first crossing of the `axis` family.
@@ -315,8 +360,8 @@ impl ChunkLists {
     fn family_start(&self, axis: Axis) -> usize {
         match axis {
             Axis::X => 0,
-            Axis::Y => self.words.get()[1] as u32 as usize,
-            Axis::Z => (self.words.get()[1] >> 32) as usize,
+            Axis::Y => self.field(field::Y_START) as usize,
+            Axis::Z => self.field(field::Z_START) as usize,
         }
     }
 
@@ -330,26 +375,66 @@ impl ChunkLists {
         end - self.family_start(axis)
     }
 
-    fn lines_per_axis(&self) -> usize {
-        let n = self.level().cells();
-        n * n
-    }
-
+    /// Words of the full nonempty bitmap (all three families).
     fn nonempty_words(level: Level) -> usize {
         let n = level.cells();
         3 * n * n / 64
     }
 
-    /// The nonempty bit of every line, families in x, y, z order.
-    #[inline]
-    fn nonempty(&self) -> &[u64] {
-        &self.words.get()[HEADER_WORDS..HEADER_WORDS + Self::nonempty_words(self.level())]
+    /// Rows of eight lines, all families.
+    fn row_count(level: Level) -> usize {
+        let n = level.cells();
+        3 * n * n / 8
     }
 
-    /// Positions (with end marks), then normals, then up to three zero values of padding.
+    /// Words of the header, row bits included.
+    #[inline]
+    fn header_words(level: Level) -> usize {
+        (field::ROWS + Self::row_count(level)).div_ceil(64)
+    }
+
+    /// Positions (with end marks), then normals, then the stored rows' nonempty bytes and zero
+    /// padding.
     #[inline]
     fn values(&self) -> &[u16] {
-        bytemuck::cast_slice(&self.words.get()[HEADER_WORDS + Self::nonempty_words(self.level())..])
+        bytemuck::cast_slice(&self.words.get()[Self::header_words(self.level())..])
+    }
+
+    /// The stored rows' nonempty bytes (in row order), then zero padding.
+    fn row_bytes(&self) -> &[u8] {
+        let bytes: &[u8] = bytemuck::cast_slice(&self.words.get()[Self::header_words(self.level())..]);
+        &bytes[4 * self.crossing_count()..]
+    }
+
+    /// The nonempty bits of the lines along `axis` (bit `index`), expanded from the stored rows.
+    pub(crate) fn family_nonempty(&self, axis: Axis) -> FamilyBits {
+        let n = self.level().cells();
+        let rows = n * n / 8;
+        let words = self.words.get();
+        let first = field::ROWS + axis.index() * rows;
+        let bytes = self.row_bytes();
+        // Stored rows before this family's first.
+        let mut rank = count_ones(words, field::ROWS, first);
+        let mut out = FamilyBits::zeroed(n * n / 64);
+        let dst = out.words_mut();
+        let mut r = 0;
+        while r < rows {
+            let take = (rows - r).min(64);
+            let mut stored = read_bits(words, first + r, take as u32);
+            while stored != 0 {
+                let k = r + stored.trailing_zeros() as usize;
+                stored &= stored - 1;
+                dst[k >> 3] |= (bytes[rank] as u64) << ((k & 7) * 8);
+                rank += 1;
+            }
+            r += take;
+        }
+        out
+    }
+
+    /// The nonempty bit of every line, families in x, y, z order.
+    fn nonempty_all(&self) -> Vec<u64> {
+        Axis::ALL.iter().flat_map(|&a| self.family_nonempty(a).words().to_vec()).collect()
     }
 
     /// Stored positions with their end-of-line marks.
@@ -383,10 +468,9 @@ impl ChunkLists {
     pub(crate) fn raw_cursor(&self, axis: Axis, index: usize) -> RawCursor<'_> {
         let mut c = RawCursor {
             lists: self,
-            nonempty: self.nonempty(),
+            nonempty: self.family_nonempty(axis),
             raw: self.raw_positions(),
             normals: self.normals(),
-            base: axis.index() * self.lines_per_axis(),
             index: 0,
             cross: self.family_start(axis),
         };
@@ -425,7 +509,7 @@ impl ChunkLists {
         };
         let edge = states(self.corner(), self.raw_cursor(first, 0).next_raw());
         let mut c = self.raw_cursor(row, 0);
-        let mut starts = Starts::zeroed(n * n / 64);
+        let mut starts = FamilyBits::zeroed(n * n / 64);
         let out = starts.words_mut();
         let mask = full >> 1;
         for k in 0..n {
@@ -473,7 +557,8 @@ impl ChunkLists {
     }
 }
 
-/// Lays out a chunk's allocation.
+/// Lays out a chunk's allocation from the full nonempty bitmap (`3 n²` bits) and the
+/// crossings (`m` at most `3 n³`, offsets at most `m`: callers check).
 fn assemble(
     level: Level,
     corner: bool,
@@ -483,13 +568,28 @@ fn assemble(
     normals: &[u16],
 ) -> ChunkLists {
     let m = positions.len();
-    let value_words = (2 * m).div_ceil(4);
-    let len = HEADER_WORDS + nonempty.len() + value_words;
+    let head = ChunkLists::header_words(level);
+    // Row k is byte k of the bitmap; only nonzero rows are stored.
+    let row_byte = |k: usize| (nonempty[k >> 3] >> ((k & 7) * 8)) as u8;
+    let rows = ChunkLists::row_count(level);
+    let stored = (0..rows).filter(|&k| row_byte(k) != 0).count();
+    let len = head + (4 * m + stored).div_ceil(8);
     let mut data = vec![0u64; len].into_boxed_slice();
-    data[0] = level.get() as u64 | (corner as u64) << 8 | (len as u64) << LEN_SHIFT | (m as u64) << 32;
-    data[1] = family_start[0] as u64 | (family_start[1] as u64) << 32;
-    data[HEADER_WORDS..HEADER_WORDS + nonempty.len()].copy_from_slice(nonempty);
-    let values: &mut [u16] = bytemuck::cast_slice_mut(&mut data[HEADER_WORDS + nonempty.len()..]);
+    write_bits(&mut data, field::LEVEL.0, field::LEVEL.1, level.get() as u64);
+    write_bits(&mut data, field::CORNER.0, field::CORNER.1, corner as u64);
+    write_bits(&mut data, field::LEN.0, field::LEN.1, len as u64);
+    write_bits(&mut data, field::CROSSINGS.0, field::CROSSINGS.1, m as u64);
+    write_bits(&mut data, field::Y_START.0, field::Y_START.1, family_start[0] as u64);
+    write_bits(&mut data, field::Z_START.0, field::Z_START.1, family_start[1] as u64);
+    let (header, body) = data.split_at_mut(head);
+    let bytes: &mut [u8] = bytemuck::cast_slice_mut(body);
+    let mut next = 4 * m;
+    for k in (0..rows).filter(|&k| row_byte(k) != 0) {
+        write_bits(header, field::ROWS + k, 1, 1);
+        bytes[next] = row_byte(k);
+        next += 1;
+    }
+    let values: &mut [u16] = bytemuck::cast_slice_mut(body);
     values[..m].copy_from_slice(positions);
     values[m..2 * m].copy_from_slice(normals);
     ChunkLists { words: thin::Words::new(data) }
@@ -499,11 +599,10 @@ fn assemble(
 #[derive(Clone, Debug)]
 pub(crate) struct RawCursor<'a> {
     lists: &'a ChunkLists,
-    nonempty: &'a [u64],
+    /// The family's nonempty bits.
+    nonempty: FamilyBits,
     raw: &'a [u16],
     normals: &'a [u16],
-    /// Bit of the family's line 0 in the nonempty bits.
-    base: usize,
     /// The next line to read.
     index: usize,
     /// Its first crossing.
@@ -515,7 +614,7 @@ impl<'a> RawCursor<'a> {
     #[inline]
     pub(crate) fn advance_to(&mut self, index: usize) {
         debug_assert!(index >= self.index);
-        let lines = count_ones(self.nonempty, self.base + self.index, self.base + index);
+        let lines = count_ones(self.nonempty.words(), self.index, index);
         self.cross = skip_marks(self.raw, self.cross, lines);
         self.index = index;
     }
@@ -524,8 +623,7 @@ impl<'a> RawCursor<'a> {
     #[inline]
     pub(crate) fn next_raw(&mut self) -> &'a [u16] {
         let start = self.cross;
-        let i = self.base + self.index;
-        if (self.nonempty[i >> 6] >> (i & 63)) & 1 == 1 {
+        if self.nonempty.get(self.index) {
             let mut j = start;
             while self.raw[j] & LAST == 0 {
                 j += 1;
@@ -900,9 +998,9 @@ impl ChunkBuilder {
         let src = cursor.lists;
         debug_assert_eq!(src.level(), self.level);
         self.corner.get_or_insert(src.corner());
-        let (first, cross) = (cursor.base + cursor.index, cursor.cross);
+        let (first, cross) = (cursor.index, cursor.cross);
         cursor.advance_to(cursor.index + count);
-        self.nonempty.extend_from(src.nonempty(), first, count);
+        self.nonempty.extend_from(cursor.nonempty.words(), first, count);
         self.write(&src.raw_positions()[cross..cursor.cross], &src.normals()[cross..cursor.cross]);
     }
 
@@ -1003,9 +1101,14 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
     if m == 0 {
         return Err("a chunk without crossings must be stored as uniform".into());
     }
-    let values = lists.values();
-    if values.len() < 2 * m || values[2 * m..].iter().any(|&v| v != 0) {
+    if lists.values().len() < 2 * m {
         return Err("crossing storage has the wrong size".into());
+    }
+    // The stored rows: one nonzero byte per row bit, then zero padding to the word.
+    let stored = count_ones(lists.words.get(), field::ROWS, field::ROWS + ChunkLists::row_count(level));
+    let bytes = lists.row_bytes();
+    if bytes.len() < stored || bytes[..stored].contains(&0) || bytes[stored..].iter().any(|&b| b != 0) {
+        return Err("nonempty rows stored wrongly".into());
     }
     let raw = lists.raw_positions();
     let mut cross = 0usize;
@@ -1013,8 +1116,9 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
         if lists.family_start(axis) != cross {
             return Err(format!("axis {axis:?} start offset is wrong"));
         }
+        let nonempty = lists.family_nonempty(axis);
         for index in 0..per_axis {
-            if !bit(lists.nonempty(), axis.index() * per_axis + index) {
+            if !nonempty.get(index) {
                 continue;
             }
             let mut last_edge: Option<usize> = None;
@@ -1156,7 +1260,7 @@ mod tests {
         let words = [0x0123_4567_89ab_cdefu64, u64::MAX, 0, 0xf0f0_0000_ffff_0001];
         for from in 0..256 {
             for to in from..=256 {
-                let expect = (from..to).filter(|&i| bit(&words, i)).count();
+                let expect = (from..to).filter(|&i| (words[i >> 6] >> (i & 63)) & 1 == 1).count();
                 assert_eq!(count_ones(&words, from, to), expect, "{from}..{to}");
             }
         }
