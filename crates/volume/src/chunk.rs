@@ -583,11 +583,9 @@ fn assemble(
     write_bits(&mut data, field::Z_START.0, field::Z_START.1, family_start[1] as u64);
     let (header, body) = data.split_at_mut(head);
     let bytes: &mut [u8] = bytemuck::cast_slice_mut(body);
-    let mut next = 4 * m;
-    for k in (0..rows).filter(|&k| row_byte(k) != 0) {
+    for (slot, k) in (4 * m..).zip((0..rows).filter(|&k| row_byte(k) != 0)) {
         write_bits(header, field::ROWS + k, 1, 1);
-        bytes[next] = row_byte(k);
-        next += 1;
+        bytes[slot] = row_byte(k);
     }
     let values: &mut [u16] = bytemuck::cast_slice_mut(body);
     values[..m].copy_from_slice(positions);
