@@ -37,13 +37,16 @@ use crate::normal::PackedNormal;
 mod field {
     pub(super) const LEVEL: (usize, u32) = (0, 2);
     pub(super) const CORNER: (usize, u32) = (2, 1);
-    /// The allocation's length in words (also read by `thin`).
-    pub(super) const LEN: (usize, u32) = (3, 23);
-    pub(super) const CROSSINGS: (usize, u32) = (26, 20);
-    pub(super) const Y_START: (usize, u32) = (46, 20);
-    pub(super) const Z_START: (usize, u32) = (66, 20);
+    /// The allocation's length in words (also read by `thin`; at most 393,434 at level 2).
+    pub(super) const LEN: (usize, u32) = (3, 19);
+    /// Crossings (at most `3 n³` = 786,432 at level 2).
+    pub(super) const CROSSINGS: (usize, u32) = (22, 20);
+    pub(super) const Y_START: (usize, u32) = (42, 20);
+    pub(super) const Z_START: (usize, u32) = (62, 20);
+    /// Rows stored (row bits set; at most 1,536 at level 2).
+    pub(super) const STORED_ROWS: (usize, u32) = (82, 11);
     /// First row bit.
-    pub(super) const ROWS: usize = 86;
+    pub(super) const ROWS: usize = 93;
 }
 /// Bit 0 of a stored position: set on the last crossing of a line.
 pub(crate) const LAST: u16 = 1;
@@ -72,6 +75,14 @@ fn read_bits(words: &[u64], start: usize, width: u32) -> u64 {
         v |= words[w + 1] << (64 - o);
     }
     if width == 64 { v } else { v & ((1u64 << width) - 1) }
+}
+
+/// Nonzero bytes of a word.
+#[inline]
+fn nonzero_bytes(w: u64) -> usize {
+    const LOW7: u64 = 0x7f7f_7f7f_7f7f_7f7f;
+    // Bit 7 of each byte: set where any bit of the byte is.
+    ((((w & LOW7) + LOW7) | w) & !LOW7).count_ones() as usize
 }
 
 /// Writes `value` (which fits) into bits `start..start + width` that are still zero.
@@ -393,41 +404,64 @@ impl ChunkLists {
         (field::ROWS + Self::row_count(level)).div_ceil(64)
     }
 
-    /// Positions (with end marks), then normals, then the stored rows' nonempty bytes and zero
-    /// padding.
+    /// Rows with a row bit set (each stores one byte).
     #[inline]
-    fn values(&self) -> &[u16] {
-        bytemuck::cast_slice(&self.words.get()[Self::header_words(self.level())..])
+    fn stored_rows(&self) -> usize {
+        self.field(field::STORED_ROWS) as usize
     }
 
-    /// The stored rows' nonempty bytes (in row order), then zero padding.
+    /// Everything after the header: the stored rows' bytes, a zero byte if their number is odd,
+    /// positions, normals, zero padding.
+    #[inline]
+    fn body(&self) -> &[u64] {
+        &self.words.get()[Self::header_words(self.level())..]
+    }
+
+    /// Positions (with end marks), then normals, then up to three zero values of padding.
+    #[inline]
+    fn values(&self) -> &[u16] {
+        let values: &[u16] = bytemuck::cast_slice(self.body());
+        &values[self.stored_rows().div_ceil(2)..]
+    }
+
+    /// The stored rows' nonempty bytes (in row order) and the byte that pads them to an even
+    /// number.
     fn row_bytes(&self) -> &[u8] {
-        let bytes: &[u8] = bytemuck::cast_slice(&self.words.get()[Self::header_words(self.level())..]);
-        &bytes[4 * self.crossing_count()..]
+        let bytes: &[u8] = bytemuck::cast_slice(self.body());
+        &bytes[..self.stored_rows().next_multiple_of(2)]
     }
 
     /// The nonempty bits of the lines along `axis` (bit `index`), expanded from the stored rows.
     pub(crate) fn family_nonempty(&self, axis: Axis) -> FamilyBits {
         let n = self.level().cells();
-        let rows = n * n / 8;
+        self.family_nonempty_head(axis, n * n / 64)
+    }
+
+    /// [`ChunkLists::family_nonempty`] for the first `64 k` lines only (the other bits zero).
+    fn family_nonempty_head(&self, axis: Axis, k: usize) -> FamilyBits {
+        let n = self.level().cells();
         let words = self.words.get();
-        let first = field::ROWS + axis.index() * rows;
+        let first = field::ROWS + axis.index() * (n * n / 8);
         let bytes = self.row_bytes();
         // Stored rows before this family's first.
         let mut rank = count_ones(words, field::ROWS, first);
         let mut out = FamilyBits::zeroed(n * n / 64);
         let dst = out.words_mut();
-        let mut r = 0;
-        while r < rows {
-            let take = (rows - r).min(64);
-            let mut stored = read_bits(words, first + r, take as u32);
+        // Eight rows (one output word) at a time: all stored is a plain 8-byte copy.
+        for (g, word) in dst[..k].iter_mut().enumerate() {
+            let mut stored = read_bits(words, first + 8 * g, 8);
+            if stored == 0xff {
+                let b: [u8; 8] = bytes[rank..rank + 8].try_into().expect("eight bytes");
+                *word = u64::from_le_bytes(b);
+                rank += 8;
+                continue;
+            }
             while stored != 0 {
-                let k = r + stored.trailing_zeros() as usize;
+                let k = stored.trailing_zeros() as usize;
                 stored &= stored - 1;
-                dst[k >> 3] |= (bytes[rank] as u64) << ((k & 7) * 8);
+                *word |= (bytes[rank] as u64) << (8 * k);
                 rank += 1;
             }
-            r += take;
         }
         out
     }
@@ -464,11 +498,18 @@ impl ChunkLists {
         LineCursor { raw: self.raw_cursor(axis, index), axis, starts: None }
     }
 
-    /// A cursor that reads crossings only (no start states) from line 0 of `axis`.
+    /// A cursor that reads crossings only (no start states) from line `index` of `axis`.
     pub(crate) fn raw_cursor(&self, axis: Axis, index: usize) -> RawCursor<'_> {
+        let n = self.level().cells();
+        self.raw_cursor_head(axis, index, n * n)
+    }
+
+    /// A [`RawCursor`] that reads no further than line `lines` (rounded up to a multiple of 64):
+    /// only that many nonempty bits are expanded.
+    fn raw_cursor_head(&self, axis: Axis, index: usize, lines: usize) -> RawCursor<'_> {
         let mut c = RawCursor {
             lists: self,
-            nonempty: self.family_nonempty(axis),
+            nonempty: self.family_nonempty_head(axis, lines.div_ceil(64)),
             raw: self.raw_positions(),
             normals: self.normals(),
             index: 0,
@@ -507,8 +548,9 @@ impl ChunkLists {
             Axis::Y => (Axis::X, Axis::Z),
             Axis::Z => (Axis::Y, Axis::X),
         };
-        let edge = states(self.corner(), self.raw_cursor(first, 0).next_raw());
-        let mut c = self.raw_cursor(row, 0);
+        // Line 0 of one family and lines 0..n of another: 64 nonempty bits of each suffice.
+        let edge = states(self.corner(), self.raw_cursor_head(first, 0, 1).next_raw());
+        let mut c = self.raw_cursor_head(row, 0, n);
         let mut starts = FamilyBits::zeroed(n * n / 64);
         let out = starts.words_mut();
         let mask = full >> 1;
@@ -569,11 +611,10 @@ fn assemble(
 ) -> ChunkLists {
     let m = positions.len();
     let head = ChunkLists::header_words(level);
-    // Row k is byte k of the bitmap; only nonzero rows are stored.
-    let row_byte = |k: usize| (nonempty[k >> 3] >> ((k & 7) * 8)) as u8;
-    let rows = ChunkLists::row_count(level);
-    let stored = (0..rows).filter(|&k| row_byte(k) != 0).count();
-    let len = head + (4 * m + stored).div_ceil(8);
+    // Row k is byte k of the bitmap; only nonzero rows are stored, right after the header (on
+    // its cache line), padded to an even number of bytes so the values that follow are aligned.
+    let stored: usize = nonempty.iter().map(|&w| nonzero_bytes(w)).sum();
+    let len = head + (stored.next_multiple_of(2) + 4 * m).div_ceil(8);
     let mut data = vec![0u64; len].into_boxed_slice();
     write_bits(&mut data, field::LEVEL.0, field::LEVEL.1, level.get() as u64);
     write_bits(&mut data, field::CORNER.0, field::CORNER.1, corner as u64);
@@ -581,13 +622,19 @@ fn assemble(
     write_bits(&mut data, field::CROSSINGS.0, field::CROSSINGS.1, m as u64);
     write_bits(&mut data, field::Y_START.0, field::Y_START.1, family_start[0] as u64);
     write_bits(&mut data, field::Z_START.0, field::Z_START.1, family_start[1] as u64);
+    write_bits(&mut data, field::STORED_ROWS.0, field::STORED_ROWS.1, stored as u64);
     let (header, body) = data.split_at_mut(head);
     let bytes: &mut [u8] = bytemuck::cast_slice_mut(body);
-    for (slot, k) in (4 * m..).zip((0..rows).filter(|&k| row_byte(k) != 0)) {
-        write_bits(header, field::ROWS + k, 1, 1);
-        bytes[slot] = row_byte(k);
+    let mut slot = 0;
+    for (i, &w) in nonempty.iter().enumerate().filter(|(_, w)| **w != 0) {
+        for (b, byte) in w.to_le_bytes().into_iter().enumerate().filter(|(_, b)| *b != 0) {
+            write_bits(header, field::ROWS + 8 * i + b, 1, 1);
+            bytes[slot] = byte;
+            slot += 1;
+        }
     }
     let values: &mut [u16] = bytemuck::cast_slice_mut(body);
+    let values = &mut values[stored.div_ceil(2)..];
     values[..m].copy_from_slice(positions);
     values[m..2 * m].copy_from_slice(normals);
     ChunkLists { words: thin::Words::new(data) }
@@ -642,13 +689,14 @@ impl<'a> RawCursor<'a> {
 }
 
 /// The index just after the `k`-th end mark at or after `from` (`from` itself for `k = 0`).
-/// Reads four positions per step where the slice is word-aligned (it is when it starts a
-/// chunk's value storage, as every cursor's does).
+/// Reads four positions per step from the first 8-byte-aligned one on.
 #[inline]
 fn skip_marks(raw: &[u16], from: usize, mut k: usize) -> usize {
     let mut i = from;
-    // Scalar up to a multiple of four, and for short skips.
-    while k > 0 && (i & 3 != 0 || k < 3) {
+    // Positions before index `i` with `(phase + i) % 4 == 0` start an aligned word.
+    let phase = (raw.as_ptr() as usize / 2) & 3;
+    // Scalar up to an aligned word, and for short skips.
+    while k > 0 && ((phase + i) & 3 != 0 || k < 3) {
         k -= (raw[i] & LAST) as usize;
         i += 1;
     }
@@ -999,7 +1047,7 @@ impl ChunkBuilder {
         let (first, cross) = (cursor.index, cursor.cross);
         cursor.advance_to(cursor.index + count);
         self.nonempty.extend_from(cursor.nonempty.words(), first, count);
-        self.write(&src.raw_positions()[cross..cursor.cross], &src.normals()[cross..cursor.cross]);
+        self.write(&cursor.raw[cross..cursor.cross], &cursor.normals[cross..cursor.cross]);
     }
 
     /// Appends `count` lines read from `cursor` and moves it past them (a uniform view gives
@@ -1099,14 +1147,18 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
     if m == 0 {
         return Err("a chunk without crossings must be stored as uniform".into());
     }
-    if lists.values().len() < 2 * m {
-        return Err("crossing storage has the wrong size".into());
+    // The stored rows: one nonzero byte per row bit, then a zero byte to an even number.
+    let stored = lists.stored_rows();
+    if count_ones(lists.words.get(), field::ROWS, field::ROWS + ChunkLists::row_count(level)) != stored {
+        return Err("stored row count is wrong".into());
     }
-    // The stored rows: one nonzero byte per row bit, then zero padding to the word.
-    let stored = count_ones(lists.words.get(), field::ROWS, field::ROWS + ChunkLists::row_count(level));
     let bytes = lists.row_bytes();
-    if bytes.len() < stored || bytes[..stored].contains(&0) || bytes[stored..].iter().any(|&b| b != 0) {
+    if bytes[..stored].contains(&0) || bytes[stored..].iter().any(|&b| b != 0) {
         return Err("nonempty rows stored wrongly".into());
+    }
+    let values = lists.values();
+    if values.len() < 2 * m || values[2 * m..].iter().any(|&v| v != 0) {
+        return Err("crossing storage has the wrong size".into());
     }
     let raw = lists.raw_positions();
     let mut cross = 0usize;
@@ -1261,6 +1313,28 @@ mod tests {
                 let expect = (from..to).filter(|&i| (words[i >> 6] >> (i & 63)) & 1 == 1).count();
                 assert_eq!(count_ones(&words, from, to), expect, "{from}..{to}");
             }
+        }
+    }
+
+    #[test]
+    fn bit_fields_and_nonzero_bytes_agree_with_plain_loops() {
+        let mut seed = 5u64;
+        let mut next = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed
+        };
+        for _ in 0..2000 {
+            // Words with many zero and 0x80 bytes.
+            let w = next() & next() & 0x80ff_00ff_8000_ff80 | (next() & 0x0080_0080_0000_0001);
+            let plain = w.to_le_bytes().iter().filter(|&&b| b != 0).count();
+            assert_eq!(nonzero_bytes(w), plain, "{w:#x}");
+            let (start, width) = ((next() % 120) as usize, (next() % 64 + 1) as u32);
+            let value = next() & if width == 64 { u64::MAX } else { (1 << width) - 1 };
+            let mut words = [0u64; 3];
+            write_bits(&mut words, start, width, value);
+            assert_eq!(read_bits(&words, start, width), value, "{start} {width}");
+            let set: usize = words.iter().map(|w| w.count_ones() as usize).sum();
+            assert_eq!(set, value.count_ones() as usize, "nothing outside the field is written");
         }
     }
 }
