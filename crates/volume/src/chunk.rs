@@ -2,18 +2,19 @@
 //!
 //! A [`ChunkLists`] at level `k` (`n = 16 << k` cells per side) is one allocation of 64-bit
 //! words:
-//! - a header of bit fields (see [`field`]): the level, the state of the chunk's corner node
-//!   `(0, 0, 0)`, the allocation's length, the crossing count `m`, the index of the first
-//!   crossing of the y and z line families, and one *row bit* per run of eight lines;
+//! - a header of bit fields (see [`field`]; three words at level 0): the level, the state of
+//!   the chunk's corner node `(0, 0, 0)`, the allocation's length, the crossing count `m`, the
+//!   index of the first crossing of the y and z line families, the number of stored rows, and
+//!   one *row bit* per run of eight lines;
+//! - the *nonempty bits*, one per line, eight lines (a row) to a byte, with only the rows that
+//!   hold a nonempty line stored (their row bits are set), padded to an even number of bytes.
+//!   Lines along `axis` are indexed by `(u, v)` over [`Axis::across`], `index = u + n v`, and
+//!   the three families follow each other (x, y, z), `3 n²` lines in all. Readers expand one
+//!   family's bits at a time ([`ChunkLists::family_nonempty`]);
 //! - the crossings in line order as 16-bit values, first all `m` positions, then all `m`
 //!   octahedral normals in the same order. A position is a chunk-local fixed-point
 //!   [`LocalPos`], always even; its bit 0 ([`LAST`]) marks the last crossing of its line, which
-//!   is how a reader finds where one nonempty line ends and the next begins;
-//! - the *nonempty bits*, one per line, eight lines (a row) to a byte, with only the rows that
-//!   hold a nonempty line stored: their row bits are set in the header. Lines along `axis` are
-//!   indexed by `(u, v)` over [`Axis::across`], `index = u + n v`, and the three families follow
-//!   each other (x, y, z), `3 n²` lines in all. Readers expand one family's bits at a time
-//!   ([`ChunkLists::family_nonempty`]).
+//!   is how a reader finds where one nonempty line ends and the next begins.
 //!
 //! An empty line therefore costs at most one bit (nothing where its whole row is empty), and a
 //! crossing 32 bits plus nothing else. No line
@@ -125,7 +126,7 @@ mod thin {
         #[inline]
         pub(super) fn get(&self) -> &[u64] {
             // SAFETY: `ptr` is the start of a live `Box<[u64]>` allocation (made in `new`, freed
-            // only in `drop`) of at least HEADER_WORDS words, whose word 0 records its exact
+            // only in `drop`) of at least one word (checked in `new`), whose word 0 records its exact
             // length; nothing writes to the words after `new` (no method hands out `&mut`).
             // Reading word 0 is therefore in bounds, the slice covers exactly the allocation,
             // and the shared borrow of `self` keeps it alive with no writer.

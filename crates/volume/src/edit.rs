@@ -297,13 +297,10 @@ impl SpanTable {
             if parallel {
                 let rows: Option<Vec<RowOut>> = (v0..v0 + nv)
                     .into_par_iter()
-                    .map_init(
-                        Vec::new,
-                        |lines, v| {
-                            let mut o = RowOut::default();
-                            row(v, &mut o, lines).then_some(o)
-                        },
-                    )
+                    .map_init(Vec::new, |lines, v| {
+                        let mut o = RowOut::default();
+                        row(v, &mut o, lines).then_some(o)
+                    })
                     .collect();
                 for o in rows? {
                     out.counts.extend(o.counts);
@@ -732,7 +729,12 @@ fn edit_chunk_by_table(
                     let piece = Piece { fill, lo, hi, span: &line_spans[0], shift: shift_along };
                     changed |= splice_piece(b, line, piece, level);
                 } else {
-                    sampler.fill_from_spans(line_spans, shift_along, LineAt { origin_grid: origin, level, axis, u, v }, &mut brush_line);
+                    sampler.fill_from_spans(
+                        line_spans,
+                        shift_along,
+                        LineAt { origin_grid: origin, level, axis, u, v },
+                        &mut brush_line,
+                    );
                     if brush_line.states == 0 {
                         continue;
                     }

@@ -13,7 +13,8 @@ pub struct MemoryReport {
     pub positions: usize,
     /// Crossing normals (2 bytes each).
     pub normals: usize,
-    /// Chunk headers (16 bytes a chunk), nonempty-line bits and padding to whole words.
+    /// Chunk headers (24 bytes a chunk at level 0), stored rows of nonempty-line bits and padding
+    /// to whole words.
     pub headers: usize,
     /// The chunk map's tables.
     pub chunk_map: usize,
