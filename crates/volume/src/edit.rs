@@ -221,6 +221,11 @@ struct RowOut {
     simple: Vec<(i32, i32)>,
 }
 
+/// Tables of fewer lines are built on the calling thread, larger ones an axis per task.
+const PARALLEL_TABLE_LINES: i64 = 1 << 14;
+/// An axis of at least this many lines is built in runs of rows about this long, in parallel.
+const PARALLEL_ROW_LINES: usize = 1 << 15;
+
 /// Lines beyond which the table is not built (each costs a few bytes even when empty); larger
 /// brushes are sampled chunk by chunk instead.
 const TABLE_MAX_LINES: i64 = 1 << 22;
@@ -247,8 +252,7 @@ impl SpanTable {
         if total > TABLE_MAX_LINES {
             return None;
         }
-        let mut axes: [AxisSpans; 3] = Default::default();
-        for axis in Axis::ALL {
+        let build_axis = |axis: Axis| -> Option<AxisSpans> {
             let (ua, va) = axis.across();
             let ((u0, nu), (v0, nv)) = (range(ua.index()), range(va.index()));
             let n = level.cells() as i64;
@@ -286,23 +290,29 @@ impl SpanTable {
                 }
                 true
             };
-            let a = &mut axes[axis.index()];
-            *a = AxisSpans { u0, v0, nu: nu as usize, nv: nv as usize, ..Default::default() };
+            let mut a = AxisSpans { u0, v0, nu: nu as usize, nv: nv as usize, ..Default::default() };
             let lines_total = (nu * nv) as usize;
             let mut out = RowOut {
                 counts: Vec::with_capacity(lines_total),
                 spans: Vec::with_capacity(lines_total),
                 simple: Vec::with_capacity(lines_total),
             };
-            if parallel {
-                let rows: Option<Vec<RowOut>> = (v0..v0 + nv)
+            if parallel && lines_total >= PARALLEL_ROW_LINES {
+                // Rows in parallel, in runs of about PARALLEL_ROW_LINES lines per task.
+                let per_task = (PARALLEL_ROW_LINES / nu.max(1) as usize).max(1);
+                let runs: Option<Vec<RowOut>> = (0..nv as usize)
                     .into_par_iter()
-                    .map_init(Vec::new, |lines, v| {
-                        let mut o = RowOut::default();
-                        row(v, &mut o, lines).then_some(o)
-                    })
+                    .with_min_len(per_task)
+                    .fold(
+                        || Some((RowOut::default(), Vec::new())),
+                        |acc, i| {
+                            let (mut o, mut lines) = acc?;
+                            row(v0 + i as i64, &mut o, &mut lines).then_some((o, lines))
+                        },
+                    )
+                    .map(|acc| acc.map(|(o, _)| o))
                     .collect();
-                for o in rows? {
+                for o in runs? {
                     out.counts.extend(o.counts);
                     out.spans.extend(o.spans);
                     out.simple.extend(o.simple);
@@ -333,7 +343,15 @@ impl SpanTable {
                     a.offsets.push(total);
                 }
             }
-        }
+            Some(a)
+        };
+        // Small tables are built on the calling thread: a task hand-off costs more than they do.
+        let axes: Vec<AxisSpans> = if parallel && total >= PARALLEL_TABLE_LINES {
+            Axis::ALL.par_iter().map(|&axis| build_axis(axis)).collect::<Option<_>>()?
+        } else {
+            Axis::ALL.iter().map(|&axis| build_axis(axis)).collect::<Option<_>>()?
+        };
+        let axes: [AxisSpans; 3] = axes.try_into().ok()?;
         Some(SpanTable { base, axes })
     }
 }
@@ -385,7 +403,7 @@ impl Volume {
             edit_chunk(&ctx, key, view, level, scratch).map(|(b, r)| (key, b, r))
         };
         let mut results: Vec<(ChunkKey, Built, u64)> = if settings.parallel && keys.len() > 1 {
-            keys.par_iter().map_init(Scratch::default, |s, &k| run(s, k)).flatten().collect()
+            keys.par_iter().with_min_len(4).map_init(Scratch::default, |s, &k| run(s, k)).flatten().collect()
         } else {
             let mut s = Scratch::default();
             keys.iter().filter_map(|&k| run(&mut s, k)).collect()
