@@ -138,3 +138,25 @@ fn a_brush_that_answers_only_some_lines_is_sampled_and_still_exact() {
         }
     }
 }
+
+#[test]
+fn large_brushes_give_the_same_volume_on_one_thread_and_in_parallel() {
+    // Big enough that the span table is built an axis per task and in runs of rows (over 32,768
+    // lines an axis), with a mixed-answer brush among them whose table is abandoned midway.
+    let big = Sphere::new(DVec3::new(3.7, -11.2, 5.9), 120.0).unwrap();
+    let hole = Cuboid::new(DVec3::new(-20.5, 10.25, 3.0), DVec3::new(90.0, 30.0, 70.0)).unwrap();
+    let mixed =
+        Tweaked { inner: Sphere::new(DVec3::new(60.2, 0.4, -8.8), 100.0).unwrap(), agree: true, spans_below_y: 0.0 };
+    let mut volumes = Vec::new();
+    for parallel in [false, true] {
+        let settings = EditSettings { parallel, ..Default::default() };
+        let mut v = Volume::new();
+        v.apply(CsgOp::Add, &big, &settings).unwrap();
+        v.apply(CsgOp::Subtract, &hole, &settings).unwrap();
+        v.apply(CsgOp::Add, &mixed, &settings).unwrap();
+        volumes.push(v);
+    }
+    assert!(volumes[0] == volumes[1], "parallel and single-threaded edits differ");
+    volumes[1].check_invariants().unwrap();
+    assert!(volumes[1].crossing_stats().total > 100_000);
+}
