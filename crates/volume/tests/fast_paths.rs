@@ -50,11 +50,18 @@ impl Rng {
 
 #[test]
 fn fast_and_general_edits_build_identical_volumes() {
+    for level in [0, 1] {
+        let level = strata_volume::Level::new(level).unwrap();
+        fast_and_general_edits_agree_at(level, if level == strata_volume::Level::BASE { 150 } else { 40 });
+    }
+}
+
+fn fast_and_general_edits_agree_at(level: strata_volume::Level, edits: usize) {
     let mut rng = Rng(99);
-    let (mut fast, mut general) = (Volume::new(), Volume::new());
+    let (mut fast, mut general) = (Volume::with_level(level), Volume::with_level(level));
     for parallel in [false, true] {
         let settings = EditSettings { parallel, ..Default::default() };
-        for i in 0..150 {
+        for i in 0..edits {
             let c = DVec3::new(rng.unit(), rng.unit(), rng.unit()) * 48.0;
             // Some radii and centres on exact node values, so span ends fall on nodes and take
             // the snapping path too.

@@ -288,6 +288,8 @@ fn finer_levels_store_finer_lines() {
         let block = v.extract_block(ChunkKey::new(0, 0, 0));
         assert_eq!(block.cells(), 16 << k);
         assert_eq!(block.repaired(), 0);
+        let back: Volume = postcard::from_bytes(&postcard::to_allocvec(&v).unwrap()).unwrap();
+        assert_eq!(back, v, "level {k}: serde round trip");
     }
 }
 
