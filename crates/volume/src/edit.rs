@@ -29,7 +29,8 @@ pub enum CsgOp {
 /// Options for [`Volume::apply`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EditSettings {
-    /// Edit chunks in parallel with rayon.
+    /// Edit chunks in parallel with rayon (edits of fewer than 32 chunks, where the hand-off
+    /// costs more than it saves, still run on the calling thread).
     pub parallel: bool,
     /// Refuse edits whose box spans more chunks than this (a brush a billion cells wide would
     /// otherwise run out of memory).
@@ -221,6 +222,11 @@ struct RowOut {
     simple: Vec<(i32, i32)>,
 }
 
+/// Edits of fewer chunks run on the calling thread even when parallel edits are asked for: on
+/// the Table 1 canvas the thread hand-off costs more than it saves below about this many
+/// (radius-15 spheres, about 25 chunks, break even on two cores).
+const PARALLEL_MIN_CHUNKS: usize = 32;
+
 /// Tables of fewer lines are built on the calling thread, larger ones an axis per task.
 const PARALLEL_TABLE_LINES: i64 = 1 << 14;
 /// An axis of at least this many lines is built in runs of rows about this long, in parallel.
@@ -402,7 +408,7 @@ impl Volume {
             let level = self.level_of(key);
             edit_chunk(&ctx, key, view, level, scratch).map(|(b, r)| (key, b, r))
         };
-        let mut results: Vec<(ChunkKey, Built, u64)> = if settings.parallel && keys.len() > 1 {
+        let mut results: Vec<(ChunkKey, Built, u64)> = if settings.parallel && keys.len() >= PARALLEL_MIN_CHUNKS {
             keys.par_iter().with_min_len(4).map_init(Scratch::default, |s, &k| run(s, k)).flatten().collect()
         } else {
             let mut s = Scratch::default();
