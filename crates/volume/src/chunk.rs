@@ -438,8 +438,9 @@ impl ChunkLists {
         self.family_nonempty_head(axis, n * n / 64)
     }
 
-    /// [`ChunkLists::family_nonempty`] for the first `64 k` lines only (the other bits zero).
-    fn family_nonempty_head(&self, axis: Axis, k: usize) -> FamilyBits {
+    /// [`ChunkLists::family_nonempty`] for the first `64 · words_wanted` lines only (the other
+    /// bits zero).
+    fn family_nonempty_head(&self, axis: Axis, words_wanted: usize) -> FamilyBits {
         let n = self.level().cells();
         let words = self.words.get();
         let first = field::ROWS + axis.index() * (n * n / 8);
@@ -449,7 +450,7 @@ impl ChunkLists {
         let mut out = FamilyBits::zeroed(n * n / 64);
         let dst = out.words_mut();
         // Eight rows (one output word) at a time: all stored is a plain 8-byte copy.
-        for (g, word) in dst[..k].iter_mut().enumerate() {
+        for (g, word) in dst[..words_wanted].iter_mut().enumerate() {
             let mut stored = read_bits(words, first + 8 * g, 8);
             if stored == 0xff {
                 let b: [u8; 8] = bytes[rank..rank + 8].try_into().expect("eight bytes");
@@ -458,9 +459,9 @@ impl ChunkLists {
                 continue;
             }
             while stored != 0 {
-                let k = stored.trailing_zeros() as usize;
+                let row = stored.trailing_zeros() as usize;
                 stored &= stored - 1;
-                *word |= (bytes[rank] as u64) << (8 * k);
+                *word |= (bytes[rank] as u64) << (8 * row);
                 rank += 1;
             }
         }

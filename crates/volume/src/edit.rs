@@ -181,20 +181,15 @@ impl AxisSpans {
         (&self.offsets[i..i + len + 1], &self.simple[i..i + len])
     }
 
+    /// The spans of line `(u, v)` (absolute, relative to the table base).
     #[inline]
     fn line(&self, u: i64, v: i64) -> &[Span] {
-        self.line_simple(u, v).0
-    }
-
-    /// The spans of line `(u, v)` and its [`AxisSpans::simple`] node range.
-    #[inline]
-    fn line_simple(&self, u: i64, v: i64) -> (&[Span], (i32, i32)) {
         let (u, v) = (u - self.u0, v - self.v0);
         if u < 0 || v < 0 || u as usize >= self.nu || v as usize >= self.nv {
-            return (&[], (NOT_SIMPLE, 0));
+            return &[];
         }
         let i = u as usize + self.nu * v as usize;
-        (&self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize], self.simple[i])
+        &self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
 }
 
