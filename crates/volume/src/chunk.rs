@@ -311,9 +311,6 @@ pub(crate) enum FamilyBits {
     Boxed(Box<[u64]>),
 }
 
-/// The start states of one line family.
-pub(crate) type Starts = FamilyBits;
-
 impl FamilyBits {
     fn zeroed(words: usize) -> Self {
         if words <= 4 { FamilyBits::Inline([0; 4]) } else { FamilyBits::Boxed(vec![0; words].into_boxed_slice()) }
@@ -532,7 +529,7 @@ impl ChunkLists {
     ///   starts at `(0, k, 0)` on y line 0.
     ///
     /// In each case node `j` of row line `k` is the start of line `j + n k` of the family.
-    pub(crate) fn family_starts(&self, axis: Axis) -> Starts {
+    pub(crate) fn family_starts(&self, axis: Axis) -> FamilyBits {
         let level = self.level();
         let n = level.cells();
         let full = node_mask(n);
@@ -753,7 +750,7 @@ fn count_ones(words: &[u64], from: usize, to: usize) -> usize {
 pub(crate) struct LineCursor<'a> {
     raw: RawCursor<'a>,
     axis: Axis,
-    starts: Option<Starts>,
+    starts: Option<FamilyBits>,
 }
 
 impl<'a> LineCursor<'a> {
@@ -1012,19 +1009,6 @@ impl ChunkBuilder {
     #[inline]
     fn mark_last(&mut self) {
         self.positions[self.m - 1] |= LAST;
-    }
-
-    /// Appends a line given by its start state and crossings (positions even).
-    pub(crate) fn push_line(&mut self, start_inside: bool, crossings: &[(LocalPos, PackedNormal)]) {
-        self.corner.get_or_insert(start_inside);
-        self.nonempty.push(!crossings.is_empty());
-        self.room(crossings.len());
-        for &(q, n) in crossings {
-            self.write_one(q, n);
-        }
-        if !crossings.is_empty() {
-            self.mark_last();
-        }
     }
 
     /// Appends `count` uniform lines without crossings.

@@ -9,9 +9,9 @@ use thiserror::Error;
 use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
-use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, RawCursor, WorkLine, node_mask};
-use crate::coords::{CHUNK_CELLS, ChunkKey, Level, LocalPos, edge_of, quantize_into_edge};
-use crate::normal::{PackedNormal, flip_normal, pack_normal, unpack_normal};
+use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, WorkLine, node_mask};
+use crate::coords::{CHUNK_CELLS, ChunkKey, Level, edge_of, quantize_into_edge};
+use crate::normal::{flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, pack_oriented};
 use crate::volume::Volume;
 
@@ -109,21 +109,10 @@ impl UndoRecord {
     }
 }
 
-/// A line an edit changed, in storage order; its crossings are in `Scratch::crossings`.
-struct ChangedLine {
-    axis: u8,
-    index: u32,
-    start_inside: bool,
-    first: u32,
-    count: u32,
-}
-
 /// Per-thread scratch space for chunk edits.
 #[derive(Default)]
 struct Scratch {
     builder: ChunkBuilder,
-    changed: Vec<ChangedLine>,
-    crossings: Vec<(LocalPos, PackedNormal)>,
     x_states: Vec<u128>,
 }
 
@@ -537,8 +526,6 @@ fn edit_chunk(
             }
         }
     }
-    s.changed.clear();
-    s.crossings.clear();
     let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
     if let Some((t, offset)) = table_level
         && ctx.op != CsgOp::Intersect
@@ -554,17 +541,28 @@ fn edit_chunk(
     {
         return edit_chunk_by_table(ctx, t, offset, origin, old, level, s, &mut sampler).map(|b| (b, 0));
     }
+    // Lines are visited in storage order and written straight into the new chunk, the lines
+    // between them copied in runs (as in `edit_chunk_by_table`).
+    let b = &mut s.builder;
+    b.begin(level);
+    let mut changed = false;
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
     let full = node_mask(n);
     for axis in Axis::ALL {
+        b.begin_axis(axis);
+        let mut cursor = old.cursor(axis, 0);
+        // The next line not yet written.
+        let mut next = 0;
         let (ua, va) = axis.across();
         let ranges = (across_range(&ctx.bounds, origin, ua, level), across_range(&ctx.bounds, origin, va, level));
         let ((u0, u1), (v0, v1)) = match (ctx.op, ranges) {
             (CsgOp::Intersect, _) => ((0, n - 1), (0, n - 1)),
             (_, (Some(ur), Some(vr))) => (ur, vr),
-            _ => continue,
+            _ => {
+                b.copy_view(&mut cursor, n * n);
+                continue;
+            }
         };
-        let mut cursor = old.cursor(axis, 0);
         // Per-axis constants of the table lookups (glam vectors indexed by a runtime axis cost a
         // match each time).
         let table_axis = table_level.map(|(t, offset)| (&t.axes[axis.index()], offset[ua.index()], offset[va.index()]));
@@ -598,24 +596,23 @@ fn edit_chunk(
                     // An empty brush line leaves a union or difference unchanged.
                     continue;
                 }
-                cursor.advance_to(index);
+                b.copy_view(&mut cursor, index - next);
+                next = index + 1;
                 let line = cursor.next_line();
                 let uniform = line.is_empty();
                 if uniform && ctx.op != CsgOp::Intersect && line.start_inside == (ctx.op == CsgOp::Add) {
                     // Adding to a full line or subtracting from an empty one changes nothing.
+                    b.push_stored(line);
                     continue;
                 }
                 if brush_line.states == full && ctx.op != CsgOp::Intersect {
                     // The brush fills the line: the result is a full or an empty line.
                     let now = ctx.op == CsgOp::Add;
                     if line.start_inside != now || !uniform {
-                        s.changed.push(ChangedLine {
-                            axis: axis as u8,
-                            index: index as u32,
-                            start_inside: now,
-                            first: 0,
-                            count: 0,
-                        });
+                        b.push_uniform(now, 1);
+                        changed = true;
+                    } else {
+                        b.push_stored(line);
                     }
                     continue;
                 }
@@ -630,57 +627,18 @@ fn edit_chunk(
                     old_line.load(line, level);
                     combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
                     if new_line.same_as(&old_line, n) {
+                        b.push_stored(line);
                         continue;
                     }
                     &new_line
                 };
-                let first = s.crossings.len() as u32;
-                let mut c = result.changes(n);
-                while c != 0 {
-                    let e = c.trailing_zeros() as usize;
-                    c &= c - 1;
-                    s.crossings.push((result.pos[e], result.nrm[e]));
-                }
-                s.changed.push(ChangedLine {
-                    axis: axis as u8,
-                    index: index as u32,
-                    start_inside: result.states & 1 == 1,
-                    first,
-                    count: s.crossings.len() as u32 - first,
-                });
+                b.push_work(result, n);
+                changed = true;
             }
         }
+        b.copy_view(&mut cursor, n * n - next);
     }
-    if s.changed.is_empty() {
-        return None;
-    }
-    let b = &mut s.builder;
-    b.begin(level);
-    let mut next = s.changed.iter().peekable();
-    for axis in Axis::ALL {
-        b.begin_axis(axis);
-        let mut cursor = match old {
-            ChunkView::Lists(l) => Ok(l.raw_cursor(axis, 0)),
-            ChunkView::Uniform(state) => Err(state),
-        };
-        let mut index = 0;
-        let copy = |b: &mut ChunkBuilder, cursor: &mut Result<RawCursor<'_>, bool>, count: usize| match cursor {
-            Ok(c) => b.copy_from(c, count),
-            Err(state) => b.push_uniform(*state, count),
-        };
-        while let Some(line) = next.next_if(|c| c.axis == axis as u8) {
-            let i = line.index as usize;
-            copy(b, &mut cursor, i - index);
-            if let Ok(c) = &mut cursor {
-                c.advance_to(i + 1);
-            }
-            let crossings = &s.crossings[line.first as usize..(line.first + line.count) as usize];
-            b.push_line(line.start_inside, crossings);
-            index = i + 1;
-        }
-        copy(b, &mut cursor, n * n - index);
-    }
-    Some((b.finish(), repaired))
+    changed.then(|| (b.finish(), repaired))
 }
 
 /// A union or difference by a brush with a span table: the lines the brush reaches are visited
