@@ -1,4 +1,11 @@
-//! A brush from a closed triangle mesh, answered by ray casting along grid lines through a BVH.
+//! A brush from a closed triangle mesh, answered by ray casting along grid lines.
+//!
+//! Lines along a grid axis (all the lines an edit asks about) find their candidate triangles in
+//! a bucket grid over the plane across that axis, built on the first such line: each triangle
+//! is listed in the buckets its footprint's bounding box covers, so a line tests only the few
+//! triangles whose footprint box contains it. Other lines walk a BVH. Either way every triangle
+//! whose box holds the line is tested with the same exact test, and hits are ordered by
+//! parameter, then triangle, so both give the same spans.
 //!
 //! Ray–triangle tests use a watertight formulation (a shear into the ray's frame, then 2-D edge
 //! functions) with a top-left tie rule: a line through a shared edge or vertex of a closed mesh
@@ -12,6 +19,7 @@
 //! consistent solid close to what the mesh encloses, never a crash.
 
 use std::collections::HashMap;
+use std::sync::OnceLock;
 
 use glam::DVec3;
 use thiserror::Error;
@@ -28,6 +36,10 @@ pub enum MeshRule {
     /// triangles seen from outside).
     NonZero,
 }
+
+/// One triangle a line crosses: line parameter, triangle, facing (+1 entering), unnormalised
+/// normal.
+type Hit = (f64, u32, i32, DVec3);
 
 /// Why a mesh cannot be a brush.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -69,6 +81,109 @@ pub struct MeshBrush {
     rule: MeshRule,
     closed: bool,
     bounds: Aabb,
+    /// Per grid axis, the triangles bucketed across it (built on the first line along it;
+    /// `None` where a grid would be too large).
+    grids: [OnceLock<Option<AxisGrid>>; 3],
+}
+
+/// Triangles bucketed by the bounding boxes of their footprints on the plane across one grid
+/// axis (coordinates `kx = axis + 1`, `ky = axis + 2`, mod 3, as the ray frame uses them).
+#[derive(Clone, Debug)]
+struct AxisGrid {
+    /// The footprint of the whole mesh: its lower corner and upper corner.
+    min: [f64; 2],
+    max: [f64; 2],
+    /// Buckets per grid unit, and buckets along each side.
+    inv_cell: f64,
+    dims: [usize; 2],
+    /// Bucket `i + dims[0] j` lists `tris[starts[b]..starts[b + 1]]`.
+    starts: Vec<u32>,
+    tris: Vec<u32>,
+}
+
+/// Buckets along one side at most (the grid stays under 4 million buckets).
+const GRID_MAX_SIDE: usize = 2048;
+
+impl AxisGrid {
+    /// The grid across `axis`, or `None` where the triangles' boxes would make too many entries
+    /// (long slivers over a fine grid) even after coarsening it a few times: the BVH answers then.
+    fn new(tris: &[[DVec3; 3]], bounds: &Aabb, axis: usize) -> Option<Self> {
+        let (kx, ky) = ((axis + 1) % 3, (axis + 2) % 3);
+        let min = [bounds.min[kx], bounds.min[ky]];
+        let max = [bounds.max[kx], bounds.max[ky]];
+        let ext = [max[0] - min[0], max[1] - min[1]];
+        // About eight buckets per triangle over the footprint (a flat mesh: along its long side).
+        let count = tris.len() as f64;
+        let mut cell = (ext[0] * ext[1] / (8.0 * count)).sqrt();
+        if !(cell > 0.0) {
+            cell = ext[0].max(ext[1]) / (8.0 * count);
+        }
+        // At most 16 entries per triangle on average (and within the u32 offsets).
+        let budget = tris.len().saturating_mul(16).min(u32::MAX as usize / 2);
+        for _ in 0..8 {
+            let inv_cell = if cell > 0.0 && cell.is_finite() { 1.0 / cell } else { 1.0 };
+            let side = |e: f64| ((e * inv_cell).floor().min(GRID_MAX_SIDE as f64 - 1.0) as usize) + 1;
+            let dims = [side(ext[0]), side(ext[1])];
+            let mut grid = AxisGrid { min, max, inv_cell, dims, starts: Vec::new(), tris: Vec::new() };
+            let boxes: Vec<[[usize; 2]; 2]> = tris
+                .iter()
+                .map(|t| {
+                    let lo = [t[0][kx].min(t[1][kx]).min(t[2][kx]), t[0][ky].min(t[1][ky]).min(t[2][ky])];
+                    let hi = [t[0][kx].max(t[1][kx]).max(t[2][kx]), t[0][ky].max(t[1][ky]).max(t[2][ky])];
+                    [grid.bucket(lo), grid.bucket(hi)]
+                })
+                .collect();
+            let entries =
+                boxes.iter().fold(0usize, |n, [lo, hi]| n.saturating_add((hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)));
+            if entries > budget {
+                cell *= 2.0;
+                continue;
+            }
+            grid.starts = vec![0; dims[0] * dims[1] + 1];
+            for [lo, hi] in &boxes {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        grid.starts[i + dims[0] * j + 1] += 1;
+                    }
+                }
+            }
+            for b in 0..dims[0] * dims[1] {
+                grid.starts[b + 1] += grid.starts[b];
+            }
+            let mut fill = grid.starts.clone();
+            grid.tris = vec![0; entries];
+            for (t, [lo, hi]) in boxes.iter().enumerate() {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        let b = i + dims[0] * j;
+                        grid.tris[fill[b] as usize] = t as u32;
+                        fill[b] += 1;
+                    }
+                }
+            }
+            return Some(grid);
+        }
+        None
+    }
+
+    /// The bucket of a point of the footprint. Monotonic in each coordinate, so a point inside
+    /// a triangle's footprint box falls in one of the buckets that box covers.
+    #[inline]
+    fn bucket(&self, p: [f64; 2]) -> [usize; 2] {
+        let index = |i: usize| (((p[i] - self.min[i]) * self.inv_cell).max(0.0) as usize).min(self.dims[i] - 1);
+        [index(0), index(1)]
+    }
+
+    /// The triangles whose footprint boxes may contain the point (none outside the mesh's).
+    #[inline]
+    fn candidates(&self, p: [f64; 2]) -> &[u32] {
+        if !(p[0] >= self.min[0] && p[0] <= self.max[0] && p[1] >= self.min[1] && p[1] <= self.max[1]) {
+            return &[];
+        }
+        let [i, j] = self.bucket(p);
+        let b = i + self.dims[0] * j;
+        &self.tris[self.starts[b] as usize..self.starts[b + 1] as usize]
+    }
 }
 
 const LEAF_SIZE: usize = 4;
@@ -106,7 +221,7 @@ impl MeshBrush {
         let mut nodes = Vec::with_capacity(2 * tris.len() / LEAF_SIZE + 1);
         build(&tris, &mut order, 0, tris.len(), &mut nodes);
         let tris = order.iter().map(|&i| tris[i as usize]).collect();
-        Ok(MeshBrush { tris, nodes, rule, closed, bounds })
+        Ok(MeshBrush { tris, nodes, rule, closed, bounds, grids: Default::default() })
     }
 
     /// Whether every edge is shared by exactly two triangles (by vertex index).
@@ -114,10 +229,35 @@ impl MeshBrush {
         self.closed
     }
 
-    /// Calls `hit(t, facing)` for every triangle the line `o + t d` crosses (any `t`), where
-    /// `facing` is +1 when the triangle's winding faces against `d` (the line enters) and −1
-    /// otherwise.
-    fn for_each_hit(&self, o: DVec3, d: DVec3, mut hit: impl FnMut(f64, i32, DVec3)) {
+    /// Calls `hit(t, triangle, facing, normal)` for every triangle the line `o + t d` crosses
+    /// (any `t`), where `facing` is +1 when the triangle's winding faces against `d` (the line
+    /// enters) and −1 otherwise.
+    fn for_each_hit(&self, o: DVec3, d: DVec3, hit: impl FnMut(f64, u32, i32, DVec3)) {
+        match [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == d) {
+            Some(axis) => self.grid_hits(axis, o, hit),
+            None => self.bvh_hits(o, d, hit),
+        }
+    }
+
+    /// [`MeshBrush::for_each_hit`] for a line along grid axis `axis`, through its bucket grid.
+    fn grid_hits(&self, axis: usize, o: DVec3, mut hit: impl FnMut(f64, u32, i32, DVec3)) {
+        let mut d = DVec3::ZERO;
+        d[axis] = 1.0;
+        let Some(grid) = self.grids[axis].get_or_init(|| AxisGrid::new(&self.tris, &self.bounds, axis)) else {
+            return self.bvh_hits(o, d, hit);
+        };
+        let ray = RayFrame::new(o, d);
+        let (kx, ky) = ((axis + 1) % 3, (axis + 2) % 3);
+        for &t in grid.candidates([o[kx], o[ky]]) {
+            let tri = &self.tris[t as usize];
+            if let Some((p, facing)) = ray.intersect(tri) {
+                hit(p, t, facing, (tri[1] - tri[0]).cross(tri[2] - tri[0]));
+            }
+        }
+    }
+
+    /// [`MeshBrush::for_each_hit`] through the BVH (any direction).
+    fn bvh_hits(&self, o: DVec3, d: DVec3, mut hit: impl FnMut(f64, u32, i32, DVec3)) {
         let ray = RayFrame::new(o, d);
         let inv = d.recip();
         // Median splits keep the depth below log2(triangles) + 2, far under the stack size.
@@ -131,9 +271,10 @@ impl MeshBrush {
                 continue;
             }
             if node.count > 0 {
-                for tri in &self.tris[node.first as usize..(node.first + node.count) as usize] {
-                    if let Some((t, facing)) = ray.intersect(tri) {
-                        hit(t, facing, (tri[1] - tri[0]).cross(tri[2] - tri[0]));
+                for t in node.first..node.first + node.count {
+                    let tri = &self.tris[t as usize];
+                    if let Some((p, facing)) = ray.intersect(tri) {
+                        hit(p, t, facing, (tri[1] - tri[0]).cross(tri[2] - tri[0]));
                     }
                 }
             } else {
@@ -232,35 +373,36 @@ impl RayFrame {
     }
 
     /// The line parameter of the hit and whether the triangle's front faces the line.
+    #[inline]
     fn intersect(&self, tri: &[DVec3; 3]) -> Option<(f64, i32)> {
-        let p = tri.map(|v| self.project(v));
-        // e[k]: edge function of the directed edge p[k] -> p[k+1].
-        let e = [0, 1, 2].map(|k| {
-            let (a, b) = (p[k], p[(k + 1) % 3]);
-            a.x * b.y - a.y * b.x
-        });
-        let det = e[0] + e[1] + e[2];
+        let (p0, p1, p2) = (self.project(tri[0]), self.project(tri[1]), self.project(tri[2]));
+        // e_k: edge function of the directed edge p_k -> p_(k+1) (a shared edge gets exactly the
+        // negated value in the neighbouring triangle, which keeps the test watertight).
+        let e0 = p0.x * p1.y - p0.y * p1.x;
+        let e1 = p1.x * p2.y - p1.y * p2.x;
+        let e2 = p2.x * p0.y - p2.y * p0.x;
+        let det = e0 + e1 + e2;
         if det == 0.0 {
             return None;
         }
         let sgn = det.signum();
-        for k in 0..3 {
-            let ek = e[k] * sgn;
-            if ek > 0.0 {
-                continue;
+        let inside = |e: f64, a: DVec3, b: DVec3| {
+            let e = e * sgn;
+            if e > 0.0 {
+                return true;
             }
-            if ek < 0.0 {
-                return None;
+            if e < 0.0 {
+                return false;
             }
             // On the edge: the top-left rule takes exactly one of the two triangles sharing it.
-            let (a, b) = (p[k], p[(k + 1) % 3]);
             let (dx, dy) = ((b.x - a.x) * sgn, (b.y - a.y) * sgn);
-            if !(dy < 0.0 || (dy == 0.0 && dx < 0.0)) {
-                return None;
-            }
+            dy < 0.0 || (dy == 0.0 && dx < 0.0)
+        };
+        if !(inside(e0, p0, p1) && inside(e1, p1, p2) && inside(e2, p2, p0)) {
+            return None;
         }
         // Edge k is opposite vertex k + 2.
-        let t = (e[1] * p[0].z + e[2] * p[1].z + e[0] * p[2].z) / det;
+        let t = (e1 * p0.z + e2 * p1.z + e0 * p2.z) / det;
         // det > 0: counter-clockwise in the sheared frame, i.e. the normal points back along the
         // line in a right-handed (kx, ky, kz) frame.
         Some((t, if det > 0.0 { 1 } else { -1 }))
@@ -299,13 +441,41 @@ impl Brush for MeshBrush {
 
     fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
         out.clear();
-        let o = origin + start;
-        let mut hits: Vec<(f64, i32, DVec3)> = Vec::new();
-        self.for_each_hit(o, dir, |t, facing, n| hits.push((t, facing, n)));
-        hits.sort_by(|a, b| a.0.total_cmp(&b.0));
+        self.line_spans(origin + start, dir, &mut Vec::new(), out);
+        true
+    }
+
+    fn spans_batch(&self, lines: &[(DVec3, DVec3)], dir: DVec3, out: &mut Vec<Span>, counts: &mut Vec<u32>) -> bool {
+        // One scratch list of hits for the whole batch.
+        let mut hits = Vec::new();
+        for &(origin, start) in lines {
+            let before = out.len();
+            self.line_spans(origin + start, dir, &mut hits, out);
+            counts.push((out.len() - before) as u32);
+        }
+        true
+    }
+
+    fn lines_agree(&self) -> bool {
+        self.closed
+    }
+}
+
+impl MeshBrush {
+    /// Appends the spans of the line `o + t dir` to `out` (`hits` is scratch space).
+    fn line_spans(&self, o: DVec3, dir: DVec3, hits: &mut Vec<Hit>, out: &mut Vec<Span>) {
+        hits.clear();
+        self.for_each_hit(o, dir, |t, tri, facing, n| hits.push((t, tri, facing, n)));
+        self.spans_from_hits(dir, hits, out);
+    }
+
+    /// Turns the hits of one line into its spans by the brush's rule.
+    fn spans_from_hits(&self, dir: DVec3, hits: &mut [Hit], out: &mut Vec<Span>) {
+        // By parameter, then triangle: the order does not depend on how they were found.
+        hits.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let (mut crossings, mut winding) = (0, 0);
         let mut open: Option<(f64, DVec3)> = None;
-        for (t, facing, n) in hits {
+        for &(t, _, facing, n) in hits.iter() {
             crossings += 1;
             winding += facing;
             let n = n.normalize_or(dir);
@@ -324,11 +494,6 @@ impl Brush for MeshBrush {
                 _ => {}
             }
         }
-        true
-    }
-
-    fn lines_agree(&self) -> bool {
-        self.closed
     }
 }
 
@@ -365,6 +530,107 @@ mod tests {
         assert_eq!(out.len(), 1);
         assert!(w.contains(DVec3::ZERO, DVec3::new(0.5, 0.5, 0.5)));
         assert!(!w.contains(DVec3::ZERO, DVec3::new(3.5, 0.5, 0.5)));
+    }
+
+    /// A UV sphere whose vertices are snapped to half units, so that many grid lines at quarter
+    /// steps pass exactly through its vertices and edges.
+    fn snapped_sphere(radius: f64, rings: u32, segments: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let snap = |p: DVec3| (p * 2.0).round() / 2.0;
+        let mut verts = vec![snap(DVec3::Z * radius), snap(-DVec3::Z * radius)];
+        for r in 1..rings {
+            let phi = std::f64::consts::PI * r as f64 / rings as f64;
+            for k in 0..segments {
+                let th = std::f64::consts::TAU * k as f64 / segments as f64;
+                verts.push(snap(radius * DVec3::new(phi.sin() * th.cos(), phi.sin() * th.sin(), phi.cos())));
+            }
+        }
+        let ring = |r: u32, k: u32| 2 + (r - 1) * segments + k % segments;
+        let mut tris = Vec::new();
+        for k in 0..segments {
+            tris.push([0, ring(1, k), ring(1, k + 1)]);
+            tris.push([1, ring(rings - 1, k + 1), ring(rings - 1, k)]);
+            for r in 1..rings - 1 {
+                tris.push([ring(r, k), ring(r + 1, k), ring(r + 1, k + 1)]);
+                tris.push([ring(r, k), ring(r + 1, k + 1), ring(r, k + 1)]);
+            }
+        }
+        (verts, tris)
+    }
+
+    #[test]
+    fn the_bucket_grid_finds_exactly_the_hits_of_the_bvh() {
+        let (v, mut t) = octahedron(4.0);
+        let mut meshes = vec![(v.clone(), t.clone()), snapped_sphere(6.0, 12, 24)];
+        // Open: the octahedron without one face.
+        t.pop();
+        meshes.push((v, t));
+        // Slivers: a bipyramid of 400 long triangles (its grids across x and y are coarsened to
+        // keep within the entry budget).
+        let mut spiky = vec![DVec3::new(0.0, 0.0, 20.0), DVec3::new(0.0, 0.0, -20.0)];
+        let mut fan = Vec::new();
+        for k in 0..200u32 {
+            let a = std::f64::consts::TAU * k as f64 / 200.0;
+            spiky.push(DVec3::new(2.0 * a.cos(), 2.0 * a.sin(), 0.0));
+            let (p, q) = (2 + k, 2 + (k + 1) % 200);
+            fan.push([0, p, q]);
+            fan.push([1, q, p]);
+        }
+        meshes.push((spiky, fan));
+        // Flat: a square in the plane z = 1 (its footprint across x and y is a segment).
+        let square = vec![
+            DVec3::new(-2.0, -2.0, 1.0),
+            DVec3::new(2.0, -2.0, 1.0),
+            DVec3::new(2.0, 2.0, 1.0),
+            DVec3::new(-2.0, 2.0, 1.0),
+        ];
+        meshes.push((square, vec![[0, 1, 2], [0, 2, 3]]));
+        for (v, t) in meshes {
+            let m = MeshBrush::new(&v, &t, MeshRule::EvenOdd).unwrap();
+            let b = m.bounds();
+            let mut lines_with_hits = 0;
+            for axis in 0..3 {
+                let (kx, ky) = ((axis + 1) % 3, (axis + 2) % 3);
+                let mut d = DVec3::ZERO;
+                d[axis] = 1.0;
+                let steps = |k: usize| ((b.max[k] - b.min[k] + 2.0) * 4.0) as usize + 1;
+                for i in 0..steps(kx) {
+                    for j in 0..steps(ky) {
+                        let mut o = DVec3::ZERO;
+                        o[axis] = b.min[axis] - 3.0;
+                        o[kx] = b.min[kx] - 1.0 + i as f64 * 0.25;
+                        o[ky] = b.min[ky] - 1.0 + j as f64 * 0.25;
+                        let (mut grid, mut bvh) = (Vec::new(), Vec::new());
+                        m.grid_hits(axis, o, |t, tri, f, n| grid.push((t, tri, f, n)));
+                        m.bvh_hits(o, d, |t, tri, f, n| bvh.push((t, tri, f, n)));
+                        let order = |a: &Hit, b: &Hit| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                        grid.sort_by(order);
+                        bvh.sort_by(order);
+                        assert_eq!(grid, bvh, "axis {axis}, line through {o}");
+                        lines_with_hits += usize::from(!grid.is_empty());
+                    }
+                }
+            }
+            assert!(lines_with_hits > 20, "{lines_with_hits} lines hit the mesh");
+            for grid in m.grids.iter().filter_map(|g| g.get().and_then(Option::as_ref)) {
+                assert!(grid.tris.len() <= 16 * m.tris.len(), "the entry budget holds");
+            }
+        }
+    }
+
+    #[test]
+    fn a_grid_that_would_be_too_large_leaves_the_lines_to_the_bvh() {
+        // 200,000 copies of one triangle: every copy's box covers the whole footprint, so even
+        // a grid coarsened eight times would list over 16 entries per triangle.
+        let v = [DVec3::new(0.0, -5.0, -5.0), DVec3::new(0.0, 5.0, -5.0), DVec3::new(0.0, 0.0, 5.0)];
+        let m = MeshBrush::new(&v, &vec![[0, 1, 2]; 200_000], MeshRule::EvenOdd).unwrap();
+        let mut out = Vec::new();
+        m.spans(DVec3::ZERO, DVec3::new(-3.0, 0.5, 0.5), DVec3::X, &mut out);
+        assert!(matches!(m.grids[0].get(), Some(None)), "no grid across x");
+        // An even number of crossings at one place: no span.
+        assert!(out.is_empty());
+        let mut hits = 0;
+        m.grid_hits(0, DVec3::new(-3.0, 0.5, 0.5), |_, _, _, _| hits += 1);
+        assert_eq!(hits, 200_000);
     }
 
     #[test]
