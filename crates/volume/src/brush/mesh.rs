@@ -246,19 +246,25 @@ impl MeshBrush {
         let Some(grid) = self.grids[axis].get_or_init(|| AxisGrid::new(&self.tris, &self.bounds, axis)) else {
             return self.bvh_hits(o, d, hit);
         };
-        let ray = RayFrame::new(o, d);
         let (kx, ky) = ((axis + 1) % 3, (axis + 2) % 3);
+        let test = axis_test(axis);
         for &t in grid.candidates([o[kx], o[ky]]) {
             let tri = &self.tris[t as usize];
-            if let Some((p, facing)) = ray.intersect(tri) {
+            if let Some((p, facing)) = test(o, tri) {
                 hit(p, t, facing, (tri[1] - tri[0]).cross(tri[2] - tri[0]));
             }
         }
     }
 
-    /// [`MeshBrush::for_each_hit`] through the BVH (any direction).
+    /// [`MeshBrush::for_each_hit`] through the BVH (any direction; a grid axis with the same test
+    /// as the grid's).
     fn bvh_hits(&self, o: DVec3, d: DVec3, mut hit: impl FnMut(f64, u32, i32, DVec3)) {
         let ray = RayFrame::new(o, d);
+        let axis = [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == d);
+        let test = |tri: &[DVec3; 3]| match axis {
+            Some(a) => axis_test(a)(o, tri),
+            None => ray.intersect(tri),
+        };
         let inv = d.recip();
         // Median splits keep the depth below log2(triangles) + 2, far under the stack size.
         let mut stack = [0u32; 128];
@@ -273,7 +279,7 @@ impl MeshBrush {
             if node.count > 0 {
                 for t in node.first..node.first + node.count {
                     let tri = &self.tris[t as usize];
-                    if let Some((p, facing)) = ray.intersect(tri) {
+                    if let Some((p, facing)) = test(tri) {
                         hit(p, t, facing, (tri[1] - tri[0]).cross(tri[2] - tri[0]));
                     }
                 }
@@ -326,6 +332,18 @@ fn build(tris: &[[DVec3; 3]], order: &mut [u32], start: usize, end: usize, nodes
     me
 }
 
+/// A triangle test for lines from a point: the hit's line parameter and facing.
+type TriangleTest = fn(DVec3, &[DVec3; 3]) -> Option<(f64, i32)>;
+
+/// The triangle test for lines along grid axis `axis` (0, 1 or 2).
+fn axis_test(axis: usize) -> TriangleTest {
+    match axis {
+        0 => intersect_axis::<0>,
+        1 => intersect_axis::<1>,
+        _ => intersect_axis::<2>,
+    }
+}
+
 fn line_hits_box(o: DVec3, d: DVec3, inv: DVec3, min: DVec3, max: DVec3) -> bool {
     let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
     for i in 0..3 {
@@ -375,38 +393,60 @@ impl RayFrame {
     /// The line parameter of the hit and whether the triangle's front faces the line.
     #[inline]
     fn intersect(&self, tri: &[DVec3; 3]) -> Option<(f64, i32)> {
-        let (p0, p1, p2) = (self.project(tri[0]), self.project(tri[1]), self.project(tri[2]));
-        // e_k: edge function of the directed edge p_k -> p_(k+1) (a shared edge gets exactly the
-        // negated value in the neighbouring triangle, which keeps the test watertight).
-        let e0 = p0.x * p1.y - p0.y * p1.x;
-        let e1 = p1.x * p2.y - p1.y * p2.x;
-        let e2 = p2.x * p0.y - p2.y * p0.x;
-        let det = e0 + e1 + e2;
-        if det == 0.0 {
-            return None;
-        }
-        let sgn = det.signum();
-        let inside = |e: f64, a: DVec3, b: DVec3| {
-            let e = e * sgn;
-            if e > 0.0 {
-                return true;
-            }
-            if e < 0.0 {
-                return false;
-            }
-            // On the edge: the top-left rule takes exactly one of the two triangles sharing it.
-            let (dx, dy) = ((b.x - a.x) * sgn, (b.y - a.y) * sgn);
-            dy < 0.0 || (dy == 0.0 && dx < 0.0)
-        };
-        if !(inside(e0, p0, p1) && inside(e1, p1, p2) && inside(e2, p2, p0)) {
-            return None;
-        }
-        // Edge k is opposite vertex k + 2.
-        let t = (e1 * p0.z + e2 * p1.z + e0 * p2.z) / det;
-        // det > 0: counter-clockwise in the sheared frame, i.e. the normal points back along the
-        // line in a right-handed (kx, ky, kz) frame.
-        Some((t, if det > 0.0 { 1 } else { -1 }))
+        edge_test(self.project(tri[0]), self.project(tri[1]), self.project(tri[2]))
     }
+}
+
+/// [`RayFrame::intersect`] for a line from `o` along grid axis `KZ`, whose frame needs no shear:
+/// the vertices relative to `o`, their coordinates rotated to (kx, ky, kz) by constant indices.
+#[inline]
+fn intersect_axis<const KZ: usize>(o: DVec3, tri: &[DVec3; 3]) -> Option<(f64, i32)> {
+    let p = |v: DVec3| {
+        let a = (v - o).to_array();
+        DVec3::new(a[(KZ + 1) % 3], a[(KZ + 2) % 3], a[KZ])
+    };
+    edge_test(p(tri[0]), p(tri[1]), p(tri[2]))
+}
+
+/// The watertight test of a triangle projected into a line's frame (the line through the 2-D
+/// origin along +z): the line parameter of the hit and whether the triangle's front faces the line.
+#[inline]
+fn edge_test(p0: DVec3, p1: DVec3, p2: DVec3) -> Option<(f64, i32)> {
+    // e_k: edge function of the directed edge p_k -> p_(k+1) (a shared edge gets exactly the
+    // negated value in the neighbouring triangle, which keeps the test watertight).
+    let e0 = p0.x * p1.y - p0.y * p1.x;
+    let e1 = p1.x * p2.y - p1.y * p2.x;
+    if (e0 > 0.0 && e1 < 0.0) || (e0 < 0.0 && e1 > 0.0) {
+        // One of them has the sign opposite to the determinant's: the line misses (most
+        // candidates from the bucket grid do).
+        return None;
+    }
+    let e2 = p2.x * p0.y - p2.y * p0.x;
+    let det = e0 + e1 + e2;
+    if det == 0.0 {
+        return None;
+    }
+    let sgn = det.signum();
+    let inside = |e: f64, a: DVec3, b: DVec3| {
+        let e = e * sgn;
+        if e > 0.0 {
+            return true;
+        }
+        if e < 0.0 {
+            return false;
+        }
+        // On the edge: the top-left rule takes exactly one of the two triangles sharing it.
+        let (dx, dy) = ((b.x - a.x) * sgn, (b.y - a.y) * sgn);
+        dy < 0.0 || (dy == 0.0 && dx < 0.0)
+    };
+    if !(inside(e0, p0, p1) && inside(e1, p1, p2) && inside(e2, p2, p0)) {
+        return None;
+    }
+    // Edge k is opposite vertex k + 2.
+    let t = (e1 * p0.z + e2 * p1.z + e0 * p2.z) / det;
+    // det > 0: counter-clockwise in the sheared frame, i.e. the normal points back along the
+    // line in a right-handed (kx, ky, kz) frame.
+    Some((t, if det > 0.0 { 1 } else { -1 }))
 }
 
 impl Brush for MeshBrush {
