@@ -88,7 +88,7 @@ pub struct MeshBrush {
 
 /// Triangles bucketed by the bounding boxes of their footprints on the plane across one grid
 /// axis (coordinates `kx = axis + 1`, `ky = axis + 2`, mod 3, as the ray frame uses them).
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 struct AxisGrid {
     /// The footprint of the whole mesh: its lower corner and upper corner.
     min: [f64; 2],
@@ -99,6 +99,13 @@ struct AxisGrid {
     /// Bucket `i + dims[0] j` lists `tris[starts[b]..starts[b + 1]]`.
     starts: Vec<u32>,
     tris: Vec<u32>,
+}
+
+impl std::fmt::Debug for AxisGrid {
+    /// The grid's size, not its millions of entries.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AxisGrid").field("dims", &self.dims).field("entries", &self.tris.len()).finish()
+    }
 }
 
 /// Buckets along one side at most (the grid stays under 4 million buckets).
@@ -653,6 +660,7 @@ mod tests {
             assert!(lines_with_hits > 20, "{lines_with_hits} lines hit the mesh");
             for grid in m.grids.iter().filter_map(|g| g.get().and_then(Option::as_ref)) {
                 assert!(grid.tris.len() <= 16 * m.tris.len(), "the entry budget holds");
+                assert!(format!("{grid:?}").starts_with("AxisGrid { dims: ["), "a short summary");
             }
         }
     }
