@@ -24,7 +24,7 @@ use std::sync::OnceLock;
 use glam::DVec3;
 use thiserror::Error;
 
-use super::{Aabb, Brush, Span};
+use super::{Aabb, Brush, Span, unit_axis};
 
 /// How crossings along a line decide inside.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -240,7 +240,7 @@ impl MeshBrush {
     /// (any `t`), where `facing` is +1 when the triangle's winding faces against `d` (the line
     /// enters) and −1 otherwise.
     fn for_each_hit(&self, o: DVec3, d: DVec3, hit: impl FnMut(f64, u32, i32, DVec3)) {
-        match [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == d) {
+        match unit_axis(d) {
             Some(axis) => self.grid_hits(axis, o, hit),
             None => self.bvh_hits(o, d, hit),
         }
@@ -267,7 +267,7 @@ impl MeshBrush {
     /// as the grid's).
     fn bvh_hits(&self, o: DVec3, d: DVec3, mut hit: impl FnMut(f64, u32, i32, DVec3)) {
         let ray = RayFrame::new(o, d);
-        let axis = [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == d);
+        let axis = unit_axis(d);
         let test = |tri: &[DVec3; 3]| match axis {
             Some(a) => axis_test(a)(o, tri),
             None => ray.intersect(tri),

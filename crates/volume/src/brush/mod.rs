@@ -250,6 +250,13 @@ pub enum BrushError {
     Mesh(#[from] MeshError),
 }
 
+/// The index of the unit axis `dir` is exactly (`+x`, `+y` or `+z`), if any: lines along a grid
+/// axis, which brushes answer by faster paths.
+#[inline]
+pub(crate) fn unit_axis(dir: DVec3) -> Option<usize> {
+    [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == dir)
+}
+
 pub(crate) fn positive(what: &'static str, value: f64) -> Result<f64, BrushError> {
     if value.is_finite() && value > 0.0 { Ok(value) } else { Err(BrushError::BadSize { what, value }) }
 }

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 
-use super::{Aabb, Brush, BrushError, Span, finite, positive};
+use super::{Aabb, Brush, BrushError, Span, finite, positive, unit_axis};
 
 /// A ball.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,12 +74,6 @@ impl Brush for Sphere {
         }
         true
     }
-}
-
-/// The index of the unit axis `dir` is exactly (`+x`, `+y` or `+z`), if any.
-#[inline]
-fn unit_axis(dir: DVec3) -> Option<usize> {
-    [DVec3::X, DVec3::Y, DVec3::Z].iter().position(|&a| a == dir)
 }
 
 impl Sphere {
