@@ -532,13 +532,13 @@ impl ChunkLists {
     pub(crate) fn family_starts(&self, axis: Axis) -> FamilyBits {
         let level = self.level();
         let n = level.cells();
-        let full = node_mask(n);
         let shift = 12 - level.get() as u32;
-        // Node states along a line from its start state: each crossing flips the nodes after it.
-        let states = |start: bool, raw: &[u16]| {
-            let mut s = if start { full } else { 0 };
+        // The states of nodes 0..n (bit j; n at most 64, so node n, never needed, drops out)
+        // along a line from its start state: a crossing in cell e flips the nodes after it.
+        let states = |start: bool, raw: &[u16]| -> u64 {
+            let mut s = if start { u64::MAX } else { 0 };
             for &q in raw {
-                s ^= full & (u128::MAX << (((q & !LAST) as u32 >> shift) + 1));
+                s ^= (u64::MAX << ((q & !LAST) as u32 >> shift)) << 1;
             }
             s
         };
@@ -552,12 +552,12 @@ impl ChunkLists {
         let mut c = self.raw_cursor_head(row, 0, n);
         let mut starts = FamilyBits::zeroed(n * n / 64);
         let out = starts.words_mut();
-        let mask = full >> 1;
+        let mask = u64::MAX >> (64 - n);
         for k in 0..n {
             let s = states((edge >> k) & 1 == 1, c.next_raw()) & mask;
             // n divides 64: the n bits of a row never straddle a word.
             let i = n * k;
-            out[i >> 6] |= (s as u64) << (i & 63);
+            out[i >> 6] |= s << (i & 63);
         }
         starts
     }

@@ -144,7 +144,9 @@ struct AxisSpans {
     spans: Vec<Span>,
     /// Per line: the nodes `j0..=j1` (relative to the table base along the axis, level units)
     /// inside its one span when no span end lies within the snapping distance of a node, so any
-    /// chunk piece of the line follows by integer arithmetic; `j0 == NOT_SIMPLE` otherwise.
+    /// chunk piece of the line follows by integer arithmetic. Lines without spans hold
+    /// [`NO_NODES`] and lines that need the general sampler [`ALL_NODES`]: as node ranges, they
+    /// miss and meet every chunk, so one range test sorts out every line.
     simple: Vec<(i32, i32)>,
     /// Per row `v`: the first and one past the last `u` whose line has spans (empty if none).
     rows: Vec<(i64, i64)>,
@@ -161,13 +163,19 @@ impl AxisSpans {
         }
     }
 
-    /// Lines `ua..ue` of row `v` (absolute, within [`AxisSpans::row_range`]): their span
-    /// offsets (one more than the lines) and simple ranges.
+    /// Lines `ua..ue` of row `v` (absolute, within [`AxisSpans::row_range`]): the index of the
+    /// first in the table and their simple ranges.
     #[inline]
-    fn row_lines(&self, v: i64, ua: i64, ue: i64) -> (&[u32], &[(i32, i32)]) {
+    fn row_lines(&self, v: i64, ua: i64, ue: i64) -> (usize, &[(i32, i32)]) {
         let i = (ua - self.u0) as usize + self.nu * (v - self.v0) as usize;
         let len = (ue - ua) as usize;
-        (&self.offsets[i..i + len + 1], &self.simple[i..i + len])
+        (i, &self.simple[i..i + len])
+    }
+
+    /// The spans of the line at table index `i`.
+    #[inline]
+    fn spans_at(&self, i: usize) -> &[Span] {
+        &self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
 
     /// The spans of line `(u, v)` (absolute, relative to the table base).
@@ -182,18 +190,24 @@ impl AxisSpans {
     }
 }
 
-/// Marks a line of a span table whose pieces need the general sampler.
-const NOT_SIMPLE: i32 = i32::MIN;
+/// The simple range of a line of a span table whose pieces need the general sampler.
+const ALL_NODES: (i32, i32) = (i32::MIN, i32::MAX);
+/// The simple range of a line of a span table without spans.
+const NO_NODES: (i32, i32) = (i32::MAX, i32::MIN);
 
-/// The simple node range of a line with one span (see [`AxisSpans::simple`]).
+/// The simple node range of a line (see [`AxisSpans::simple`]).
 fn simple_range(spans: &[Span], inv_sp: f64) -> (i32, i32) {
-    let [s] = spans else { return (NOT_SIMPLE, 0) };
+    let s = match spans {
+        [] => return NO_NODES,
+        [s] => s,
+        _ => return ALL_NODES,
+    };
     let snap = SNAP_DISTANCE * inv_sp;
     let (enter, exit) = (s.enter * inv_sp, s.exit * inv_sp);
     let near = |x: f64| (x - (x + 0.5).floor()).abs() <= snap;
     let limit = (i32::MAX / 2) as f64;
     if near(enter) || near(exit) || !(enter.abs() < limit && exit.abs() < limit) {
-        return (NOT_SIMPLE, 0);
+        return ALL_NODES;
     }
     (enter.ceil() as i32, exit.floor() as i32)
 }
@@ -679,21 +693,17 @@ fn edit_chunk_by_table(
             if a >= e {
                 continue;
             }
-            let (offsets, simple) = spans.row_lines(off_v + v as i64, off_u + a, off_u + e);
+            let (first_line, simple) = spans.row_lines(off_v + v as i64, off_u + a, off_u + e);
             for (j, u) in (a as usize..e as usize).enumerate() {
-                let (first, last) = (offsets[j] as usize, offsets[j + 1] as usize);
-                if first == last {
+                let range = simple[j];
+                // Chunk-relative node range of the span (the table's shift is exact).
+                let (ja, jb) = (range.0 as i64 - off, range.1 as i64 - off);
+                if jb < 0 || ja > n as i64 || ja > jb {
+                    // No span, or one that misses this chunk's piece of the line.
                     continue;
                 }
-                let (line_spans, range) = (&spans.spans[first..last], simple[j]);
                 let index = u + n * v;
-                if range.0 != NOT_SIMPLE {
-                    // Chunk-relative node range of the span (the table's shift is exact).
-                    let (ja, jb) = (range.0 as i64 - off, range.1 as i64 - off);
-                    if jb < 0 || ja > n as i64 || ja > jb {
-                        // The span misses this chunk's piece of the line.
-                        continue;
-                    }
+                if range != ALL_NODES {
                     let (lo, hi) = (ja.max(0) as usize, jb.min(n as i64) as usize);
                     b.copy_view(&mut cursor, index - next);
                     next = index + 1;
@@ -703,11 +713,12 @@ fn edit_chunk_by_table(
                         b.push_stored(line);
                         continue;
                     }
-                    let piece = Piece { fill, lo, hi, span: &line_spans[0], shift: shift_along };
+                    let span = &spans.spans[spans.offsets[first_line + j] as usize];
+                    let piece = Piece { fill, lo, hi, span, shift: shift_along };
                     changed |= splice_piece(b, line, piece, level);
                 } else {
                     sampler.fill_from_spans(
-                        line_spans,
+                        spans.spans_at(first_line + j),
                         shift_along,
                         LineAt { origin_grid: origin, level, axis, u, v },
                         &mut brush_line,
