@@ -142,10 +142,10 @@ pub fn quantize_into_edge(t_grid: f64, edge: usize, level: Level) -> LocalPos {
     let s = level.steps_per_cell() as i64 / 2;
     let lo = edge as i64 * s + 1;
     let hi = (edge as i64 + 1) * s - 1;
-    // Round half up without a libm call; the clamp makes the cast's truncation of negative
-    // values harmless.
+    // Round half up without a libm call: the cast truncates towards zero and saturates, which
+    // the clamp makes harmless for values below `lo` (at least 1) or far beyond `hi`.
     let q = t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64 / 2.0) + 0.5;
-    let q = if q.is_nan() { (lo + hi) / 2 } else { (q.clamp(lo as f64, hi as f64 + 0.5)) as i64 };
+    let q = if q.is_nan() { (lo + hi) / 2 } else { q as i64 };
     (q.clamp(lo, hi) * 2) as LocalPos
 }
 

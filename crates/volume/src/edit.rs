@@ -204,12 +204,14 @@ fn simple_range(spans: &[Span], inv_sp: f64) -> (i32, i32) {
     };
     let snap = SNAP_DISTANCE * inv_sp;
     let (enter, exit) = (s.enter * inv_sp, s.exit * inv_sp);
-    let near = |x: f64| (x - (x + 0.5).floor()).abs() <= snap;
+    let (first, last) = (enter.ceil(), exit.floor());
+    // An end is near a node when its distance to the node on either side is within `snap`.
+    let near = |gap: f64| gap <= snap || gap >= 1.0 - snap;
     let limit = (i32::MAX / 2) as f64;
-    if near(enter) || near(exit) || !(enter.abs() < limit && exit.abs() < limit) {
+    if near(first - enter) || near(exit - last) || !(enter.abs() < limit && exit.abs() < limit) {
         return ALL_NODES;
     }
-    (enter.ceil() as i32, exit.floor() as i32)
+    (first as i32, last as i32)
 }
 
 /// What the rows of a span table produce.
