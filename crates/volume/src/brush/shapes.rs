@@ -48,8 +48,13 @@ impl Brush for Sphere {
 
     fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
         out.clear();
-        if let Some(s) = self.line_span(origin, start, dir) {
-            out.push(s);
+        let q = start - (self.center - origin);
+        let (r2, inv_r) = (self.radius * self.radius, 1.0 / self.radius);
+        match unit_axis(dir) {
+            Some(0) => _ = self.axis_chord::<0>(q, r2, inv_r, out),
+            Some(1) => _ = self.axis_chord::<1>(q, r2, inv_r, out),
+            Some(_) => _ = self.axis_chord::<2>(q, r2, inv_r, out),
+            None => out.extend(self.chord(q, dir, dir.length_squared(), r2, inv_r)),
         }
         true
     }
@@ -77,24 +82,12 @@ impl Brush for Sphere {
 }
 
 impl Sphere {
-    /// The one span of a line, if it meets the ball.
-    #[inline]
-    fn line_span(&self, origin: DVec3, start: DVec3, dir: DVec3) -> Option<Span> {
-        let q = start - (self.center - origin);
-        let (r2, inv_r) = (self.radius * self.radius, 1.0 / self.radius);
-        match unit_axis(dir) {
-            Some(0) => self.axis_chord::<0>(q, r2, inv_r),
-            Some(1) => self.axis_chord::<1>(q, r2, inv_r),
-            Some(_) => self.axis_chord::<2>(q, r2, inv_r),
-            None => self.chord(q, dir, dir.length_squared(), r2, inv_r),
-        }
-    }
-
     /// [`Sphere::chord`] for the direction of grid axis `A`, where the dot product and the
     /// perpendicular part reduce to picking components: no multiplications by 0 and 1, no
-    /// division.
+    /// division. Appends the span to `out` (written in place: no `Option` to copy) and says
+    /// whether there was one.
     #[inline(always)]
-    fn axis_chord<const A: usize>(&self, q: DVec3, r2: f64, inv_r: f64) -> Option<Span> {
+    fn axis_chord<const A: usize>(&self, q: DVec3, r2: f64, inv_r: f64, out: &mut Vec<Span>) -> bool {
         let (qa, perp2) = match A {
             0 => (q.x, q.y * q.y + q.z * q.z),
             1 => (q.y, q.x * q.x + q.z * q.z),
@@ -102,7 +95,7 @@ impl Sphere {
         };
         let disc = r2 - perp2;
         if !(disc >= 0.0) {
-            return None;
+            return false;
         }
         let h = disc.sqrt();
         let (t0, t1) = (-qa - h, -qa + h);
@@ -111,7 +104,8 @@ impl Sphere {
         let mut exit_normal = across;
         enter_normal[A] = (qa + t0) * inv_r;
         exit_normal[A] = (qa + t1) * inv_r;
-        Some(Span { enter: t0, exit: t1, enter_normal, exit_normal })
+        out.push(Span { enter: t0, exit: t1, enter_normal, exit_normal });
+        true
     }
 
     /// [`Sphere::axis_chord`] for a batch of lines.
@@ -125,11 +119,8 @@ impl Sphere {
         counts: &mut Vec<u32>,
     ) {
         for &(origin, start) in lines {
-            let s = self.axis_chord::<A>(start - (self.center - origin), r2, inv_r);
-            counts.push(s.is_some() as u32);
-            if let Some(s) = s {
-                out.push(s);
-            }
+            let hit = self.axis_chord::<A>(start - (self.center - origin), r2, inv_r, out);
+            counts.push(hit as u32);
         }
     }
 
