@@ -674,6 +674,10 @@ fn edit_chunk_by_table(
     sampler: &mut LineSampler<'_>,
 ) -> Option<Built> {
     let n = level.cells();
+    if !meets_chunk(t, offset, n) {
+        // No span reaches the chunk: nothing to read or copy.
+        return None;
+    }
     let fill = ctx.op == CsgOp::Add;
     let b = &mut s.builder;
     b.begin(level);
@@ -745,6 +749,27 @@ fn edit_chunk_by_table(
         b.copy_view(&mut cursor, n * n - next);
     }
     changed.then(|| b.finish())
+}
+
+/// Whether the span of some line through the chunk at `offset` (node units from the table's
+/// base) reaches its nodes: the test [`edit_chunk_by_table`] makes for each line, stopping at the
+/// first that passes. About a quarter of the chunks in a sphere's box are met by no span (the
+/// box's corners); they are left without building a copy of them to throw away.
+fn meets_chunk(t: &SpanTable, offset: I64Vec3, n: usize) -> bool {
+    Axis::ALL.iter().any(|&axis| {
+        let (ua, va) = axis.across();
+        let spans = &t.axes[axis.index()];
+        let (off_u, off_v, off) = (offset[ua.index()], offset[va.index()], offset[axis.index()]);
+        (0..n as i64).any(|v| {
+            let (a, e) = spans.row_range(off_v + v);
+            let (a, e) = (a.max(off_u), e.min(off_u + n as i64));
+            a < e
+                && spans.row_lines(off_v + v, a, e).1.iter().any(|&(j0, j1)| {
+                    let (ja, jb) = (j0 as i64 - off, j1 as i64 - off);
+                    !(jb < 0 || ja > n as i64 || ja > jb)
+                })
+        })
+    })
 }
 
 /// One brush span on one chunk line, simple (no end within the snapping distance of a node):
