@@ -439,30 +439,41 @@ impl ChunkLists {
     /// bits zero).
     fn family_nonempty_head(&self, axis: Axis, words_wanted: usize) -> FamilyBits {
         let n = self.level().cells();
+        let mut out = FamilyBits::zeroed(n * n / 64);
+        self.expand_rows(axis, &mut out.words_mut()[..words_wanted]);
+        out
+    }
+
+    /// Writes the nonempty bits of the first `64 · out.len()` lines of `axis` into `out` (word
+    /// `g`: lines `64 g ..`), expanded from the stored rows.
+    #[inline]
+    fn expand_rows(&self, axis: Axis, out: &mut [u64]) {
+        let n = self.level().cells();
         let words = self.words.get();
         let first = field::ROWS + axis.index() * (n * n / 8);
-        let bytes = self.row_bytes();
+        // The stored rows' bytes and everything after them: at least one more byte (a chunk
+        // has a crossing), so reading the byte at `rank` is in bounds even past the last row.
+        let bytes: &[u8] = bytemuck::cast_slice(self.body());
         // Stored rows before this family's first.
         let mut rank = count_ones(words, field::ROWS, first);
-        let mut out = FamilyBits::zeroed(n * n / 64);
-        let dst = out.words_mut();
-        // Eight rows (one output word) at a time: all stored is a plain 8-byte copy.
-        for (g, word) in dst[..words_wanted].iter_mut().enumerate() {
-            let mut stored = read_bits(words, first + 8 * g, 8);
+        for (g, word) in out.iter_mut().enumerate() {
+            let stored = read_bits(words, first + 8 * g, 8);
             if stored == 0xff {
+                // All eight rows stored: a plain 8-byte copy.
                 let b: [u8; 8] = bytes[rank..rank + 8].try_into().expect("eight bytes");
                 *word = u64::from_le_bytes(b);
                 rank += 8;
                 continue;
             }
-            while stored != 0 {
-                let row = stored.trailing_zeros() as usize;
-                stored &= stored - 1;
-                *word |= (bytes[rank] as u64) << (8 * row);
-                rank += 1;
+            // Row r takes the next stored byte if its row bit is set: no branch on the bits.
+            let mut w = 0u64;
+            for r in 0..8 {
+                let bit = (stored >> r) & 1;
+                w |= (bytes[rank] as u64 & bit.wrapping_neg()) << (8 * r);
+                rank += bit as usize;
             }
+            *word = w;
         }
-        out
     }
 
     /// The nonempty bit of every line, families in x, y, z order.
@@ -547,14 +558,33 @@ impl ChunkLists {
             Axis::Y => (Axis::X, Axis::Z),
             Axis::Z => (Axis::Y, Axis::X),
         };
-        // Line 0 of one family and lines 0..n of another: 64 nonempty bits of each suffice.
-        let edge = states(self.corner(), self.raw_cursor_head(first, 0, 1).next_raw());
-        let mut c = self.raw_cursor_head(row, 0, n);
+        // Line 0 of one family and lines 0..n of another, read straight from the first 64
+        // nonempty bits of each and the crossings at the front of each family.
+        let raw = self.raw_positions();
+        let head = |axis: Axis| {
+            let mut bits = [0u64];
+            self.expand_rows(axis, &mut bits);
+            (bits[0], self.family_start(axis))
+        };
+        // The crossings of the line starting at crossing `at` if `nonempty`; moves `at` past it.
+        let take = |nonempty: bool, at: &mut usize| {
+            let start = *at;
+            if nonempty {
+                while raw[*at] & LAST == 0 {
+                    *at += 1;
+                }
+                *at += 1;
+            }
+            &raw[start..*at]
+        };
+        let (bits, mut at) = head(first);
+        let edge = states(self.corner(), take(bits & 1 == 1, &mut at));
+        let (bits, mut at) = head(row);
         let mut starts = FamilyBits::zeroed(n * n / 64);
         let out = starts.words_mut();
         let mask = u64::MAX >> (64 - n);
         for k in 0..n {
-            let s = states((edge >> k) & 1 == 1, c.next_raw()) & mask;
+            let s = states((edge >> k) & 1 == 1, take((bits >> k) & 1 == 1, &mut at)) & mask;
             // n divides 64: the n bits of a row never straddle a word.
             let i = n * k;
             out[i >> 6] |= s << (i & 63);
