@@ -1124,16 +1124,31 @@ impl ChunkBuilder {
             return;
         }
         self.room(out);
-        self.write(&raw[..p], &normals[..p]);
+        // One pair of destination slices for the whole line (a line holds a few crossings: a
+        // slice copy per part and a room check per write cost more than the copying).
+        let m = self.m;
+        let (dp, dn) = (&mut self.positions[m..m + out], &mut self.normals[m..m + out]);
+        let parts = [(&raw[..p], &normals[..p]), (&raw[q..], &normals[q..])];
+        let mut i = 0;
+        for (&r, &nr) in parts[0].0.iter().zip(parts[0].1) {
+            (dp[i], dn[i]) = (r, nr);
+            i += 1;
+        }
         if p == k && k > 0 {
             // Stored crossing k - 1 carried the end mark and is no longer last.
-            self.positions[self.m - 1] &= !LAST;
+            dp[i - 1] &= !LAST;
         }
-        for &(m, mn) in mid {
-            self.write_one(m, mn);
+        for &(r, nr) in mid {
+            debug_assert_eq!(r & LAST, 0, "positions are even");
+            (dp[i], dn[i]) = (r, nr);
+            i += 1;
         }
-        self.write(&raw[q..], &normals[q..]);
-        self.mark_last();
+        for (&r, &nr) in parts[1].0.iter().zip(parts[1].1) {
+            (dp[i], dn[i]) = (r, nr);
+            i += 1;
+        }
+        dp[out - 1] |= LAST;
+        self.m = m + out;
     }
 
     /// Finishes the chunk: lists, or a uniform state when no line has a crossing.
