@@ -1128,24 +1128,20 @@ impl ChunkBuilder {
         // slice copy per part and a room check per write cost more than the copying).
         let m = self.m;
         let (dp, dn) = (&mut self.positions[m..m + out], &mut self.normals[m..m + out]);
-        let parts = [(&raw[..p], &normals[..p]), (&raw[q..], &normals[q..])];
         let mut i = 0;
-        for (&r, &nr) in parts[0].0.iter().zip(parts[0].1) {
+        let mut put = |(r, nr): (LocalPos, PackedNormal)| {
             (dp[i], dn[i]) = (r, nr);
             i += 1;
-        }
+        };
+        raw[..p].iter().zip(&normals[..p]).for_each(|(&r, &nr)| put((r, nr)));
+        mid.iter().for_each(|&c| {
+            debug_assert_eq!(c.0 & LAST, 0, "positions are even");
+            put(c);
+        });
+        raw[q..].iter().zip(&normals[q..]).for_each(|(&r, &nr)| put((r, nr)));
         if p == k && k > 0 {
             // Stored crossing k - 1 carried the end mark and is no longer last.
-            dp[i - 1] &= !LAST;
-        }
-        for &(r, nr) in mid {
-            debug_assert_eq!(r & LAST, 0, "positions are even");
-            (dp[i], dn[i]) = (r, nr);
-            i += 1;
-        }
-        for (&r, &nr) in parts[1].0.iter().zip(parts[1].1) {
-            (dp[i], dn[i]) = (r, nr);
-            i += 1;
+            dp[p - 1] &= !LAST;
         }
         dp[out - 1] |= LAST;
         self.m = m + out;

@@ -705,12 +705,10 @@ fn edit_chunk_by_table(
             let (first_line, simple) = spans.row_lines(off_v + v as i64, off_u + a, off_u + e);
             for (j, u) in (a as usize..e as usize).enumerate() {
                 let range = simple[j];
-                // Chunk-relative node range of the span (the table's shift is exact).
-                let (ja, jb) = (range.0 as i64 - off, range.1 as i64 - off);
-                if jb < 0 || ja > n as i64 || ja > jb {
+                let Some((ja, jb)) = reach(range, off, n) else {
                     // No span, or one that misses this chunk's piece of the line.
                     continue;
-                }
+                };
                 let index = u + n * v;
                 if range != ALL_NODES {
                     let (lo, hi) = (ja.max(0) as usize, jb.min(n as i64) as usize);
@@ -766,13 +764,18 @@ fn meets_chunk(t: &SpanTable, offset: I64Vec3, n: usize) -> bool {
         (0..n as i64).any(|v| {
             let (a, e) = spans.row_range(off_v + v);
             let (a, e) = (a.max(off_u), e.min(off_u + n as i64));
-            a < e
-                && spans.row_lines(off_v + v, a, e).1.iter().any(|&(j0, j1)| {
-                    let (ja, jb) = (j0 as i64 - off, j1 as i64 - off);
-                    !(jb < 0 || ja > n as i64 || ja > jb)
-                })
+            a < e && spans.row_lines(off_v + v, a, e).1.iter().any(|&r| reach(r, off, n).is_some())
         })
     })
+}
+
+/// The nodes `ja..=jb` of a chunk line that a table line's simple range `(j0, j1)` covers,
+/// relative to the chunk (whose node 0 is node `off` of the table; the shift is exact), if it
+/// covers any of the chunk's nodes `0..=n`. [`NO_NODES`] never does, [`ALL_NODES`] always.
+#[inline(always)]
+fn reach((j0, j1): (i32, i32), off: i64, n: usize) -> Option<(i64, i64)> {
+    let (ja, jb) = (j0 as i64 - off, j1 as i64 - off);
+    (jb >= 0 && ja <= n as i64 && ja <= jb).then_some((ja, jb))
 }
 
 /// One brush span on one chunk line, simple (no end within the snapping distance of a node):
@@ -916,6 +919,24 @@ mod tests {
         let before = (l.states >> e) & 1 == 1;
         let after = (l.states >> (e + 1)) & 1 == 1;
         if before != after && q > l.pos[e] as u32 { after } else { before }
+    }
+
+    #[test]
+    fn a_simple_range_reaches_exactly_the_chunks_holding_one_of_its_nodes() {
+        let n = 16;
+        for off in [-1_000_000, -40, -17, -16, -1, 0, 1, 15, 16, 17, 40, 1_000_000] {
+            assert_eq!(reach(NO_NODES, off, n), None, "no spans, offset {off}");
+            assert!(reach(ALL_NODES, off, n).is_some(), "general sampler, offset {off}");
+            for j0 in -20..40 {
+                for j1 in j0 - 2..j0 + 40 {
+                    // Brute force: the chunk line's nodes 0..=n that lie in j0..=j1.
+                    let inside: Vec<i64> = (0..=n as i64).filter(|&j| (j0..=j1).contains(&(off + j))).collect();
+                    let got = reach((j0 as i32, j1 as i32), off, n).map(|(ja, jb)| (ja.max(0), jb.min(n as i64)));
+                    let expect = inside.first().map(|&a| (a, *inside.last().unwrap()));
+                    assert_eq!(got, expect, "range {j0}..={j1}, offset {off}");
+                }
+            }
+        }
     }
 
     #[test]
