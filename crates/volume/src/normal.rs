@@ -9,8 +9,8 @@ pub type PackedNormal = u16;
 #[inline]
 pub fn pack_normal(n: DVec3) -> PackedNormal {
     let l1 = n.x.abs() + n.y.abs() + n.z.abs();
-    // Zero, infinite or NaN (which fails both comparisons).
-    if !(l1 > 0.0 && l1 < f64::INFINITY) {
+    // Zero, infinite or NaN: `l1 - l1` is NaN for the last two, and NaN fails every comparison.
+    if !(l1 > 0.0 && l1 - l1 == 0.0) {
         return pack_normal(DVec3::Z);
     }
     // Scale straight to the 0..=255 grid: one division, then branch-free folding.
@@ -60,6 +60,13 @@ mod tests {
             worst = worst.min(unpack_normal(pack_normal(n)).dot(n));
         }
         assert!(worst > 1.0f64.to_radians().cos(), "worst cosine {worst}");
-        assert!(unpack_normal(pack_normal(DVec3::NAN)).z > 0.99);
+        for bad in
+            [DVec3::NAN, DVec3::ZERO, DVec3::new(f64::INFINITY, 0.0, 1.0), DVec3::new(0.0, f64::NEG_INFINITY, 0.0)]
+        {
+            assert_eq!(pack_normal(bad), pack_normal(DVec3::Z), "{bad:?} packs to +z");
+        }
+        // Very short vectors are still directions.
+        let tiny = DVec3::new(-1e-300, 0.0, 0.0);
+        assert!(unpack_normal(pack_normal(tiny)).x < -0.99);
     }
 }
