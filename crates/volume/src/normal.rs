@@ -9,8 +9,8 @@ pub type PackedNormal = u16;
 #[inline]
 pub fn pack_normal(n: DVec3) -> PackedNormal {
     let l1 = n.x.abs() + n.y.abs() + n.z.abs();
-    // Zero, infinite or NaN: `l1 - l1` is NaN for the last two, and NaN fails every comparison.
-    if !(l1 > 0.0 && l1 - l1 == 0.0) {
+    // Zero, infinite or NaN (which fails both tests).
+    if !(l1 > 0.0 && l1.is_finite()) {
         return pack_normal(DVec3::Z);
     }
     // Scale straight to the 0..=255 grid: one division, then branch-free folding.
