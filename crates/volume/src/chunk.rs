@@ -656,11 +656,14 @@ fn assemble(
     let bytes: &mut [u8] = bytemuck::cast_slice_mut(body);
     let mut slot = 0;
     for (i, &w) in nonempty.iter().enumerate().filter(|(_, w)| **w != 0) {
+        // The eight rows of this word: their row bits go in at once.
+        let mut rows = 0;
         for (b, byte) in w.to_le_bytes().into_iter().enumerate().filter(|(_, b)| *b != 0) {
-            write_bits(header, field::ROWS + 8 * i + b, 1, 1);
+            rows |= 1 << b;
             bytes[slot] = byte;
             slot += 1;
         }
+        write_bits(header, field::ROWS + 8 * i, 8, rows);
     }
     let values: &mut [u16] = bytemuck::cast_slice_mut(body);
     let values = &mut values[stored.div_ceil(2)..];
