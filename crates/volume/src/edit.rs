@@ -163,13 +163,20 @@ impl AxisSpans {
         }
     }
 
-    /// Lines `ua..ue` of row `v` (absolute, within [`AxisSpans::row_range`]): the index of the
-    /// first in the table and their simple ranges.
+    /// Row `v` (`0..n`) of the chunk whose first line is `(off_u, off_v)` (relative to the table
+    /// base): the chunk-relative `u` of the first line that can have spans, its index in the
+    /// table, and the simple ranges of the lines from there to the last that can (none if no
+    /// line can).
     #[inline]
-    fn row_lines(&self, v: i64, ua: i64, ue: i64) -> (usize, &[(i32, i32)]) {
-        let i = (ua - self.u0) as usize + self.nu * (v - self.v0) as usize;
-        let len = (ue - ua) as usize;
-        (i, &self.simple[i..i + len])
+    fn chunk_row(&self, off_u: i64, off_v: i64, v: usize, n: usize) -> (usize, usize, &[(i32, i32)]) {
+        let row = off_v + v as i64;
+        let (a, e) = self.row_range(row);
+        let (a, e) = (a.max(off_u), e.min(off_u + n as i64));
+        if a >= e {
+            return (0, 0, &[]);
+        }
+        let i = (a - self.u0) as usize + self.nu * (row - self.v0) as usize;
+        ((a - off_u) as usize, i, &self.simple[i..i + (e - a) as usize])
     }
 
     /// The spans of the line at table index `i`.
@@ -697,14 +704,9 @@ fn edit_chunk_by_table(
         // The next line not yet written.
         let mut next = 0;
         for v in 0..n {
-            let (a, e) = spans.row_range(off_v + v as i64);
-            let (a, e) = ((a - off_u).max(0), (e - off_u).min(n as i64));
-            if a >= e {
-                continue;
-            }
-            let (first_line, simple) = spans.row_lines(off_v + v as i64, off_u + a, off_u + e);
-            for (j, u) in (a as usize..e as usize).enumerate() {
-                let range = simple[j];
+            let (a, first_line, simple) = spans.chunk_row(off_u, off_v, v, n);
+            for (j, &range) in simple.iter().enumerate() {
+                let u = a + j;
                 let Some((ja, jb)) = reach(range, off, n) else {
                     // No span, or one that misses this chunk's piece of the line.
                     continue;
@@ -761,11 +763,7 @@ fn meets_chunk(t: &SpanTable, offset: I64Vec3, n: usize) -> bool {
         let (ua, va) = axis.across();
         let spans = &t.axes[axis.index()];
         let (off_u, off_v, off) = (offset[ua.index()], offset[va.index()], offset[axis.index()]);
-        (0..n as i64).any(|v| {
-            let (a, e) = spans.row_range(off_v + v);
-            let (a, e) = (a.max(off_u), e.min(off_u + n as i64));
-            a < e && spans.row_lines(off_v + v, a, e).1.iter().any(|&r| reach(r, off, n).is_some())
-        })
+        (0..n).any(|v| spans.chunk_row(off_u, off_v, v, n).2.iter().any(|&r| reach(r, off, n).is_some()))
     })
 }
 
