@@ -40,6 +40,7 @@ mod invariants;
 mod memory;
 pub mod normal;
 mod query;
+mod repair;
 mod sample;
 mod volume;
 
@@ -51,5 +52,6 @@ pub use edit::{CsgOp, EditError, EditReport, EditSettings, UndoRecord};
 pub use invariants::InvariantViolation;
 pub use memory::{MemoryReport, hash_table_bytes};
 pub use query::{CrossingStats, RayHit};
+pub use repair::RepairReport;
 pub use sample::brush_contains_node;
 pub use volume::{ChunkMap, KeyHasher, Volume};

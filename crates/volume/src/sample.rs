@@ -219,7 +219,10 @@ impl<'a> LineSampler<'a> {
             if t < t_lo || t > t_hi {
                 continue;
             }
-            let inside = if j < skip_until {
+            // The line's last node is always evaluated: it is the next chunk's first node,
+            // which that chunk evaluates itself, so a skip that a wrong Lipschitz bound or a
+            // discontinuous field made unsound must not decide it here differently.
+            let inside = if j < skip_until && j < n {
                 skip_state
             } else {
                 let (o, p) = at.node(j);

@@ -153,11 +153,35 @@ impl<'a> IntoIterator for &'a ChunkMap {
 /// Coordinates are grid units (one unit per base cell); `cell_size` converts them to world units
 /// for consumers. Chunks not in the map are empty; all-solid chunks are stored as
 /// [`Chunk::Solid`]; every other chunk holds [`crate::ChunkLists`].
+///
+/// Deserialisation checks the structure of every chunk and that the cell size is finite and
+/// positive; whether the lists agree with each other is [`Volume::check_invariants`]'s to say
+/// (and [`Volume::repair`]'s to fix).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "RawVolume")]
 pub struct Volume {
     pub(crate) chunks: ChunkMap,
     pub(crate) level: Level,
     pub(crate) cell_size: f64,
+}
+
+/// Unchecked deserialised form of [`Volume`].
+#[derive(serde::Deserialize)]
+struct RawVolume {
+    chunks: ChunkMap,
+    level: Level,
+    cell_size: f64,
+}
+
+impl TryFrom<RawVolume> for Volume {
+    type Error = String;
+
+    fn try_from(r: RawVolume) -> Result<Self, String> {
+        if !(r.cell_size.is_finite() && r.cell_size > 0.0) {
+            return Err(format!("the cell size {} is not finite and positive", r.cell_size));
+        }
+        Ok(Volume { chunks: r.chunks, level: r.level, cell_size: r.cell_size })
+    }
 }
 
 impl Default for Volume {
@@ -175,6 +199,21 @@ impl Volume {
     /// An empty volume whose chunks are created at `level` (`16 << level` cells per side).
     pub fn with_level(level: Level) -> Self {
         Volume { chunks: ChunkMap::default(), level, cell_size: 1.0 }
+    }
+
+    /// A volume holding exactly `chunks` (later entries replace earlier ones with the same key;
+    /// solid chunks as [`Chunk::Solid`]), for loaders that read chunks one at a time. Nothing is
+    /// checked: call [`Volume::check_invariants`] or [`Volume::repair`] before editing it.
+    /// `None` if `cell_size` is not finite and positive.
+    pub fn from_chunks(level: Level, cell_size: f64, chunks: impl IntoIterator<Item = (ChunkKey, Chunk)>) -> Option<Self> {
+        if !(cell_size.is_finite() && cell_size > 0.0) {
+            return None;
+        }
+        let mut v = Volume { chunks: ChunkMap::default(), level, cell_size };
+        for (key, chunk) in chunks {
+            v.chunks.insert(key, chunk);
+        }
+        Some(v)
     }
 
     /// The resolution level of new chunks.
@@ -207,6 +246,16 @@ impl Volume {
     /// Number of stored chunks.
     pub fn chunk_count(&self) -> usize {
         self.chunks.len()
+    }
+
+    /// The box of all stored chunks in grid units (lower corner of the lowest chunk, upper corner
+    /// of the highest), or `None` for an empty volume. Costs a pass over the chunk keys.
+    pub fn chunk_bounds_grid(&self) -> Option<(glam::DVec3, glam::DVec3)> {
+        let mut keys = self.chunks.keys();
+        let first = keys.next()?.0;
+        let (lo, hi) = keys.fold((first, first), |(lo, hi), k| (lo.min(k.0), hi.max(k.0)));
+        let c = crate::coords::CHUNK_CELLS as f64;
+        Some((lo.as_dvec3() * c, (hi.as_dvec3() + glam::DVec3::ONE) * c))
     }
 
     /// Whether nothing is inside.

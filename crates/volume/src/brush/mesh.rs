@@ -14,9 +14,11 @@
 //!
 //! Inside is decided by [`MeshRule`]. A mesh that is not closed (holes, unwelded vertices) is
 //! still accepted: along each line an unmatched last crossing is ignored (the line is outside
-//! after it), node states are taken from the x lines (the predicate is: the node lies in a span
-//! of the x line through it) and the volume repairs the y and z lines to match, so the result is a
-//! consistent solid close to what the mesh encloses, never a crash.
+//! after it). For every mesh, closed or not, node states are taken from the x lines (the
+//! predicate is: the node lies in a span of the x line through it) and the volume repairs the y
+//! and z lines to match, because exact ties (a face on a grid plane, an edge on a grid line, a
+//! vertex on a node) are seen differently along different axes; the result is a consistent solid
+//! close to what the mesh encloses, never a crash.
 
 use std::collections::HashMap;
 use std::sync::OnceLock;
@@ -503,8 +505,14 @@ impl Brush for MeshBrush {
         true
     }
 
+    /// Never: even a closed mesh leaves exact ties open. A face on a grid plane puts nodes on
+    /// the surface, and a line lying in that plane sees no crossing of the face (its triangle
+    /// test is degenerate there) while the lines through the face see one at the node; an edge
+    /// on a grid line is decided by the top-left rule in one frame and not in the other. The
+    /// volume therefore takes node states from the x lines (which `contains` reads) and repairs
+    /// the y and z lines, for every mesh.
     fn lines_agree(&self) -> bool {
-        self.closed
+        false
     }
 }
 

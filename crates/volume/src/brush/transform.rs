@@ -2,7 +2,7 @@
 
 use glam::{DQuat, DVec3};
 
-use super::{Aabb, Brush, BrushError, Span, finite, positive, unit_rotation};
+use super::{Aabb, Brush, BrushError, Span, finite, positive, unit_axis, unit_rotation};
 
 /// `inner` scaled by `scale`, rotated by `rotation`, then moved by `translation`:
 /// `world = translation + rotation · (scale · local)`.
@@ -34,11 +34,28 @@ impl<B: Brush> Transformed<B> {
         &self.inner
     }
 
-    /// `origin + p` in the inner brush's frame. `origin - translation` is exact whenever the
+    /// `origin + p` in the inner brush's frame. The world point is formed first (exact for a
+    /// chunk origin plus a small chunk-local offset), so every chunk that asks about one world
+    /// point computes the same local point; `world - translation` is exact whenever the
     /// difference is representable, which keeps far-away edits identical to edits near 0.
     #[inline]
     fn to_local(&self, origin: DVec3, p: DVec3) -> DVec3 {
-        self.inverse_rotation * ((origin - self.translation) + p) / self.scale
+        self.inverse_rotation * ((origin + p) - self.translation) / self.scale
+    }
+
+    /// The line `origin + start + t · dir` in the inner frame, from a point that depends only on
+    /// the world line (for a grid-axis direction, the point where the line passes the brush's
+    /// translation along its axis), and the parameter of `origin + start` on it. Every chunk
+    /// along one grid line then asks the inner brush exactly the same question, so ties (a line
+    /// in a face's plane) are decided once per line, not once per chunk.
+    fn local_line(&self, origin: DVec3, start: DVec3, dir: DVec3) -> (DVec3, DVec3, f64) {
+        let local_dir = self.inverse_rotation * dir / self.scale;
+        let mut rel = (origin + start) - self.translation;
+        let shift = match unit_axis(dir) {
+            Some(a) => std::mem::replace(&mut rel[a], 0.0),
+            None => 0.0,
+        };
+        (self.inverse_rotation * rel / self.scale, local_dir, shift)
     }
 }
 
@@ -57,7 +74,13 @@ impl<B: Brush> Brush for Transformed<B> {
         self.contains_on_line(origin, p, DVec3::X)
     }
 
+    /// Inside as the spans of the line through the point say (when the inner brush answers
+    /// lines by spans), so node states and line states come from one computation per line.
     fn contains_on_line(&self, origin: DVec3, p: DVec3, dir: DVec3) -> bool {
+        let mut spans = Vec::new();
+        if self.spans(origin, p, dir, &mut spans) {
+            return spans.iter().any(|s| s.enter <= 0.0 && 0.0 <= s.exit);
+        }
         let local_dir = self.inverse_rotation * dir / self.scale;
         self.inner.contains_on_line(DVec3::ZERO, self.to_local(origin, p), local_dir)
     }
@@ -71,20 +94,25 @@ impl<B: Brush> Brush for Transformed<B> {
     }
 
     fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
-        let local_start = self.to_local(origin, start);
-        let local_dir = self.inverse_rotation * dir / self.scale;
+        let (local_start, local_dir, shift) = self.local_line(origin, start, dir);
         if !self.inner.spans(DVec3::ZERO, local_start, local_dir, out) {
             return false;
         }
         for s in out.iter_mut() {
+            s.enter -= shift;
+            s.exit -= shift;
             s.enter_normal = self.rotation * s.enter_normal;
             s.exit_normal = self.rotation * s.exit_normal;
         }
         true
     }
 
+    /// Only without rotation: a rotation mixes the axes in floating point, so a face that a
+    /// quarter turn lays on a grid plane is not exactly on it, and lines along different axes
+    /// could decide its nodes differently. Rotated brushes therefore take node states from the x
+    /// lines and have the others repaired to match.
     fn lines_agree(&self) -> bool {
-        self.inner.lines_agree()
+        self.inner.lines_agree() && (self.rotation == DQuat::IDENTITY || self.rotation == -DQuat::IDENTITY)
     }
 }
 
