@@ -140,25 +140,19 @@ pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) ->
         writeln!(out, "  wrote                  {}", path.display())?;
     }
     if let Some(path) = scene {
-        // A scene for the studio: the sculpture as one layer, the camera on its bounds.
-        let (lo, hi) = (checks_bounds(&mesh).0, checks_bounds(&mesh).1);
-        let centre = (lo + hi) * 0.5;
+        // A scene for the studio: the sculpture as one layer, the camera on its chunks (finite
+        // even when the sculpture is empty).
         let mut s = strata_editor::Scene::default();
         s.layers[0].name = "Demo".into();
         s.layers[0].volume = volume;
-        s.view = strata_editor::View { target: centre, distance: (hi - lo).length() * 1.3, yaw: 0.6, pitch: 0.35 };
-        strata_editor::file::save(&s, path).with_context(|| format!("writing {}", path.display()))?;
+        s.view = strata_editor::View { yaw: 0.6, pitch: 0.35, ..strata_editor::View::framing(&s.layers) };
+        let repairs = strata_editor::file::save(&s, path).with_context(|| format!("writing {}", path.display()))?;
+        for r in &repairs.repairs {
+            writeln!(out, "  repaired before saving {r}")?;
+        }
         writeln!(out, "  wrote scene            {}", path.display())?;
     }
     Ok(out)
-}
-
-/// The bounding box of a mesh's vertices.
-fn checks_bounds(mesh: &strata_mesh::Mesh) -> (DVec3, DVec3) {
-    mesh.positions.iter().fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(lo, hi), p| {
-        let p = glam::Vec3::from(*p).as_dvec3();
-        (lo.min(p), hi.max(p))
-    })
 }
 
 #[cfg(test)]
@@ -173,6 +167,8 @@ mod tests {
         let scene = dir.join("demo.strata");
         let report = demo(0.5, std::slice::from_ref(&glb), Some(&scene)).unwrap();
         let loaded = strata_editor::file::load(&scene).unwrap();
+        assert!(loaded.report.is_clean(), "{}", loaded.report);
+        let loaded = loaded.scene;
         assert_eq!(loaded.layers.len(), 1);
         assert!(!loaded.layers[0].volume.is_empty());
         assert!(report.contains("invariants             hold"), "{report}");
@@ -182,5 +178,16 @@ mod tests {
         assert!(demo(f64::NAN, &[], None).is_err());
         assert!(demo(0.0, &[], None).is_err());
         assert!(demo(0.5, &[dir.join("demo.nope")], None).is_err());
+    }
+
+    #[test]
+    fn a_demo_too_small_to_hold_a_node_still_saves_a_scene_that_reopens() {
+        let dir = std::env::temp_dir().join(format!("strata-cli-tiny-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("tiny.strata");
+        demo(0.01, &[], Some(&scene)).unwrap();
+        let loaded = strata_editor::file::load(&scene).unwrap();
+        assert!(loaded.report.is_clean(), "{}", loaded.report);
+        assert!(loaded.scene.view.distance.is_finite());
     }
 }

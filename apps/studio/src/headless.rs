@@ -13,7 +13,13 @@ use crate::studio::{Studio, default_scene};
 /// name.
 pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe: bool) -> anyhow::Result<String> {
     let scene: Scene = match scene {
-        Some(p) => file::load(p).map_err(|e| anyhow::anyhow!("could not open {}: {e}", p.display()))?,
+        Some(p) => {
+            let loaded = file::load(p).map_err(|e| anyhow::anyhow!("could not open {}: {e}", p.display()))?;
+            if !loaded.report.is_clean() {
+                eprintln!("{}: repaired while loading: {}", p.display(), loaded.report);
+            }
+            loaded.scene
+        }
         None => default_scene(),
     };
     let mut studio = Studio::new(scene);

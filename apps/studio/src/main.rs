@@ -36,9 +36,12 @@ fn main() -> anyhow::Result<()> {
     }
     let mut studio = match &cli.scene {
         Some(path) => {
-            let scene = strata_editor::file::load(path)
+            let loaded = strata_editor::file::load(path)
                 .map_err(|e| anyhow::anyhow!("could not open {}: {e}", path.display()))?;
-            let mut s = Studio::new(scene);
+            let mut s = Studio::new(loaded.scene);
+            if !loaded.report.is_clean() {
+                s.message = format!("Opened {} with repairs: {}", path.display(), loaded.report);
+            }
             s.path = Some(path.clone());
             s
         }

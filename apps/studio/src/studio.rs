@@ -118,9 +118,13 @@ impl Studio {
                 self.message = "New scene".into();
             }
             Action::Open(path) => {
-                let scene = file::load(&path).map_err(|e| format!("Could not open {}: {e}", path.display()))?;
-                self.replace_scene(scene);
-                self.message = format!("Opened {}", path.display());
+                let loaded = file::load(&path).map_err(|e| format!("Could not open {}: {e}", path.display()))?;
+                self.replace_scene(loaded.scene);
+                self.message = if loaded.report.is_clean() {
+                    format!("Opened {}", path.display())
+                } else {
+                    format!("Opened {} with repairs: {}", path.display(), loaded.report)
+                };
                 self.path = Some(path);
             }
             Action::Save => {
@@ -162,9 +166,13 @@ impl Studio {
 
     fn save_to(&mut self, path: &Path) -> Result<(), String> {
         self.editor.scene.view = view_of(&self.camera);
-        file::save(&self.editor.scene, path)
+        let report = file::save(&self.editor.scene, path)
             .map_err(|e: SceneFileError| format!("Could not save {}: {e}", path.display()))?;
-        self.message = format!("Saved {}", path.display());
+        self.message = if report.is_clean() {
+            format!("Saved {}", path.display())
+        } else {
+            format!("Saved {} with repairs: {report}", path.display())
+        };
         Ok(())
     }
 

@@ -18,5 +18,5 @@ mod tool;
 pub use editor::{Editor, EditorError, FrameReport, Pick, to_world};
 pub use history::{History, HistoryEntry};
 pub use pose::{Buttons, ToolPose};
-pub use scene::{Layer, LayerTransform, Material, Scene, View};
+pub use scene::{Layer, LayerTransform, Material, Scene, TransformError, View};
 pub use tool::{BrushShape, ToolKind, ToolSettings};

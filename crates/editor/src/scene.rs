@@ -21,14 +21,61 @@ impl Default for LayerTransform {
     }
 }
 
+/// Why a layer transform was refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TransformError {
+    /// A translation with a NaN or infinite coordinate.
+    #[error("the layer translation {0} is not finite")]
+    Translation(DVec3),
+    /// A rotation that is NaN, infinite or too close to zero length to normalise.
+    #[error("the layer rotation {0} is not a finite, non-zero quaternion")]
+    Rotation(DQuat),
+    /// A scale that is not finite, or not positive, or so small or large that grid coordinates
+    /// lose their meaning.
+    #[error("the layer scale {0} must be finite and within [{min:e}, {max:e}]", min = LayerTransform::MIN_SCALE, max = LayerTransform::MAX_SCALE)]
+    Scale(f64),
+}
+
 impl LayerTransform {
-    /// Whether the transform is invertible and finite.
+    /// The smallest world units per cell accepted (a nanometre cell in metre units).
+    pub const MIN_SCALE: f64 = 1e-9;
+    /// The largest world units per cell accepted.
+    pub const MAX_SCALE: f64 = 1e9;
+
+    /// A transform, checked: a finite translation, a finite non-zero rotation (normalised
+    /// here), a finite scale within [`Self::MIN_SCALE`, `Self::MAX_SCALE`].
+    pub fn new(translation: DVec3, rotation: DQuat, scale: f64) -> Result<Self, TransformError> {
+        if !translation.is_finite() {
+            return Err(TransformError::Translation(translation));
+        }
+        let l = rotation.length();
+        if !(rotation.is_finite() && l > 1e-9) {
+            return Err(TransformError::Rotation(rotation));
+        }
+        if !(scale.is_finite() && (Self::MIN_SCALE..=Self::MAX_SCALE).contains(&scale)) {
+            return Err(TransformError::Scale(scale));
+        }
+        Ok(LayerTransform { translation, rotation: rotation / l, scale })
+    }
+
+    /// The nearest valid transform: a non-finite translation becomes 0, a rotation that cannot
+    /// be normalised the identity (others are normalised), a scale out of range the nearest
+    /// bound (1 if it is NaN).
+    pub fn repaired(&self) -> Self {
+        let translation = if self.translation.is_finite() { self.translation } else { DVec3::ZERO };
+        let l = self.rotation.length();
+        let rotation = if self.rotation.is_finite() && l > 1e-9 { self.rotation / l } else { DQuat::IDENTITY };
+        let scale = if self.scale.is_nan() { 1.0 } else { self.scale.clamp(Self::MIN_SCALE, Self::MAX_SCALE) };
+        LayerTransform { translation, rotation, scale }
+    }
+
+    /// Whether the transform is invertible and finite (what [`LayerTransform::new`] accepts).
     pub fn is_valid(&self) -> bool {
         self.translation.is_finite()
             && self.rotation.is_finite()
             && (self.rotation.length() - 1.0).abs() < 1e-6
             && self.scale.is_finite()
-            && self.scale > 0.0
+            && (Self::MIN_SCALE..=Self::MAX_SCALE).contains(&self.scale)
     }
 
     /// World point of a grid point.
@@ -103,6 +150,41 @@ pub struct View {
 impl Default for View {
     fn default() -> Self {
         View { target: DVec3::new(32.0, 16.0, 32.0), distance: 110.0, yaw: 0.7, pitch: 0.45 }
+    }
+}
+
+impl View {
+    /// A view of the stored chunks of `layers` (world bounds of their chunk boxes), at the
+    /// default angles; the default view when there is nothing to frame. Always finite.
+    pub fn framing<'a>(layers: impl IntoIterator<Item = &'a Layer>) -> View {
+        let mut bounds: Option<(DVec3, DVec3)> = None;
+        for l in layers {
+            if !l.transform.is_valid() {
+                continue;
+            }
+            let Some((lo, hi)) = l.volume.chunk_bounds_grid() else { continue };
+            for k in 0..8 {
+                let c = DVec3::new(
+                    if k & 1 == 0 { lo.x } else { hi.x },
+                    if k & 2 == 0 { lo.y } else { hi.y },
+                    if k & 4 == 0 { lo.z } else { hi.z },
+                );
+                let w = l.transform.to_world(c);
+                bounds = Some(match bounds {
+                    None => (w, w),
+                    Some((a, b)) => (a.min(w), b.max(w)),
+                });
+            }
+        }
+        let d = View::default();
+        match bounds {
+            Some((lo, hi)) if lo.is_finite() && hi.is_finite() => {
+                let size = (hi - lo).length();
+                let distance = (size * 1.2).max(1e-6);
+                if distance.is_finite() { View { target: (lo + hi) / 2.0, distance, ..d } } else { d }
+            }
+            _ => d,
+        }
     }
 }
 

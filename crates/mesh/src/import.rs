@@ -1,13 +1,49 @@
 //! Reading triangle meshes (PLY, OBJ, binary or ASCII STL) for conversion into volumes, through
-//! the `ply-rs`, `tobj` and `stl_io` crates. Polygons with more than three corners are split
-//! into fans. Every file is validated: finite coordinates, indices in range, at least one
-//! triangle; anything else is an [`ImportError`], never a panic.
+//! the `ply-rs`, `tobj` and `stl_io` crates (binary STL is read here). Polygons with more than
+//! three corners are split into fans. Every file is validated: finite coordinates, indices in
+//! range, at least one triangle; anything else is an [`ImportError`], never a panic.
+//!
+//! Reads are bounded: a path that is not a regular file (a FIFO, a device such as `/dev/zero`,
+//! directly or through a link) or a file over [`MAX_MESH_BYTES`] is refused before a byte is
+//! read, and the bytes are read into memory with that limit before any parser sees them, so a
+//! file that grows while it is read cannot exhaust memory either. A binary STL is recognised by
+//! its size rule (84 + 50 · count bytes), not by its first word: CAD exporters often begin the
+//! 80-byte header of a binary file with `solid`.
 
-use std::io::{self, BufReader};
+use std::collections::HashMap;
+use std::io::{self, Cursor, Read};
 use std::path::Path;
 
 use glam::DVec3;
 use thiserror::Error;
+
+/// The largest mesh file read (2 GiB: about 40 million binary STL triangles).
+pub const MAX_MESH_BYTES: u64 = 2 << 30;
+
+/// Reads the whole regular file at `path`, refusing (with [`io::ErrorKind::InvalidInput`])
+/// anything that is not a regular file or holds more than `limit` bytes, before reading it and
+/// again while reading it (a file that grows meanwhile).
+pub fn read_limited(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
+    }
+    let too_large = || io::Error::new(io::ErrorKind::InvalidInput, format!("larger than the limit of {limit} bytes"));
+    if meta.len() > limit {
+        return Err(too_large());
+    }
+    let f = std::fs::File::open(path)?;
+    // Checked again on the open file: the path may have been replaced since.
+    if !f.metadata()?.is_file() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    f.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large());
+    }
+    Ok(bytes)
+}
 
 /// Vertices and triangles read from a file.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -53,17 +89,28 @@ pub enum ImportError {
     Io(#[from] io::Error),
 }
 
+/// Parses a mesh held in memory; `format` is `"ply"`, `"obj"` or `"stl"`. (Not validated: see
+/// [`load_mesh`].)
+pub fn parse_mesh(format: &str, bytes: &[u8]) -> Result<TriangleMesh, String> {
+    match format {
+        "ply" => read_ply(bytes),
+        "obj" => read_obj(bytes),
+        "stl" => read_stl(bytes),
+        other => Err(format!("unknown mesh format {other:?}")),
+    }
+}
+
 /// Reads the mesh at `path`, choosing the format by extension.
 pub fn load_mesh(path: &Path) -> Result<TriangleMesh, ImportError> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let parse = |reason: String| ImportError::Parse { path: name.clone(), reason };
-    let mesh = match ext.as_deref() {
-        Some("ply") => read_ply(path).map_err(parse)?,
-        Some("obj") => read_obj(path).map_err(parse)?,
-        Some("stl") => read_stl(path).map_err(parse)?,
-        _ => return Err(ImportError::UnknownFormat(name)),
-    };
+    if !matches!(ext.as_deref(), Some("ply" | "obj" | "stl")) {
+        return Err(ImportError::UnknownFormat(name));
+    }
+    let bytes = read_limited(path, MAX_MESH_BYTES)
+        .map_err(|e| ImportError::Io(io::Error::new(e.kind(), format!("{name}: {e}"))))?;
+    let mesh = parse_mesh(ext.as_deref().unwrap_or_default(), &bytes).map_err(parse)?;
     validate(&mesh).map_err(|reason| ImportError::Invalid { path: name, reason })?;
     Ok(mesh)
 }
@@ -88,10 +135,10 @@ fn push_fan(out: &mut Vec<[u32; 3]>, corners: &[u32]) {
     }
 }
 
-fn read_ply(path: &Path) -> Result<TriangleMesh, String> {
+fn read_ply(bytes: &[u8]) -> Result<TriangleMesh, String> {
     use ply_rs::parser::Parser;
     use ply_rs::ply::{DefaultElement, Property};
-    let mut f = BufReader::new(std::fs::File::open(path).map_err(|e| e.to_string())?);
+    let mut f = Cursor::new(bytes);
     let ply = Parser::<DefaultElement>::new().read_ply(&mut f).map_err(|e| e.to_string())?;
     let scalar = |p: Option<&Property>| -> Option<f64> {
         Some(match p? {
@@ -129,9 +176,11 @@ fn read_ply(path: &Path) -> Result<TriangleMesh, String> {
     Ok(mesh)
 }
 
-fn read_obj(path: &Path) -> Result<TriangleMesh, String> {
+fn read_obj(bytes: &[u8]) -> Result<TriangleMesh, String> {
     let opts = tobj::LoadOptions { single_index: true, triangulate: false, ..Default::default() };
-    let (models, _) = tobj::load_obj(path, &opts).map_err(|e| e.to_string())?;
+    // Materials are not read (only the geometry becomes a volume).
+    let (models, _) = tobj::load_obj_buf(&mut Cursor::new(bytes), &opts, |_| Err(tobj::LoadError::OpenFileFailed))
+        .map_err(|e| e.to_string())?;
     let mut mesh = TriangleMesh::default();
     for m in models {
         let base = mesh.vertices.len() as u32;
@@ -154,11 +203,60 @@ fn read_obj(path: &Path) -> Result<TriangleMesh, String> {
     Ok(mesh)
 }
 
-fn read_stl(path: &Path) -> Result<TriangleMesh, String> {
-    let mut f = BufReader::new(std::fs::File::open(path).map_err(|e| e.to_string())?);
-    let stl = stl_io::read_stl(&mut f).map_err(|e| e.to_string())?;
+/// Bytes of a binary STL's header and triangle count, and of each triangle record.
+const STL_HEADER: usize = 84;
+const STL_RECORD: usize = 50;
+
+fn read_stl(bytes: &[u8]) -> Result<TriangleMesh, String> {
+    let declared = (bytes.len() >= STL_HEADER)
+        .then(|| u32::from_le_bytes(bytes[80..84].try_into().expect("4 bytes")) as usize);
+    if let Some(count) = declared
+        && (bytes.len() - STL_HEADER) as u64 == count as u64 * STL_RECORD as u64
+    {
+        return Ok(read_binary_stl(&bytes[STL_HEADER..], count));
+    }
+    let ascii = bytes.trim_ascii_start().starts_with(b"solid") && std::str::from_utf8(bytes).is_ok();
+    if !ascii {
+        return Err(match declared {
+            Some(count) => format!(
+                "binary STL declares {count} triangles ({} bytes) but the file has {} bytes{}",
+                STL_HEADER as u64 + count as u64 * STL_RECORD as u64,
+                bytes.len(),
+                if (bytes.len() - STL_HEADER) % STL_RECORD == 0 {
+                    format!(" ({} triangles)", (bytes.len() - STL_HEADER) / STL_RECORD)
+                } else {
+                    String::new()
+                }
+            ),
+            None => format!("a binary STL needs at least {STL_HEADER} bytes, the file has {}", bytes.len()),
+        });
+    }
+    let stl = stl_io::read_stl(&mut Cursor::new(bytes)).map_err(|e| e.to_string())?;
     Ok(TriangleMesh {
         vertices: stl.vertices.iter().map(|v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)).collect(),
         triangles: stl.faces.iter().map(|f| f.vertices.map(|i| i as u32)).collect(),
     })
+}
+
+/// The `count` triangle records of a binary STL, with bitwise-equal vertices welded (the format
+/// repeats every shared vertex), so a closed model reads as a closed mesh.
+fn read_binary_stl(records: &[u8], count: usize) -> TriangleMesh {
+    let mut mesh = TriangleMesh::default();
+    let mut index: HashMap<[u32; 3], u32> = HashMap::new();
+    for r in records.chunks_exact(STL_RECORD).take(count) {
+        let float = |at: usize| f32::from_le_bytes(r[at..at + 4].try_into().expect("4 bytes"));
+        let mut tri = [0u32; 3];
+        for (k, corner) in tri.iter_mut().enumerate() {
+            let at = 12 + 12 * k;
+            let v = [float(at), float(at + 4), float(at + 8)];
+            // -0.0 and 0.0 are one point.
+            let bits = v.map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+            *corner = *index.entry(bits).or_insert_with(|| {
+                mesh.vertices.push(DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+                (mesh.vertices.len() - 1) as u32
+            });
+        }
+        mesh.triangles.push(tri);
+    }
+    mesh
 }

@@ -181,15 +181,16 @@ impl Volume {
         }
         report.dropped_chunks = wrong_level.len();
         let old = std::mem::replace(self, Volume { chunks: Default::default(), level, cell_size: self.cell_size });
-        // The regions that hold a stored chunk, in order (a sparse volume far from the origin
-        // costs its chunks, not the box around them).
-        let regions: std::collections::BTreeSet<[i32; 3]> =
-            old.chunks.keys().map(|k| k.0.div_euclid(IVec3::splat(REGION_CHUNKS)).to_array()).collect();
+        // The regions that hold a stored chunk, each with the box of its stored chunks (a sparse
+        // volume far from the origin costs its chunks, not the box around them).
+        let mut regions: std::collections::BTreeMap<[i32; 3], (IVec3, IVec3)> = Default::default();
+        for k in old.chunks.keys() {
+            let r = regions.entry(k.0.div_euclid(IVec3::splat(REGION_CHUNKS)).to_array()).or_insert((k.0, k.0));
+            *r = (r.0.min(k.0), r.1.max(k.0));
+        }
         let settings = EditSettings { max_chunks: u64::MAX, ..Default::default() };
-        for r in regions {
-            let r_lo = IVec3::from_array(r) * REGION_CHUNKS;
-            let r_hi = r_lo + IVec3::splat(REGION_CHUNKS - 1);
-            let brush = ListsBrush { volume: &old, lo: r_lo, hi: r_hi };
+        for (lo, hi) in regions.into_values() {
+            let brush = ListsBrush { volume: &old, lo, hi };
             if let Ok(edit) = self.apply(CsgOp::Add, &brush, &settings) {
                 report.repaired_nodes += edit.repaired_nodes;
             }
