@@ -220,3 +220,41 @@ fn picking_hits_the_nearest_visible_surface() {
     let mesh = e.dual_contour_layer(0).unwrap();
     assert!(mesh.triangle_count() > 100);
 }
+
+#[test]
+fn picking_skips_layers_the_ray_misses_and_bounds_its_work() {
+    // 100 empty layers at a tiny scale cost nothing.
+    let mut scene = Scene::default();
+    scene.layers.clear();
+    for i in 0..100 {
+        let mut l = Layer::new(format!("empty {i}"));
+        l.transform = LayerTransform::new(DVec3::ZERO, DQuat::IDENTITY, 1e-5).unwrap();
+        scene.layers.push(l);
+    }
+    let mut e = Editor::new(scene);
+    let (hit, walked) = e.pick_counted(DVec3::new(0.0, 0.0, -50.0), DVec3::Z, 1e4);
+    assert!(hit.is_none());
+    assert_eq!(walked, 0, "empty layers walk no chunk");
+    // A tiny-scale layer with two specks far apart (a ray along it would cross 10⁹ chunks of
+    // its grid): the walk stops at the per-pick budget.
+    let mut l = Layer::new("specks");
+    l.transform = LayerTransform::new(DVec3::ZERO, DQuat::IDENTITY, 1e-5).unwrap();
+    l.volume.add(&Sphere::new(DVec3::ZERO, 1.5).unwrap()).unwrap();
+    l.volume.add(&Sphere::new(DVec3::new(1.6e10, 0.0, 0.0), 1.5).unwrap()).unwrap();
+    assert!(l.volume.chunk_count() >= 2);
+    e.scene.layers.push(l);
+    e.reset_caches();
+    let (_, walked) = e.pick_counted(DVec3::new(3.0e-5, 2.5e-6, 2.5e-6), DVec3::X, 1e6);
+    assert!(walked <= strata_editor::PICK_CHUNK_STEPS, "{walked} chunks walked");
+    // A layer in front hides the ones behind without walking them.
+    let mut front = Layer::new("front");
+    front.volume.add(&Sphere::new(DVec3::new(10.0, 10.0, 10.0), 5.0).unwrap()).unwrap();
+    let mut back = Layer::new("back");
+    back.volume.add(&Sphere::new(DVec3::new(10.0, 10.0, 90.0), 5.0).unwrap()).unwrap();
+    let e = Editor::new(Scene { layers: vec![back, front], ..Scene::default() });
+    let (hit, walked) = e.pick_counted(DVec3::new(10.0, 10.0, -20.0), DVec3::Z, 1e4);
+    let hit = hit.expect("the front sphere");
+    assert_eq!(hit.layer, 1);
+    assert!((hit.point.z - 5.0).abs() < 0.6, "{}", hit.point);
+    assert!(walked <= 4, "only the front layer's chunks up to the hit: {walked}");
+}

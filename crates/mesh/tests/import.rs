@@ -70,3 +70,59 @@ fn malformed_files_are_errors() {
     assert!(matches!(load_mesh(&temp("x.fbx")), Err(ImportError::UnknownFormat(_))));
     assert!(load_mesh(&temp("missing.stl")).is_err());
 }
+
+/// A binary STL of `tris` (each three corners), with `header` as its first bytes and `count`
+/// declared.
+fn binary_stl(header: &[u8], count: u32, tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut b = vec![b' '; 80];
+    b[..header.len()].copy_from_slice(header);
+    b.extend_from_slice(&count.to_le_bytes());
+    for t in tris {
+        b.extend_from_slice(&[0u8; 12]);
+        for c in t {
+            for v in c {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        b.extend_from_slice(&[0u8; 2]);
+    }
+    b
+}
+
+fn tetra() -> Vec<[[f32; 3]; 3]> {
+    let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    vec![[p[0], p[2], p[1]], [p[0], p[1], p[3]], [p[0], p[3], p[2]], [p[1], p[2], p[3]]]
+}
+
+#[test]
+fn binary_stl_files_whose_header_starts_with_solid_are_read_as_binary() {
+    let path = temp("cad.stl");
+    std::fs::write(&path, binary_stl(b"solid exported by a CAD tool", 4, &tetra())).unwrap();
+    let m = load_mesh(&path).unwrap();
+    assert_eq!((m.vertices.len(), m.triangles.len()), (4, 4), "shared corners are welded");
+    let brush = MeshBrush::new(&m.vertices, &m.triangles, MeshRule::EvenOdd).unwrap();
+    assert!(brush.is_closed());
+}
+
+#[test]
+fn a_binary_stl_whose_count_disagrees_with_its_size_is_an_error() {
+    for declared in [3, 5] {
+        let path = temp(&format!("count{declared}.stl"));
+        std::fs::write(&path, binary_stl(b"binary", declared, &tetra())).unwrap();
+        let err = load_mesh(&path).unwrap_err().to_string();
+        assert!(err.contains(&format!("declares {declared} triangles")) && err.contains("(4 triangles)"), "{err}");
+    }
+    let short = temp("short.stl");
+    std::fs::write(&short, b"\x00\x01").unwrap();
+    assert!(load_mesh(&short).is_err());
+}
+
+#[cfg(unix)]
+#[test]
+fn mesh_files_that_are_not_regular_files_are_refused_before_reading() {
+    let link = temp("zero.stl");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+    let err = load_mesh(&link).unwrap_err().to_string();
+    assert!(err.contains("not a regular file"), "{err}");
+}

@@ -51,7 +51,7 @@ pub use coords::{ChunkKey, Level};
 pub use edit::{CsgOp, EditError, EditReport, EditSettings, UndoRecord};
 pub use invariants::InvariantViolation;
 pub use memory::{MemoryReport, hash_table_bytes};
-pub use query::{CrossingStats, RayHit};
+pub use query::{CrossingStats, RayHit, clip_to_box};
 pub use repair::RepairReport;
 pub use sample::brush_contains_node;
 pub use volume::{ChunkMap, KeyHasher, Volume};

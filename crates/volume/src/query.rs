@@ -111,20 +111,41 @@ impl Volume {
 
     /// The first surface point along `origin + t · dir`, `0 ≤ t ≤ max_t` (grid coordinates). A
     /// ray that starts inside the solid hits at `t = 0`. Within a cell the surface is the plane
-    /// fitted to the cell's edge crossings, so hits are accurate to a fraction of a cell.
+    /// fitted to the cell's edge crossings, so hits are accurate to a fraction of a cell. The ray
+    /// is first clipped to the box of stored chunks (an empty volume costs nothing) and walks at
+    /// most 2²⁴ chunks.
     pub fn raycast(&self, origin: DVec3, dir: DVec3, max_t: f64) -> Option<RayHit> {
+        self.raycast_limited(origin, dir, max_t, 1 << 24).0
+    }
+
+    /// [`Volume::raycast`] walking at most `max_chunks` chunks of the clipped ray; also returns
+    /// how many it walked (callers share one budget between several volumes).
+    pub fn raycast_limited(&self, origin: DVec3, dir: DVec3, max_t: f64, max_chunks: u64) -> (Option<RayHit>, u64) {
         if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0 && max_t >= 0.0) {
-            return None;
+            return (None, 0);
         }
-        let max_t = max_t.min(1e9);
+        let Some((lo, hi)) = self.chunk_bounds_grid() else { return (None, 0) };
+        let Some((t_in, t_out)) = clip_to_box(origin, dir, lo, hi) else { return (None, 0) };
+        let t_start = t_in.max(0.0);
+        let t_end = t_out.min(max_t).min(1e9);
+        if !(t_start <= t_end) {
+            return (None, 0);
+        }
+        let mut walked = 0u64;
         let mut block = VoxelBlock::default();
         let chunk_size = CHUNK_CELLS as f64;
-        for (cell, t0, t1, entry_axis) in Dda::new(origin / chunk_size, dir / chunk_size, max_t) {
-            let key = key_of(cell)?;
+        let ray_start = origin + dir * t_start;
+        for (cell, t0, t1, entry_axis) in Dda::new(ray_start / chunk_size, dir / chunk_size, t_end - t_start) {
+            if walked >= max_chunks {
+                break;
+            }
+            walked += 1;
+            let (t0, t1) = (t0 + t_start, t1 + t_start);
+            let Some(key) = key_of(cell) else { break };
             let entry_normal = entry_normal(entry_axis, dir);
             match self.view(key) {
                 ChunkView::Uniform(false) => {}
-                ChunkView::Uniform(true) => return Some(hit(origin, dir, t0, entry_normal)),
+                ChunkView::Uniform(true) => return (Some(hit(origin, dir, t0, entry_normal)), walked),
                 ChunkView::Lists(l) => {
                     self.extract_block_into(key, &mut block);
                     let sp = l.level().spacing();
@@ -139,14 +160,33 @@ impl Volume {
                         let (c0, c1) = (start + c0, start + c1);
                         let normal_in = if c0 == start { entry_normal } else { self::entry_normal(axis, dir) };
                         if let Some(h) = hit_in_cell(&block, c, origin, dir, chunk_origin, sp, c0, c1, normal_in) {
-                            return Some(h);
+                            return (Some(h), walked);
                         }
                     }
                 }
             }
         }
-        None
+        (None, walked)
     }
+}
+
+/// The parameter interval where `origin + t · dir` lies in the box `[lo, hi]` (any `t`), if the
+/// line meets it.
+pub fn clip_to_box(origin: DVec3, dir: DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+    for i in 0..3 {
+        if dir[i] == 0.0 {
+            if origin[i] < lo[i] || origin[i] > hi[i] {
+                return None;
+            }
+        } else {
+            let a = (lo[i] - origin[i]) / dir[i];
+            let b = (hi[i] - origin[i]) / dir[i];
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
 }
 
 fn key_of(k: I64Vec3) -> Option<ChunkKey> {
