@@ -121,6 +121,9 @@ struct EditCtx<'a> {
     op: CsgOp,
     bounds: Aabb,
     reconcile: bool,
+    /// The brush's field is a distance ([`Brush::field_is_distance`]): chunks far from the
+    /// surface are decided by one field value.
+    distance_field: bool,
     table: Option<SpanTable>,
 }
 
@@ -409,7 +412,14 @@ impl Volume {
             CsgOp::Intersect => self.chunks.keys().copied().collect(),
         };
         let table = SpanTable::build(brush, &bounds, cmin, self.level, settings.parallel);
-        let ctx = EditCtx { brush, op, bounds, reconcile: !brush.lines_agree(), table };
+        let ctx = EditCtx {
+            brush,
+            op,
+            bounds,
+            reconcile: !brush.lines_agree(),
+            distance_field: brush.field_is_distance(),
+            table,
+        };
         let run = |scratch: &mut Scratch, key: ChunkKey| -> Option<(ChunkKey, Built, u64)> {
             let view = self.view(key);
             if op == CsgOp::Intersect && !in_range(key, cmin, cmax) {
@@ -538,6 +548,19 @@ fn edit_chunk(
     }
     let n = level.cells();
     let origin = key.origin_grid();
+    if ctx.distance_field
+        && ctx.op != CsgOp::Intersect
+        && let Some(inside) = chunk_side(ctx.brush, origin)
+    {
+        // Every node the chunk's lines hold is on one side of the surface: a chunk inside the
+        // brush becomes uniform, one outside is untouched. (This is what keeps the edit's cost
+        // with the surface: a radius-770 sphere fills 460,000 chunks.)
+        if !inside {
+            return None;
+        }
+        let now = ctx.op == CsgOp::Add;
+        return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
+    }
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
     let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;
@@ -842,6 +865,23 @@ fn splice_piece(b: &mut ChunkBuilder, line: LineRef<'_>, piece: Piece<'_>, level
     }
     b.push_spliced(start, line, p, q, &mid[..m]);
     true
+}
+
+/// For a brush whose field is a distance: `Some(true)` when every node of the chunk at
+/// `origin` (its lines' nodes `0..=n`, so the box `[origin, origin + 16]`) is inside the brush,
+/// `Some(false)` when none is, `None` when the surface may pass through, from the field at the
+/// box's centre and the distance to its corners (with a margin for rounding and snapping).
+fn chunk_side(brush: &dyn Brush, origin: I64Vec3) -> Option<bool> {
+    let half = CHUNK_CELLS as f64 / 2.0;
+    let f = brush.field(origin.as_dvec3(), DVec3::splat(half));
+    let reach = half * 3f64.sqrt() + SNAP_DISTANCE + 1e-9 * (1.0 + f.abs());
+    if f < -reach {
+        Some(true)
+    } else if f > reach {
+        Some(false)
+    } else {
+        None
+    }
 }
 
 /// Whether every x line through the chunk (apron rows included) lies inside one span from

@@ -167,3 +167,35 @@ fn large_brushes_give_the_same_volume_on_one_thread_and_in_parallel() {
     volumes[1].check_invariants().unwrap();
     assert!(volumes[1].crossing_stats().total > 100_000);
 }
+
+#[test]
+fn chunks_decided_by_one_distance_value_match_the_general_path() {
+    use strata_volume::brush::{Capsule, Cylinder, Torus, Transformed};
+    let mut rng = Rng(7);
+    let (mut fast, mut general) = (Volume::new(), Volume::new());
+    let settings = EditSettings { parallel: true, ..Default::default() };
+    for i in 0..24 {
+        let c = DVec3::new(rng.unit(), rng.unit(), rng.unit()) * 64.0;
+        let c = if i % 4 == 0 { c.round() } else { c };
+        let r = 20.0 + rng.unit() * 40.0;
+        let brush: Box<dyn Brush> = match i % 6 {
+            0 => Box::new(Sphere::new(c, r).unwrap()),
+            1 => Box::new(Cuboid::rounded(c, DVec3::new(r, r * 0.7, r * 0.9), 4.0).unwrap()),
+            2 => Box::new(Capsule::new(c, c + DVec3::new(30.0, 10.0, -20.0), r * 0.6).unwrap()),
+            3 => Box::new(Cylinder::new(c, DVec3::new(0.3, 1.0, 0.2), r, r * 0.8).unwrap()),
+            4 => Box::new(Torus::new(c, DVec3::Y, r, r * 0.45).unwrap()),
+            _ => Box::new(
+                Transformed::new(Sphere::new(DVec3::ZERO, 10.0).unwrap(), glam::DQuat::from_rotation_y(0.4), c, 3.0)
+                    .unwrap(),
+            ),
+        };
+        assert!(brush.field_is_distance());
+        let op = if i % 3 == 2 { CsgOp::Subtract } else { CsgOp::Add };
+        let a = fast.apply(op, brush.as_ref(), &settings).unwrap();
+        let b = general.apply(op, &general_path(&brush), &settings).unwrap();
+        assert_eq!(a.changed, b.changed, "edit {i}: the same chunks change");
+        assert_eq!(fast, general, "edit {i}: the same volume");
+    }
+    fast.check_invariants().unwrap();
+    assert!(fast.chunks().filter(|(_, c)| matches!(c, strata_volume::Chunk::Solid)).count() > 50);
+}

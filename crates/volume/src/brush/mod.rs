@@ -149,6 +149,15 @@ pub trait Brush: Send + Sync {
         1.0
     }
 
+    /// Whether [`Brush::field`] is known to be 1-Lipschitz with the sign of [`Brush::contains`]
+    /// away from the surface (the exact signed distances of the analytic shapes): the volume
+    /// then decides a whole chunk from one field value at its centre (every node inside, or
+    /// none), so an edit costs its surface, not the volume it fills. User fields and meshes,
+    /// whose fields cannot be trusted, answer `false` (the default).
+    fn field_is_distance(&self) -> bool {
+        false
+    }
+
     /// Fills `out` with the sorted, disjoint spans where the infinite line
     /// `origin + start + t · dir` is inside, and returns `true`; or returns `false` if the brush
     /// answers lines by sampling instead.
@@ -206,6 +215,9 @@ macro_rules! forward_brush {
             }
             fn lipschitz(&self) -> f64 {
                 (**self).lipschitz()
+            }
+            fn field_is_distance(&self) -> bool {
+                (**self).field_is_distance()
             }
             fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
                 (**self).spans(origin, start, dir, out)

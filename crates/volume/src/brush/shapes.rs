@@ -30,6 +30,11 @@ impl Sphere {
 }
 
 impl Brush for Sphere {
+    /// The exact signed distance.
+    fn field_is_distance(&self) -> bool {
+        true
+    }
+
     fn bounds(&self) -> Aabb {
         Aabb::new(self.center - self.radius, self.center + self.radius)
     }
@@ -185,6 +190,11 @@ impl Cuboid {
 }
 
 impl Brush for Cuboid {
+    /// The exact signed distance.
+    fn field_is_distance(&self) -> bool {
+        true
+    }
+
     fn bounds(&self) -> Aabb {
         Aabb::new(self.center - self.half, self.center + self.half)
     }
@@ -259,6 +269,11 @@ impl Capsule {
 }
 
 impl Brush for Capsule {
+    /// The exact signed distance.
+    fn field_is_distance(&self) -> bool {
+        true
+    }
+
     fn bounds(&self) -> Aabb {
         Aabb::new(self.a.min(self.b) - self.radius, self.a.max(self.b) + self.radius)
     }
@@ -307,6 +322,11 @@ impl Cylinder {
 }
 
 impl Brush for Cylinder {
+    /// The exact signed distance.
+    fn field_is_distance(&self) -> bool {
+        true
+    }
+
     fn bounds(&self) -> Aabb {
         let e = self.axis.abs() * self.half_height + disc_extent(self.axis, self.radius);
         Aabb::new(self.center - e, self.center + e)
@@ -344,6 +364,11 @@ impl Torus {
 }
 
 impl Brush for Torus {
+    /// The exact signed distance.
+    fn field_is_distance(&self) -> bool {
+        true
+    }
+
     fn bounds(&self) -> Aabb {
         let e = disc_extent(self.axis, self.major + self.minor) + self.axis.abs() * self.minor;
         Aabb::new(self.center - e, self.center + e)

@@ -93,6 +93,12 @@ impl<B: Brush> Brush for Transformed<B> {
         self.inner.lipschitz()
     }
 
+    /// A rigid motion and a uniform scale (the field is multiplied by it) keep a distance a
+    /// distance.
+    fn field_is_distance(&self) -> bool {
+        self.inner.field_is_distance()
+    }
+
     fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<Span>) -> bool {
         let (local_start, local_dir, shift) = self.local_line(origin, start, dir);
         if !self.inner.spans(DVec3::ZERO, local_start, local_dir, out) {
