@@ -82,6 +82,7 @@ pub struct Editor {
     caches: Vec<MeshCache>,
     dirty: Vec<BTreeSet<ChunkKey>>,
     settings: EditSettings,
+    revision: u64,
 }
 
 impl std::fmt::Debug for Editor {
@@ -113,6 +114,7 @@ impl Editor {
             caches: Vec::new(),
             dirty: Vec::new(),
             settings: EditSettings::default(),
+            revision: 0,
         };
         e.reset_caches();
         e
@@ -121,6 +123,7 @@ impl Editor {
     /// Replaces the scene (new or loaded): clears history and remeshes everything.
     pub fn set_scene(&mut self, scene: Scene) {
         self.scene = scene;
+        self.revision += 1;
         self.history.clear();
         self.stroke = None;
         self.active_layer = 0;
@@ -139,6 +142,19 @@ impl Editor {
                 MeshCache::dependents(&keys).into_iter().collect()
             })
             .collect();
+    }
+
+    /// A number that changes whenever the scene does through the editor (edits, undo, redo, a
+    /// new scene, [`Editor::touch`]): compare it with the value seen at the last save to know
+    /// whether there is unsaved work.
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+
+    /// Records a change made to the scene directly (a renamed, hidden or added layer), so that
+    /// [`Editor::revision`] moves.
+    pub fn touch(&mut self) {
+        self.revision += 1;
     }
 
     /// Sets the history's memory budget (bytes), keeping what fits.
@@ -208,6 +224,7 @@ impl Editor {
             let brush = self.tool.brush(&self.scene.layers[layer].transform, p, pose.orientation, pose.pressure)?;
             let edit = self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?;
             self.queue(layer, &edit.changed);
+            self.revision += 1;
             let s = self.stroke.as_mut().expect("a stroke is in progress");
             s.records.push(edit.undo);
             s.last = p;
@@ -241,6 +258,7 @@ impl Editor {
 
     fn after_history(&mut self, restored: Option<(usize, Vec<ChunkKey>)>) -> bool {
         let Some((layer, keys)) = restored else { return false };
+        self.revision += 1;
         // Only the restored chunks changed: remesh them and the chunks that read them.
         self.queue(layer, &keys);
         true

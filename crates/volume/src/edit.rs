@@ -564,18 +564,36 @@ fn edit_chunk(
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
     let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;
+    let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
     if ctx.reconcile {
-        // Node states of the brush from the x lines, apron rows included: x_states[y + (n+1) z].
+        // Node states of the brush from the x lines, apron rows included: x_states[y + (n+1) z],
+        // from the span table where there is one (each line's spans were found once for the
+        // whole edit; an apron row is its owner's line, so both chunks read the same spans).
         s.x_states.clear();
         let mut line = WorkLine::EMPTY;
+        let x_table = table_level.map(|(t, offset)| (&t.axes[0], offset.y, offset.z, (origin.x - t.base.x) as f64));
         for z in 0..=n {
             for y in 0..=n {
-                sampler.sample(at(Axis::X, y, z), &mut line);
+                match x_table {
+                    Some((spans, off_y, off_z, shift)) => {
+                        let spans = spans.line(off_y + y as i64, off_z + z as i64);
+                        if spans.is_empty() {
+                            line.states = 0;
+                        } else {
+                            sampler.fill_from_spans(spans, shift, at(Axis::X, y, z), &mut line);
+                        }
+                    }
+                    None => sampler.sample(at(Axis::X, y, z), &mut line),
+                }
                 s.x_states.push(line.states);
             }
         }
+        if ctx.op != CsgOp::Intersect && s.x_states.iter().all(|&r| r == 0) {
+            // The brush holds no node of the chunk or its apron: nothing changes (the common
+            // case for the empty chunks around a converted mesh).
+            return None;
+        }
     }
-    let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
     if let Some((t, offset)) = table_level
         && ctx.op != CsgOp::Intersect
         && covers_chunk(t, offset, origin, n)
