@@ -2,7 +2,8 @@
 //! renderer draws into a texture that egui shows).
 
 use std::path::PathBuf;
-use std::time::Duration;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
 use eframe::egui;
 use glam::Mat4;
@@ -10,6 +11,7 @@ use strata_editor::{BrushShape, Buttons, ToolKind};
 use strata_render::{DEPTH_FORMAT, FrameSettings, Preview, Renderer};
 
 use crate::headless::{layer_model, upload_all};
+use crate::recovery::Autosave;
 use crate::studio::{Action, Studio};
 
 /// The GPU side of the viewport.
@@ -20,7 +22,7 @@ struct Viewport {
     texture_id: Option<egui::TextureId>,
 }
 
-/// Which path prompt is open.
+/// What a path is asked for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Prompt {
     Open,
@@ -28,22 +30,90 @@ enum Prompt {
     Export,
 }
 
+impl Prompt {
+    fn title(self) -> &'static str {
+        match self {
+            Prompt::Open => "Open scene",
+            Prompt::SaveAs => "Save scene as",
+            Prompt::Export => "Export mesh",
+        }
+    }
+
+    fn suggestion(self) -> &'static str {
+        match self {
+            Prompt::Open | Prompt::SaveAs => "scene.strata",
+            Prompt::Export => "sculpt.glb",
+        }
+    }
+}
+
+/// What waits for the user's answer to "save the changes first?".
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Then {
+    New,
+    Open,
+    Quit,
+}
+
+/// The typed-path prompt: a modal text field.
+#[derive(Debug)]
+struct PathPrompt {
+    kind: Prompt,
+    text: String,
+    /// Whether the field has been given keyboard focus (done once, when it first shows).
+    focused: bool,
+    /// What to do after a successful save (a save asked for by the unsaved-changes question).
+    then: Option<Then>,
+}
+
+/// How paths are asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dialogs {
+    /// The system's file dialogs (through the desktop portal), falling back to the typed prompt
+    /// where none answers.
+    Native,
+    /// A typed path in a modal prompt (tests, and systems without a dialog service).
+    Typed,
+}
+
+/// A native dialog running on its own thread.
+struct NativeDialog {
+    kind: Prompt,
+    then: Option<Then>,
+    started: Instant,
+    answer: mpsc::Receiver<Option<PathBuf>>,
+}
+
+/// A dialog that comes back empty sooner than this never showed (no portal answered): the
+/// typed prompt is used instead from then on. A person needs longer to cancel.
+const NO_DIALOG_SERVICE: Duration = Duration::from_millis(250);
+
 /// The desktop app.
 pub struct StudioApp {
     /// State and actions.
     pub studio: Studio,
     viewport: Option<Viewport>,
-    prompt: Option<(Prompt, String)>,
+    prompt: Option<PathPrompt>,
+    /// The unsaved-changes question, with what waits for it.
+    confirm: Option<Then>,
+    dialogs: Dialogs,
+    native: Option<NativeDialog>,
+    /// The window may close (the user answered the unsaved-changes question).
+    allow_close: bool,
+    autosave: Autosave,
+    /// A recovery file from a session that did not end cleanly, offered at start.
+    recovery: Option<crate::recovery::Found>,
 }
 
 impl std::fmt::Debug for StudioApp {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("StudioApp").field("studio", &self.studio).finish()
+        f.debug_struct("StudioApp").field("studio", &self.studio).field("prompt", &self.prompt).finish()
     }
 }
 
 impl StudioApp {
-    /// The app on `studio`, with GPU resources from eframe's wgpu state when there is one.
+    /// The app on `studio`, with GPU resources from eframe's wgpu state when there is one,
+    /// native file dialogs and autosave to the user's recovery folder.
     pub fn new(cc: &eframe::CreationContext<'_>, studio: Studio) -> Self {
         let viewport = cc.wgpu_render_state.as_ref().map(|rs| Viewport {
             renderer: Renderer::new(&rs.device, wgpu::TextureFormat::Rgba8UnormSrgb),
@@ -51,32 +121,182 @@ impl StudioApp {
             color: None,
             texture_id: None,
         });
-        StudioApp { studio, viewport, prompt: None }
+        let dialogs = if std::env::var_os("STRATA_TYPED_PATHS").is_some() { Dialogs::Typed } else { Dialogs::Native };
+        let mut app = StudioApp::headless(studio, dialogs, crate::recovery::default_dir());
+        app.viewport = viewport;
+        app
+    }
+
+    /// The app without a GPU viewport (for UI tests): paths asked for as `dialogs` says,
+    /// recovery files kept in `recovery_dir` (and one found there offered).
+    pub fn headless(studio: Studio, dialogs: Dialogs, recovery_dir: PathBuf) -> Self {
+        let recovery = crate::recovery::find(&recovery_dir);
+        StudioApp {
+            studio,
+            viewport: None,
+            prompt: None,
+            confirm: None,
+            dialogs,
+            native: None,
+            allow_close: false,
+            autosave: Autosave::new(recovery_dir),
+            recovery,
+        }
+    }
+
+    /// Sets how often unsaved work is written to the recovery file.
+    pub fn set_autosave_interval(&mut self, every: Duration) {
+        self.autosave.interval = every;
+    }
+
+    /// Waits for an autosave in progress to finish writing.
+    pub fn wait_for_autosave(&mut self) {
+        self.autosave.wait();
+    }
+
+    /// Whether a modal (a path prompt, a question, a dialog) has the keyboard.
+    pub fn modal_open(&self) -> bool {
+        self.prompt.is_some()
+            || self.confirm.is_some()
+            || self.native.is_some()
+            || self.recovery.is_some()
+            || self.studio.busy()
+    }
+
+    /// Asks for a path: a native dialog where one answers, else the typed prompt.
+    fn ask_path(&mut self, ctx: &egui::Context, kind: Prompt, then: Option<Then>) {
+        if self.dialogs == Dialogs::Native {
+            let (tx, rx) = mpsc::channel();
+            let start_dir = self.studio.path.as_ref().and_then(|p| p.parent()).map(|p| p.to_path_buf());
+            let repaint = ctx.clone();
+            std::thread::spawn(move || {
+                let mut d = rfd::FileDialog::new().set_title(kind.title());
+                if let Some(dir) = start_dir {
+                    d = d.set_directory(dir);
+                }
+                d = match kind {
+                    Prompt::Open | Prompt::SaveAs => d.add_filter("Strata scene", &["strata"]),
+                    Prompt::Export => d.add_filter("Mesh", &["glb", "obj", "stl", "ply"]),
+                };
+                let answer = match kind {
+                    Prompt::Open => d.pick_file(),
+                    _ => d.set_file_name(kind.suggestion()).save_file(),
+                };
+                let _ = tx.send(answer);
+                repaint.request_repaint();
+            });
+            self.native = Some(NativeDialog { kind, then, started: Instant::now(), answer: rx });
+        } else {
+            self.open_prompt(ctx, kind, then);
+        }
+    }
+
+    fn open_prompt(&mut self, ctx: &egui::Context, kind: Prompt, then: Option<Then>) {
+        let text = match (kind, &self.studio.path) {
+            (Prompt::SaveAs, Some(p)) => p.display().to_string(),
+            _ => kind.suggestion().to_string(),
+        };
+        self.prompt = Some(PathPrompt { kind, text, focused: false, then });
+        // The prompt must show at once, not on the next input event.
+        ctx.request_repaint();
+    }
+
+    /// Carries out what a path was asked for.
+    fn path_chosen(&mut self, ctx: &egui::Context, kind: Prompt, path: PathBuf, then: Option<Then>) {
+        let done = match kind {
+            Prompt::Open => {
+                let ok = self.studio.act(Action::Open(path)).is_ok();
+                if ok {
+                    self.autosave.forget();
+                }
+                ok
+            }
+            Prompt::SaveAs => {
+                let ok = self.studio.act(Action::SaveAs(path)).is_ok();
+                if ok {
+                    self.autosave.forget();
+                }
+                ok
+            }
+            Prompt::Export => self.studio.act(Action::Export(path)).is_ok(),
+        };
+        if done && let Some(then) = then {
+            self.proceed(ctx, then);
+        }
+    }
+
+    /// Asks before `then` if it would discard unsaved work, else does it.
+    fn guard(&mut self, ctx: &egui::Context, then: Then) {
+        if self.studio.is_modified() {
+            self.confirm = Some(then);
+            ctx.request_repaint();
+        } else {
+            self.proceed(ctx, then);
+        }
+    }
+
+    /// Does `then`, the changes having been saved or given up.
+    fn proceed(&mut self, ctx: &egui::Context, then: Then) {
+        match then {
+            Then::New => {
+                let _ = self.studio.act(Action::New);
+                self.autosave.forget();
+            }
+            Then::Open => self.ask_path(ctx, Prompt::Open, None),
+            Then::Quit => {
+                self.autosave.forget();
+                self.allow_close = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        }
+    }
+
+    /// Save: to the scene's file, or asking for one the first time.
+    fn save(&mut self, ctx: &egui::Context, then: Option<Then>) {
+        if self.studio.path.is_some() {
+            if self.studio.act(Action::Save).is_ok() {
+                self.autosave.forget();
+                if let Some(then) = then {
+                    self.proceed(ctx, then);
+                }
+            }
+        } else {
+            self.ask_path(ctx, Prompt::SaveAs, then);
+        }
     }
 
     fn shortcuts(&mut self, ctx: &egui::Context) {
         use egui::{Key, Modifiers};
+        if self.modal_open() {
+            // A prompt or a question has the keyboard: no key reaches the tools.
+            return;
+        }
         // Each key event carries the modifiers held when it happened, so consume by event:
         // a fast Ctrl+Z can be released before the frame that sees it.
         let typing = ctx.egui_wants_keyboard_input();
         let pressed = |mods: Modifiers, key: Key| ctx.input_mut(|i| i.consume_key(mods, key));
         let redo = pressed(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z) || pressed(Modifiers::COMMAND, Key::Y);
         let undo = pressed(Modifiers::COMMAND, Key::Z);
+        let save_as = pressed(Modifiers::COMMAND | Modifiers::SHIFT, Key::S);
         let save = pressed(Modifiers::COMMAND, Key::S);
+        let open = pressed(Modifiers::COMMAND, Key::O);
+        let new = pressed(Modifiers::COMMAND, Key::N);
         if redo {
             let _ = self.studio.act(Action::Redo);
         }
         if undo {
             let _ = self.studio.act(Action::Undo);
         }
-        if save {
-            if self.studio.path.is_some() {
-                let _ = self.studio.act(Action::Save);
-            } else {
-                self.prompt = Some((Prompt::SaveAs, "scene.strata".into()));
-            }
+        if save_as {
+            self.ask_path(ctx, Prompt::SaveAs, None);
+        } else if save {
+            self.save(ctx, None);
+        } else if open {
+            self.guard(ctx, Then::Open);
+        } else if new {
+            self.guard(ctx, Then::New);
         }
-        if typing {
+        if typing || self.modal_open() {
             return;
         }
         if pressed(Modifiers::NONE, Key::OpenBracket) {
@@ -108,29 +328,30 @@ impl StudioApp {
     }
 
     fn menu(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
-                if ui.button("New").clicked() {
-                    let _ = self.studio.act(Action::New);
+                if ui.button("New (Ctrl+N)").clicked() {
+                    self.guard(&ctx, Then::New);
                 }
-                if ui.button("Open…").clicked() {
-                    self.prompt = Some((Prompt::Open, "scene.strata".into()));
+                if ui.button("Open… (Ctrl+O)").clicked() {
+                    self.guard(&ctx, Then::Open);
                 }
                 if ui.button("Save (Ctrl+S)").clicked() {
-                    if self.studio.path.is_some() {
-                        let _ = self.studio.act(Action::Save);
-                    } else {
-                        self.prompt = Some((Prompt::SaveAs, "scene.strata".into()));
-                    }
+                    self.save(&ctx, None);
                 }
-                if ui.button("Save as…").clicked() {
-                    self.prompt = Some((Prompt::SaveAs, "scene.strata".into()));
+                if ui.button("Save as… (Ctrl+Shift+S)").clicked() {
+                    self.ask_path(&ctx, Prompt::SaveAs, None);
                 }
                 ui.separator();
                 if ui.button("Export mesh… (glb, obj, stl, ply)").clicked() {
-                    self.prompt = Some((Prompt::Export, "sculpt.glb".into()));
+                    self.ask_path(&ctx, Prompt::Export, None);
                 }
                 ui.checkbox(&mut self.studio.export_dual, "Export with dual contouring");
+                ui.separator();
+                if ui.button("Quit").clicked() {
+                    self.guard(&ctx, Then::Quit);
+                }
             });
             ui.menu_button("Edit", |ui| {
                 if ui.button("Undo (Ctrl+Z)").clicked() {
@@ -174,6 +395,7 @@ impl StudioApp {
     fn layers(&mut self, ui: &mut egui::Ui) {
         ui.heading("Layers");
         let mut changed = false;
+        let mut edited = false;
         let active = self.studio.editor.active_layer;
         let mut select = None;
         for (i, layer) in self.studio.editor.scene.layers.iter_mut().enumerate() {
@@ -182,7 +404,7 @@ impl StudioApp {
                     select = Some(i);
                 }
                 changed |= ui.checkbox(&mut layer.visible, "visible").changed();
-                ui.checkbox(&mut layer.locked, "locked");
+                edited |= ui.checkbox(&mut layer.locked, "locked").changed();
             });
         }
         if let Some(i) = select {
@@ -190,8 +412,8 @@ impl StudioApp {
         }
         if let Some(layer) = self.studio.editor.scene.layers.get_mut(self.studio.editor.active_layer) {
             ui.horizontal(|ui| {
-                ui.label("Name");
-                ui.text_edit_singleline(&mut layer.name);
+                let label = ui.label("Name");
+                edited |= ui.text_edit_singleline(&mut layer.name).labelled_by(label.id).changed();
             });
         }
         if ui.button("Add layer").clicked() {
@@ -200,41 +422,202 @@ impl StudioApp {
         if changed {
             self.studio.full_upload = true;
         }
-    }
-
-    fn prompt(&mut self, ctx: &egui::Context) {
-        let Some((kind, mut text)) = self.prompt.take() else { return };
-        let title = match kind {
-            Prompt::Open => "Open scene",
-            Prompt::SaveAs => "Save scene as",
-            Prompt::Export => "Export mesh",
-        };
-        let mut keep = true;
-        let mut go = false;
-        egui::Window::new(title).collapsible(false).show(ctx, |ui| {
-            ui.label("Path:");
-            let r = ui.text_edit_singleline(&mut text);
-            go = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            ui.horizontal(|ui| {
-                go |= ui.button("OK").clicked();
-                if ui.button("Cancel").clicked() {
-                    keep = false;
-                }
-            });
-        });
-        if go {
-            let path = PathBuf::from(text.trim());
-            let _ = self.studio.act(match kind {
-                Prompt::Open => Action::Open(path),
-                Prompt::SaveAs => Action::SaveAs(path),
-                Prompt::Export => Action::Export(path),
-            });
-        } else if keep {
-            self.prompt = Some((kind, text));
+        if changed || edited {
+            self.studio.editor.touch();
         }
     }
 
-    fn viewport(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+    /// The typed-path prompt: modal, focused when it opens, its text selected so typing
+    /// replaces the suggestion; Enter or OK goes, Escape or Cancel closes it.
+    fn prompt(&mut self, ctx: &egui::Context) {
+        let Some(mut p) = self.prompt.take() else { return };
+        let (mut go, mut cancel) = (false, false);
+        let modal = egui::Modal::new(egui::Id::unique("path prompt")).show(ctx, |ui| {
+            ui.heading(p.kind.title());
+            let label = ui.label("Path:");
+            let id = egui::Id::unique("path prompt field");
+            let r = ui.add(egui::TextEdit::singleline(&mut p.text).id(id).desired_width(420.0)).labelled_by(label.id);
+            if !p.focused {
+                r.request_focus();
+                if let Some(mut state) = egui::text_edit::TextEditState::load(ui.ctx(), id) {
+                    state.cursor.set_char_range(Some(egui::text::CCursorRange::two(
+                        egui::text::CCursor::new(0),
+                        egui::text::CCursor::new(p.text.chars().count()),
+                    )));
+                    state.store(ui.ctx(), id);
+                }
+                p.focused = true;
+            }
+            go = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+            ui.horizontal(|ui| {
+                go |= ui.button("OK").clicked();
+                cancel |= ui.button("Cancel").clicked();
+            });
+        });
+        cancel |= modal.should_close();
+        if go && !p.text.trim().is_empty() {
+            let path = PathBuf::from(p.text.trim());
+            self.path_chosen(ctx, p.kind, path, p.then);
+        } else if !cancel {
+            self.prompt = Some(p);
+        }
+    }
+
+    /// Polls a native dialog; one that came back empty at once means no dialog service: the
+    /// typed prompt takes over.
+    fn native_dialog(&mut self, ctx: &egui::Context) {
+        let Some(d) = self.native.take() else { return };
+        match d.answer.try_recv() {
+            Ok(Some(path)) => self.path_chosen(ctx, d.kind, path, d.then),
+            Ok(None) if d.started.elapsed() < NO_DIALOG_SERVICE => {
+                self.dialogs = Dialogs::Typed;
+                self.open_prompt(ctx, d.kind, d.then);
+            }
+            Ok(None) | Err(mpsc::TryRecvError::Disconnected) => {}
+            Err(mpsc::TryRecvError::Empty) => {
+                self.native = Some(d);
+                ctx.request_repaint_after(Duration::from_millis(50));
+            }
+        }
+    }
+
+    /// A large dab on its worker: a progress bar and a cancel button, until it finishes.
+    fn job_progress(&mut self, ctx: &egui::Context) {
+        if self.studio.poll_job() {
+            ctx.request_repaint();
+            return;
+        }
+        let Some(job) = self.studio.job.as_ref() else { return };
+        let (done, total) = job.progress();
+        let fraction = if total > 0 { done as f32 / total as f32 } else { 0.0 };
+        let mut cancel = false;
+        egui::Modal::new(egui::Id::unique("large dab")).show(ctx, |ui| {
+            ui.heading("Sculpting a large dab");
+            ui.add(egui::ProgressBar::new(fraction).show_percentage().desired_width(320.0));
+            ui.label(format!("{done} of {total} chunks · {:.1} s", job.elapsed().as_secs_f64()));
+            cancel = ui.button("Cancel").on_hover_text("Stop; the layer stays as it was").clicked();
+        });
+        if cancel || ctx.input(|i| i.key_pressed(egui::Key::Escape)) {
+            job.cancel();
+        }
+        ctx.request_repaint_after(Duration::from_millis(50));
+    }
+
+    /// The unsaved-changes question.
+    fn confirm(&mut self, ctx: &egui::Context) {
+        let Some(then) = self.confirm else { return };
+        let what = match then {
+            Then::New => "starting a new scene",
+            Then::Open => "opening another scene",
+            Then::Quit => "quitting",
+        };
+        let name = self.studio.path.as_ref().map_or("the new scene".to_string(), |p| p.display().to_string());
+        let mut choice = None;
+        let modal = egui::Modal::new(egui::Id::unique("unsaved changes")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            ui.label(format!("Save the changes to {name} before {what}?"));
+            ui.horizontal(|ui| {
+                if ui.button("Save").clicked() {
+                    choice = Some(0);
+                }
+                if ui.button("Don't save").clicked() {
+                    choice = Some(1);
+                }
+                if ui.button("Cancel").clicked() {
+                    choice = Some(2);
+                }
+            });
+        });
+        if modal.should_close() {
+            choice = Some(2);
+        }
+        match choice {
+            Some(0) => {
+                self.confirm = None;
+                self.save(ctx, Some(then));
+            }
+            Some(1) => {
+                self.confirm = None;
+                self.proceed(ctx, then);
+            }
+            Some(_) => self.confirm = None,
+            None => {}
+        }
+    }
+
+    /// The offer to recover work autosaved by a session that did not end cleanly.
+    fn recovery(&mut self, ctx: &egui::Context) {
+        let Some(found) = self.recovery.as_ref() else { return };
+        let mut choice = None;
+        egui::Modal::new(egui::Id::unique("recover")).show(ctx, |ui| {
+            ui.heading("Recover unsaved work?");
+            ui.label(format!(
+                "Strata did not close cleanly. Work autosaved {} is available{}.",
+                found.age_text(),
+                found.origin.as_ref().map_or(String::new(), |p| format!(" (from {})", p.display()))
+            ));
+            ui.horizontal(|ui| {
+                if ui.button("Recover").clicked() {
+                    choice = Some(true);
+                }
+                if ui.button("Discard").clicked() {
+                    choice = Some(false);
+                }
+            });
+        });
+        let Some(recover) = choice else { return };
+        let found = self.recovery.take().expect("checked above");
+        if recover {
+            match found.load() {
+                Ok(scene) => {
+                    let _ = self.studio.act(Action::New);
+                    self.studio.editor.set_scene(scene);
+                    self.studio.camera = crate::studio::camera_of(&self.studio.editor.scene.view);
+                    self.studio.full_upload = true;
+                    self.studio.path = found.origin.clone();
+                    // Recovered work is not in any file yet.
+                    self.studio.editor.touch();
+                    self.studio.message = "Recovered the autosaved work: save it to keep it".into();
+                }
+                Err(e) => self.studio.message = format!("Could not recover the autosaved work: {e}"),
+            }
+        }
+        found.discard();
+    }
+
+    /// The frame's UI without the GPU viewport's drawing (which needs `frame`): what UI tests
+    /// drive.
+    pub fn show(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
+        let ctx = ui.ctx().clone();
+        if ctx.input(|i| i.viewport().close_requested()) && !self.allow_close {
+            if self.studio.is_modified() {
+                ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+                self.confirm = Some(Then::Quit);
+            } else {
+                self.autosave.forget();
+            }
+        }
+        self.shortcuts(&ctx);
+        egui::Panel::top("menu").show(ui, |ui| self.menu(ui));
+        egui::Panel::bottom("status").show(ui, |ui| {
+            ui.label(self.studio.status());
+        });
+        egui::Panel::left("tools").resizable(false).show(ui, |ui| self.palette(ui));
+        egui::Panel::right("layers").show(ui, |ui| self.layers(ui));
+        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, frame));
+        self.job_progress(&ctx);
+        self.native_dialog(&ctx);
+        self.prompt(&ctx);
+        self.confirm(&ctx);
+        self.recovery(&ctx);
+        // (Not while a background dab holds a layer's volume: the copy would miss it.)
+        if self.studio.is_modified() && !self.studio.busy() {
+            self.autosave.tick(&self.studio, self.studio.editor.revision());
+            ctx.request_repaint_after(self.autosave.interval);
+        }
+    }
+
+    fn viewport(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
         let (rect, response) = ui.allocate_exact_size(ui.available_size(), egui::Sense::click_and_drag());
         let aspect = rect.width() / rect.height().max(1.0);
         // Camera: right drag orbits, middle drag pans, the wheel zooms.
@@ -274,7 +657,7 @@ impl StudioApp {
         };
         self.studio.pointer(ndc, buttons, 1.0, aspect, Duration::from_millis(6));
 
-        let Some(rs) = frame.wgpu_render_state() else {
+        let Some(rs) = frame.and_then(|f| f.wgpu_render_state()) else {
             ui.painter().text(
                 rect.center(),
                 egui::Align2::CENTER_CENTER,
@@ -380,16 +763,7 @@ impl StudioApp {
 
 impl eframe::App for StudioApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        let ctx = ui.ctx().clone();
-        self.shortcuts(&ctx);
-        egui::Panel::top("menu").show(ui, |ui| self.menu(ui));
-        egui::Panel::bottom("status").show(ui, |ui| {
-            ui.label(self.studio.status());
-        });
-        egui::Panel::left("tools").resizable(false).show(ui, |ui| self.palette(ui));
-        egui::Panel::right("layers").show(ui, |ui| self.layers(ui));
-        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, frame));
-        self.prompt(&ctx);
+        self.show(ui, Some(frame));
     }
 }
 

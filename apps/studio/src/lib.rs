@@ -9,8 +9,9 @@
 
 mod app;
 mod headless;
+pub mod recovery;
 mod studio;
 
-pub use app::{StudioApp, run_window};
+pub use app::{Dialogs, StudioApp, run_window};
 pub use headless::screenshot;
 pub use studio::{Action, Studio, default_scene};

@@ -76,6 +76,14 @@ pub struct Studio {
     /// Distance along the pointer ray at which the stroke in progress acts.
     stroke_depth: Option<f64>,
     preview: Option<(strata_editor::BrushShape, u64, Mesh)>,
+    /// The editor's revision when the scene was last saved, opened or created.
+    saved_revision: u64,
+    /// A dab too large for a frame, running on a worker thread.
+    pub job: Option<strata_editor::DabJob>,
+    /// Dabs whose brush box spans more chunks than this run on a worker thread with a progress
+    /// bar and a cancel button instead of in the frame (32,768 chunks: a sphere of radius about
+    /// 250 cells, which takes a few hundred milliseconds).
+    pub background_chunks: u64,
 }
 
 impl Studio {
@@ -96,9 +104,24 @@ impl Studio {
             hover: None,
             stroke_depth: None,
             preview: None,
+            saved_revision: 0,
+            job: None,
+            background_chunks: 1 << 15,
         };
+        s.saved_revision = s.editor.revision();
         s.editor.tool.radius = 4.0;
         s
+    }
+
+    /// Whether the scene has changes that are not in its file (or, for a new scene, changes at
+    /// all).
+    pub fn is_modified(&self) -> bool {
+        self.editor.revision() != self.saved_revision
+    }
+
+    /// Records that the scene as it is now is safe (saved, or just opened).
+    pub fn mark_saved(&mut self) {
+        self.saved_revision = self.editor.revision();
     }
 
     /// Carries out an action; errors go to the status message and leave the scene unchanged.
@@ -115,11 +138,17 @@ impl Studio {
             Action::New => {
                 self.replace_scene(default_scene());
                 self.path = None;
+                self.mark_saved();
                 self.message = "New scene".into();
             }
             Action::Open(path) => {
                 let loaded = file::load(&path).map_err(|e| format!("Could not open {}: {e}", path.display()))?;
                 self.replace_scene(loaded.scene);
+                self.mark_saved();
+                if !loaded.report.is_clean() {
+                    // What was repaired is not in the file yet.
+                    self.editor.touch();
+                }
                 self.message = if loaded.report.is_clean() {
                     format!("Opened {}", path.display())
                 } else {
@@ -157,6 +186,7 @@ impl Studio {
                 let n = self.editor.scene.layers.len() + 1;
                 self.editor.scene.layers.push(Layer::new(format!("Layer {n}")));
                 self.editor.reset_caches();
+                self.editor.touch();
                 self.editor.active_layer = n - 1;
                 self.full_upload = true;
             }
@@ -168,11 +198,19 @@ impl Studio {
         self.editor.scene.view = view_of(&self.camera);
         let report = file::save(&self.editor.scene, path)
             .map_err(|e: SceneFileError| format!("Could not save {}: {e}", path.display()))?;
-        self.message = if report.is_clean() {
-            format!("Saved {}", path.display())
+        if report.is_clean() {
+            self.message = format!("Saved {}", path.display());
         } else {
-            format!("Saved {} with repairs: {report}", path.display())
-        };
+            // The file holds the repaired scene: show the same (the history, which refers to
+            // the unrepaired volumes, starts anew).
+            let mut scene = self.editor.scene.clone();
+            file::validate_scene(&mut scene);
+            let camera = self.camera;
+            self.replace_scene(scene);
+            self.camera = camera;
+            self.message = format!("Saved {} with repairs (history cleared): {report}", path.display());
+        }
+        self.mark_saved();
         Ok(())
     }
 
@@ -210,6 +248,23 @@ impl Studio {
             self.stroke_depth = None;
         }
         self.hover = target;
+        if self.job.is_some() {
+            // A large dab is running: input waits for it (the app shows its progress).
+            return;
+        }
+        if let Some(p) = target.filter(|_| held) {
+            let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons };
+            if self.editor.dab_chunks(&pose).is_ok_and(|c| c > self.background_chunks) {
+                match self.editor.start_dab_job(&pose) {
+                    Ok(job) => {
+                        self.job = Some(job);
+                        self.message = "Sculpting a large dab…".into();
+                    }
+                    Err(e) => self.message = e.to_string(),
+                }
+                return;
+            }
+        }
         let pose = match target {
             Some(p) if held => ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons },
             _ => ToolPose {
@@ -231,6 +286,28 @@ impl Studio {
             }
             Err(e) => self.message = e.to_string(),
         }
+    }
+
+    /// Collects a finished background dab (call every frame); returns whether one finished.
+    pub fn poll_job(&mut self) -> bool {
+        if !self.job.as_ref().is_some_and(|j| j.is_finished()) {
+            return false;
+        }
+        let job = self.job.take().expect("checked above");
+        let secs = job.elapsed().as_secs_f64();
+        self.message = match self.editor.finish_dab_job(job) {
+            Ok(changed) => format!("Large dab: {changed} chunks changed in {secs:.1} s"),
+            Err(strata_editor::EditorError::Edit(strata_volume::EditError::Cancelled)) => {
+                "Large dab cancelled: nothing changed".into()
+            }
+            Err(e) => e.to_string(),
+        };
+        true
+    }
+
+    /// Whether a background dab is running (the layer it edits is with the worker).
+    pub fn busy(&self) -> bool {
+        self.job.is_some()
     }
 
     /// The world point the tool acts on under viewport point `(x, y)` (NDC): the first surface
@@ -286,7 +363,7 @@ impl Studio {
     }
 }
 
-fn camera_of(v: &View) -> Camera {
+pub(crate) fn camera_of(v: &View) -> Camera {
     Camera {
         target: v.target.as_vec3(),
         distance: v.distance as f32,
@@ -296,7 +373,7 @@ fn camera_of(v: &View) -> Camera {
     }
 }
 
-fn view_of(c: &Camera) -> View {
+pub(crate) fn view_of(c: &Camera) -> View {
     View { target: c.target.as_dvec3(), distance: c.distance as f64, yaw: c.yaw as f64, pitch: c.pitch as f64 }
 }
 
@@ -352,6 +429,35 @@ mod tests {
     }
 
     #[test]
+    fn a_dab_too_large_for_a_frame_runs_in_the_background_and_can_be_cancelled() {
+        let mut s = Studio::new(default_scene());
+        s.background_chunks = 1;
+        s.editor.tool.radius = 12.0;
+        let before = s.editor.scene.layers[0].volume.clone();
+        s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        assert!(s.busy(), "the dab runs on a worker");
+        // Cancelled: nothing changes.
+        s.job.as_ref().unwrap().cancel();
+        while !s.poll_job() {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        s.pointer(Some((0.0, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        assert!(!s.busy());
+        assert_eq!(s.editor.scene.layers[0].volume, before, "a cancelled dab changes nothing: {}", s.message);
+        assert_eq!(s.editor.history().undo_len(), 0);
+        // Run to the end: one undo step.
+        s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        while !s.poll_job() {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        assert!(s.message.contains("chunks changed"), "{}", s.message);
+        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert_eq!(s.editor.history().undo_len(), 1);
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers[0].volume, before);
+    }
+
+    #[test]
     fn radius_keys_wireframe_and_layers() {
         let mut s = Studio::new(default_scene());
         let r = s.editor.tool.radius;
@@ -378,16 +484,24 @@ mod tests {
         s.act(Action::Open(path.clone())).unwrap();
         assert_eq!(s.editor.scene, saved);
         assert!((s.camera.yaw - 1.25).abs() < 1e-6, "the view comes back");
-        // A corrupted file fails and the open scene stays.
+        // A truncated file fails and the open scene stays.
         let bad = temp("bad.strata");
-        let mut bytes = std::fs::read(&path).unwrap();
-        let n = bytes.len();
-        bytes[n - 3] ^= 0xff;
-        std::fs::write(&bad, bytes).unwrap();
-        let err = s.act(Action::Open(bad)).unwrap_err();
-        assert!(err.contains("corrupted"), "{err}");
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&bad, &bytes[..bytes.len() - 3]).unwrap();
+        let err = s.act(Action::Open(bad.clone())).unwrap_err();
+        assert!(err.contains("truncated"), "{err}");
         assert_eq!(s.editor.scene, saved);
         assert_eq!(s.path.as_deref(), Some(path.as_path()));
+        // A damaged one opens with what could be recovered, saying so, and counts as unsaved.
+        let mut damaged = bytes.clone();
+        let n = damaged.len();
+        damaged[n - 3] ^= 0xff;
+        std::fs::write(&bad, damaged).unwrap();
+        s.act(Action::Open(bad)).unwrap();
+        assert!(s.message.contains("repairs") && s.message.contains("checksum"), "{}", s.message);
+        assert!(s.is_modified());
+        assert_eq!(s.editor.scene.layers, saved.layers);
+        s.act(Action::Open(path.clone())).unwrap();
         // Export in every format.
         for ext in ["glb", "obj", "stl", "ply"] {
             s.act(Action::Export(temp(&format!("out.{ext}")))).unwrap();

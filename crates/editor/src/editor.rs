@@ -4,9 +4,11 @@ use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
+use std::sync::Arc;
 use strata_mesh::{Mesh, MeshCache, dual_contour_volume};
 use strata_volume::brush::BrushError;
-use strata_volume::{ChunkKey, EditError, EditSettings};
+
+use strata_volume::{ChunkKey, EditControl, EditError, EditReport, EditSettings, Volume};
 use thiserror::Error;
 
 use crate::history::{History, HistoryEntry};
@@ -47,6 +49,38 @@ pub struct FrameReport {
     pub remeshed: Vec<(usize, ChunkKey)>,
     /// Chunks still waiting for a remesh after this frame.
     pub pending: usize,
+}
+
+/// One dab applied on a worker thread ([`Editor::start_dab_job`]), for edits too large for a
+/// frame: the layer's volume is with the worker until [`Editor::finish_dab_job`] takes it back.
+#[derive(Debug)]
+pub struct DabJob {
+    layer: usize,
+    control: Arc<EditControl>,
+    started: Instant,
+    worker: std::thread::JoinHandle<(Volume, Result<EditReport, EditError>)>,
+}
+
+impl DabJob {
+    /// Chunks visited and to visit.
+    pub fn progress(&self) -> (u64, u64) {
+        self.control.progress()
+    }
+
+    /// Asks the worker to stop; [`Editor::finish_dab_job`] then restores the volume unchanged.
+    pub fn cancel(&self) {
+        self.control.cancel();
+    }
+
+    /// Whether the worker is done (finishing will not block).
+    pub fn is_finished(&self) -> bool {
+        self.worker.is_finished()
+    }
+
+    /// Time since the job started.
+    pub fn elapsed(&self) -> Duration {
+        self.started.elapsed()
+    }
 }
 
 /// A surface point found by [`Editor::pick`].
@@ -231,6 +265,77 @@ impl Editor {
             report.dabs += 1;
         }
         Ok(())
+    }
+
+    /// Chunks the dab of the current tool at `pose` would visit (its brush box in chunks, or
+    /// the whole volume for an intersection): what the studio compares with its frame budget.
+    pub fn dab_chunks(&self, pose: &ToolPose) -> Result<u64, EditorError> {
+        let layer = self.active_layer;
+        let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
+        let brush = self.tool.brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
+        let b = brush.bounds();
+        if !b.is_valid() {
+            return Err(EditorError::Edit(EditError::BadBounds));
+        }
+        let c = strata_volume::coords::CHUNK_CELLS as f64;
+        let side = |i: usize| ((b.max[i] / c).floor() - (b.min[i] / c).floor() + 3.0).min(1e7);
+        Ok((side(0) * side(1) * side(2)) as u64)
+    }
+
+    /// Starts the dab of the current tool at `pose` (the opposite tool with the secondary
+    /// button) on a worker thread, as its own undo step; the stroke in progress ends first. The
+    /// active layer's volume goes with the worker, so nothing else may edit or mesh that layer
+    /// until [`Editor::finish_dab_job`].
+    pub fn start_dab_job(&mut self, pose: &ToolPose) -> Result<DabJob, EditorError> {
+        if !pose.is_valid() {
+            return Err(EditorError::BadPose);
+        }
+        self.end_stroke();
+        let layer = self.active_layer;
+        let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+        if l.locked {
+            return Err(EditorError::Locked(layer));
+        }
+        let inverted = pose.buttons.secondary && !pose.buttons.primary;
+        let op = self.tool.kind.op(inverted);
+        let brush = self.tool.brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
+        let placeholder = Volume::with_level(l.volume.level());
+        let mut volume = std::mem::replace(&mut l.volume, placeholder);
+        let control = Arc::new(EditControl::default());
+        let settings = EditSettings { control: Some(control.clone()), ..self.settings.clone() };
+        let worker = std::thread::spawn(move || {
+            let result = volume.apply(op, brush.as_ref(), &settings);
+            (volume, result)
+        });
+        Ok(DabJob { layer, control, started: Instant::now(), worker })
+    }
+
+    /// Waits for `job`, puts the layer's volume back and, if the edit went through, records it
+    /// as one undo step and queues its chunks for meshing. A cancelled or failed edit leaves the
+    /// volume as it was and returns its error.
+    pub fn finish_dab_job(&mut self, job: DabJob) -> Result<usize, EditorError> {
+        let (mut volume, mut result) = match job.worker.join() {
+            Ok(r) => r,
+            Err(panic) => std::panic::resume_unwind(panic),
+        };
+        if job.control.is_cancelled() {
+            // Cancelled after the worker had already finished: undo what it did, so a cancel
+            // always means nothing changed.
+            if let Ok(edit) = result {
+                volume.restore(edit.undo);
+            }
+            result = Err(EditError::Cancelled);
+        }
+        let layer = job.layer;
+        if let Some(l) = self.scene.layers.get_mut(layer) {
+            l.volume = volume;
+        }
+        let edit = result?;
+        let changed = edit.changed.len();
+        self.queue(layer, &edit.changed);
+        self.revision += 1;
+        self.history.push(HistoryEntry { layer, records: vec![edit.undo] });
+        Ok(changed)
     }
 
     /// Ends the stroke in progress, making it one undo step.

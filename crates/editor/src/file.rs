@@ -293,27 +293,33 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
     for l in record.layers {
         let name = l.name;
         let level = Level::new(l.level).unwrap_or_else(|| {
-            report.repairs.push(format!("layer {name:?}: resolution level {} does not exist; it uses level 0", l.level));
+            report
+                .repairs
+                .push(format!("layer {name:?}: resolution level {} does not exist; it uses level 0", l.level));
             Level::BASE
         });
         let cell_size = if l.cell_size.is_finite() && l.cell_size > 0.0 {
             l.cell_size
         } else {
-            report.repairs.push(format!("layer {name:?}: cell size {} is not finite and positive; it is 1", l.cell_size));
+            report
+                .repairs
+                .push(format!("layer {name:?}: cell size {} is not finite and positive; it is 1", l.cell_size));
             1.0
         };
         let mut chunks: Vec<(ChunkKey, Chunk)> = l.solid.into_iter().map(|k| (k, Chunk::Solid)).collect();
         for c in l.lists {
             let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
             if crc32fast::hash(&c.bytes) != c.crc {
-                report.repairs.push(format!("layer {name:?}: chunk ({x}, {y}, {z}) failed its checksum and was dropped"));
+                report
+                    .repairs
+                    .push(format!("layer {name:?}: chunk ({x}, {y}, {z}) failed its checksum and was dropped"));
                 continue;
             }
             match postcard::from_bytes::<ChunkLists>(&c.bytes) {
                 Ok(lists) => chunks.push((c.key, Chunk::Lists(lists))),
-                Err(e) => {
-                    report.repairs.push(format!("layer {name:?}: chunk ({x}, {y}, {z}) does not decode ({e}) and was dropped"))
-                }
+                Err(e) => report
+                    .repairs
+                    .push(format!("layer {name:?}: chunk ({x}, {y}, {z}) does not decode ({e}) and was dropped")),
             }
         }
         let volume = Volume::from_chunks(level, cell_size, chunks).expect("cell size checked");

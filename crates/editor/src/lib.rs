@@ -15,7 +15,7 @@ mod pose;
 mod scene;
 mod tool;
 
-pub use editor::{Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pick, to_world};
+pub use editor::{DabJob, Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pick, to_world};
 pub use history::{History, HistoryEntry};
 pub use pose::{Buttons, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, TransformError, View};

@@ -10,9 +10,10 @@ use strata_volume::{CsgOp, EditSettings, Volume};
 fn main() {
     let mut args = std::env::args().skip(1);
     let res: f64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(1024.0);
-    let path = args.next().map(std::path::PathBuf::from).unwrap_or_else(|| {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply")
-    });
+    let path = args
+        .next()
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply"));
     let m = strata_mesh::import::load_mesh(&path).expect("a mesh");
     let (lo, hi) = m.bounds().expect("vertices");
     let scale = res / (hi - lo).max_element();

@@ -208,8 +208,8 @@ const STL_HEADER: usize = 84;
 const STL_RECORD: usize = 50;
 
 fn read_stl(bytes: &[u8]) -> Result<TriangleMesh, String> {
-    let declared = (bytes.len() >= STL_HEADER)
-        .then(|| u32::from_le_bytes(bytes[80..84].try_into().expect("4 bytes")) as usize);
+    let declared =
+        (bytes.len() >= STL_HEADER).then(|| u32::from_le_bytes(bytes[80..84].try_into().expect("4 bytes")) as usize);
     if let Some(count) = declared
         && (bytes.len() - STL_HEADER) as u64 == count as u64 * STL_RECORD as u64
     {
@@ -222,7 +222,7 @@ fn read_stl(bytes: &[u8]) -> Result<TriangleMesh, String> {
                 "binary STL declares {count} triangles ({} bytes) but the file has {} bytes{}",
                 STL_HEADER as u64 + count as u64 * STL_RECORD as u64,
                 bytes.len(),
-                if (bytes.len() - STL_HEADER) % STL_RECORD == 0 {
+                if (bytes.len() - STL_HEADER).is_multiple_of(STL_RECORD) {
                     format!(" ({} triangles)", (bytes.len() - STL_HEADER) / STL_RECORD)
                 } else {
                     String::new()

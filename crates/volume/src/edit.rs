@@ -27,7 +27,7 @@ pub enum CsgOp {
 }
 
 /// Options for [`Volume::apply`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub struct EditSettings {
     /// Edit chunks in parallel with rayon (edits of fewer than 32 chunks, where the hand-off
     /// costs more than it saves, still run on the calling thread).
@@ -35,11 +35,41 @@ pub struct EditSettings {
     /// Refuse edits whose box spans more chunks than this (a brush a billion cells wide would
     /// otherwise run out of memory).
     pub max_chunks: u64,
+    /// Progress and cancellation, for an edit run on another thread (`None`: neither).
+    pub control: Option<std::sync::Arc<EditControl>>,
 }
 
 impl Default for EditSettings {
+    /// Parallel, at most 2²⁰ chunks, no progress or cancellation.
     fn default() -> Self {
-        EditSettings { parallel: true, max_chunks: 1 << 20 }
+        EditSettings { parallel: true, max_chunks: 1 << 20, control: None }
+    }
+}
+
+/// Shared with an edit in progress: how far it got, and a request to stop. A cancelled edit
+/// returns [`EditError::Cancelled`] and leaves the volume as it was.
+#[derive(Debug, Default)]
+pub struct EditControl {
+    cancelled: std::sync::atomic::AtomicBool,
+    done: std::sync::atomic::AtomicU64,
+    total: std::sync::atomic::AtomicU64,
+}
+
+impl EditControl {
+    /// Asks the edit to stop (it checks between chunks).
+    pub fn cancel(&self) {
+        self.cancelled.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Whether a stop was asked for.
+    pub fn is_cancelled(&self) -> bool {
+        self.cancelled.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Chunks visited and chunks to visit (0 of 0 before the edit starts).
+    pub fn progress(&self) -> (u64, u64) {
+        use std::sync::atomic::Ordering::Relaxed;
+        (self.done.load(Relaxed), self.total.load(Relaxed))
     }
 }
 
@@ -61,6 +91,9 @@ pub enum EditError {
         /// The limit.
         limit: u64,
     },
+    /// Stopped through [`EditControl::cancel`].
+    #[error("the edit was cancelled")]
+    Cancelled,
 }
 
 /// What an edit did.
@@ -420,7 +453,18 @@ impl Volume {
             distance_field: brush.field_is_distance(),
             table,
         };
+        let control = settings.control.as_deref();
+        if let Some(c) = control {
+            c.total.store(keys.len() as u64, std::sync::atomic::Ordering::Relaxed);
+            c.done.store(0, std::sync::atomic::Ordering::Relaxed);
+        }
         let run = |scratch: &mut Scratch, key: ChunkKey| -> Option<(ChunkKey, Built, u64)> {
+            if let Some(c) = control {
+                if c.is_cancelled() {
+                    return None;
+                }
+                c.done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
             let view = self.view(key);
             if op == CsgOp::Intersect && !in_range(key, cmin, cmax) {
                 return Some((key, Built::Uniform(false), 0));
@@ -434,6 +478,9 @@ impl Volume {
             let mut s = Scratch::default();
             keys.iter().filter_map(|&k| run(&mut s, k)).collect()
         };
+        if control.is_some_and(EditControl::is_cancelled) {
+            return Err(EditError::Cancelled);
+        }
         results.sort_by_key(|r| r.0);
         let mut report =
             EditReport { changed: Vec::with_capacity(results.len()), undo: UndoRecord::default(), repaired_nodes: 0 };

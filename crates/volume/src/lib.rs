@@ -48,7 +48,7 @@ pub use axis::Axis;
 pub use block::{EdgeCrossing, VoxelBlock};
 pub use chunk::{Chunk, ChunkLists, LineRef};
 pub use coords::{ChunkKey, Level};
-pub use edit::{CsgOp, EditError, EditReport, EditSettings, UndoRecord};
+pub use edit::{CsgOp, EditControl, EditError, EditReport, EditSettings, UndoRecord};
 pub use invariants::InvariantViolation;
 pub use memory::{MemoryReport, hash_table_bytes};
 pub use query::{CrossingStats, RayHit, clip_to_box};

@@ -247,7 +247,10 @@ mod tests {
         }
         // A consistent volume is left alone.
         let again = v.clone();
-        assert_eq!(v.repair(), RepairReport { chunks_before: v.chunk_count(), chunks_after: v.chunk_count(), ..Default::default() });
+        assert_eq!(
+            v.repair(),
+            RepairReport { chunks_before: v.chunk_count(), chunks_after: v.chunk_count(), ..Default::default() }
+        );
         assert_eq!(v, again);
     }
 

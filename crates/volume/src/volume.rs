@@ -205,7 +205,11 @@ impl Volume {
     /// solid chunks as [`Chunk::Solid`]), for loaders that read chunks one at a time. Nothing is
     /// checked: call [`Volume::check_invariants`] or [`Volume::repair`] before editing it.
     /// `None` if `cell_size` is not finite and positive.
-    pub fn from_chunks(level: Level, cell_size: f64, chunks: impl IntoIterator<Item = (ChunkKey, Chunk)>) -> Option<Self> {
+    pub fn from_chunks(
+        level: Level,
+        cell_size: f64,
+        chunks: impl IntoIterator<Item = (ChunkKey, Chunk)>,
+    ) -> Option<Self> {
         if !(cell_size.is_finite() && cell_size > 0.0) {
             return None;
         }

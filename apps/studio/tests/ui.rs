@@ -1,0 +1,192 @@
+//! The studio driven as a user drives it (`egui_kittest`, no window, no GPU): keys, clicks and
+//! typed text go through egui exactly as a window's events do.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use eframe::egui;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use strata_editor::ToolKind;
+use strata_studio::{Dialogs, Studio, StudioApp, default_scene};
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("strata-ui-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn harness(dir: &std::path::Path) -> Harness<'static, StudioApp> {
+    let app = StudioApp::headless(Studio::new(default_scene()), Dialogs::Typed, dir.join("recovery"));
+    Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .build_ui_state(|ui, app: &mut StudioApp| app.show(ui, None), app)
+}
+
+/// Types `text` as a keyboard does: a key press (for keys egui knows) and the text it makes.
+fn type_keys(h: &mut Harness<'_, StudioApp>, text: &str) {
+    for ch in text.chars() {
+        if let Some(key) = egui::Key::from_name(&ch.to_ascii_uppercase().to_string()) {
+            h.key_press(key);
+        }
+        h.event(egui::Event::Text(ch.to_string()));
+        h.run();
+    }
+}
+
+#[test]
+fn the_first_ctrl_s_on_a_new_scene_opens_the_prompt_focused_and_a_typed_path_saves() {
+    let dir = temp("save");
+    let mut h = harness(&dir);
+    h.run();
+    let (kind, wireframe) = (h.state().studio.editor.tool.kind, h.state().studio.wireframe);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.run();
+    assert!(h.state().modal_open(), "the first Ctrl+S opens the prompt");
+    let field = h.get_by_label("Path:");
+    assert!(field.is_focused(), "the path field has the keyboard at once");
+    // Letters that are tool shortcuts (a, e, w, 1–4, [ ]) must reach the field, not the tools.
+    let path = dir.join("a_new_wide_scene[1].strata");
+    type_keys(&mut h, &path.display().to_string());
+    assert_eq!(h.get_by_label("Path:").value().as_deref(), Some(path.display().to_string().as_str()));
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(!h.state().modal_open(), "Enter closes the prompt");
+    assert!(path.exists(), "Enter saved {}", path.display());
+    let s = &h.state().studio;
+    assert_eq!(s.path.as_deref(), Some(path.as_path()));
+    assert_eq!((s.editor.tool.kind, s.wireframe), (kind, wireframe), "no tool was toggled");
+    assert!(!s.is_modified());
+    let back = strata_editor::file::load(&path).unwrap();
+    assert_eq!(back.scene.layers, s.editor.scene.layers);
+}
+
+#[test]
+fn escape_closes_the_prompt_without_saving_and_keys_reach_the_tools_again() {
+    let dir = temp("escape");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.run();
+    assert!(h.state().modal_open());
+    h.key_press(egui::Key::Escape);
+    h.run();
+    assert!(!h.state().modal_open());
+    assert!(h.state().studio.path.is_none());
+    h.key_press(egui::Key::E);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Erase, "with no prompt, E picks the erase tool");
+}
+
+#[test]
+fn new_with_unsaved_changes_asks_first() {
+    let dir = temp("new");
+    let mut h = harness(&dir);
+    h.run();
+    // A stroke on the clay.
+    let before = h.state().studio.editor.scene.clone();
+    {
+        let s = &mut h.state_mut().studio;
+        let down = strata_editor::Buttons { primary: true, secondary: false };
+        for i in 0..5 {
+            s.pointer(Some((i as f32 * 0.01, 0.0)), down, 1.0, 1.5, Duration::from_millis(20));
+        }
+        s.pointer(Some((0.05, 0.0)), strata_editor::Buttons::default(), 1.0, 1.5, Duration::from_millis(20));
+        assert!(s.is_modified());
+    }
+    let sculpted = h.state().studio.editor.scene.clone();
+    assert_ne!(sculpted, before);
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("New (Ctrl+N)").click();
+    h.run();
+    assert!(h.state().modal_open(), "the unsaved-changes question is up");
+    assert_eq!(h.state().studio.editor.scene, sculpted, "nothing is discarded before the answer");
+    h.get_by_label("Cancel").click();
+    h.run();
+    assert!(!h.state().modal_open());
+    assert_eq!(h.state().studio.editor.scene, sculpted, "Cancel keeps the work");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::N);
+    h.run();
+    h.get_by_label("Don't save").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers, before.layers, "Don't save starts anew");
+    assert!(!h.state().studio.is_modified());
+    // With nothing to lose, New asks nothing.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::N);
+    h.run();
+    assert!(!h.state().modal_open());
+}
+
+#[test]
+fn saving_from_the_unsaved_changes_question_then_does_what_was_asked() {
+    let dir = temp("save-then-new");
+    let mut h = harness(&dir);
+    h.run();
+    h.state_mut().studio.editor.touch();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::N);
+    h.run();
+    h.get_by_label("Save").click();
+    h.run();
+    // The scene has no file: the path prompt asks for one, then the new scene follows.
+    assert!(h.get_by_label("Path:").is_focused());
+    let path = dir.join("kept.strata");
+    h.get_by_label("Path:").type_text(""); // (focus stays; the suggestion is selected)
+    type_keys(&mut h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(path.exists());
+    assert!(h.state().studio.path.is_none(), "then the new scene");
+    assert!(!h.state().modal_open());
+}
+
+#[test]
+fn the_layer_name_field_takes_typed_text() {
+    let dir = temp("name");
+    let mut h = harness(&dir);
+    h.run();
+    h.get_by_label("Name").click();
+    h.run();
+    assert!(h.get_by_label("Name").is_focused());
+    type_keys(&mut h, " awe");
+    assert_eq!(h.state().studio.editor.scene.layers[0].name, "Clay awe");
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Add, "typing a, w, e renamed, toggled nothing");
+    assert!(!h.state().studio.wireframe);
+    assert!(h.state().studio.is_modified(), "a rename is a change to save");
+}
+
+#[test]
+fn unsaved_work_is_autosaved_and_offered_back_after_a_crash() {
+    let dir = temp("recover");
+    let mut h = harness(&dir);
+    h.state_mut().set_autosave_interval(Duration::from_millis(0));
+    h.step();
+    h.state_mut().studio.editor.scene.layers[0].name = "precious".into();
+    h.state_mut().studio.editor.touch();
+    // (An autosave keeps the UI repainting while there is unsaved work: step, do not settle.)
+    let recovery = dir.join("recovery");
+    for _ in 0..500 {
+        h.step();
+        if std::fs::read_dir(&recovery).map(|d| d.count()).unwrap_or(0) >= 2 {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.state_mut().wait_for_autosave();
+    let own = dir.join("recovery").join(format!("recovery-{}.strata", std::process::id()));
+    assert!(own.exists(), "the recovery file was written");
+    // A crash: the process is gone and its file stays. Pretend it was another process's.
+    let orphan = dir.join("recovery").join("recovery-999999999.strata");
+    std::fs::copy(&own, &orphan).unwrap();
+    drop(h);
+    let mut h = harness(&dir);
+    h.run();
+    assert!(h.state().modal_open(), "recovery is offered");
+    h.get_by_label("Recover").click();
+    h.run();
+    let s = &h.state().studio;
+    assert_eq!(s.editor.scene.layers[0].name, "precious");
+    assert!(s.is_modified(), "recovered work still needs saving");
+    assert!(!orphan.exists(), "the recovery file is consumed");
+}
