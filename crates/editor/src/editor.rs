@@ -338,6 +338,35 @@ impl Editor {
         Ok(changed)
     }
 
+    /// Applies `brush` (grid coordinates of the layer) to layer `layer` as one undo step, with
+    /// its chunks queued for meshing: how imports and scripted edits change a scene. (Edits made
+    /// straight on `scene.layers[i].volume` bypass the history, whose records would then
+    /// restore stale chunks: call [`Editor::clear_history`] after any.)
+    pub fn apply(
+        &mut self,
+        layer: usize,
+        op: strata_volume::CsgOp,
+        brush: &dyn strata_volume::brush::Brush,
+    ) -> Result<EditReport, EditorError> {
+        self.end_stroke();
+        let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+        if l.locked {
+            return Err(EditorError::Locked(layer));
+        }
+        let mut edit = l.volume.apply(op, brush, &self.settings)?;
+        self.queue(layer, &edit.changed);
+        self.revision += 1;
+        // The history keeps the undo record; the report returned has an empty one.
+        self.history.push(HistoryEntry { layer, records: vec![std::mem::take(&mut edit.undo)] });
+        Ok(edit)
+    }
+
+    /// Forgets every undo and redo step (after the scene was changed outside the editor).
+    pub fn clear_history(&mut self) {
+        self.end_stroke();
+        self.history.clear();
+    }
+
     /// Ends the stroke in progress, making it one undo step.
     pub fn end_stroke(&mut self) {
         if let Some(s) = self.stroke.take() {
