@@ -612,6 +612,16 @@ fn edit_chunk(
     let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;
     let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
+    if let Some((t, offset)) = table_level
+        && ctx.op != CsgOp::Intersect
+        && covers_chunk(t, offset, origin, n)
+    {
+        // Every node of the chunk and its apron is well inside the brush (by its x lines, which
+        // are also what a reconciled brush's node states come from): no line work at all, so the
+        // inside of a converted mesh costs one test per chunk.
+        let now = ctx.op == CsgOp::Add;
+        return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
+    }
     if ctx.reconcile {
         // Node states of the brush from the x lines, apron rows included: x_states[y + (n+1) z],
         // from the span table where there is one (each line's spans were found once for the
@@ -640,14 +650,6 @@ fn edit_chunk(
             // case for the empty chunks around a converted mesh).
             return None;
         }
-    }
-    if let Some((t, offset)) = table_level
-        && ctx.op != CsgOp::Intersect
-        && covers_chunk(t, offset, origin, n)
-    {
-        // Every node of the chunk and its apron is well inside the brush.
-        let now = ctx.op == CsgOp::Add;
-        return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
     }
     if let Some((t, offset)) = table_level
         && ctx.op != CsgOp::Intersect
