@@ -1,1 +1,25 @@
-//! Shared helpers for the cross-crate scenarios.
+//! Shared helpers for the cross-crate scenarios (also used by other crates' tests).
+
+use glam::DVec3;
+
+/// The box `[min, min + size]` as twelve triangles over its eight corners, counter-clockwise
+/// from outside: with integer corners, every face lies on a grid plane.
+pub fn box_mesh(min: DVec3, size: DVec3) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let v =
+        (0..8).map(|i| min + size * DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)).collect();
+    let t = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    (v, t)
+}

@@ -15,22 +15,7 @@ use strata_volume::{CsgOp, EditSettings, Volume};
 
 /// A cube `[0, 1]³` as twelve triangles, counter-clockwise from outside.
 fn unit_cube() -> (Vec<DVec3>, Vec<[u32; 3]>) {
-    let v = (0..8).map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)).collect();
-    let t = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    (v, t)
+    strata_tests::box_mesh(DVec3::ZERO, DVec3::ONE)
 }
 
 /// A tetrahedron on four points, oriented outwards (or `None` if flat).

@@ -64,26 +64,11 @@ fn p(v: [i8; 3]) -> DVec3 {
     DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64) / 4.0
 }
 
-/// A box mesh with integer corners: faces on grid planes, as an imported CAD model has.
+/// A box mesh with corners on an eighth-cell grid: faces on grid planes, as an imported CAD
+/// model has.
 fn box_mesh(corner: [i8; 3], size: [u8; 3]) -> MeshBrush {
     let lo = DVec3::new(corner[0] as f64, corner[1] as f64, corner[2] as f64) / 8.0;
-    let s = DVec3::new(size[0] as f64, size[1] as f64, size[2] as f64);
-    let v: Vec<DVec3> =
-        (0..8).map(|i| lo + s * DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)).collect();
-    let t = [
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
+    let (v, t) = strata_tests::box_mesh(lo, DVec3::new(size[0] as f64, size[1] as f64, size[2] as f64));
     MeshBrush::new(&v, &t, MeshRule::EvenOdd).unwrap()
 }
 

@@ -230,10 +230,14 @@ impl Volume {
         self.cell_size
     }
 
-    /// Sets the world size of a base cell (must be finite and positive; others are ignored).
-    pub fn set_cell_size(&mut self, h: f64) {
+    /// Sets the world size of a base cell; a size that is not finite and positive is refused
+    /// (returned as the error) and the volume keeps its cell size.
+    pub fn set_cell_size(&mut self, h: f64) -> Result<(), f64> {
         if h.is_finite() && h > 0.0 {
             self.cell_size = h;
+            Ok(())
+        } else {
+            Err(h)
         }
     }
 

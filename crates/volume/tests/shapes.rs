@@ -352,3 +352,14 @@ fn box_faces_that_land_on_node_planes_after_rounding_keep_the_axes_consistent() 
         }
     }
 }
+
+#[test]
+fn a_cell_size_that_is_not_finite_and_positive_is_refused() {
+    let mut v = strata_volume::Volume::new();
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(v.set_cell_size(bad).is_err(), "{bad}");
+        assert_eq!(v.cell_size(), 1.0);
+    }
+    v.set_cell_size(0.25).unwrap();
+    assert_eq!(v.cell_size(), 0.25);
+}
