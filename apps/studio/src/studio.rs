@@ -84,6 +84,8 @@ pub struct Studio {
     /// bar and a cancel button instead of in the frame (32,768 chunks: a sphere of radius about
     /// 250 cells, which takes a few hundred milliseconds).
     pub background_chunks: u64,
+    /// Where the last large dab of the stroke in progress went.
+    last_background_dab: Option<DVec3>,
 }
 
 impl Studio {
@@ -107,6 +109,7 @@ impl Studio {
             saved_revision: 0,
             job: None,
             background_chunks: 1 << 15,
+            last_background_dab: None,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = 4.0;
@@ -252,9 +255,19 @@ impl Studio {
             // A large dab is running: input waits for it (the app shows its progress).
             return;
         }
+        if !held {
+            self.last_background_dab = None;
+        }
         if let Some(p) = target.filter(|_| held) {
             let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons };
             if self.editor.dab_chunks(&pose).is_ok_and(|c| c > self.background_chunks) {
+                // Like a stroke's dabs: the next large dab waits until the pointer has moved by
+                // the dab spacing (holding still does not repeat it).
+                let spacing = self.editor.tool.dab_spacing();
+                if self.last_background_dab.is_some_and(|last| (p - last).length() < spacing) {
+                    return;
+                }
+                self.last_background_dab = Some(p);
                 match self.editor.start_dab_job(&pose) {
                     Ok(job) => {
                         self.job = Some(job);
@@ -452,6 +465,10 @@ mod tests {
         }
         assert!(s.message.contains("chunks changed"), "{}", s.message);
         assert_ne!(s.editor.scene.layers[0].volume, before);
+        // Holding still does not repeat the dab.
+        s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        assert!(!s.busy());
+        s.pointer(Some((0.0, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
         assert_eq!(s.editor.history().undo_len(), 1);
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, before);
