@@ -113,7 +113,7 @@ pub struct EditReport {
 /// for bit and returns the record that redoes the edit.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct UndoRecord {
-    previous: Vec<(ChunkKey, Option<Chunk>)>,
+    pub(crate) previous: Vec<(ChunkKey, Option<Chunk>)>,
 }
 
 impl UndoRecord {

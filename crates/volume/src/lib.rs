@@ -42,6 +42,7 @@ pub mod normal;
 mod query;
 mod repair;
 mod sample;
+pub mod tools;
 mod volume;
 
 pub use axis::Axis;
