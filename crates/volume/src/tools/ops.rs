@@ -1,0 +1,217 @@
+//! Operators on a [`Region`]: a dab (centre, radius, strength, falloff) changes the region's
+//! signed distance field where the falloff is positive, and the region is written back.
+//!
+//! The falloff is SculptGL's `f(t) = 3t⁴ − 4t³ + 1` of the distance from the dab's centre over
+//! its radius (`f(0) = 1`, `f(1) = 0`, flat at both ends), times the strength; nodes where it is
+//! 0 are left to the region's exact-preservation rule.
+
+use glam::DVec3;
+use thiserror::Error;
+
+use super::region::{Region, RegionError};
+use crate::edit::EditReport;
+use crate::volume::Volume;
+
+/// Why a dab was refused. The volume is unchanged.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ToolError {
+    /// A centre, radius, strength or amount that is NaN or infinite, a radius that is not
+    /// positive, or a strength outside `[0, 1]`.
+    #[error("{what} must be finite{}", if *.positive { " and positive" } else { "" })]
+    BadParameter {
+        /// Which parameter.
+        what: &'static str,
+        /// Whether it must also be positive.
+        positive: bool,
+    },
+    /// Reading or writing the region failed.
+    #[error(transparent)]
+    Region(#[from] RegionError),
+}
+
+/// One application of a tool: where, how large, how strong.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Dab {
+    /// Centre (grid coordinates).
+    pub center: DVec3,
+    /// Radius (grid units).
+    pub radius: f64,
+    /// Strength in `[0, 1]`: the falloff's factor.
+    pub strength: f64,
+}
+
+impl Dab {
+    /// A dab, checked.
+    pub fn new(center: DVec3, radius: f64, strength: f64) -> Result<Self, ToolError> {
+        if !center.is_finite() {
+            return Err(ToolError::BadParameter { what: "the dab centre", positive: false });
+        }
+        if !(radius.is_finite() && radius > 0.0) {
+            return Err(ToolError::BadParameter { what: "the dab radius", positive: true });
+        }
+        if !(strength.is_finite() && (0.0..=1.0).contains(&strength)) {
+            return Err(ToolError::BadParameter { what: "the dab strength (in [0, 1])", positive: false });
+        }
+        Ok(Dab { center, radius, strength })
+    }
+
+    /// The dab's weight at grid point `p`: strength × falloff.
+    pub fn weight(&self, p: DVec3) -> f64 {
+        self.strength * falloff((p - self.center).length() / self.radius)
+    }
+
+    /// Reads the region the dab covers (plus `apron` nodes), sets the weight of every node, and
+    /// returns it with the nodes' grid points, for an operator to fill in.
+    fn region(&self, volume: &Volume, apron: usize) -> Result<Region, ToolError> {
+        let r = DVec3::splat(self.radius);
+        let mut region = volume.read_region(self.center - r, self.center + r, apron)?;
+        for z in 0..region.dims[2] {
+            for y in 0..region.dims[1] {
+                for x in 0..region.dims[0] {
+                    let i = region.index(x, y, z);
+                    region.weight[i] = self.weight(region.grid_point(x, y, z)) as f32;
+                }
+            }
+        }
+        Ok(region)
+    }
+}
+
+/// SculptGL's falloff `3t⁴ − 4t³ + 1` on `[0, 1]`, 0 beyond.
+pub fn falloff(t: f64) -> f64 {
+    if !(t < 1.0) {
+        return 0.0;
+    }
+    let t = t.max(0.0);
+    3.0 * t.powi(4) - 4.0 * t.powi(3) + 1.0
+}
+
+fn finite(what: &'static str, v: f64) -> Result<f64, ToolError> {
+    if v.is_finite() { Ok(v) } else { Err(ToolError::BadParameter { what, positive: false }) }
+}
+
+/// Moves the surface along its normal by `amount` grid units at the dab's centre (positive
+/// inflates, negative deflates), less towards the rim by the falloff.
+pub fn inflate(volume: &mut Volume, dab: &Dab, amount: f64) -> Result<EditReport, ToolError> {
+    let amount = finite("the inflate amount", amount)?;
+    let mut region = dab.region(volume, 2)?;
+    let per_node = (amount * volume.level().nodes_per_unit()) as f32;
+    for i in 0..region.phi.len() {
+        region.phi[i] -= per_node * region.weight[i];
+    }
+    Ok(volume.write_region(&region)?)
+}
+
+/// How [`smooth`] moves the surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Smoothing {
+    /// Explicit Laplacian steps of the field, `φ += w · Δφ / 6` (the largest stable step of the
+    /// 7-point Laplacian in 3-D, `dt = dx² / 6`): on a distance field, mean-curvature flow, which
+    /// shrinks convex shapes.
+    Laplacian,
+    /// The Laplacian steps, then the field under the dab offset along the normal (scaled by the
+    /// falloff) so that the region's enclosed volume is what it was: the same smoothing of bumps
+    /// without the shrinking. (Taubin's λ/μ pairs, tried first, barely smoothed a distance field
+    /// at all: RMS 1.296 → 1.300 cells on the rough-sphere test, where this gives 64 % less.)
+    #[default]
+    VolumePreserving,
+}
+
+/// Smooths the surface under the dab with `passes` steps of `method`.
+pub fn smooth(volume: &mut Volume, dab: &Dab, method: Smoothing, passes: u32) -> Result<EditReport, ToolError> {
+    let mut region = dab.region(volume, 2)?;
+    let before = enclosed(&region.phi);
+    let d = region.dims;
+    let (sx, sy, sz) = (1, d[0], d[0] * d[1]);
+    let mut next = region.phi.clone();
+    for _ in 0..passes.min(1000) {
+        for z in 1..d[2].saturating_sub(1) {
+            for y in 1..d[1].saturating_sub(1) {
+                for x in 1..d[0].saturating_sub(1) {
+                    let i = region.index(x, y, z);
+                    let w = region.weight[i];
+                    if w <= 0.0 {
+                        continue;
+                    }
+                    let p = &region.phi;
+                    let lap = p[i - sx] + p[i + sx] + p[i - sy] + p[i + sy] + p[i - sz] + p[i + sz] - 6.0 * p[i];
+                    next[i] = p[i] + w * lap / 6.0;
+                }
+            }
+        }
+        region.phi.copy_from_slice(&next);
+    }
+    if method == Smoothing::VolumePreserving {
+        // The offset δ (node units, times the weight) that restores the enclosed volume, by
+        // bisection: the volume grows monotonically with δ.
+        let smoothed = region.phi.clone();
+        let with =
+            |delta: f32| -> Vec<f32> { smoothed.iter().zip(&region.weight).map(|(&p, &w)| p - delta * w).collect() };
+        let (mut lo, mut hi) = (-4.0f32, 4.0f32);
+        for _ in 0..30 {
+            let mid = 0.5 * (lo + hi);
+            if enclosed(&with(mid)) < before {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        region.phi = with(0.5 * (lo + hi));
+    }
+    Ok(volume.write_region(&region)?)
+}
+
+/// The volume a field encloses, in node cells: each node counts by how far inside it is, within
+/// half a cell of the surface (a smoothed step), so the measure moves continuously with the field.
+fn enclosed(phi: &[f32]) -> f64 {
+    phi.iter().map(|&p| (0.5 - p as f64).clamp(0.0, 1.0)).sum()
+}
+
+/// Pulls the surface under the dab towards the plane through the brushed surface's
+/// weighted barycentre with its weighted mean normal.
+pub fn flatten(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> {
+    let mut region = dab.region(volume, 2)?;
+    let sp = region.spacing();
+    let d = region.dims;
+    // Surface points: nodes within a cell of the surface, moved onto it along the gradient.
+    let (mut sum_p, mut sum_n, mut sum_w) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+    for z in 1..d[2].saturating_sub(1) {
+        for y in 1..d[1].saturating_sub(1) {
+            for x in 1..d[0].saturating_sub(1) {
+                let i = region.index(x, y, z);
+                let (phi, w) = (region.phi[i] as f64, region.weight[i] as f64);
+                if w <= 0.0 || phi.abs() > 1.0 {
+                    continue;
+                }
+                let p = &region.phi;
+                let g = DVec3::new(
+                    (p[i + 1] - p[i - 1]) as f64,
+                    (p[i + d[0]] - p[i - d[0]]) as f64,
+                    (p[i + d[0] * d[1]] - p[i - d[0] * d[1]]) as f64,
+                ) * 0.5;
+                let n = g.normalize_or_zero();
+                sum_p += (region.grid_point(x, y, z) - n * phi * sp) * w;
+                sum_n += n * w;
+                sum_w += w;
+            }
+        }
+    }
+    let normal = sum_n.normalize_or_zero();
+    if sum_w <= 0.0 || normal == DVec3::ZERO {
+        // No surface under the dab: nothing to flatten.
+        region.weight.fill(0.0);
+        return Ok(volume.write_region(&region)?);
+    }
+    let centre = sum_p / sum_w;
+    for z in 0..d[2] {
+        for y in 0..d[1] {
+            for x in 0..d[0] {
+                let i = region.index(x, y, z);
+                let plane = (normal.dot(region.grid_point(x, y, z) - centre) / sp) as f32;
+                let w = region.weight[i];
+                region.phi[i] += w * (plane - region.phi[i]);
+            }
+        }
+    }
+    Ok(volume.write_region(&region)?)
+}
