@@ -260,19 +260,20 @@ impl Volume {
                 for y in lo.y.max(0)..=hi.y.min(dims[1] as i64 - 1) {
                     for x in lo.x.max(0)..=hi.x.min(dims[0] as i64 - 1) {
                         let i = region.index(x as usize, y as usize, z as usize);
+                        // (Squared distances until the end: no root per pair.)
                         let r = (origin + I64Vec3::new(x, y, z)).as_dvec3() - p;
-                        let d = r.length();
-                        if d > BAND {
+                        let d2 = r.length_squared();
+                        if d2 > BAND * BAND {
                             continue;
                         }
-                        if d < nearest_d[i] {
-                            nearest_d[i] = d;
+                        if d2 < nearest_d[i] {
+                            nearest_d[i] = d2;
                             nearest[i] = k as u32;
                         }
                         let along = nrm.dot(r);
-                        let lateral = (r - nrm * along).length();
-                        if lateral < best_lateral[i] {
-                            best_lateral[i] = lateral;
+                        let lateral2 = d2 - along * along;
+                        if lateral2 < best_lateral[i] {
+                            best_lateral[i] = lateral2;
                             plane_d[i] = along.abs();
                         }
                     }
@@ -283,10 +284,14 @@ impl Volume {
         // nearest crossing to its neighbours (a closest-point transform; the crossings lie about
         // a cell apart, so far from the surface this is the distance to it within a small
         // fraction of a cell).
+        for d in &mut nearest_d {
+            *d = d.sqrt();
+        }
         sweep_nearest(&mut nearest, &mut nearest_d, &samples, origin, dims);
         for i in 0..count {
             if nearest_d[i].is_finite() {
-                let d = if best_lateral[i] <= MAX_LATERAL { plane_d[i].min(nearest_d[i]) } else { nearest_d[i] };
+                let close = best_lateral[i] <= MAX_LATERAL * MAX_LATERAL;
+                let d = if close { plane_d[i].min(nearest_d[i]) } else { nearest_d[i] };
                 region.phi[i] = d as f32;
             }
         }
@@ -378,44 +383,62 @@ fn for_owned_nodes(region: &Region, base: I64Vec3, n: i64, mut f: impl FnMut(usi
 }
 
 /// Propagates each node's nearest crossing (`nearest`, with its distance `dist`) to the nodes
-/// whose own is farther: eight sweep orders, twice.
+/// beyond the band (those whose `dist` is infinite on entry; nodes in the band already know
+/// theirs exactly), comparing squared distances.
 fn sweep_nearest(nearest: &mut [u32], dist: &mut [f64], samples: &[(DVec3, DVec3)], origin: I64Vec3, dims: [usize; 3]) {
     if samples.is_empty() {
         return;
     }
-    let steps = [1, dims[0], dims[0] * dims[1]];
-    for _ in 0..2 {
-        for order in 0..8 {
-            let range = |a: usize, rev: bool| -> Vec<usize> {
-                if rev { (0..dims[a]).rev().collect() } else { (0..dims[a]).collect() }
-            };
-            let (xs, ys, zs) = (range(0, order & 1 == 1), range(1, order & 2 == 2), range(2, order & 4 == 4));
-            for &z in &zs {
-                for &y in &ys {
-                    for &x in &xs {
-                        let i = x + steps[1] * y + steps[2] * z;
-                        let q = (origin + I64Vec3::new(x as i64, y as i64, z as i64)).as_dvec3();
-                        // All 26 neighbours: with the 6 face neighbours alone a node can miss its
-                        // nearest crossing by half a cell.
-                        for dz in z.saturating_sub(1)..=(z + 1).min(dims[2] - 1) {
-                            for dy in y.saturating_sub(1)..=(y + 1).min(dims[1] - 1) {
-                                for dx in x.saturating_sub(1)..=(x + 1).min(dims[0] - 1) {
-                                    let k = nearest[dx + steps[1] * dy + steps[2] * dz];
-                                    if k == u32::MAX || k == nearest[i] {
-                                        continue;
-                                    }
-                                    let d = (q - samples[k as usize].0).length();
-                                    if d < dist[i] {
-                                        dist[i] = d;
-                                        nearest[i] = k;
-                                    }
-                                }
-                            }
-                        }
-                    }
+    let open: Vec<bool> = dist.iter().map(|d| !d.is_finite()).collect();
+    if !open.iter().any(|&o| o) {
+        return;
+    }
+    let mut d2: Vec<f64> = dist.iter().map(|d| d * d).collect();
+    let steps = [1, dims[0] as i64, (dims[0] * dims[1]) as i64];
+    // The 13 neighbours before a node in storage order (a forward pass reads them) and the 13
+    // after it (a backward pass): two passes propagate a nearest crossing in every direction, as
+    // a two-pass chamfer transform does; a third and fourth catch what bends around.
+    let mut before = Vec::new();
+    for dz in -1i64..=1 {
+        for dy in -1i64..=1 {
+            for dx in -1i64..=1 {
+                let off = dx + steps[1] * dy + steps[2] * dz;
+                if off < 0 {
+                    before.push(([dx, dy, dz], off));
                 }
             }
         }
+    }
+    let count = dims[0] * dims[1] * dims[2];
+    for pass in 0..4 {
+        let forward = pass % 2 == 0;
+        for step in 0..count {
+            let i = if forward { step } else { count - 1 - step };
+            if !open[i] {
+                continue;
+            }
+            let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+            let q = (origin + I64Vec3::new(x as i64, y as i64, z as i64)).as_dvec3();
+            for &(d, off) in &before {
+                let (d, off) = if forward { (d, off) } else { ([-d[0], -d[1], -d[2]], -off) };
+                let (nx, ny, nz) = (x as i64 + d[0], y as i64 + d[1], z as i64 + d[2]);
+                if nx < 0 || ny < 0 || nz < 0 || nx >= dims[0] as i64 || ny >= dims[1] as i64 || nz >= dims[2] as i64 {
+                    continue;
+                }
+                let k = nearest[(i as i64 + off) as usize];
+                if k == u32::MAX || k == nearest[i] {
+                    continue;
+                }
+                let dd = (q - samples[k as usize].0).length_squared();
+                if dd < d2[i] {
+                    d2[i] = dd;
+                    nearest[i] = k;
+                }
+            }
+        }
+    }
+    for (d, s) in dist.iter_mut().zip(&d2) {
+        *d = s.sqrt();
     }
 }
 
