@@ -8,6 +8,9 @@ use strata_volume::brush::Sphere;
 use strata_volume::tools::{Dab, Smoothing, flatten, inflate, smooth};
 use strata_volume::{EditSettings, Volume};
 
+/// One tool applied as a dab.
+type Tool = dyn Fn(&mut Volume, &Dab);
+
 fn main() {
     let mut seed = 2021u64;
     let mut unit = move || {
@@ -32,7 +35,7 @@ fn main() {
     }
     println!("| tool | radius 5 (ms) | radius 10 (ms) | radius 20 (ms) |");
     println!("|---|---:|---:|---:|");
-    let tools: [(&str, &dyn Fn(&mut Volume, &Dab)); 4] = [
+    let tools: [(&str, &Tool); 4] = [
         ("inflate 0.5", &|v, d| drop(inflate(v, d, 0.5).unwrap())),
         ("smooth, volume-preserving, 4 passes", &|v, d| drop(smooth(v, d, Smoothing::VolumePreserving, 4).unwrap())),
         ("smooth, Laplacian, 4 passes", &|v, d| drop(smooth(v, d, Smoothing::Laplacian, 4).unwrap())),
