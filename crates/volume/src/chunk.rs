@@ -1091,6 +1091,19 @@ impl ChunkBuilder {
     }
 
     /// Appends the crossings of a work line (at the cells where its node states change).
+    /// Pushes an edited line: the stored `line` as it is if `edited` means the same as `old`
+    /// (its unpacked form), else `edited`; returns whether the line changed.
+    #[inline]
+    pub(crate) fn push_edited(&mut self, line: LineRef<'_>, old: &WorkLine, edited: &WorkLine, n: usize) -> bool {
+        if edited.same_as(old, n) {
+            self.push_stored(line);
+            false
+        } else {
+            self.push_work(edited, n);
+            true
+        }
+    }
+
     pub(crate) fn push_work(&mut self, line: &WorkLine, n: usize) {
         self.corner.get_or_insert(line.states & 1 == 1);
         let mut c = line.changes(n);

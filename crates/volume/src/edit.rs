@@ -830,12 +830,7 @@ fn edit_chunk_by_table(
                     let line = cursor.next_line();
                     old_line.load(line, level);
                     combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
-                    if new_line.same_as(&old_line, n) {
-                        b.push_stored(line);
-                    } else {
-                        b.push_work(&new_line, n);
-                        changed = true;
-                    }
+                    changed |= b.push_edited(line, &old_line, &new_line, n);
                 }
             }
         }

@@ -532,12 +532,7 @@ fn rewrite_chunk(
                     new_line.pos[e] = quantize_into_edge((e as f64 + t) * sp, e, level);
                     new_line.nrm[e] = pack_normal(normal);
                 }
-                if new_line.same_as(&old_line, n) {
-                    b.push_stored(line);
-                } else {
-                    b.push_work(&new_line, n);
-                    changed = true;
-                }
+                changed |= b.push_edited(line, &old_line, &new_line, n);
             }
         }
         b.copy_view(&mut cursor, n * n - next);
