@@ -325,6 +325,15 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::E) {
             self.studio.set_kind(ToolKind::Erase);
         }
+        if pressed(Modifiers::NONE, Key::S) {
+            self.studio.set_kind(ToolKind::Smooth);
+        }
+        if pressed(Modifiers::NONE, Key::I) {
+            self.studio.set_kind(ToolKind::Inflate);
+        }
+        if pressed(Modifiers::NONE, Key::T) {
+            self.studio.set_kind(ToolKind::Flatten);
+        }
     }
 
     fn menu(&mut self, ui: &mut egui::Ui) {
@@ -376,6 +385,17 @@ impl StudioApp {
             ui.selectable_value(&mut tool.kind, ToolKind::Add, "Add (A)");
             ui.selectable_value(&mut tool.kind, ToolKind::Erase, "Erase (E)");
         });
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut tool.kind, ToolKind::Smooth, "Smooth (S)")
+                .on_hover_text("Smooth the surface, keeping its volume (hold Shift with any tool; Alt: Laplacian)");
+            ui.selectable_value(&mut tool.kind, ToolKind::Inflate, "Inflate (I)")
+                .on_hover_text("Push the surface out along its normal (Alt: deflate)");
+            ui.selectable_value(&mut tool.kind, ToolKind::Flatten, "Flatten (T)")
+                .on_hover_text("Pull the surface towards the plane that fits it under the brush");
+        });
+        if tool.kind.is_field_tool() {
+            ui.add(egui::Slider::new(&mut tool.field_strength, 0.0..=1.0).text("tool strength"));
+        }
         ui.label("Shape (1–4)");
         for (shape, name) in [
             (BrushShape::Sphere, "Sphere"),
@@ -621,6 +641,7 @@ impl StudioApp {
         let (rect, response) = ui.allocate_exact_size(ui.available_size(), egui::Sense::click_and_drag());
         let aspect = rect.width() / rect.height().max(1.0);
         // Camera: right drag orbits, middle drag pans, the wheel zooms.
+        self.studio.smooth_held = ui.input(|i| i.modifiers.shift) && !ui.ctx().egui_wants_keyboard_input();
         let (delta, scroll, secondary_drag, middle, primary, secondary) = ui.input(|i| {
             (
                 i.pointer.delta(),

@@ -86,6 +86,8 @@ pub struct Studio {
     pub background_chunks: u64,
     /// Where the last large dab of the stroke in progress went.
     last_background_dab: Option<DVec3>,
+    /// Shift is held: the pointer smooths instead of using the tool.
+    pub smooth_held: bool,
 }
 
 impl Studio {
@@ -110,6 +112,7 @@ impl Studio {
             job: None,
             background_chunks: 1 << 15,
             last_background_dab: None,
+            smooth_held: false,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = 4.0;
@@ -229,6 +232,23 @@ impl Studio {
     /// The tool acts at the surface under the pointer (or on the ground plane when nothing is
     /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
     pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
+        // Holding Shift smooths, whatever the tool (the sculptors' convention).
+        let kind = self.editor.tool.kind;
+        if self.smooth_held {
+            self.editor.tool.kind = ToolKind::Smooth;
+        }
+        self.pointer_with_tool(ndc, buttons, pressure, aspect, budget);
+        self.editor.tool.kind = kind;
+    }
+
+    fn pointer_with_tool(
+        &mut self,
+        ndc: Option<(f32, f32)>,
+        buttons: Buttons,
+        pressure: f64,
+        aspect: f32,
+        budget: Duration,
+    ) {
         let held = buttons.primary || buttons.secondary;
         // A stroke acts at the depth where it started: picking the surface every frame would
         // climb onto the material the stroke itself just added.
@@ -472,6 +492,38 @@ mod tests {
         assert_eq!(s.editor.history().undo_len(), 1);
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, before);
+    }
+
+    #[test]
+    fn holding_shift_smooths_and_the_field_tools_sculpt_through_the_pointer() {
+        let mut s = Studio::new(default_scene());
+        s.editor.tool.radius = 5.0;
+        // A bump to smooth away, under the centre of the view.
+        let p = s.surface_point(0.0, 0.0, 1.5).unwrap();
+        s.editor.scene.layers[0].volume.add(&Sphere::new(p, 2.5).unwrap()).unwrap();
+        s.editor.reset_caches();
+        let bumped = s.editor.scene.layers[0].volume.clone();
+        s.smooth_held = true;
+        for _ in 0..3 {
+            s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        }
+        s.pointer(Some((0.0, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        assert_eq!(s.editor.tool.kind, ToolKind::Add, "Shift only lends the smooth tool");
+        let smoothed = s.editor.scene.layers[0].volume.clone();
+        assert_ne!(smoothed, bumped, "{}", s.message);
+        smoothed.check_invariants().unwrap();
+        s.smooth_held = false;
+        for kind in [ToolKind::Inflate, ToolKind::Flatten] {
+            s.set_kind(kind);
+            let before = s.editor.scene.layers[0].volume.clone();
+            s.pointer(Some((0.05, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+            s.pointer(Some((0.05, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+            assert_ne!(s.editor.scene.layers[0].volume, before, "{kind:?}: {}", s.message);
+        }
+        s.act(Action::Undo).unwrap();
+        s.act(Action::Undo).unwrap();
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers[0].volume, bumped, "three strokes, three undo steps");
     }
 
     #[test]

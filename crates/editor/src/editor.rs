@@ -14,7 +14,7 @@ use thiserror::Error;
 use crate::history::{History, HistoryEntry};
 use crate::pose::ToolPose;
 use crate::scene::Scene;
-use crate::tool::ToolSettings;
+use crate::tool::{ToolKind, ToolSettings};
 
 /// Why the editor refused something. The scene is unchanged.
 #[derive(Debug, Error)]
@@ -34,6 +34,9 @@ pub enum EditorError {
     /// The edit was refused (too large, out of range).
     #[error(transparent)]
     Edit(#[from] EditError),
+    /// A field tool's dab was refused (a bad parameter, a region too large).
+    #[error(transparent)]
+    Tool(#[from] strata_volume::tools::ToolError),
 }
 
 /// What one frame did.
@@ -58,7 +61,7 @@ pub struct DabJob {
     layer: usize,
     control: Arc<EditControl>,
     started: Instant,
-    worker: std::thread::JoinHandle<(Volume, Result<EditReport, EditError>)>,
+    worker: std::thread::JoinHandle<(Volume, Result<EditReport, EditorError>)>,
 }
 
 impl DabJob {
@@ -255,8 +258,12 @@ impl Editor {
         }
         let op = self.tool.kind.op(inverted);
         for p in dabs {
-            let brush = self.tool.brush(&self.scene.layers[layer].transform, p, pose.orientation, pose.pressure)?;
-            let edit = self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?;
+            let edit = if self.tool.kind.is_field_tool() {
+                self.field_dab(layer, p, pose.pressure, inverted)?
+            } else {
+                let brush = self.tool.brush(&self.scene.layers[layer].transform, p, pose.orientation, pose.pressure)?;
+                self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?
+            };
             self.queue(layer, &edit.changed);
             self.revision += 1;
             let s = self.stroke.as_mut().expect("a stroke is in progress");
@@ -265,6 +272,12 @@ impl Editor {
             report.dabs += 1;
         }
         Ok(())
+    }
+
+    /// One dab of a field tool (smooth, inflate, flatten) at world point `p`.
+    fn field_dab(&mut self, layer: usize, p: DVec3, pressure: f64, inverted: bool) -> Result<EditReport, EditorError> {
+        let l = &mut self.scene.layers[layer];
+        Ok(field_tool_dab(&self.tool, &l.transform, &mut l.volume, p, pressure, inverted)?)
     }
 
     /// Chunks the dab of the current tool at `pose` would visit (its brush box in chunks, or
@@ -303,8 +316,14 @@ impl Editor {
         let mut volume = std::mem::replace(&mut l.volume, placeholder);
         let control = Arc::new(EditControl::default());
         let settings = EditSettings { control: Some(control.clone()), ..self.settings.clone() };
+        let (tool, transform, position, pressure) = (self.tool, l.transform, pose.position, pose.pressure);
         let worker = std::thread::spawn(move || {
-            let result = volume.apply(op, brush.as_ref(), &settings);
+            // (A field tool's dab cannot stop half-way; a cancel is honoured when it finishes.)
+            let result = if tool.kind.is_field_tool() {
+                field_tool_dab(&tool, &transform, &mut volume, position, pressure, inverted).map_err(EditorError::from)
+            } else {
+                volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)
+            };
             (volume, result)
         });
         Ok(DabJob { layer, control, started: Instant::now(), worker })
@@ -324,7 +343,7 @@ impl Editor {
             if let Ok(edit) = result {
                 volume.restore(edit.undo);
             }
-            result = Err(EditError::Cancelled);
+            result = Err(EditorError::Edit(EditError::Cancelled));
         }
         let layer = job.layer;
         if let Some(l) = self.scene.layers.get_mut(layer) {
@@ -525,6 +544,31 @@ impl Editor {
 /// The most chunks one [`Editor::pick`] walks over all layers: a straight ray through a world
 /// a million cells wide, about a millisecond of empty-chunk steps.
 pub const PICK_CHUNK_STEPS: u64 = 1 << 16;
+
+/// One dab of the field tool `tool.kind` at world point `p` on `volume`, placed in its layer's
+/// grid by `transform`: a ball of the tool's radius (at `pressure`), the falloff scaled by
+/// [`ToolSettings::field_strength`]; the secondary button (`inverted`) smooths with the
+/// Laplacian method and deflates.
+fn field_tool_dab(
+    tool: &ToolSettings,
+    transform: &crate::scene::LayerTransform,
+    volume: &mut Volume,
+    p: DVec3,
+    pressure: f64,
+    inverted: bool,
+) -> Result<EditReport, strata_volume::tools::ToolError> {
+    use strata_volume::tools::{Dab, Smoothing, flatten, inflate, smooth};
+    let radius = tool.radius_at(pressure) / transform.scale;
+    let dab = Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))?;
+    match tool.kind {
+        ToolKind::Smooth => {
+            let method = if inverted { Smoothing::Laplacian } else { Smoothing::VolumePreserving };
+            smooth(volume, &dab, method, 4)
+        }
+        ToolKind::Inflate => inflate(volume, &dab, if inverted { -0.2 } else { 0.2 } * radius),
+        _ => flatten(volume, &dab),
+    }
+}
 
 /// Moves a grid-space mesh into world space.
 pub fn to_world(mesh: &mut Mesh, tr: &crate::scene::LayerTransform) {

@@ -10,19 +10,32 @@ use crate::scene::LayerTransform;
 /// What the primary button does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ToolKind {
-    /// Add material.
+    /// Add material (exact CSG union with the brush).
     Add,
-    /// Remove material.
+    /// Remove material (exact CSG difference).
     Erase,
+    /// Smooth the surface under a ball of the radius (the secondary button: the Laplacian
+    /// method, which also shrinks; the primary: volume-preserving).
+    Smooth,
+    /// Push the surface out along its normal (the secondary button: deflate).
+    Inflate,
+    /// Pull the surface towards the plane that fits it under the brush.
+    Flatten,
 }
 
 impl ToolKind {
-    /// The CSG operation, with the secondary button inverting it.
+    /// The CSG operation, with the secondary button inverting it (field tools have none).
     pub fn op(self, inverted: bool) -> CsgOp {
         match (self, inverted) {
             (ToolKind::Add, false) | (ToolKind::Erase, true) => CsgOp::Add,
             _ => CsgOp::Subtract,
         }
+    }
+
+    /// Whether the tool works on the field of a region (smooth, inflate, flatten) rather than
+    /// by CSG with a brush.
+    pub fn is_field_tool(self) -> bool {
+        matches!(self, ToolKind::Smooth | ToolKind::Inflate | ToolKind::Flatten)
     }
 }
 
@@ -52,11 +65,21 @@ pub struct ToolSettings {
     pub strength: f64,
     /// Distance between stroke dabs as a fraction of the radius.
     pub spacing: f64,
+    /// Strength of the field tools (smooth, inflate, flatten) in `[0, 1]`: the falloff's
+    /// factor; an inflate dab at full strength moves the surface by a fifth of the radius.
+    pub field_strength: f64,
 }
 
 impl Default for ToolSettings {
     fn default() -> Self {
-        ToolSettings { kind: ToolKind::Add, shape: BrushShape::Sphere, radius: 6.0, strength: 0.0, spacing: 0.25 }
+        ToolSettings {
+            kind: ToolKind::Add,
+            shape: BrushShape::Sphere,
+            radius: 6.0,
+            strength: 0.0,
+            spacing: 0.25,
+            field_strength: 0.5,
+        }
     }
 }
 

@@ -258,3 +258,39 @@ fn picking_skips_layers_the_ray_misses_and_bounds_its_work() {
     assert!((hit.point.z - 5.0).abs() < 0.6, "{}", hit.point);
     assert!(walked <= 4, "only the front layer's chunks up to the hit: {walked}");
 }
+
+#[test]
+fn field_tools_stroke_as_one_undo_step_and_keep_the_volume_consistent() {
+    for kind in [ToolKind::Smooth, ToolKind::Inflate, ToolKind::Flatten] {
+        let mut scene = Scene::default();
+        scene.layers[0].volume.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
+        scene.layers[0].volume.add(&Sphere::new(DVec3::new(24.0, 18.0, 16.0), 3.0).unwrap()).unwrap();
+        let mut e = Editor::new(scene);
+        let before = e.scene.layers[0].volume.clone();
+        e.tool.kind = kind;
+        e.tool.radius = 5.0;
+        e.tool.field_strength = 1.0;
+        drag(&mut e, DVec3::new(25.0, 18.0, 14.0), DVec3::new(25.0, 18.0, 18.0), 6, DOWN);
+        let after = e.scene.layers[0].volume.clone();
+        after.check_invariants().unwrap();
+        assert_ne!(after, before, "{kind:?} changed the surface");
+        assert_eq!(e.history().undo_len(), 1, "{kind:?}: one stroke, one step");
+        assert!(e.undo());
+        assert_eq!(e.scene.layers[0].volume, before, "{kind:?}: undo restores the exact volume");
+        assert!(e.redo());
+        assert_eq!(e.scene.layers[0].volume, after);
+    }
+    // Inflate grows, its secondary button (deflate) shrinks.
+    for (buttons, grows) in [(DOWN, true), (ERASE, false)] {
+        let mut scene = Scene::default();
+        scene.layers[0].volume.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
+        let mut e = Editor::new(scene);
+        let v0 = e.scene.layers[0].volume.measured_volume(strata_volume::Axis::X);
+        e.tool.kind = ToolKind::Inflate;
+        e.tool.radius = 6.0;
+        e.tool.field_strength = 1.0;
+        drag(&mut e, DVec3::new(26.0, 16.0, 14.0), DVec3::new(26.0, 16.0, 18.0), 4, buttons);
+        let v1 = e.scene.layers[0].volume.measured_volume(strata_volume::Axis::X);
+        assert_eq!(v1 > v0, grows, "{v0} -> {v1}");
+    }
+}
