@@ -325,6 +325,9 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::E) {
             self.studio.set_kind(ToolKind::Erase);
         }
+        if pressed(Modifiers::NONE, Key::X) {
+            self.studio.toggle_symmetry(0);
+        }
         if pressed(Modifiers::NONE, Key::S) {
             self.studio.set_kind(ToolKind::Smooth);
         }
@@ -396,6 +399,21 @@ impl StudioApp {
         if tool.kind.is_field_tool() {
             ui.add(egui::Slider::new(&mut tool.field_strength, 0.0..=1.0).text("tool strength"));
         }
+        let mut toggle = None;
+        ui.horizontal(|ui| {
+            ui.label("Mirror");
+            for (axis, name) in ["X (X)", "Y", "Z"].into_iter().enumerate() {
+                let mut on = self.studio.editor.tool.symmetry[axis];
+                if ui.checkbox(&mut on, name).on_hover_text("Mirror every dab across this plane of the layer").changed()
+                {
+                    toggle = Some(axis);
+                }
+            }
+        });
+        if let Some(axis) = toggle {
+            self.studio.toggle_symmetry(axis);
+        }
+        let tool = &mut self.studio.editor.tool;
         ui.label("Shape (1–4)");
         for (shape, name) in [
             (BrushShape::Sphere, "Sphere"),

@@ -390,6 +390,30 @@ impl Studio {
         )
     }
 
+    /// Turns mirroring across the layer-grid plane of `axis` (0: x, 1: y, 2: z) on or off. The
+    /// first mirror turned on centres the planes on the active layer's surface (its box's centre,
+    /// rounded to nodes, so the planes pass through nodes and mirrored dabs mirror exactly).
+    pub fn toggle_symmetry(&mut self, axis: usize) {
+        let tool = &mut self.editor.tool;
+        let on = !tool.symmetry[axis];
+        if on && !tool.symmetry.iter().any(|&s| s) {
+            if let Some((lo, hi)) = self.editor.surface_bounds(self.editor.active_layer) {
+                self.editor.tool.symmetry_center = ((lo + hi) * 0.5).round();
+            }
+        }
+        self.editor.tool.symmetry[axis] = on;
+        let names = ["X", "Y", "Z"];
+        let c = self.editor.tool.symmetry_center;
+        self.message = format!(
+            "Mirror {} {} (planes through {:.0}, {:.0}, {:.0})",
+            names[axis],
+            if on { "on" } else { "off" },
+            c.x,
+            c.y,
+            c.z
+        );
+    }
+
     /// Switches add/erase.
     pub fn set_kind(&mut self, kind: ToolKind) {
         self.editor.tool.kind = kind;
@@ -524,6 +548,21 @@ mod tests {
         s.act(Action::Undo).unwrap();
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, bumped, "three strokes, three undo steps");
+    }
+
+    #[test]
+    fn mirroring_centres_on_the_model_and_mirrors_strokes() {
+        let mut s = Studio::new(default_scene());
+        s.editor.finish_meshing();
+        s.toggle_symmetry(0);
+        assert_eq!(s.editor.tool.symmetry, [true, false, false]);
+        assert_eq!(s.editor.tool.symmetry_center.x, 32.0, "the ball's centre: {}", s.message);
+        let before = s.editor.scene.layers[0].volume.clone();
+        s.pointer(Some((0.3, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        s.pointer(Some((0.3, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        assert_ne!(s.editor.scene.layers[0].volume, before);
+        s.toggle_symmetry(0);
+        assert_eq!(s.editor.tool.symmetry, [false; 3]);
     }
 
     #[test]

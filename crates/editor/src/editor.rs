@@ -61,7 +61,7 @@ pub struct DabJob {
     layer: usize,
     control: Arc<EditControl>,
     started: Instant,
-    worker: std::thread::JoinHandle<(Volume, Result<EditReport, EditorError>)>,
+    worker: std::thread::JoinHandle<(Volume, Result<Vec<EditReport>, EditorError>)>,
 }
 
 impl DabJob {
@@ -258,16 +258,20 @@ impl Editor {
         }
         let op = self.tool.kind.op(inverted);
         for p in dabs {
-            let edit = if self.tool.kind.is_field_tool() {
-                self.field_dab(layer, p, pose.pressure, inverted)?
-            } else {
-                let brush = self.tool.brush(&self.scene.layers[layer].transform, p, pose.orientation, pose.pressure)?;
-                self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?
-            };
-            self.queue(layer, &edit.changed);
-            self.revision += 1;
+            let images = self.tool.mirrored(&self.scene.layers[layer].transform, p, pose.orientation);
+            for (at, orientation) in images {
+                let edit = if self.tool.kind.is_field_tool() {
+                    self.field_dab(layer, at, pose.pressure, inverted)?
+                } else {
+                    let brush = self.tool.brush(&self.scene.layers[layer].transform, at, orientation, pose.pressure)?;
+                    self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?
+                };
+                self.queue(layer, &edit.changed);
+                self.revision += 1;
+                let s = self.stroke.as_mut().expect("a stroke is in progress");
+                s.records.push(edit.undo);
+            }
             let s = self.stroke.as_mut().expect("a stroke is in progress");
-            s.records.push(edit.undo);
             s.last = p;
             report.dabs += 1;
         }
@@ -311,20 +315,36 @@ impl Editor {
         }
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let op = self.tool.kind.op(inverted);
-        let brush = self.tool.brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
+        let mut dabs = Vec::new();
+        for (at, orientation) in self.tool.mirrored(&l.transform, pose.position, pose.orientation) {
+            dabs.push((at, self.tool.brush(&l.transform, at, orientation, pose.pressure)?));
+        }
         let placeholder = Volume::with_level(l.volume.level());
         let mut volume = std::mem::replace(&mut l.volume, placeholder);
         let control = Arc::new(EditControl::default());
         let settings = EditSettings { control: Some(control.clone()), ..self.settings.clone() };
-        let (tool, transform, position, pressure) = (self.tool, l.transform, pose.position, pose.pressure);
+        let (tool, transform, pressure) = (self.tool, l.transform, pose.pressure);
         let worker = std::thread::spawn(move || {
-            // (A field tool's dab cannot stop half-way; a cancel is honoured when it finishes.)
-            let result = if tool.kind.is_field_tool() {
-                field_tool_dab(&tool, &transform, &mut volume, position, pressure, inverted).map_err(EditorError::from)
-            } else {
-                volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)
-            };
-            (volume, result)
+            let mut done: Vec<EditReport> = Vec::new();
+            for (at, brush) in dabs {
+                // (A field tool's dab cannot stop half-way; a cancel is honoured when it ends.)
+                let result = if tool.kind.is_field_tool() {
+                    field_tool_dab(&tool, &transform, &mut volume, at, pressure, inverted).map_err(EditorError::from)
+                } else {
+                    volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)
+                };
+                match result {
+                    Ok(edit) => done.push(edit),
+                    Err(e) => {
+                        // Take back the images already applied: a failed dab changes nothing.
+                        for edit in done.into_iter().rev() {
+                            volume.restore(edit.undo);
+                        }
+                        return (volume, Err(e));
+                    }
+                }
+            }
+            (volume, Ok(done))
         });
         Ok(DabJob { layer, control, started: Instant::now(), worker })
     }
@@ -340,8 +360,10 @@ impl Editor {
         if job.control.is_cancelled() {
             // Cancelled after the worker had already finished: undo what it did, so a cancel
             // always means nothing changed.
-            if let Ok(edit) = result {
-                volume.restore(edit.undo);
+            if let Ok(edits) = result {
+                for edit in edits.into_iter().rev() {
+                    volume.restore(edit.undo);
+                }
             }
             result = Err(EditorError::Edit(EditError::Cancelled));
         }
@@ -349,11 +371,16 @@ impl Editor {
         if let Some(l) = self.scene.layers.get_mut(layer) {
             l.volume = volume;
         }
-        let edit = result?;
-        let changed = edit.changed.len();
-        self.queue(layer, &edit.changed);
+        let edits = result?;
+        let mut changed = 0;
+        let mut records = Vec::with_capacity(edits.len());
+        for edit in edits {
+            changed += edit.changed.len();
+            self.queue(layer, &edit.changed);
+            records.push(edit.undo);
+        }
         self.revision += 1;
-        self.history.push(HistoryEntry { layer, records: vec![edit.undo] });
+        self.history.push(HistoryEntry { layer, records });
         Ok(changed)
     }
 
@@ -454,6 +481,20 @@ impl Editor {
     /// The marching-cubes mesh cache of a layer.
     pub fn mesh_cache(&self, layer: usize) -> Option<&MeshCache> {
         self.caches.get(layer)
+    }
+
+    /// The box of a layer's marching-cubes surface in its grid coordinates (from the mesh
+    /// cache: chunks not meshed yet are not counted), or `None` for a layer without surface.
+    pub fn surface_bounds(&self, layer: usize) -> Option<(DVec3, DVec3)> {
+        let mut b: Option<(DVec3, DVec3)> = None;
+        for (key, mesh) in self.caches.get(layer)?.iter() {
+            let o = key.origin_grid().as_dvec3();
+            for p in &mesh.positions {
+                let q = o + glam::Vec3::from(*p).as_dvec3();
+                b = Some(b.map_or((q, q), |(lo, hi)| (lo.min(q), hi.max(q))));
+            }
+        }
+        b
     }
 
     /// Triangles in all layers' caches.

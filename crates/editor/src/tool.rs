@@ -68,6 +68,11 @@ pub struct ToolSettings {
     /// Strength of the field tools (smooth, inflate, flatten) in `[0, 1]`: the falloff's
     /// factor; an inflate dab at full strength moves the surface by a fifth of the radius.
     pub field_strength: f64,
+    /// Mirror every dab across the layer-grid planes `x`, `y` and/or `z` through
+    /// [`ToolSettings::symmetry_center`] (up to eight dabs per dab).
+    pub symmetry: [bool; 3],
+    /// Where the mirror planes meet, in the layer's grid coordinates.
+    pub symmetry_center: DVec3,
 }
 
 impl Default for ToolSettings {
@@ -79,11 +84,50 @@ impl Default for ToolSettings {
             strength: 0.0,
             spacing: 0.25,
             field_strength: 0.5,
+            symmetry: [false; 3],
+            symmetry_center: DVec3::ZERO,
         }
     }
 }
 
 impl ToolSettings {
+    /// The dab at world point `position` with world `orientation` and its mirror images under
+    /// [`ToolSettings::symmetry`], in a layer placed by `layer`: the original first, images that
+    /// coincide with one already listed (a dab on a mirror plane) left out. An orientation is
+    /// mirrored as `M R M`, a rotation again, which places the symmetric brush shapes exactly.
+    pub fn mirrored(&self, layer: &LayerTransform, position: DVec3, orientation: DQuat) -> Vec<(DVec3, DQuat)> {
+        let g = layer.to_grid(position);
+        let q = layer.rotation.inverse() * orientation;
+        let c = self.symmetry_center;
+        let mut out: Vec<(DVec3, DQuat)> = Vec::with_capacity(8);
+        let mut grid: Vec<DVec3> = Vec::with_capacity(8);
+        for mask in 0..8usize {
+            if (0..3).any(|a| mask & (1 << a) != 0 && !self.symmetry[a]) {
+                continue;
+            }
+            let (mut gm, mut qm) = (g, q);
+            for a in 0..3 {
+                if mask & (1 << a) != 0 {
+                    gm[a] = 2.0 * c[a] - gm[a];
+                    // M R M for the reflection of axis a: the other two vector parts change sign.
+                    let mut v = [qm.x, qm.y, qm.z];
+                    for (b, part) in v.iter_mut().enumerate() {
+                        if b != a {
+                            *part = -*part;
+                        }
+                    }
+                    qm = DQuat::from_xyzw(v[0], v[1], v[2], qm.w);
+                }
+            }
+            if grid.iter().any(|&o| (o - gm).length() <= 1e-9 * (1.0 + gm.length())) {
+                continue;
+            }
+            grid.push(gm);
+            out.push((layer.to_world(gm), layer.rotation * qm));
+        }
+        out
+    }
+
     /// The radius at `pressure`.
     pub fn radius_at(&self, pressure: f64) -> f64 {
         let s = self.strength.clamp(0.0, 1.0);

@@ -294,3 +294,46 @@ fn field_tools_stroke_as_one_undo_step_and_keep_the_volume_consistent() {
         assert_eq!(v1 > v0, grows, "{v0} -> {v1}");
     }
 }
+
+#[test]
+fn a_mirrored_stroke_across_a_plane_through_nodes_gives_mirrored_node_states() {
+    for shape in [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder] {
+        let mut e = Editor::new(Scene { layers: vec![Layer::new("clay")], ..Scene::default() });
+        e.tool.shape = shape;
+        e.tool.radius = 3.5;
+        e.tool.symmetry = [true, false, false];
+        e.tool.symmetry_center = DVec3::new(32.0, 0.0, 0.0);
+        drag(&mut e, DVec3::new(36.25, 20.5, 18.0), DVec3::new(41.5, 24.0, 21.75), 8, DOWN);
+        let v = &e.scene.layers[0].volume;
+        v.check_invariants().unwrap();
+        let mut inside = 0;
+        for z in 10..32 {
+            for y in 10..32 {
+                for k in 0..16 {
+                    let (a, b) = (I64Vec3::new(32 + k, y, z), I64Vec3::new(32 - k, y, z));
+                    assert_eq!(v.node_inside(a), v.node_inside(b), "{shape:?}: node {a} and its mirror {b}");
+                    inside += v.node_inside(a) as u32;
+                }
+            }
+        }
+        assert!(inside > 100, "{shape:?}: the stroke added material ({inside} nodes)");
+        assert_eq!(e.history().undo_len(), 1, "both halves are one stroke");
+        assert!(e.undo());
+        assert!(e.scene.layers[0].volume.is_empty());
+    }
+    // A field tool mirrors too: both sides change.
+    let mut scene = Scene::default();
+    scene.layers[0].volume.add(&Sphere::new(DVec3::new(32.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
+    let mut e = Editor::new(scene);
+    let before = e.scene.layers[0].volume.clone();
+    e.tool.kind = ToolKind::Inflate;
+    e.tool.field_strength = 1.0;
+    e.tool.radius = 4.0;
+    e.tool.symmetry = [true, false, false];
+    e.tool.symmetry_center = DVec3::new(32.0, 16.0, 16.0);
+    drag(&mut e, DVec3::new(42.0, 16.0, 15.0), DVec3::new(42.0, 16.0, 17.0), 2, DOWN);
+    let v = &e.scene.layers[0].volume;
+    v.check_invariants().unwrap();
+    let probe = |v: &Volume, x: i64| (0..3).filter(|d| v.node_inside(I64Vec3::new(x, 16, 15 + d))).count();
+    assert!(probe(v, 42) > probe(&before, 42) && probe(v, 22) > probe(&before, 22), "both sides grew");
+}
