@@ -396,10 +396,11 @@ impl Studio {
     pub fn toggle_symmetry(&mut self, axis: usize) {
         let tool = &mut self.editor.tool;
         let on = !tool.symmetry[axis];
-        if on && !tool.symmetry.iter().any(|&s| s) {
-            if let Some((lo, hi)) = self.editor.surface_bounds(self.editor.active_layer) {
-                self.editor.tool.symmetry_center = ((lo + hi) * 0.5).round();
-            }
+        if on
+            && !tool.symmetry.iter().any(|&s| s)
+            && let Some((lo, hi)) = self.editor.surface_bounds(self.editor.active_layer)
+        {
+            self.editor.tool.symmetry_center = ((lo + hi) * 0.5).round();
         }
         self.editor.tool.symmetry[axis] = on;
         let names = ["X", "Y", "Z"];
