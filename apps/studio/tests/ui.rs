@@ -190,3 +190,21 @@ fn unsaved_work_is_autosaved_and_offered_back_after_a_crash() {
     assert!(s.is_modified(), "recovered work still needs saving");
     assert!(!orphan.exists(), "the recovery file is consumed");
 }
+
+#[test]
+fn quit_with_unsaved_changes_asks_first() {
+    let dir = temp("quit");
+    let mut h = harness(&dir);
+    h.run();
+    h.state_mut().studio.editor.touch();
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Quit").click();
+    h.run();
+    assert!(h.state().modal_open(), "the unsaved-changes question is up before quitting");
+    // (Panics unless the question names what waits for it.)
+    h.get_by_label_contains("before quitting");
+    h.get_by_label("Cancel").click();
+    h.run();
+    assert!(!h.state().modal_open(), "Cancel keeps the studio open");
+}
