@@ -325,6 +325,9 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::E) {
             self.studio.set_kind(ToolKind::Erase);
         }
+        if pressed(Modifiers::NONE, Key::L) {
+            self.studio.toggle_line_tool();
+        }
         if pressed(Modifiers::NONE, Key::X) {
             self.studio.toggle_symmetry(0);
         }

@@ -88,6 +88,12 @@ pub struct Studio {
     last_background_dab: Option<DVec3>,
     /// Shift is held: the pointer smooths instead of using the tool.
     pub smooth_held: bool,
+    /// The line tool is armed: the next two clicks on the model are a straight stroke's ends.
+    pub line_mode: bool,
+    /// The line's first end, once clicked.
+    pub line_start: Option<DVec3>,
+    /// A button was held in the previous frame (to see presses).
+    prev_held: bool,
 }
 
 impl Studio {
@@ -113,6 +119,9 @@ impl Studio {
             background_chunks: 1 << 15,
             last_background_dab: None,
             smooth_held: false,
+            line_mode: false,
+            line_start: None,
+            prev_held: false,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = 4.0;
@@ -237,8 +246,46 @@ impl Studio {
         if self.smooth_held {
             self.editor.tool.kind = ToolKind::Smooth;
         }
-        self.pointer_with_tool(ndc, buttons, pressure, aspect, budget);
+        if self.line_mode && self.job.is_none() {
+            self.line_click(ndc, buttons, pressure, aspect);
+        } else {
+            self.pointer_with_tool(ndc, buttons, pressure, aspect, budget);
+        }
+        self.prev_held = buttons.primary || buttons.secondary;
         self.editor.tool.kind = kind;
+    }
+
+    /// Arms or disarms the line tool (`L`).
+    pub fn toggle_line_tool(&mut self) {
+        self.line_mode = !self.line_mode;
+        self.line_start = None;
+        self.message =
+            if self.line_mode { "Line: click the first end on the model".into() } else { "Line tool off".into() };
+    }
+
+    /// A frame of the armed line tool: the first click picks the line's start, the second its end
+    /// and applies the stroke (one undo step).
+    fn line_click(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32) {
+        let target = ndc.and_then(|(x, y)| self.surface_point(x, y, aspect));
+        self.hover = target;
+        let held = buttons.primary || buttons.secondary;
+        let (Some(p), true) = (target, held && !self.prev_held) else { return };
+        match self.line_start.take() {
+            None => {
+                self.line_start = Some(p);
+                self.message = "Line: click the other end".into();
+            }
+            Some(a) => {
+                match self.editor.line_stroke(a, p, pressure, buttons.secondary && !buttons.primary) {
+                    Ok(report) => {
+                        self.message = format!("Line: {} dabs", report.dabs);
+                        self.uploads.extend(report.remeshed);
+                    }
+                    Err(e) => self.message = e.to_string(),
+                }
+                self.line_mode = false;
+            }
+        }
     }
 
     fn pointer_with_tool(
@@ -564,6 +611,24 @@ mod tests {
         assert_ne!(s.editor.scene.layers[0].volume, before);
         s.toggle_symmetry(0);
         assert_eq!(s.editor.tool.symmetry, [false; 3]);
+    }
+
+    #[test]
+    fn the_line_tool_strokes_between_two_clicks() {
+        let mut s = Studio::new(default_scene());
+        s.editor.tool.radius = 2.0;
+        let before = s.editor.scene.layers[0].volume.clone();
+        s.toggle_line_tool();
+        for x in [-0.2f32, 0.2] {
+            s.pointer(Some((x, 0.1)), DOWN, 1.0, 1.5, BUDGET);
+            s.pointer(Some((x, 0.1)), Buttons::default(), 1.0, 1.5, BUDGET);
+        }
+        assert!(!s.line_mode, "the second click ends the line tool");
+        assert!(s.message.starts_with("Line:"), "{}", s.message);
+        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert_eq!(s.editor.history().undo_len(), 1, "one step");
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers[0].volume, before);
     }
 
     #[test]

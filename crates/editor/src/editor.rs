@@ -413,6 +413,37 @@ impl Editor {
         self.history.clear();
     }
 
+    /// The line tool: a straight stroke of the current tool from world point `a` to `b`, dabs
+    /// evenly spaced by the tool's dab spacing (mirrored under symmetry), as one undo step. The
+    /// secondary button (`inverted`) uses the opposite tool, as in a dragged stroke.
+    pub fn line_stroke(
+        &mut self,
+        a: DVec3,
+        b: DVec3,
+        pressure: f64,
+        inverted: bool,
+    ) -> Result<FrameReport, EditorError> {
+        let pose = |p: DVec3| ToolPose {
+            position: p,
+            orientation: glam::DQuat::IDENTITY,
+            pressure,
+            buttons: Default::default(),
+        };
+        if !(pose(a).is_valid() && pose(b).is_valid()) {
+            return Err(EditorError::BadPose);
+        }
+        self.end_stroke();
+        let buttons = crate::pose::Buttons { primary: !inverted, secondary: inverted };
+        let pose = |p: DVec3| ToolPose { position: p, orientation: glam::DQuat::IDENTITY, pressure, buttons };
+        let mut report = self.frame(&pose(a), Duration::ZERO)?;
+        let end = self.frame(&pose(b), Duration::ZERO)?;
+        report.dabs += end.dabs;
+        report.edit_time += end.edit_time;
+        report.remeshed.extend(end.remeshed);
+        self.end_stroke();
+        Ok(report)
+    }
+
     /// Ends the stroke in progress, making it one undo step.
     pub fn end_stroke(&mut self) {
         if let Some(s) = self.stroke.take() {

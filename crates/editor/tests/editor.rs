@@ -337,3 +337,28 @@ fn a_mirrored_stroke_across_a_plane_through_nodes_gives_mirrored_node_states() {
     let probe = |v: &Volume, x: i64| (0..3).filter(|d| v.node_inside(I64Vec3::new(x, 16, 15 + d))).count();
     assert!(probe(v, 42) > probe(&before, 42) && probe(v, 22) > probe(&before, 22), "both sides grew");
 }
+
+#[test]
+fn the_line_tool_places_evenly_spaced_dabs_between_two_points_as_one_step() {
+    let mut e = Editor::new(Scene { layers: vec![Layer::new("clay")], ..Scene::default() });
+    e.tool.radius = 2.0;
+    let (a, b) = (DVec3::new(4.0, 10.0, 10.0), DVec3::new(28.0, 10.0, 10.0));
+    let report = e.line_stroke(a, b, 1.0, false).unwrap();
+    // Dabs every spacing × radius = 0.5 cells, the first at a.
+    assert_eq!(report.dabs, 1 + (24.0 / e.tool.dab_spacing()).floor() as usize);
+    assert_eq!(e.history().undo_len(), 1);
+    let v = &e.scene.layers[0].volume;
+    v.check_invariants().unwrap();
+    for x in 4..=28 {
+        assert!(v.node_inside(I64Vec3::new(x, 10, 10)), "node {x} on the line");
+    }
+    assert!(!v.node_inside(I64Vec3::new(31, 10, 10)));
+    let before = e.scene.layers[0].volume.clone();
+    assert!(
+        e.line_stroke(DVec3::new(40.0, 10.0, 10.0), DVec3::NAN, 1.0, false).is_err(),
+        "a bad end point is an error"
+    );
+    assert!(e.line_stroke(a, b, f64::INFINITY, false).is_err(), "a bad pressure too");
+    assert_eq!(e.history().undo_len(), 1, "and changes nothing");
+    assert_eq!(e.scene.layers[0].volume, before);
+}
