@@ -25,6 +25,10 @@ pub enum EditorError {
     /// The layer is locked.
     #[error("layer {0} is locked")]
     Locked(usize),
+    /// The layer's transform (set through its public fields) is not finite and invertible:
+    /// nothing can be placed in its grid until it is repaired.
+    #[error("layer {0} has a transform that is not finite and invertible")]
+    BadLayerTransform(usize),
     /// A pose with NaN or infinite values.
     #[error("the tool pose is not finite")]
     BadPose,
@@ -34,6 +38,9 @@ pub enum EditorError {
     /// The edit was refused (too large, out of range).
     #[error(transparent)]
     Edit(#[from] EditError),
+    /// A layer transform that is not finite and invertible.
+    #[error(transparent)]
+    Transform(#[from] crate::scene::TransformError),
     /// A field tool's dab was refused (a bad parameter, a region too large).
     #[error(transparent)]
     Tool(#[from] strata_volume::tools::ToolError),
@@ -235,6 +242,9 @@ impl Editor {
         if l.locked {
             return Err(EditorError::Locked(layer));
         }
+        if !l.transform.is_valid() {
+            return Err(EditorError::BadLayerTransform(layer));
+        }
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let spacing = self.tool.dab_spacing();
         let mut dabs = Vec::new();
@@ -289,6 +299,9 @@ impl Editor {
     pub fn dab_chunks(&self, pose: &ToolPose) -> Result<u64, EditorError> {
         let layer = self.active_layer;
         let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
+        if !l.transform.is_valid() {
+            return Err(EditorError::BadLayerTransform(layer));
+        }
         let brush = self.tool.brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
         let b = brush.bounds();
         if !b.is_valid() {
@@ -312,6 +325,9 @@ impl Editor {
         let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
         if l.locked {
             return Err(EditorError::Locked(layer));
+        }
+        if !l.transform.is_valid() {
+            return Err(EditorError::BadLayerTransform(layer));
         }
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let op = self.tool.kind.op(inverted);
@@ -380,7 +396,7 @@ impl Editor {
             records.push(edit.undo);
         }
         self.revision += 1;
-        self.history.push(HistoryEntry { layer, records });
+        self.history.push(HistoryEntry { layer, records, transform: None });
         Ok(changed)
     }
 
@@ -403,8 +419,31 @@ impl Editor {
         self.queue(layer, &edit.changed);
         self.revision += 1;
         // The history keeps the undo record; the report returned has an empty one.
-        self.history.push(HistoryEntry { layer, records: vec![std::mem::take(&mut edit.undo)] });
+        self.history.push(HistoryEntry { layer, records: vec![std::mem::take(&mut edit.undo)], transform: None });
         Ok(edit)
+    }
+
+    /// Moves, turns or scales layer `layer` to `transform` (checked as [`LayerTransform::new`]
+    /// checks it) as an undo step. With `merge`, a change that continues the newest step (a
+    /// transform change of the same layer, as while a value is dragged) joins it, so the whole
+    /// drag is one step.
+    pub fn set_layer_transform(
+        &mut self,
+        layer: usize,
+        transform: crate::scene::LayerTransform,
+        merge: bool,
+    ) -> Result<(), EditorError> {
+        let checked = crate::scene::LayerTransform::new(transform.translation, transform.rotation, transform.scale)?;
+        self.end_stroke();
+        let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+        let old = std::mem::replace(&mut l.transform, checked);
+        if old != checked {
+            if !(merge && self.history.last_is_transform_of(layer)) {
+                self.history.push(HistoryEntry { layer, records: Vec::new(), transform: Some(old) });
+            }
+            self.revision += 1;
+        }
+        Ok(())
     }
 
     /// Forgets every undo and redo step (after the scene was changed outside the editor).
@@ -447,7 +486,7 @@ impl Editor {
     /// Ends the stroke in progress, making it one undo step.
     pub fn end_stroke(&mut self) {
         if let Some(s) = self.stroke.take() {
-            self.history.push(HistoryEntry { layer: s.layer, records: s.records });
+            self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None });
         }
     }
 
@@ -455,7 +494,7 @@ impl Editor {
     pub fn undo(&mut self) -> bool {
         self.end_stroke();
         let layers = &mut self.scene.layers;
-        let changed = self.history.undo(|i| layers.get_mut(i).map(|l| &mut l.volume));
+        let changed = self.history.undo(|i| layers.get_mut(i));
         self.after_history(changed)
     }
 
@@ -463,7 +502,7 @@ impl Editor {
     pub fn redo(&mut self) -> bool {
         self.end_stroke();
         let layers = &mut self.scene.layers;
-        let changed = self.history.redo(|i| layers.get_mut(i).map(|l| &mut l.volume));
+        let changed = self.history.redo(|i| layers.get_mut(i));
         self.after_history(changed)
     }
 

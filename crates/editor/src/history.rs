@@ -1,14 +1,19 @@
 //! Undo/redo over whole strokes, within a memory budget.
 
-use strata_volume::{ChunkKey, UndoRecord, Volume};
+use strata_volume::{ChunkKey, UndoRecord};
 
-/// One undoable step: the records of every edit of a stroke on one layer, in the order applied.
+use crate::scene::{Layer, LayerTransform};
+
+/// One undoable step: the records of every edit of a stroke on one layer, in the order applied,
+/// or a change of the layer's transform.
 #[derive(Debug, Default)]
 pub struct HistoryEntry {
     /// The layer the step edited.
     pub layer: usize,
     /// Records in edit order; undoing restores them in reverse.
     pub records: Vec<UndoRecord>,
+    /// The layer's transform before the step, for a step that moved, turned or scaled it.
+    pub transform: Option<LayerTransform>,
 }
 
 impl HistoryEntry {
@@ -26,10 +31,12 @@ impl HistoryEntry {
         keys
     }
 
-    /// Restores the records in reverse order; returns the entry that undoes this one.
-    fn apply(self, volume: &mut Volume) -> HistoryEntry {
-        let records = self.records.into_iter().rev().map(|r| volume.restore(r)).collect();
-        HistoryEntry { layer: self.layer, records }
+    /// Restores the records in reverse order (and the transform); returns the entry that undoes
+    /// this one.
+    fn apply(self, layer: &mut Layer) -> HistoryEntry {
+        let records = self.records.into_iter().rev().map(|r| layer.volume.restore(r)).collect();
+        let transform = self.transform.map(|t| std::mem::replace(&mut layer.transform, t));
+        HistoryEntry { layer: self.layer, records, transform }
     }
 }
 
@@ -55,12 +62,18 @@ impl History {
 
     /// Records a finished step; clears the redo stack.
     pub fn push(&mut self, entry: HistoryEntry) {
-        if entry.records.iter().all(UndoRecord::is_empty) {
+        if entry.records.iter().all(UndoRecord::is_empty) && entry.transform.is_none() {
             return;
         }
         self.redo.clear();
         self.undo.push(entry);
         self.trim();
+    }
+
+    /// Whether the newest undo step is a transform change of `layer` (which a continuing drag of
+    /// the same transform may merge into).
+    pub fn last_is_transform_of(&self, layer: usize) -> bool {
+        self.undo.last().is_some_and(|e| e.layer == layer && e.records.is_empty() && e.transform.is_some())
     }
 
     fn trim(&mut self) {
@@ -75,13 +88,13 @@ impl History {
     /// and the chunks restored.
     pub fn undo<'a>(
         &mut self,
-        volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>,
+        layer_of: impl FnOnce(usize) -> Option<&'a mut Layer>,
     ) -> Option<(usize, Vec<ChunkKey>)> {
         let entry = self.undo.pop()?;
         let layer = entry.layer;
         // A step on a layer that no longer exists is dropped.
-        let volume = volume_of(layer)?;
-        let redo = entry.apply(volume);
+        let target = layer_of(layer)?;
+        let redo = entry.apply(target);
         let keys = redo.keys();
         self.redo.push(redo);
         Some((layer, keys))
@@ -90,13 +103,13 @@ impl History {
     /// Redoes the newest undone step. Returns the layer and the chunks restored.
     pub fn redo<'a>(
         &mut self,
-        volume_of: impl FnOnce(usize) -> Option<&'a mut Volume>,
+        layer_of: impl FnOnce(usize) -> Option<&'a mut Layer>,
     ) -> Option<(usize, Vec<ChunkKey>)> {
         let entry = self.redo.pop()?;
         let layer = entry.layer;
         // A step on a layer that no longer exists is dropped.
-        let volume = volume_of(layer)?;
-        let undo = entry.apply(volume);
+        let target = layer_of(layer)?;
+        let undo = entry.apply(target);
         let keys = undo.keys();
         self.undo.push(undo);
         self.trim();

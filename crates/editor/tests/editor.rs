@@ -362,3 +362,46 @@ fn the_line_tool_places_evenly_spaced_dabs_between_two_points_as_one_step() {
     assert_eq!(e.history().undo_len(), 1, "and changes nothing");
     assert_eq!(e.scene.layers[0].volume, before);
 }
+
+#[test]
+fn layer_transforms_change_with_undo_and_a_drag_is_one_step() {
+    let mut e = Editor::default();
+    let t0 = e.scene.layers[0].transform;
+    let moved = LayerTransform::new(DVec3::new(5.0, 0.0, 0.0), DQuat::from_rotation_y(0.3), 2.0).unwrap();
+    e.set_layer_transform(0, moved, false).unwrap();
+    assert_eq!(e.scene.layers[0].transform, moved);
+    // A drag: its first change starts a step, the rest join it.
+    for k in 1..=10 {
+        let t = LayerTransform { translation: DVec3::new(5.0 + k as f64, 0.0, 0.0), ..moved };
+        e.set_layer_transform(0, t, k > 1).unwrap();
+    }
+    assert_eq!(e.history().undo_len(), 2);
+    assert!(e.undo());
+    assert_eq!(e.scene.layers[0].transform, moved, "the drag undoes as one step");
+    assert!(e.undo());
+    assert_eq!(e.scene.layers[0].transform, t0);
+    assert!(e.redo());
+    assert_eq!(e.scene.layers[0].transform, moved);
+    // Refused: nothing changes.
+    let bad = LayerTransform { scale: 0.0, ..moved };
+    assert!(e.set_layer_transform(0, bad, false).is_err());
+    assert!(e.set_layer_transform(7, moved, false).is_err());
+    assert_eq!(e.scene.layers[0].transform, moved);
+}
+
+#[test]
+fn a_layer_with_a_transform_set_wrongly_through_its_fields_refuses_edits() {
+    let mut e = Editor::default();
+    e.scene.layers[0].transform.rotation = DQuat::from_xyzw(0.0, 3.0, 0.0, 4.0);
+    let before = e.scene.layers[0].volume.clone();
+    let pose = ToolPose { position: DVec3::splat(8.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
+    assert!(matches!(e.frame(&pose, BUDGET), Err(strata_editor::EditorError::BadLayerTransform(0))));
+    assert!(e.dab_chunks(&pose).is_err());
+    assert!(e.start_dab_job(&pose).is_err());
+    assert_eq!(e.scene.layers[0].volume, before);
+    // Repaired through the checked setter, it edits again.
+    let t = e.scene.layers[0].transform.repaired();
+    e.set_layer_transform(0, t, false).unwrap();
+    e.frame(&pose, BUDGET).unwrap();
+    assert_ne!(e.scene.layers[0].volume, before);
+}
