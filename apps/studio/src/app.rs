@@ -451,11 +451,43 @@ impl StudioApp {
         if let Some(i) = select {
             self.studio.editor.active_layer = i;
         }
-        if let Some(layer) = self.studio.editor.scene.layers.get_mut(self.studio.editor.active_layer) {
+        let active = self.studio.editor.active_layer;
+        if let Some(layer) = self.studio.editor.scene.layers.get_mut(active) {
             ui.horizontal(|ui| {
                 let label = ui.label("Name");
                 edited |= ui.text_edit_singleline(&mut layer.name).labelled_by(label.id).changed();
             });
+        }
+        // Move, turn (about the vertical) and scale the layer; a drag is one undo step.
+        if let Some(mut t) = self.studio.editor.scene.layers.get(active).map(|l| l.transform) {
+            let (mut yaw, _, _) = t.rotation.to_euler(glam::EulerRot::YXZ);
+            yaw = yaw.to_degrees();
+            let mut changed_t = false;
+            let mut dragging = false;
+            ui.horizontal(|ui| {
+                ui.label("Move");
+                for (k, name) in ["x ", "y ", "z "].into_iter().enumerate() {
+                    let r = ui.add(egui::DragValue::new(&mut t.translation[k]).speed(0.1).prefix(name));
+                    changed_t |= r.changed();
+                    dragging |= r.dragged() && !r.drag_started();
+                }
+            });
+            ui.horizontal(|ui| {
+                let r = ui.add(egui::DragValue::new(&mut yaw).speed(0.5).suffix("°").prefix("turn "));
+                changed_t |= r.changed();
+                dragging |= r.dragged() && !r.drag_started();
+                let r = ui.add(egui::DragValue::new(&mut t.scale).speed(0.01).range(1e-3..=1e3).prefix("scale "));
+                changed_t |= r.changed();
+                dragging |= r.dragged() && !r.drag_started();
+            });
+            if changed_t {
+                let (_, pitch, roll) = t.rotation.to_euler(glam::EulerRot::YXZ);
+                t.rotation = glam::DQuat::from_euler(glam::EulerRot::YXZ, yaw.to_radians(), pitch, roll);
+                match self.studio.editor.set_layer_transform(active, t, dragging) {
+                    Ok(()) => self.studio.full_upload = true,
+                    Err(e) => self.studio.message = e.to_string(),
+                }
+            }
         }
         if ui.button("Add layer").clicked() {
             let _ = self.studio.act(Action::AddLayer);

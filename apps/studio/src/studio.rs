@@ -185,11 +185,20 @@ impl Studio {
                     .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
                 self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
             }
-            Action::Undo => {
-                self.message = if self.editor.undo() { "Undone".into() } else { "Nothing to undo".into() };
-            }
-            Action::Redo => {
-                self.message = if self.editor.redo() { "Redone".into() } else { "Nothing to redo".into() };
+            Action::Undo | Action::Redo => {
+                let transforms: Vec<_> = self.editor.scene.layers.iter().map(|l| l.transform).collect();
+                let undo = action == Action::Undo;
+                let done = if undo { self.editor.undo() } else { self.editor.redo() };
+                self.message = match (undo, done) {
+                    (true, true) => "Undone".into(),
+                    (true, false) => "Nothing to undo".into(),
+                    (false, true) => "Redone".into(),
+                    (false, false) => "Nothing to redo".into(),
+                };
+                // A layer moved back or forth: its chunks are drawn with the new placement.
+                if self.editor.scene.layers.iter().map(|l| l.transform).ne(transforms) {
+                    self.full_upload = true;
+                }
             }
             Action::ScaleRadius(f) => {
                 let r = (self.editor.tool.radius * f).clamp(0.25, 256.0);
@@ -629,6 +638,19 @@ mod tests {
         assert_eq!(s.editor.history().undo_len(), 1, "one step");
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, before);
+    }
+
+    #[test]
+    fn moving_a_layer_undoes_and_redraws() {
+        let mut s = Studio::new(default_scene());
+        s.full_upload = false;
+        let t0 = s.editor.scene.layers[0].transform;
+        let moved = strata_editor::LayerTransform { translation: DVec3::new(3.0, 0.0, 0.0), ..t0 };
+        s.editor.set_layer_transform(0, moved, false).unwrap();
+        assert!(s.is_modified());
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers[0].transform, t0);
+        assert!(s.full_upload, "the layer is drawn where it is now");
     }
 
     #[test]
