@@ -236,8 +236,9 @@ impl Editor {
         result.map(|_| report)
     }
 
-    fn stroke_to(&mut self, pose: &ToolPose, report: &mut FrameReport) -> Result<(), EditorError> {
-        let layer = self.active_layer;
+    /// Whether the tools may edit layer `layer` through its transform: it exists, is not
+    /// locked, and its transform is valid.
+    fn check_editable(&self, layer: usize) -> Result<(), EditorError> {
         let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
         if l.locked {
             return Err(EditorError::Locked(layer));
@@ -245,6 +246,12 @@ impl Editor {
         if !l.transform.is_valid() {
             return Err(EditorError::BadLayerTransform(layer));
         }
+        Ok(())
+    }
+
+    fn stroke_to(&mut self, pose: &ToolPose, report: &mut FrameReport) -> Result<(), EditorError> {
+        let layer = self.active_layer;
+        self.check_editable(layer)?;
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let spacing = self.tool.dab_spacing();
         let mut dabs = Vec::new();
@@ -322,13 +329,8 @@ impl Editor {
         }
         self.end_stroke();
         let layer = self.active_layer;
-        let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
-        if l.locked {
-            return Err(EditorError::Locked(layer));
-        }
-        if !l.transform.is_valid() {
-            return Err(EditorError::BadLayerTransform(layer));
-        }
+        self.check_editable(layer)?;
+        let l = &mut self.scene.layers[layer];
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let op = self.tool.kind.op(inverted);
         let mut dabs = Vec::new();

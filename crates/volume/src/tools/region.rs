@@ -115,7 +115,7 @@ impl Region {
         &self.original
     }
 
-    /// Whether region-local node `(x, y, z)` was inside when read.
+    /// Whether the node at index `i` ([`Region::index`]) was inside when read.
     pub fn was_inside(&self, i: usize) -> bool {
         self.original[i] < 0.0
     }
