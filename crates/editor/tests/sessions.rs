@@ -1,7 +1,8 @@
 //! Every scene the editor can build saves and reloads: random editor sessions (layers,
 //! transforms, strokes of every brush shape, mesh imports with vertices on the grid, undo and
-//! redo, renames, hidden and locked layers, and transforms set wrongly through the public
-//! fields) are saved, loaded and compared.
+//! redo, renames, hidden and locked layers, transforms set through the editor and wrongly
+//! through the public fields, field-tool strokes, mirroring and line strokes) are saved, loaded
+//! and compared.
 //!
 //! Cases default to 48; `PROPTEST_CASES=500 cargo test --release -p strata-editor --test
 //! sessions` runs a longer search.
@@ -25,6 +26,27 @@ enum Step {
     },
     /// A transform written straight into the public fields (zero rotation, NaN scale, …).
     BadTransform(u8),
+    /// A transform through the editor (an undo step; `merge` continues a drag).
+    SetTransform {
+        translation: [i8; 3],
+        turn: u8,
+        merge: bool,
+    },
+    /// A stroke of a field tool (0 smooth, 1 inflate, 2 flatten).
+    FieldStroke {
+        tool: u8,
+        radius: u8,
+        from: [i8; 3],
+        to: [i8; 3],
+        inverted: bool,
+    },
+    /// Mirroring across a layer-grid plane turned on or off.
+    Mirror(u8),
+    /// A line-tool stroke.
+    Line {
+        from: [i8; 3],
+        to: [i8; 3],
+    },
     Stroke {
         shape: u8,
         radius: u8,
@@ -50,6 +72,10 @@ fn step() -> impl Strategy<Value = Step> {
         1 => (0..4usize).prop_map(Step::Select),
         1 => (v3(), 0..8u8, -3..3i8).prop_map(|(translation, turn, scale_log2)| Step::Transform { translation, turn, scale_log2 }),
         1 => (0..5u8).prop_map(Step::BadTransform),
+        1 => (v3(), 0..8u8, any::<bool>()).prop_map(|(translation, turn, merge)| Step::SetTransform { translation, turn, merge }),
+        3 => (0..3u8, 2..10u8, v3(), v3(), any::<bool>()).prop_map(|(tool, radius, from, to, inverted)| Step::FieldStroke { tool, radius, from, to, inverted }),
+        1 => (0..3u8).prop_map(Step::Mirror),
+        1 => (v3(), v3()).prop_map(|(from, to)| Step::Line { from, to }),
         6 => (0..4u8, 1..12u8, v3(), v3(), any::<bool>()).prop_map(|(shape, radius, from, to, erase)| Step::Stroke { shape, radius, from, to, erase }),
         1 => (v3(), [1..12u8, 1..12u8, 1..12u8]).prop_map(|(corner, size)| Step::Import { corner, size }),
         2 => Just(Step::Undo),
@@ -99,6 +125,37 @@ fn run(steps: &[Step]) -> Result<(), TestCaseError> {
                         _ => l.transform.rotation = DQuat::from_xyzw(0.0, 3.0, 0.0, 4.0),
                     }
                 }
+            }
+            Step::SetTransform { translation, turn, merge } => {
+                let q = DQuat::from_rotation_y(turn as f64 * std::f64::consts::FRAC_PI_4);
+                let t = LayerTransform::new(p(translation), q, 1.0).unwrap();
+                // Refused on a missing layer; otherwise an undo step.
+                let _ = e.set_layer_transform(e.active_layer, t, merge);
+            }
+            Step::FieldStroke { tool, radius, from, to, inverted } => {
+                e.tool.kind = [ToolKind::Smooth, ToolKind::Inflate, ToolKind::Flatten][tool as usize % 3];
+                // At most 5 cells of the layer's grid, so a small-scale layer does not make each
+                // dab read a huge region (time, not correctness).
+                let scale = e.scene.layers.get(e.active_layer).map_or(1.0, |l| l.transform.scale);
+                let scale = if scale.is_finite() && scale > 0.0 { scale } else { 1.0 };
+                e.tool.radius = (radius as f64 / 2.0).min(5.0 * scale);
+                let buttons = Buttons { primary: !inverted, secondary: inverted };
+                for k in 0..=2 {
+                    let at = p(from).lerp(p(to), k as f64 / 2.0);
+                    let pose = ToolPose { position: at, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+                    let _ = e.frame(&pose, Duration::ZERO);
+                }
+                let _ = e.frame(&ToolPose::at(p(to), false), Duration::ZERO);
+            }
+            Step::Mirror(axis) => {
+                let a = axis as usize % 3;
+                e.tool.symmetry[a] = !e.tool.symmetry[a];
+                e.tool.symmetry_center = DVec3::new(4.0, 2.0, 8.0);
+            }
+            Step::Line { from, to } => {
+                e.tool.kind = ToolKind::Add;
+                e.tool.radius = 1.5;
+                let _ = e.line_stroke(p(from), p(to), 1.0, false);
             }
             Step::Stroke { shape, radius, from, to, erase } => {
                 e.tool.shape = [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder]
