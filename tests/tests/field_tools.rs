@@ -1,5 +1,6 @@
-//! Random dabs of every field tool (inflate, smooth both ways, flatten) on random CSG scenes,
-//! across chunk borders and a million cells from the origin: after every dab the invariants
+//! Random dabs of every field tool (clay, inflate, smooth all three ways, flatten, grab, pinch)
+//! of radius 1 to 30 on random CSG scenes, across chunk borders, a million cells from the origin
+//! and with centres snapped to grid nodes: after every dab the invariants
 //! hold, the marching-cubes mesh is closed and edge-manifold, and undo restores the exact
 //! volume.
 
@@ -7,29 +8,45 @@ use glam::DVec3;
 use proptest::prelude::*;
 use strata_mesh::{checks, mesh_volume};
 use strata_volume::brush::{Cuboid, Sphere};
-use strata_volume::tools::{Dab, Smoothing, flatten, inflate, smooth};
+use strata_volume::tools::{Dab, Smoothing, clay, flatten, grab, inflate, pinch, smooth};
 use strata_volume::{CsgOp, EditSettings, Volume};
 
 #[derive(Clone, Debug)]
 enum Tool {
+    Clay(f64, bool),
     Inflate(f64),
-    Smooth(bool, u32),
+    Smooth(u8, u32),
     Flatten,
+    Grab(DVec3),
+    Pinch(bool, f64),
 }
 
 fn tool() -> impl Strategy<Value = Tool> {
     prop_oneof![
+        (0.0..6.0f64, any::<bool>()).prop_map(|(f, erase)| Tool::Clay(f, erase)),
         (-3.0..3.0f64).prop_map(Tool::Inflate),
-        (any::<bool>(), 1..8u32).prop_map(|(vp, passes)| Tool::Smooth(vp, passes)),
+        (0..3u8, 1..6u32).prop_map(|(m, passes)| Tool::Smooth(m, passes)),
         Just(Tool::Flatten),
+        (-20.0..20.0f64, -20.0..20.0f64, -20.0..20.0f64).prop_map(|(x, y, z)| Tool::Grab(DVec3::new(x, y, z))),
+        (any::<bool>(), 0.0..=1.0f64).prop_map(|(line, a)| Tool::Pinch(line, a)),
     ]
+}
+
+/// Radii from 1 to 30, most of them small as brushes are.
+fn radius() -> impl Strategy<Value = f64> {
+    prop_oneof![3 => 1.0..10.0f64, 1 => 10.0..30.0f64]
 }
 
 fn point() -> impl Strategy<Value = DVec3> {
     (0.0..40.0f64, 0.0..40.0f64, 0.0..40.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
 }
 
-fn run(scene: &[(bool, DVec3, f64)], dabs: &[(Tool, DVec3, f64, f64)], far: bool) -> Result<(), TestCaseError> {
+fn run(
+    scene: &[(bool, DVec3, f64)],
+    dabs: &[(Tool, DVec3, f64, f64)],
+    far: bool,
+    snapped: bool,
+) -> Result<(), TestCaseError> {
     let shift = if far { DVec3::splat(1_000_000.0) } else { DVec3::ZERO };
     let mut v = Volume::new();
     let settings = EditSettings { parallel: false, ..Default::default() };
@@ -42,14 +59,19 @@ fn run(scene: &[(bool, DVec3, f64)], dabs: &[(Tool, DVec3, f64, f64)], far: bool
         }
     }
     for (k, (t, c, radius, strength)) in dabs.iter().enumerate() {
-        let dab = Dab::new(shift + *c, *radius, *strength).unwrap();
+        let (c, radius) = if snapped { (c.round(), radius.round().max(1.0)) } else { (*c, *radius) };
+        let dab = Dab::new(shift + c, radius, *strength).unwrap();
         let before = v.clone();
         let report = match *t {
+            Tool::Clay(fillet, erase) => clay(&mut v, &dab, fillet, erase),
             Tool::Inflate(a) => inflate(&mut v, &dab, a),
-            Tool::Smooth(vp, passes) => {
-                smooth(&mut v, &dab, if vp { Smoothing::VolumePreserving } else { Smoothing::Laplacian }, passes)
+            Tool::Smooth(m, passes) => {
+                let method = [Smoothing::VolumePreserving, Smoothing::Laplacian, Smoothing::Endpoints][m as usize];
+                smooth(&mut v, &dab, method, passes)
             }
             Tool::Flatten => flatten(&mut v, &dab),
+            Tool::Grab(d) => grab(&mut v, &dab, if snapped { d.round() } else { d }),
+            Tool::Pinch(line, a) => pinch(&mut v, &dab, line.then_some(DVec3::Y), a),
         }
         .map_err(|e| TestCaseError::fail(format!("dab {k}: {e}")))?;
         if let Err(e) = v.check_invariants() {
@@ -57,7 +79,7 @@ fn run(scene: &[(bool, DVec3, f64)], dabs: &[(Tool, DVec3, f64, f64)], far: bool
         }
         let mut undone = v.clone();
         undone.restore(report.undo);
-        prop_assert!(undone == before, "undo of dab {} restores the volume", k);
+        prop_assert!(undone == before, "undo of dab {} ({:?}) restores the volume", k, t);
     }
     if !far {
         checks::check_closed_manifold(&mesh_volume(&v)).map_err(|e| TestCaseError::fail(format!("mesh: {e}")))?;
@@ -71,9 +93,10 @@ proptest! {
     #[test]
     fn random_dabs_of_every_field_tool_keep_every_invariant(
         scene in proptest::collection::vec((any::<bool>(), point(), 2.0..14.0f64), 1..6),
-        dabs in proptest::collection::vec((tool(), point(), 1.0..12.0f64, 0.0..=1.0f64), 1..8),
+        dabs in proptest::collection::vec((tool(), point(), radius(), 0.0..=1.0f64), 1..8),
         far in any::<bool>(),
+        snapped in any::<bool>(),
     ) {
-        run(&scene, &dabs, far)?;
+        run(&scene, &dabs, far, snapped)?;
     }
 }

@@ -109,6 +109,25 @@ pub struct EditReport {
     pub repaired_nodes: u64,
 }
 
+impl EditReport {
+    /// One report for this edit followed by `later`: the chunks either changed, and an undo
+    /// record that restores the volume as it was before this edit (for a chunk both changed, the
+    /// older contents).
+    pub fn then(mut self, later: EditReport) -> EditReport {
+        let seen: std::collections::HashSet<ChunkKey> = self.undo.keys().collect();
+        for (key, chunk) in later.undo.previous {
+            if !seen.contains(&key) {
+                self.undo.previous.push((key, chunk));
+            }
+        }
+        self.changed.extend(later.changed);
+        self.changed.sort_by_key(|k| k.0.to_array());
+        self.changed.dedup();
+        self.repaired_nodes += later.repaired_nodes;
+        self
+    }
+}
+
 /// The previous contents of every chunk an edit changed. [`Volume::restore`] puts them back bit
 /// for bit and returns the record that redoes the edit.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -1,4 +1,5 @@
-//! The field operators on the region primitive: inflate, smooth and flatten, measured.
+//! The field operators on the region primitive: inflate, smooth (all three methods) and
+//! flatten, measured.
 
 use glam::DVec3;
 use strata_volume::brush::{Cuboid, Sphere};
@@ -93,7 +94,9 @@ fn smooth_all(v: &mut Volume, c: DVec3, r: f64, method: Smoothing, passes: u32) 
 fn smoothing_a_rough_sphere_cuts_its_roughness_and_keeps_its_volume() {
     let c = DVec3::new(32.0, 32.0, 32.0);
     let dirs = directions(400);
-    for (method, max_volume_change) in [(Smoothing::Laplacian, 0.10), (Smoothing::VolumePreserving, 0.02)] {
+    for (method, max_volume_change) in
+        [(Smoothing::Laplacian, 0.10), (Smoothing::VolumePreserving, 0.02), (Smoothing::Endpoints, 0.10)]
+    {
         let mut v = rough_sphere(c);
         let (rough, _) = radial_rms(&v, c, &dirs);
         let vol = v.measured_volume(Axis::X);
@@ -117,6 +120,7 @@ fn smoothing_leaves_a_plane_and_a_large_sphere_in_place() {
         let dab = Dab::new(DVec3::new(24.3, 23.8, 16.3), 8.0, 1.0).unwrap();
         smooth(&mut v, &dab, Smoothing::VolumePreserving, 4).unwrap();
         smooth(&mut v, &dab, Smoothing::Laplacian, 4).unwrap();
+        smooth(&mut v, &dab, Smoothing::Endpoints, 4).unwrap();
     }
     v.check_invariants().unwrap();
     assert!((top(&v) - before).abs() < 0.1, "the plane moved {}", top(&v) - before);

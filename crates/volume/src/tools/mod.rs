@@ -1,10 +1,16 @@
 //! Tools beyond CSG, built on one primitive: a [`Region`] of the solid read into a local signed
 //! distance field ([`crate::Volume::read_region`]), changed by an operator, and written back as
-//! an ordinary edit ([`crate::Volume::write_region`]). The operators so far: [`inflate`],
-//! [`smooth`] (Laplacian or volume-preserving) and [`flatten`], each applied as a [`Dab`].
+//! an ordinary edit ([`crate::Volume::write_region`]). The operators, each applied as a [`Dab`]:
+//! [`clay`] (filleted add and erase), [`inflate`], [`smooth`] (volume-preserving, Laplacian, or
+//! the paper's Eq. 1 on the crossings), [`flatten`], and the deformations [`grab`] and
+//! [`pinch`], which move the surface with a displacement field in sub-steps of at most
+//! [`MAX_STEP`] nodes.
 
+mod deform;
+mod endpoints;
 mod ops;
 mod region;
 
-pub use ops::{Dab, Smoothing, ToolError, falloff, flatten, inflate, smooth};
-pub use region::{BAND, MAX_REGION_NODES, Region, RegionError};
+pub use deform::{MAX_STEP, MAX_STEPS, grab, pinch};
+pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, smooth};
+pub use region::{BAND, MAX_REGION_NODES, Region, RegionCrossing, RegionError};

@@ -62,7 +62,7 @@ impl Dab {
 
     /// Reads the region the dab covers (plus `apron` nodes), sets the weight of every node, and
     /// returns it with the nodes' grid points, for an operator to fill in.
-    fn region(&self, volume: &Volume, apron: usize) -> Result<Region, ToolError> {
+    pub(crate) fn region(&self, volume: &Volume, apron: usize) -> Result<Region, ToolError> {
         let r = DVec3::splat(self.radius);
         let mut region = volume.read_region(self.center - r, self.center + r, apron)?;
         for z in 0..region.dims[2] {
@@ -86,7 +86,7 @@ pub fn falloff(t: f64) -> f64 {
     3.0 * t.powi(4) - 4.0 * t.powi(3) + 1.0
 }
 
-fn finite(what: &'static str, v: f64) -> Result<f64, ToolError> {
+pub(crate) fn finite(what: &'static str, v: f64) -> Result<f64, ToolError> {
     if v.is_finite() { Ok(v) } else { Err(ToolError::BadParameter { what, positive: false }) }
 }
 
@@ -115,10 +115,26 @@ pub enum Smoothing {
     /// at all: RMS 1.296 → 1.300 cells on the rough-sphere test, where this gives 64 % less.)
     #[default]
     VolumePreserving,
+    /// The paper's Eq. 1 on the stored crossings (each moved towards the mean of its four
+    /// neighbours, the move drawn as a ball): see [`super::endpoints`].
+    Endpoints,
 }
 
 /// Smooths the surface under the dab with `passes` steps of `method`.
 pub fn smooth(volume: &mut Volume, dab: &Dab, method: Smoothing, passes: u32) -> Result<EditReport, ToolError> {
+    if method == Smoothing::Endpoints {
+        let mut report = super::endpoints::smooth_endpoints_pass(volume, dab)?;
+        for _ in 1..passes.clamp(1, 1000) {
+            match super::endpoints::smooth_endpoints_pass(volume, dab) {
+                Ok(next) => report = report.then(next),
+                Err(e) => {
+                    volume.restore(report.undo);
+                    return Err(e);
+                }
+            }
+        }
+        return Ok(report);
+    }
     let mut region = dab.region(volume, 2)?;
     let before = enclosed(&region.phi);
     let d = region.dims;
@@ -214,4 +230,55 @@ pub fn flatten(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> 
         }
     }
     Ok(volume.write_region(&region)?)
+}
+
+/// Clay: a ball of the dab's radius added (or, with `erase`, taken away) with a smooth union
+/// (smooth difference) of fillet radius `fillet` (grid units) on the field, so the stroke meets
+/// the model in a soft fillet instead of a crease. The strength blends between the surface as
+/// it was (0) and the full filleted union (1). A fillet of 0 is the exact union of the ball,
+/// through the field.
+///
+/// The blend is the polynomial smooth minimum `min(a, b) − h² k / 4`, `h = max(k − |a − b|, 0) / k`
+/// (exact `min` wherever the two fields differ by more than `k`, so the volume away from the
+/// ball and its fillet is untouched bit for bit).
+pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<EditReport, ToolError> {
+    let fillet = finite("the clay fillet", fillet)?;
+    if fillet < 0.0 {
+        return Err(ToolError::BadParameter { what: "the clay fillet", positive: true });
+    }
+    let sp = volume.level().spacing();
+    let reach = DVec3::splat(dab.radius + fillet);
+    let mut region = volume.read_region(dab.center - reach, dab.center + reach, 2)?;
+    let k = (fillet / sp) as f32;
+    let (c, r) = (dab.center, dab.radius);
+    let d = region.dims;
+    for z in 0..d[2] {
+        for y in 0..d[1] {
+            for x in 0..d[0] {
+                let i = region.index(x, y, z);
+                let ball = (((region.grid_point(x, y, z) - c).length() - r) / sp) as f32;
+                let a = region.phi[i];
+                let (a_s, b_s) = if erase { (-a, ball) } else { (a, ball) };
+                let mut m = smooth_min(a_s, b_s, k);
+                if erase {
+                    m = -m;
+                }
+                let blended = a + dab.strength as f32 * (m - a);
+                if blended != a {
+                    region.phi[i] = blended;
+                    region.weight[i] = 1.0;
+                }
+            }
+        }
+    }
+    Ok(volume.write_region(&region)?)
+}
+
+/// The polynomial smooth minimum of `a` and `b` with blend radius `k` (`min` for `k = 0`).
+fn smooth_min(a: f32, b: f32, k: f32) -> f32 {
+    if k <= 0.0 {
+        return a.min(b);
+    }
+    let h = (k - (a - b).abs()).max(0.0) / k;
+    a.min(b) - h * h * k * 0.25
 }

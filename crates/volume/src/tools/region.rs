@@ -85,7 +85,21 @@ pub struct Region {
     pub weight: Vec<f32>,
     /// The field as read.
     original: Vec<f32>,
+    /// The stored crossings the field was read from (the region's box and [`BAND`] nodes
+    /// around it).
+    crossings: Vec<RegionCrossing>,
     level: Level,
+}
+
+/// A stored crossing near a region, as [`Region::crossings`] lists it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RegionCrossing {
+    /// The axis of the grid line it lies on.
+    pub axis: Axis,
+    /// Its point, in node units of the region's level (absolute, not region-local).
+    pub point: DVec3,
+    /// Its unit outward normal.
+    pub normal: DVec3,
 }
 
 impl Region {
@@ -113,6 +127,39 @@ impl Region {
     /// The field as read, before any operator.
     pub fn original(&self) -> &[f32] {
         &self.original
+    }
+
+    /// The field as read at grid point `p` (grid coordinates), trilinearly interpolated
+    /// between the nodes; points outside the region take the nearest point of its box.
+    pub fn sample_original(&self, p: DVec3) -> f32 {
+        let local = p / self.level.spacing() - self.origin.as_dvec3();
+        let mut i0 = [0usize; 3];
+        let mut f = [0.0f64; 3];
+        for a in 0..3 {
+            let top = self.dims[a].saturating_sub(1) as f64;
+            let x = local[a].clamp(0.0, top);
+            let base = x.floor().min((top - 1.0).max(0.0));
+            i0[a] = base as usize;
+            f[a] = if self.dims[a] > 1 { x - base } else { 0.0 };
+        }
+        let at = |dx: usize, dy: usize, dz: usize| {
+            let x = (i0[0] + dx).min(self.dims[0] - 1);
+            let y = (i0[1] + dy).min(self.dims[1] - 1);
+            let z = (i0[2] + dz).min(self.dims[2] - 1);
+            self.original[self.index(x, y, z)] as f64
+        };
+        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+        let x00 = lerp(at(0, 0, 0), at(1, 0, 0), f[0]);
+        let x10 = lerp(at(0, 1, 0), at(1, 1, 0), f[0]);
+        let x01 = lerp(at(0, 0, 1), at(1, 0, 1), f[0]);
+        let x11 = lerp(at(0, 1, 1), at(1, 1, 1), f[0]);
+        lerp(lerp(x00, x10, f[1]), lerp(x01, x11, f[1]), f[2]) as f32
+    }
+
+    /// The stored crossings the field was read from: those of the region's box and of
+    /// [`BAND`] nodes around it, on all three axes.
+    pub fn crossings(&self) -> &[RegionCrossing] {
+        &self.crossings
     }
 
     /// Whether the node at index `i` ([`Region::index`]) was inside when read.
@@ -192,12 +239,14 @@ impl Volume {
             phi: vec![f32::INFINITY; count],
             weight: vec![0.0; count],
             original: Vec::new(),
+            crossings: Vec::new(),
             level,
         };
         let n = level.cells() as i64;
         let mut inside = vec![false; count];
         // Crossings near the region, as (point in node units, unit normal).
         let mut samples: Vec<(DVec3, DVec3)> = Vec::new();
+        let mut sample_axes: Vec<Axis> = Vec::new();
         let band = BAND.ceil() as i64;
         let (klo, khi) = (
             (origin - I64Vec3::splat(band)).div_euclid(I64Vec3::splat(n)),
@@ -237,6 +286,7 @@ impl Volume {
                                     .as_dvec3();
                                     p[axis.index()] += c.t as f64;
                                     samples.push((p, unpack_normal(c.normal).normalize_or(axis.unit())));
+                                    sample_axes.push(axis);
                                 }
                             }
                         }
@@ -300,6 +350,11 @@ impl Volume {
             *v = if inside[i] { -m } else { m };
         }
         region.original = region.phi.clone();
+        region.crossings = samples
+            .into_iter()
+            .zip(sample_axes)
+            .map(|((point, normal), axis)| RegionCrossing { axis, point, normal })
+            .collect();
         Ok(region)
     }
 
