@@ -160,6 +160,7 @@ fn bad_deformations_are_errors_not_panics() {
     assert!(grab(&mut v, &dab, DVec3::new(1e9, 0.0, 0.0)).is_err());
     assert!(pinch(&mut v, &dab, Some(DVec3::NAN), 0.5).is_err());
     assert!(pinch(&mut v, &dab, None, 1.5).is_err());
+    assert!(pinch(&mut v, &dab, None, -1.5).is_err());
     assert!(pinch(&mut v, &dab, None, f64::NAN).is_err());
     assert!(clay(&mut v, &dab, f64::NAN, false).is_err());
     assert!(clay(&mut v, &dab, -1.0, false).is_err());

@@ -28,7 +28,7 @@ fn tool() -> impl Strategy<Value = Tool> {
         (0..3u8, 1..6u32).prop_map(|(m, passes)| Tool::Smooth(m, passes)),
         Just(Tool::Flatten),
         (-20.0..20.0f64, -20.0..20.0f64, -20.0..20.0f64).prop_map(|(x, y, z)| Tool::Grab(DVec3::new(x, y, z))),
-        (any::<bool>(), 0.0..=1.0f64).prop_map(|(line, a)| Tool::Pinch(line, a)),
+        (any::<bool>(), -1.0..=1.0f64).prop_map(|(line, a)| Tool::Pinch(line, a)),
     ]
 }
 

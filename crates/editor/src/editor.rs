@@ -108,7 +108,12 @@ pub struct Pick {
 
 struct Stroke {
     layer: usize,
+    /// Where the last dab went (world, aligned).
     last: DVec3,
+    /// The stroke's first position (world, before alignment): the axis lock's line.
+    start: DVec3,
+    /// A grab's centre (world): it follows the material it drags.
+    anchor: DVec3,
     inverted: bool,
     records: Vec<strata_volume::UndoRecord>,
 }
@@ -254,39 +259,58 @@ impl Editor {
         self.check_editable(layer)?;
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let spacing = self.tool.dab_spacing();
+        let transform = self.scene.layers[layer].transform;
+        let continuing = matches!(&self.stroke, Some(s) if s.layer == layer && s.inverted == inverted);
+        if !continuing {
+            self.end_stroke();
+        }
+        let start = self.stroke.as_ref().map(|s| s.start);
+        let position = self.tool.aligned(&transform, pose.position, start);
+        if self.tool.kind == ToolKind::Grab {
+            return self.grab_to(layer, position, pose, report);
+        }
         let mut dabs = Vec::new();
         match &self.stroke {
-            Some(s) if s.layer == layer && s.inverted == inverted => {
-                let d = pose.position - s.last;
+            Some(s) => {
+                let d = position - s.last;
                 let len = d.length();
                 let steps = (len / spacing).floor() as usize;
                 // A jump of more than 10,000 dabs is a teleport, not a stroke: dab at the end only.
                 if steps > 10_000 {
-                    dabs.push(pose.position);
+                    dabs.push(position);
                 } else {
-                    dabs.extend((1..=steps).map(|k| s.last + d * (k as f64 * spacing / len)));
+                    dabs.extend(
+                        (1..=steps).map(|k| self.tool.aligned(&transform, s.last + d * (k as f64 * spacing / len), start)),
+                    );
                 }
             }
-            _ => {
-                self.end_stroke();
-                self.stroke = Some(Stroke { layer, last: pose.position, inverted, records: Vec::new() });
-                dabs.push(pose.position);
+            None => {
+                self.stroke = Some(Stroke {
+                    layer,
+                    last: position,
+                    start: pose.position,
+                    anchor: position,
+                    inverted,
+                    records: Vec::new(),
+                });
+                dabs.push(position);
             }
         }
         let op = self.tool.kind.op(inverted);
         for p in dabs {
-            let images = self.tool.mirrored(&self.scene.layers[layer].transform, p, pose.orientation);
-            for (at, orientation) in images {
+            let last = self.stroke.as_ref().map_or(p, |s| s.last);
+            let images = self.tool.mirrored(&transform, p, pose.orientation);
+            let directions = self.tool.mirrored_with_vector(&transform, p, p - last);
+            for (k, (at, orientation)) in images.into_iter().enumerate() {
                 let edit = if self.tool.kind.is_field_tool() {
-                    self.field_dab(layer, at, pose.pressure, inverted)?
+                    let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
+                    let l = &mut self.scene.layers[layer];
+                    field_tool_dab(&self.tool, &l.transform, &mut l.volume, at, pose.pressure, inverted, direction)?
                 } else {
-                    let brush = self.tool.brush(&self.scene.layers[layer].transform, at, orientation, pose.pressure)?;
+                    let brush = self.tool.brush(&transform, at, orientation, pose.pressure)?;
                     self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?
                 };
-                self.queue(layer, &edit.changed);
-                self.revision += 1;
-                let s = self.stroke.as_mut().expect("a stroke is in progress");
-                s.records.push(edit.undo);
+                self.record(layer, edit);
             }
             let s = self.stroke.as_mut().expect("a stroke is in progress");
             s.last = p;
@@ -295,10 +319,62 @@ impl Editor {
         Ok(())
     }
 
-    /// One dab of a field tool (smooth, inflate, flatten) at world point `p`.
-    fn field_dab(&mut self, layer: usize, p: DVec3, pressure: f64, inverted: bool) -> Result<EditReport, EditorError> {
-        let l = &mut self.scene.layers[layer];
-        Ok(field_tool_dab(&self.tool, &l.transform, &mut l.volume, p, pressure, inverted)?)
+    /// A frame of the grab tool: the surface under the stroke's anchor is dragged by the
+    /// pointer's move since the last frame (mirrored under symmetry), and the anchor follows it.
+    fn grab_to(
+        &mut self,
+        layer: usize,
+        position: DVec3,
+        pose: &ToolPose,
+        report: &mut FrameReport,
+    ) -> Result<(), EditorError> {
+        let inverted = pose.buttons.secondary && !pose.buttons.primary;
+        let Some(s) = &self.stroke else {
+            self.stroke =
+                Some(Stroke { layer, last: position, start: pose.position, anchor: position, inverted, records: Vec::new() });
+            return Ok(());
+        };
+        let drag = position - s.last;
+        if drag.length_squared() == 0.0 {
+            return Ok(());
+        }
+        let anchor = s.anchor;
+        let transform = self.scene.layers[layer].transform;
+        let strength = self.tool.field_strength.clamp(0.0, 1.0);
+        let radius = self.tool.radius_at(pose.pressure) / transform.scale;
+        let mut done: Vec<EditReport> = Vec::new();
+        for (at, d) in self.tool.mirrored_with_vector(&transform, anchor, drag) {
+            let result = strata_volume::tools::Dab::new(transform.to_grid(at), radius, strength).and_then(|dab| {
+                let volume = &mut self.scene.layers[layer].volume;
+                strata_volume::tools::grab(volume, &dab, transform.rotation.inverse() * d / transform.scale)
+            });
+            match result {
+                Ok(edit) => done.push(edit),
+                Err(e) => {
+                    // A refused drag changes nothing, mirrored images included.
+                    for edit in done.into_iter().rev() {
+                        self.scene.layers[layer].volume.restore(edit.undo);
+                    }
+                    return Err(e.into());
+                }
+            }
+        }
+        for edit in done {
+            self.record(layer, edit);
+        }
+        let s = self.stroke.as_mut().expect("a stroke is in progress");
+        s.last = position;
+        s.anchor = anchor + drag * strength;
+        report.dabs += 1;
+        Ok(())
+    }
+
+    /// Queues an edit of the stroke in progress for meshing and keeps its undo record.
+    fn record(&mut self, layer: usize, edit: EditReport) {
+        self.queue(layer, &edit.changed);
+        self.revision += 1;
+        let s = self.stroke.as_mut().expect("a stroke is in progress");
+        s.records.push(edit.undo);
     }
 
     /// Chunks the dab of the current tool at `pose` would visit (its brush box in chunks, or
@@ -342,12 +418,16 @@ impl Editor {
         let control = Arc::new(EditControl::default());
         let settings = EditSettings { control: Some(control.clone()), ..self.settings.clone() };
         let (tool, transform, pressure) = (self.tool, l.transform, pose.pressure);
+        if tool.kind == ToolKind::Grab {
+            // A grab drags with the pointer: a single dab has nothing to drag.
+            dabs.clear();
+        }
         let worker = std::thread::spawn(move || {
             let mut done: Vec<EditReport> = Vec::new();
             for (at, brush) in dabs {
                 // (A field tool's dab cannot stop half-way; a cancel is honoured when it ends.)
                 let result = if tool.kind.is_field_tool() {
-                    field_tool_dab(&tool, &transform, &mut volume, at, pressure, inverted).map_err(EditorError::from)
+                    field_tool_dab(&tool, &transform, &mut volume, at, pressure, inverted, None).map_err(EditorError::from)
                 } else {
                     volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)
                 };
@@ -660,8 +740,8 @@ pub const PICK_CHUNK_STEPS: u64 = 1 << 16;
 
 /// One dab of the field tool `tool.kind` at world point `p` on `volume`, placed in its layer's
 /// grid by `transform`: a ball of the tool's radius (at `pressure`), the falloff scaled by
-/// [`ToolSettings::field_strength`]; the secondary button (`inverted`) smooths with the
-/// Laplacian method and deflates.
+/// [`ToolSettings::field_strength`]; `inverted` (the secondary button) picks the inverse tool;
+/// `direction` is the stroke's direction (world), the line a pinch pulls towards.
 fn field_tool_dab(
     tool: &ToolSettings,
     transform: &crate::scene::LayerTransform,
@@ -669,16 +749,30 @@ fn field_tool_dab(
     p: DVec3,
     pressure: f64,
     inverted: bool,
+    direction: Option<DVec3>,
 ) -> Result<EditReport, strata_volume::tools::ToolError> {
-    use strata_volume::tools::{Dab, Smoothing, flatten, inflate, smooth};
+    use strata_volume::tools::{Dab, Smoothing, clay, flatten, inflate, pinch, smooth};
     let radius = tool.radius_at(pressure) / transform.scale;
     let dab = Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))?;
     match tool.kind {
+        ToolKind::Clay => clay(volume, &dab, tool.fillet.clamp(0.0, 4.0) * radius, inverted),
         ToolKind::Smooth => {
-            let method = if inverted { Smoothing::Laplacian } else { Smoothing::VolumePreserving };
+            let method = if inverted {
+                Smoothing::Laplacian
+            } else if tool.paper_smoothing {
+                Smoothing::Endpoints
+            } else {
+                Smoothing::VolumePreserving
+            };
             smooth(volume, &dab, method, 4)
         }
         ToolKind::Inflate => inflate(volume, &dab, if inverted { -0.2 } else { 0.2 } * radius),
+        ToolKind::Pinch => {
+            let axis = direction.map(|d| transform.rotation.inverse() * d);
+            pinch(volume, &dab, axis, if inverted { -0.5 } else { 0.5 })
+        }
+        // (Grab drags through `Editor::grab_to`; a dab of it alone has nothing to drag.)
+        ToolKind::Grab => Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 }),
         _ => flatten(volume, &dab),
     }
 }

@@ -19,4 +19,4 @@ pub use editor::{DabJob, Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pic
 pub use history::{History, HistoryEntry};
 pub use pose::{Buttons, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, TransformError, View};
-pub use tool::{BrushShape, ToolKind, ToolSettings};
+pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};

@@ -7,23 +7,74 @@ use strata_volume::brush::{Brush, BrushError, Capsule, Cuboid, Cylinder, Sphere}
 use crate::pose::ToolPose;
 use crate::scene::LayerTransform;
 
-/// What the primary button does.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// What the primary button does. The secondary button (or holding Ctrl/Alt in the studio)
+/// uses the inverse tool, as [`ToolKind::inverse_name`] names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ToolKind {
-    /// Add material (exact CSG union with the brush).
+    /// Add material that blends into the surface in a soft fillet (a smooth union of a ball
+    /// with the field, fillet [`ToolSettings::fillet`] of the radius); inverse: clay erase (a
+    /// smooth difference). The default tool.
+    #[default]
+    Clay,
+    /// Add material (exact CSG union with the brush of the chosen shape); inverse: erase.
     Add,
-    /// Remove material (exact CSG difference).
+    /// Remove material (exact CSG difference); inverse: add.
     Erase,
-    /// Smooth the surface under a ball of the radius (the secondary button: the Laplacian
-    /// method, which also shrinks; the primary: volume-preserving).
+    /// Smooth the surface under a ball of the radius: volume-preserving field smoothing;
+    /// inverse: the Laplacian method, which also shrinks. ([`ToolSettings::paper_smoothing`]
+    /// uses the paper's Eq. 1 instead.)
     Smooth,
-    /// Push the surface out along its normal (the secondary button: deflate).
+    /// Push the surface out along its normal; inverse: deflate.
     Inflate,
     /// Pull the surface towards the plane that fits it under the brush.
     Flatten,
+    /// Pull the surface sideways towards the stroke's line; inverse: push it away (magnify).
+    Pinch,
+    /// Drag the surface under the brush with the pointer (the brush follows it).
+    Grab,
 }
 
 impl ToolKind {
+    /// Every tool, in palette order.
+    pub const ALL: [ToolKind; 8] = [
+        ToolKind::Clay,
+        ToolKind::Add,
+        ToolKind::Erase,
+        ToolKind::Smooth,
+        ToolKind::Inflate,
+        ToolKind::Flatten,
+        ToolKind::Pinch,
+        ToolKind::Grab,
+    ];
+
+    /// The tool's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ToolKind::Clay => "Clay",
+            ToolKind::Add => "Add",
+            ToolKind::Erase => "Erase",
+            ToolKind::Smooth => "Smooth",
+            ToolKind::Inflate => "Inflate",
+            ToolKind::Flatten => "Flatten",
+            ToolKind::Pinch => "Pinch",
+            ToolKind::Grab => "Grab",
+        }
+    }
+
+    /// What the inverse tool (secondary button, Ctrl or Alt) does.
+    pub fn inverse_name(self) -> &'static str {
+        match self {
+            ToolKind::Clay => "clay erase",
+            ToolKind::Add => "erase",
+            ToolKind::Erase => "add",
+            ToolKind::Smooth => "Laplacian smoothing",
+            ToolKind::Inflate => "deflate",
+            ToolKind::Flatten => "flatten",
+            ToolKind::Pinch => "magnify",
+            ToolKind::Grab => "grab",
+        }
+    }
+
     /// The CSG operation, with the secondary button inverting it (field tools have none).
     pub fn op(self, inverted: bool) -> CsgOp {
         match (self, inverted) {
@@ -32,10 +83,10 @@ impl ToolKind {
         }
     }
 
-    /// Whether the tool works on the field of a region (smooth, inflate, flatten) rather than
-    /// by CSG with a brush.
+    /// Whether the tool works on the field of a region (every tool but the exact CSG add and
+    /// erase) rather than by CSG with a brush of the chosen shape.
     pub fn is_field_tool(self) -> bool {
-        matches!(self, ToolKind::Smooth | ToolKind::Inflate | ToolKind::Flatten)
+        !matches!(self, ToolKind::Add | ToolKind::Erase)
     }
 }
 
@@ -73,12 +124,24 @@ pub struct ToolSettings {
     pub symmetry: [bool; 3],
     /// Where the mirror planes meet, in the layer's grid coordinates.
     pub symmetry_center: DVec3,
+    /// The clay tool's fillet radius as a fraction of the brush radius (0: a plain union).
+    pub fillet: f64,
+    /// Smooth with the paper's Eq. 1 on the crossings instead of the field method.
+    pub paper_smoothing: bool,
+    /// Alignment: snap dab positions to multiples of this many layer-grid cells (0: off).
+    pub grid_snap: f64,
+    /// Alignment: keep a stroke on the line through its first dab along this layer-grid axis
+    /// (0: x, 1: y, 2: z).
+    pub axis_lock: Option<usize>,
+    /// Alignment: turn box, capsule and cylinder brushes so that their y axis follows the
+    /// surface normal under the pointer (the studio passes it in the pose's orientation).
+    pub orient_to_normal: bool,
 }
 
 impl Default for ToolSettings {
     fn default() -> Self {
         ToolSettings {
-            kind: ToolKind::Add,
+            kind: ToolKind::Clay,
             shape: BrushShape::Sphere,
             radius: 6.0,
             strength: 0.0,
@@ -86,8 +149,24 @@ impl Default for ToolSettings {
             field_strength: 0.5,
             symmetry: [false; 3],
             symmetry_center: DVec3::ZERO,
+            fillet: 0.5,
+            paper_smoothing: false,
+            grid_snap: 0.0,
+            axis_lock: None,
+            orient_to_normal: false,
         }
     }
+}
+
+/// The rotation that turns the brush's y axis onto `normal` (a unit world vector) by the
+/// shortest arc: how a brush is oriented to the surface. A zero or non-finite normal gives the
+/// identity.
+pub fn orientation_for_normal(normal: DVec3) -> DQuat {
+    let n = normal.normalize_or_zero();
+    if !n.is_finite() || n == DVec3::ZERO {
+        return DQuat::IDENTITY;
+    }
+    DQuat::from_rotation_arc(DVec3::Y, n)
 }
 
 impl ToolSettings {
@@ -126,6 +205,60 @@ impl ToolSettings {
             out.push((layer.to_world(gm), layer.rotation * qm));
         }
         out
+    }
+
+    /// [`ToolSettings::mirrored`] for a dab that also carries a world vector (a grab's drag, a
+    /// pinch's direction): each image with the vector mirrored as its position is.
+    pub fn mirrored_with_vector(
+        &self,
+        layer: &LayerTransform,
+        position: DVec3,
+        vector: DVec3,
+    ) -> Vec<(DVec3, DVec3)> {
+        let g = layer.to_grid(position);
+        let v = layer.rotation.inverse() * vector;
+        let c = self.symmetry_center;
+        let mut out: Vec<(DVec3, DVec3)> = Vec::with_capacity(8);
+        let mut grid: Vec<(DVec3, DVec3)> = Vec::with_capacity(8);
+        for mask in 0..8usize {
+            if (0..3).any(|a| mask & (1 << a) != 0 && !self.symmetry[a]) {
+                continue;
+            }
+            let (mut gm, mut vm) = (g, v);
+            for a in 0..3 {
+                if mask & (1 << a) != 0 {
+                    gm[a] = 2.0 * c[a] - gm[a];
+                    vm[a] = -vm[a];
+                }
+            }
+            let close = |x: DVec3, y: DVec3| (x - y).length() <= 1e-9 * (1.0 + x.length());
+            if grid.iter().any(|&(o, ov)| close(o, gm) && close(ov, vm)) {
+                continue;
+            }
+            grid.push((gm, vm));
+            out.push((layer.to_world(gm), layer.rotation * vm));
+        }
+        out
+    }
+
+    /// The alignment tool on a stroke position (world): locked to the axis line through the
+    /// stroke's `start` (world) if [`ToolSettings::axis_lock`] is set, then snapped to the grid
+    /// of [`ToolSettings::grid_snap`], both in the layer placed by `layer`.
+    pub fn aligned(&self, layer: &LayerTransform, position: DVec3, start: Option<DVec3>) -> DVec3 {
+        let mut g = layer.to_grid(position);
+        if let (Some(axis), Some(start)) = (self.axis_lock.filter(|&a| a < 3), start) {
+            let s = layer.to_grid(start);
+            for a in 0..3 {
+                if a != axis {
+                    g[a] = s[a];
+                }
+            }
+        }
+        let step = self.grid_snap;
+        if step.is_finite() && step > 0.0 {
+            g = (g / step).round() * step;
+        }
+        layer.to_world(g)
     }
 
     /// The radius at `pressure`.

@@ -38,6 +38,7 @@ const ERASE: Buttons = Buttons { primary: false, secondary: true };
 #[test]
 fn a_stroke_places_evenly_spaced_dabs_like_direct_edits() {
     let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.tool.radius = 4.3;
     e.tool.spacing = 0.25; // a dab every 1.075 cells
     let (a, b) = (DVec3::new(10.2, 12.1, 11.7), DVec3::new(31.6, 12.1, 11.7));
@@ -58,6 +59,7 @@ fn a_stroke_places_evenly_spaced_dabs_like_direct_edits() {
 #[test]
 fn erase_undo_and_redo_restore_exact_volumes() {
     let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.tool.radius = 5.0;
     drag(&mut e, DVec3::new(5.0, 8.0, 8.0), DVec3::new(40.0, 8.0, 8.0), 20, DOWN);
     let after_add = e.scene.layers[0].volume.clone();
@@ -106,6 +108,7 @@ fn erase_undo_and_redo_restore_exact_volumes() {
 #[test]
 fn the_history_budget_drops_the_oldest_steps() {
     let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.set_history_budget(20_000);
     for i in 0..12 {
         let p = DVec3::new(8.0 + 9.0 * i as f64, 8.0, 8.0);
@@ -131,6 +134,7 @@ fn shapes_pressure_and_layer_transforms() {
         LayerTransform { translation: DVec3::new(100.0, 0.0, 0.0), rotation: DQuat::from_rotation_y(0.5), scale: 0.5 };
     scene.layers.push(moved);
     let mut e = Editor::new(scene);
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.active_layer = 1;
     for shape in [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder] {
         e.tool.shape = shape;
@@ -165,6 +169,7 @@ fn bad_input_is_refused_and_changes_nothing() {
     let mut scene = Scene::default();
     scene.layers[0].locked = true;
     let mut e = Editor::new(scene);
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     assert!(e.frame(&ToolPose::at(DVec3::splat(5.0), true), BUDGET).is_err());
     assert!(e.frame(&ToolPose::at(DVec3::new(f64::NAN, 0.0, 0.0), true), BUDGET).is_err());
     e.scene.layers[0].locked = false;
@@ -185,6 +190,7 @@ fn bad_input_is_refused_and_changes_nothing() {
 #[test]
 fn remeshing_respects_the_budget_and_catches_up() {
     let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.tool.radius = 20.0;
     e.frame(&ToolPose::at(DVec3::splat(30.0), true), Duration::ZERO).unwrap();
     let first = e.frame(&ToolPose::at(DVec3::splat(30.0), false), Duration::ZERO).unwrap();
@@ -207,6 +213,7 @@ fn picking_hits_the_nearest_visible_surface() {
     near.volume.add(&Sphere::new(DVec3::new(20.0, 20.0, 5.0), 3.0).unwrap()).unwrap();
     scene.layers.push(near);
     let mut e = Editor::new(scene);
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     let hit = e.pick(DVec3::new(20.0, 20.0, -10.0), DVec3::Z, 100.0).unwrap();
     assert_eq!(hit.layer, 1);
     assert!((hit.point.z - 2.0).abs() < 0.1, "{hit:?}");
@@ -232,6 +239,7 @@ fn picking_skips_layers_the_ray_misses_and_bounds_its_work() {
         scene.layers.push(l);
     }
     let mut e = Editor::new(scene);
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     let (hit, walked) = e.pick_counted(DVec3::new(0.0, 0.0, -50.0), DVec3::Z, 1e4);
     assert!(hit.is_none());
     assert_eq!(walked, 0, "empty layers walk no chunk");
@@ -261,11 +269,12 @@ fn picking_skips_layers_the_ray_misses_and_bounds_its_work() {
 
 #[test]
 fn field_tools_stroke_as_one_undo_step_and_keep_the_volume_consistent() {
-    for kind in [ToolKind::Smooth, ToolKind::Inflate, ToolKind::Flatten] {
+    for kind in ToolKind::ALL.into_iter().filter(|k| k.is_field_tool()) {
         let mut scene = Scene::default();
         scene.layers[0].volume.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
         scene.layers[0].volume.add(&Sphere::new(DVec3::new(24.0, 18.0, 16.0), 3.0).unwrap()).unwrap();
         let mut e = Editor::new(scene);
+        e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
         let before = e.scene.layers[0].volume.clone();
         e.tool.kind = kind;
         e.tool.radius = 5.0;
@@ -285,6 +294,7 @@ fn field_tools_stroke_as_one_undo_step_and_keep_the_volume_consistent() {
         let mut scene = Scene::default();
         scene.layers[0].volume.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
         let mut e = Editor::new(scene);
+        e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
         let v0 = e.scene.layers[0].volume.measured_volume(strata_volume::Axis::X);
         e.tool.kind = ToolKind::Inflate;
         e.tool.radius = 6.0;
@@ -299,6 +309,7 @@ fn field_tools_stroke_as_one_undo_step_and_keep_the_volume_consistent() {
 fn a_mirrored_stroke_across_a_plane_through_nodes_gives_mirrored_node_states() {
     for shape in [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder] {
         let mut e = Editor::new(Scene { layers: vec![Layer::new("clay")], ..Scene::default() });
+        e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
         e.tool.shape = shape;
         e.tool.radius = 3.5;
         e.tool.symmetry = [true, false, false];
@@ -325,6 +336,7 @@ fn a_mirrored_stroke_across_a_plane_through_nodes_gives_mirrored_node_states() {
     let mut scene = Scene::default();
     scene.layers[0].volume.add(&Sphere::new(DVec3::new(32.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
     let mut e = Editor::new(scene);
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     let before = e.scene.layers[0].volume.clone();
     e.tool.kind = ToolKind::Inflate;
     e.tool.field_strength = 1.0;
@@ -341,6 +353,7 @@ fn a_mirrored_stroke_across_a_plane_through_nodes_gives_mirrored_node_states() {
 #[test]
 fn the_line_tool_places_evenly_spaced_dabs_between_two_points_as_one_step() {
     let mut e = Editor::new(Scene { layers: vec![Layer::new("clay")], ..Scene::default() });
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.tool.radius = 2.0;
     let (a, b) = (DVec3::new(4.0, 10.0, 10.0), DVec3::new(28.0, 10.0, 10.0));
     let report = e.line_stroke(a, b, 1.0, false).unwrap();
@@ -366,6 +379,7 @@ fn the_line_tool_places_evenly_spaced_dabs_between_two_points_as_one_step() {
 #[test]
 fn layer_transforms_change_with_undo_and_a_drag_is_one_step() {
     let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     let t0 = e.scene.layers[0].transform;
     let moved = LayerTransform::new(DVec3::new(5.0, 0.0, 0.0), DQuat::from_rotation_y(0.3), 2.0).unwrap();
     e.set_layer_transform(0, moved, false).unwrap();
@@ -392,6 +406,7 @@ fn layer_transforms_change_with_undo_and_a_drag_is_one_step() {
 #[test]
 fn a_layer_with_a_transform_set_wrongly_through_its_fields_refuses_edits() {
     let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.scene.layers[0].transform.rotation = DQuat::from_xyzw(0.0, 3.0, 0.0, 4.0);
     let before = e.scene.layers[0].volume.clone();
     let pose = ToolPose { position: DVec3::splat(8.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
@@ -404,4 +419,111 @@ fn a_layer_with_a_transform_set_wrongly_through_its_fields_refuses_edits() {
     e.set_layer_transform(0, t, false).unwrap();
     e.frame(&pose, BUDGET).unwrap();
     assert_ne!(e.scene.layers[0].volume, before);
+}
+
+/// A scene with one ball of radius 10 at (16, 16, 16).
+fn ball_editor() -> Editor {
+    let mut scene = Scene::default();
+    scene.layers[0].volume.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
+    Editor::new(scene)
+}
+
+/// The surface's distance from the ball's centre along `dir`.
+fn radius_along(v: &Volume, dir: DVec3) -> f64 {
+    let c = DVec3::new(16.0, 16.0, 16.0);
+    40.0 - v.raycast(c + dir * 40.0, -dir, 80.0).unwrap().t
+}
+
+#[test]
+fn clay_is_the_default_and_blends_into_the_surface() {
+    let mut e = ball_editor();
+    assert_eq!(e.tool.kind, ToolKind::Clay);
+    let before = e.scene.layers[0].volume.clone();
+    e.tool.radius = 3.0;
+    e.tool.field_strength = 1.0;
+    drag(&mut e, DVec3::new(26.0, 16.0, 15.0), DVec3::new(26.0, 16.0, 17.0), 3, DOWN);
+    let v = e.scene.layers[0].volume.clone();
+    v.check_invariants().unwrap();
+    // The ball of clay sits on the surface; beside it the surface rises in a fillet.
+    assert!(radius_along(&v, DVec3::X) > 12.5, "clay added: {}", radius_along(&v, DVec3::X));
+    let beside = DVec3::new(0.94, 0.0, 0.34).normalize();
+    assert!(radius_along(&v, beside) > radius_along(&before, beside) + 0.1, "a fillet beside the stroke");
+    assert_eq!(e.history().undo_len(), 1);
+    // The inverse (secondary button) carves.
+    let mut e = ball_editor();
+    e.tool.radius = 3.0;
+    e.tool.field_strength = 1.0;
+    drag(&mut e, DVec3::new(26.0, 16.0, 15.0), DVec3::new(26.0, 16.0, 17.0), 3, ERASE);
+    assert!(radius_along(&e.scene.layers[0].volume, DVec3::X) < 9.0);
+}
+
+#[test]
+fn grab_drags_the_surface_with_the_pointer_as_one_step() {
+    for mirrored in [false, true] {
+        let mut e = ball_editor();
+        let before = e.scene.layers[0].volume.clone();
+        e.tool.kind = ToolKind::Grab;
+        e.tool.radius = 5.0;
+        e.tool.field_strength = 1.0;
+        e.tool.symmetry = [mirrored, false, false];
+        e.tool.symmetry_center = DVec3::new(16.0, 16.0, 16.0);
+        // Press on the surface at +x and drag 4 cells outwards over four frames.
+        drag(&mut e, DVec3::new(26.0, 16.0, 16.0), DVec3::new(30.0, 16.0, 16.0), 4, DOWN);
+        let v = e.scene.layers[0].volume.clone();
+        v.check_invariants().unwrap();
+        let moved = radius_along(&v, DVec3::X) - radius_along(&before, DVec3::X);
+        assert!((moved - 4.0).abs() < 0.25, "the surface under the brush moved {moved}");
+        let other = radius_along(&v, -DVec3::X) - radius_along(&before, -DVec3::X);
+        if mirrored {
+            assert!((other - 4.0).abs() < 0.25, "the mirrored side moved {other}");
+        } else {
+            assert!(other.abs() < 1e-3, "the far side stayed ({other})");
+        }
+        assert_eq!(e.history().undo_len(), 1, "the drag is one step");
+        assert!(e.undo());
+        assert_eq!(e.scene.layers[0].volume, before);
+    }
+}
+
+#[test]
+fn the_alignment_tool_snaps_locks_and_orients() {
+    // Grid snap: a dab lands on the nearest multiple of the snap step.
+    let mut e = Editor::new(Scene::default());
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 2.0;
+    e.tool.grid_snap = 4.0;
+    drag(&mut e, DVec3::new(9.3, 10.6, 13.1), DVec3::new(9.3, 10.6, 13.1), 1, DOWN);
+    let mut direct = Volume::new();
+    direct.add(&Sphere::new(DVec3::new(8.0, 12.0, 12.0), 2.0).unwrap()).unwrap();
+    assert_eq!(e.scene.layers[0].volume, direct, "the dab snapped to (8, 12, 12)");
+    // Axis lock: a wobbly stroke along x stays on the x line through its start.
+    let mut e = Editor::new(Scene::default());
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 1.5;
+    e.tool.axis_lock = Some(0);
+    let path = [DVec3::new(10.0, 10.0, 10.0), DVec3::new(13.0, 12.5, 9.0), DVec3::new(16.0, 7.0, 11.0)];
+    for p in path {
+        let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
+        e.frame(&pose, Duration::ZERO).unwrap();
+    }
+    e.frame(&ToolPose::at(path[2], false), Duration::ZERO).unwrap();
+    let v = &e.scene.layers[0].volume;
+    for x in 10..=16 {
+        assert!(v.node_inside(I64Vec3::new(x, 10, 10)), "node ({x}, 10, 10) is on the locked line");
+    }
+    assert!(!v.node_inside(I64Vec3::new(13, 12, 9)) && !v.node_inside(I64Vec3::new(16, 7, 11)));
+    // Orient to normal: a box brush turned onto the surface normal.
+    let n = DVec3::new(1.0, 1.0, 0.0).normalize();
+    let q = strata_editor::orientation_for_normal(n);
+    assert!((q * DVec3::Y - n).length() < 1e-12);
+    let mut e = Editor::new(Scene::default());
+    e.tool.kind = ToolKind::Add;
+    e.tool.shape = BrushShape::Box;
+    e.tool.radius = 3.0;
+    let pose = ToolPose { position: DVec3::splat(12.0), orientation: q, pressure: 1.0, buttons: DOWN };
+    e.frame(&pose, Duration::ZERO).unwrap();
+    let mut direct = Volume::new();
+    direct.add(&strata_volume::brush::Cuboid::oriented(DVec3::splat(12.0), DVec3::splat(3.0), q, 0.0).unwrap()).unwrap();
+    assert_eq!(e.scene.layers[0].volume, direct);
+    assert!(!direct.node_inside(I64Vec3::new(15, 15, 12)), "the box's corner turned away from (+x, +y)");
 }

@@ -133,7 +133,8 @@ fn run(steps: &[Step]) -> Result<(), TestCaseError> {
                 let _ = e.set_layer_transform(e.active_layer, t, merge);
             }
             Step::FieldStroke { tool, radius, from, to, inverted } => {
-                e.tool.kind = [ToolKind::Smooth, ToolKind::Inflate, ToolKind::Flatten][tool as usize % 3];
+                let field: Vec<ToolKind> = ToolKind::ALL.into_iter().filter(|k| k.is_field_tool()).collect();
+                e.tool.kind = field[tool as usize % field.len()];
                 // At most 5 cells of the layer's grid, so a small-scale layer does not make each
                 // dab read a huge region (time, not correctness).
                 let scale = e.scene.layers.get(e.active_layer).map_or(1.0, |l| l.transform.scale);

@@ -81,6 +81,9 @@ pub fn grab(volume: &mut Volume, dab: &Dab, drag: DVec3) -> Result<EditReport, T
     let r = DVec3::splat(dab.radius);
     let (lo, hi) = (dab.center.min(dab.center + travel) - r, dab.center.max(dab.center + travel) + r);
     let steps = step_count(travel.length(), dab.radius, sp)?;
+    if travel == DVec3::ZERO {
+        return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
+    }
     let region = volume.read_region(lo, hi, 2)?;
     let step = travel / steps as f64;
     let (c0, radius, r2) = (dab.center, dab.radius, dab.radius * dab.radius);
@@ -97,11 +100,11 @@ pub fn grab(volume: &mut Volume, dab: &Dab, drag: DVec3) -> Result<EditReport, T
 /// towards the centre point). Movement along the surface's normal at the centre (the region
 /// field's gradient there) is taken out, so the surface gathers into a crease rather than
 /// sinking. A point at distance `t · radius` moves `amount · strength · falloff(t)` of its way
-/// to the line (`amount` in `[0, 1]`).
+/// to the line (`amount` in `[-1, 1]`; a negative amount pushes away from the line: magnify).
 pub fn pinch(volume: &mut Volume, dab: &Dab, axis: Option<DVec3>, amount: f64) -> Result<EditReport, ToolError> {
     let amount = finite("the pinch amount", amount)?;
-    if !(0.0..=1.0).contains(&amount) {
-        return Err(ToolError::BadParameter { what: "the pinch amount (in [0, 1])", positive: false });
+    if !(-1.0..=1.0).contains(&amount) {
+        return Err(ToolError::BadParameter { what: "the pinch amount (in [-1, 1])", positive: false });
     }
     let axis = match axis {
         Some(a) if !a.is_finite() => return Err(ToolError::BadParameter { what: "the pinch axis", positive: false }),
@@ -119,7 +122,7 @@ pub fn pinch(volume: &mut Volume, dab: &Dab, axis: Option<DVec3>, amount: f64) -
     let pull = amount * dab.strength;
     // The largest move: `pull · t · falloff(t) · radius`, at most 0.45 · pull · radius.
     // At most a quarter of the way per step keeps each step one-to-one.
-    let steps = step_count(0.45 * pull * dab.radius, dab.radius, sp)?.max((4.0 * pull).ceil() as usize);
+    let steps = step_count(0.45 * pull.abs() * dab.radius, dab.radius, sp)?.max((4.0 * pull.abs()).ceil() as usize);
     let per = pull / steps as f64;
     let (c, radius, r2) = (dab.center, dab.radius, dab.radius * dab.radius);
     deform(volume, region, steps, move |_, q| {
