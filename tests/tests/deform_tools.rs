@@ -169,3 +169,30 @@ fn bad_deformations_are_errors_not_panics() {
     assert!(grab(&mut v, &dab, DVec3::ZERO).unwrap().changed.is_empty());
     assert_eq!(v, before);
 }
+
+#[test]
+fn every_tool_deep_inside_the_solid_or_in_empty_space_keeps_it_so() {
+    use strata_volume::tools::{Smoothing, flatten, inflate, smooth};
+    // A region with no crossing at all reads one far distance everywhere; no operator may turn
+    // it into a surface by overflowing (a Laplacian of the largest float is NaN).
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::splat(40.0), 30.0).unwrap()).unwrap();
+    for at in [DVec3::splat(40.0), DVec3::splat(200.0)] {
+        let before = v.clone();
+        let dab = Dab::new(at, 5.0, 1.0).unwrap();
+        for method in [Smoothing::VolumePreserving, Smoothing::Laplacian, Smoothing::Endpoints] {
+            smooth(&mut v, &dab, method, 3).unwrap();
+        }
+        inflate(&mut v, &dab, 1.0).unwrap();
+        flatten(&mut v, &dab).unwrap();
+        grab(&mut v, &dab, DVec3::new(3.0, 0.0, 0.0)).unwrap();
+        pinch(&mut v, &dab, None, 0.8).unwrap();
+        clay(&mut v, &Dab::new(at, 5.0, 0.5).unwrap(), 2.0, at.x > 100.0).unwrap();
+        v.check_invariants().unwrap();
+        assert!(v == before, "dabs at {at} changed nothing");
+    }
+    // Clay in empty space adds its ball, of the strength times the radius.
+    clay(&mut v, &Dab::new(DVec3::splat(200.0), 5.0, 0.5).unwrap(), 2.0, false).unwrap();
+    assert!(v.node_inside(glam::I64Vec3::splat(200)) && v.node_inside(glam::I64Vec3::new(202, 200, 200)));
+    assert!(!v.node_inside(glam::I64Vec3::new(203, 200, 200)));
+}

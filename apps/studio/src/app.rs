@@ -10,6 +10,10 @@ use glam::Mat4;
 use strata_editor::{BrushShape, Buttons, ToolKind};
 use strata_render::{DEPTH_FORMAT, FrameSettings, Preview, Renderer};
 
+/// Where the falloff `3t⁴ − 4t³ + 1` is one half, as a fraction of the radius: the preview's
+/// core, inside which a field tool acts at half its strength or more.
+pub const FALLOFF_HALF: f64 = 0.6135;
+
 use crate::headless::{layer_model, upload_all};
 use crate::recovery::Autosave;
 use crate::studio::{Action, Studio};
@@ -340,6 +344,15 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::T) {
             self.studio.set_kind(ToolKind::Flatten);
         }
+        if pressed(Modifiers::NONE, Key::C) {
+            self.studio.set_kind(ToolKind::Clay);
+        }
+        if pressed(Modifiers::NONE, Key::P) {
+            self.studio.set_kind(ToolKind::Pinch);
+        }
+        if pressed(Modifiers::NONE, Key::G) {
+            self.studio.set_kind(ToolKind::Grab);
+        }
     }
 
     fn menu(&mut self, ui: &mut egui::Ui) {
@@ -387,20 +400,39 @@ impl StudioApp {
     fn palette(&mut self, ui: &mut egui::Ui) {
         let tool = &mut self.studio.editor.tool;
         ui.heading("Tool");
-        ui.horizontal(|ui| {
-            ui.selectable_value(&mut tool.kind, ToolKind::Add, "Add (A)");
-            ui.selectable_value(&mut tool.kind, ToolKind::Erase, "Erase (E)");
-        });
-        ui.horizontal(|ui| {
-            ui.selectable_value(&mut tool.kind, ToolKind::Smooth, "Smooth (S)")
-                .on_hover_text("Smooth the surface, keeping its volume (hold Shift with any tool; Alt: Laplacian)");
-            ui.selectable_value(&mut tool.kind, ToolKind::Inflate, "Inflate (I)")
-                .on_hover_text("Push the surface out along its normal (Alt: deflate)");
-            ui.selectable_value(&mut tool.kind, ToolKind::Flatten, "Flatten (T)")
-                .on_hover_text("Pull the surface towards the plane that fits it under the brush");
-        });
+        let tips = [
+            (ToolKind::Clay, "C", "Add clay that blends into the surface in a soft fillet (Ctrl/Alt: carve)"),
+            (ToolKind::Add, "A", "Add the brush shape exactly (CSG union; Ctrl/Alt: erase)"),
+            (ToolKind::Erase, "E", "Cut the brush shape away exactly (CSG difference; Ctrl/Alt: add)"),
+            (
+                ToolKind::Smooth,
+                "S",
+                "Smooth the surface, keeping its volume (hold Shift with any tool; Ctrl/Alt: Laplacian)",
+            ),
+            (ToolKind::Inflate, "I", "Push the surface out along its normal (Ctrl/Alt: deflate)"),
+            (ToolKind::Flatten, "T", "Pull the surface towards the plane that fits it under the brush"),
+            (ToolKind::Pinch, "P", "Pull the surface towards the stroke into a crease (Ctrl/Alt: push apart)"),
+            (ToolKind::Grab, "G", "Drag the surface under the brush with the pointer"),
+        ];
+        for row in tips.chunks(3) {
+            ui.horizontal(|ui| {
+                for &(kind, key, tip) in row {
+                    ui.selectable_value(&mut tool.kind, kind, format!("{} ({key})", kind.name())).on_hover_text(tip);
+                }
+            });
+        }
         if tool.kind.is_field_tool() {
-            ui.add(egui::Slider::new(&mut tool.field_strength, 0.0..=1.0).text("tool strength"));
+            ui.add(egui::Slider::new(&mut tool.field_strength, 0.0..=1.0).text("tool strength"))
+                .on_hover_text("How strongly a dab acts at its centre; the falloff takes it to 0 at the rim");
+        }
+        if tool.kind == ToolKind::Clay {
+            ui.add(egui::Slider::new(&mut tool.fillet, 0.0..=2.0).text("fillet (× radius)"))
+                .on_hover_text("How softly clay blends into the surface: 0 is a plain union");
+        }
+        if tool.kind == ToolKind::Smooth {
+            ui.checkbox(&mut tool.paper_smoothing, "Paper's smoothing (Eq. 1)").on_hover_text(
+                "Move crossings towards their neighbours' mean instead of smoothing the field (shrinks a little)",
+            );
         }
         let mut toggle = None;
         ui.horizontal(|ui| {
@@ -418,19 +450,38 @@ impl StudioApp {
         }
         let tool = &mut self.studio.editor.tool;
         ui.label("Shape (1–4)");
-        for (shape, name) in [
-            (BrushShape::Sphere, "Sphere"),
-            (BrushShape::Box, "Box"),
-            (BrushShape::Capsule, "Capsule"),
-            (BrushShape::Cylinder, "Cylinder"),
-        ] {
-            ui.selectable_value(&mut tool.shape, shape, name);
-        }
+        ui.horizontal(|ui| {
+            for (shape, name) in [
+                (BrushShape::Sphere, "Sphere"),
+                (BrushShape::Box, "Box"),
+                (BrushShape::Capsule, "Capsule"),
+                (BrushShape::Cylinder, "Cylinder"),
+            ] {
+                ui.selectable_value(&mut tool.shape, shape, name);
+            }
+        });
         ui.add(egui::Slider::new(&mut tool.radius, 0.25..=64.0).logarithmic(true).text("radius [ ]"));
         ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"));
         ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"));
         ui.separator();
-        ui.label("Alt + right drag: the opposite tool (erase while adding, add while erasing).");
+        ui.label("Alignment");
+        ui.horizontal(|ui| {
+            ui.label("snap to grid");
+            ui.add(egui::DragValue::new(&mut tool.grid_snap).range(0.0..=64.0).speed(0.25).suffix(" cells"))
+                .on_hover_text("Place dabs on multiples of this many cells of the layer's grid (0: off)");
+        });
+        ui.horizontal(|ui| {
+            ui.label("lock stroke");
+            ui.selectable_value(&mut tool.axis_lock, None, "off");
+            for (axis, name) in ["along X", "along Y", "along Z"].into_iter().enumerate() {
+                ui.selectable_value(&mut tool.axis_lock, Some(axis), name)
+                    .on_hover_text("Keep a stroke on the line through its start along this axis of the layer");
+            }
+        });
+        ui.checkbox(&mut tool.orient_to_normal, "Orient brush to surface")
+            .on_hover_text("Turn box, capsule and cylinder brushes onto the surface normal under the pointer");
+        ui.separator();
+        ui.label("Ctrl or Alt + drag: the inverse tool. Shift: smooth. L: line tool. X: mirror X.");
     }
 
     fn layers(&mut self, ui: &mut egui::Ui) {
@@ -694,7 +745,9 @@ impl StudioApp {
         let (rect, response) = ui.allocate_exact_size(ui.available_size(), egui::Sense::click_and_drag());
         let aspect = rect.width() / rect.height().max(1.0);
         // Camera: right drag orbits, middle drag pans, the wheel zooms.
-        self.studio.smooth_held = ui.input(|i| i.modifiers.shift) && !ui.ctx().egui_wants_keyboard_input();
+        let typing = ui.ctx().egui_wants_keyboard_input();
+        self.studio.smooth_held = ui.input(|i| i.modifiers.shift) && !typing;
+        self.studio.inverse_held = ui.input(|i| i.modifiers.command || i.modifiers.alt) && !typing;
         let (delta, scroll, secondary_drag, middle, primary, secondary) = ui.input(|i| {
             (
                 i.pointer.delta(),
@@ -806,17 +859,32 @@ impl StudioApp {
                 }
             }
         }
-        let hover = self.studio.hover;
-        let erase = self.studio.editor.tool.kind == ToolKind::Erase;
+        let inverse = self.studio.inverse_held;
+        let kind = self.studio.editor.tool.kind;
+        let erase = matches!((kind, inverse), (ToolKind::Erase, false) | (ToolKind::Add | ToolKind::Clay, true));
+        let field = kind.is_field_tool() || self.studio.smooth_held;
         let wireframe = self.studio.wireframe;
         let camera = self.studio.camera;
+        let dabs = self.studio.preview_dabs();
         let preview_mesh = self.studio.preview_mesh();
-        let preview = hover.map(|p| Preview {
-            mesh: preview_mesh,
-            model: Mat4::from_translation(p.as_vec3()),
-            color: if erase { [1.0, 0.35, 0.3, 0.28] } else { [0.35, 0.65, 1.0, 0.28] },
-        });
-        let settings = FrameSettings { camera, wireframe, preview, ..Default::default() };
+        let rgb = if erase { [1.0, 0.35, 0.3] } else { [0.35, 0.65, 1.0] };
+        let mut previews = Vec::with_capacity(dabs.len() * 2);
+        for (k, (p, q)) in dabs.into_iter().enumerate() {
+            // The dab itself brighter than its mirror images.
+            let alpha = if k == 0 { 0.22 } else { 0.12 };
+            let model = Mat4::from_rotation_translation(q.as_quat(), p.as_vec3());
+            previews.push(Preview { mesh: preview_mesh, model, color: [rgb[0], rgb[1], rgb[2], alpha] });
+            if field {
+                // The falloff: a core where the tool acts at half strength or more.
+                let core = Mat4::from_scale(glam::Vec3::splat(FALLOFF_HALF as f32));
+                previews.push(Preview {
+                    mesh: preview_mesh,
+                    model: model * core,
+                    color: [rgb[0], rgb[1], rgb[2], alpha * 1.6],
+                });
+            }
+        }
+        let settings = FrameSettings { camera, wireframe, previews: &previews, ..Default::default() };
         let (_, cv, dv) = vp.color.as_ref().expect("created above");
         vp.renderer.render(&rs.device, &rs.queue, cv, dv, size, &settings);
         if let Some(id) = vp.texture_id {

@@ -36,13 +36,24 @@ pub enum Action {
     AddLayer,
 }
 
-/// The default scene: a ball of clay resting on the grid, ready to sculpt.
+/// World units per cell of the default scene's layer: its ball of radius 16 is 64 cells
+/// across its radius, about 100,000 marching-cubes triangles, smooth to the eye.
+pub const DEFAULT_CELL: f64 = 0.25;
+
+/// The default brush radius in world units: 10 cells of the default layer, the radius at which
+/// every tool's whole frame (dab and remesh) is measured against its 4 ms budget.
+pub const DEFAULT_RADIUS: f64 = 2.5;
+
+/// The default scene: a ball of clay of radius 16 (world units) resting on the grid, ready to
+/// sculpt, in a layer of [`DEFAULT_CELL`] cells.
 pub fn default_scene() -> Scene {
     let mut scene = Scene::default();
     scene.layers[0].name = "Clay".into();
+    scene.layers[0].transform.scale = DEFAULT_CELL;
+    let centre = DVec3::new(32.0, 18.0, 32.0) / DEFAULT_CELL;
     scene.layers[0]
         .volume
-        .add(&Sphere::new(DVec3::new(32.0, 18.0, 32.0), 16.0).expect("valid default sphere"))
+        .add(&Sphere::new(centre, 16.0 / DEFAULT_CELL).expect("valid default sphere"))
         .expect("the default sphere is a valid edit");
     scene.view = View { target: DVec3::new(32.0, 18.0, 32.0), distance: 90.0, yaw: 0.7, pitch: 0.45 };
     scene
@@ -73,6 +84,11 @@ pub struct Studio {
     pub full_upload: bool,
     /// Where the tool would act (world), for the brush preview.
     pub hover: Option<DVec3>,
+    /// The surface normal (world) under the pointer, when the pointer is over the model: what
+    /// brushes are oriented to under [`strata_editor::ToolSettings::orient_to_normal`].
+    pub hover_normal: Option<DVec3>,
+    /// Ctrl or Alt is held: the primary button uses the inverse tool.
+    pub inverse_held: bool,
     /// Distance along the pointer ray at which the stroke in progress acts.
     stroke_depth: Option<f64>,
     preview: Option<(strata_editor::BrushShape, u64, Mesh)>,
@@ -112,6 +128,8 @@ impl Studio {
             uploads: Vec::new(),
             full_upload: true,
             hover: None,
+            hover_normal: None,
+            inverse_held: false,
             stroke_depth: None,
             preview: None,
             saved_revision: 0,
@@ -124,7 +142,7 @@ impl Studio {
             prev_held: false,
         };
         s.saved_revision = s.editor.revision();
-        s.editor.tool.radius = 4.0;
+        s.editor.tool.radius = DEFAULT_RADIUS;
         s
     }
 
@@ -250,11 +268,14 @@ impl Studio {
     /// The tool acts at the surface under the pointer (or on the ground plane when nothing is
     /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
     pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
-        // Holding Shift smooths, whatever the tool (the sculptors' convention).
+        // Holding Shift smooths, whatever the tool; Ctrl or Alt turns the primary button into
+        // the inverse tool (the sculptors' conventions).
         let kind = self.editor.tool.kind;
         if self.smooth_held {
             self.editor.tool.kind = ToolKind::Smooth;
         }
+        let buttons =
+            if self.inverse_held && buttons.primary { Buttons { primary: false, secondary: true } } else { buttons };
         if self.line_mode && self.job.is_none() {
             self.line_click(ndc, buttons, pressure, aspect);
         } else {
@@ -316,6 +337,7 @@ impl Studio {
             (Some((o, d)), Some(depth)) => Some(o + d * depth),
             (Some((o, d)), None) => {
                 let p = self.ray_target(o, d);
+                self.hover_normal = self.editor.pick(o, d, 1.0e4).map(|h| h.normal);
                 if held {
                     self.stroke_depth = p.map(|p| (p - o).length());
                 }
@@ -335,7 +357,7 @@ impl Studio {
             self.last_background_dab = None;
         }
         if let Some(p) = target.filter(|_| held) {
-            let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons };
+            let pose = ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons };
             if self.editor.dab_chunks(&pose).is_ok_and(|c| c > self.background_chunks) {
                 // Like a stroke's dabs: the next large dab waits until the pointer has moved by
                 // the dab spacing (holding still does not repeat it).
@@ -355,10 +377,10 @@ impl Studio {
             }
         }
         let pose = match target {
-            Some(p) if held => ToolPose { position: p, orientation: DQuat::IDENTITY, pressure, buttons },
+            Some(p) if held => ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons },
             _ => ToolPose {
                 position: target.unwrap_or_default(),
-                orientation: DQuat::IDENTITY,
+                orientation: self.brush_orientation(),
                 pressure,
                 buttons: Buttons::default(),
             },
@@ -375,6 +397,23 @@ impl Studio {
             }
             Err(e) => self.message = e.to_string(),
         }
+    }
+
+    /// The brush's orientation for the next dab: onto the surface normal under the pointer
+    /// when the alignment tool orients brushes, else the world's axes.
+    pub fn brush_orientation(&self) -> DQuat {
+        match self.hover_normal.filter(|_| self.editor.tool.orient_to_normal) {
+            Some(n) => strata_editor::orientation_for_normal(n),
+            None => DQuat::IDENTITY,
+        }
+    }
+
+    /// Where the brush preview goes: the dab at the pointer and its mirror images, each as
+    /// (world placement, erasing); the shape and radius are [`Studio::preview_mesh`]'s.
+    pub fn preview_dabs(&self) -> Vec<(DVec3, DQuat)> {
+        let Some(p) = self.hover else { return Vec::new() };
+        let Some(layer) = self.editor.scene.layers.get(self.editor.active_layer) else { return Vec::new() };
+        self.editor.tool.mirrored(&layer.transform, p, self.brush_orientation())
     }
 
     /// Collects a finished background dab (call every frame); returns whether one finished.
@@ -416,14 +455,29 @@ impl Studio {
     /// The brush preview mesh for the current shape and radius (rebuilt when they change),
     /// centred on the origin, in world units.
     pub fn preview_mesh(&mut self) -> &Mesh {
-        let tool = self.editor.tool;
+        let mut tool = self.editor.tool;
+        if tool.kind.is_field_tool() || self.smooth_held {
+            // Field tools act in a ball of the radius, whatever the CSG shape.
+            tool.shape = strata_editor::BrushShape::Sphere;
+        }
         let key = (tool.shape, tool.radius.to_bits());
         if self.preview.as_ref().is_none_or(|(s, r, _)| (*s, *r) != key) {
+            // Meshed 12 cells across its radius, whatever the radius, then scaled to world units.
+            let scale = tool.radius / 12.0;
             let mut v = strata_volume::Volume::new();
-            let brush = tool.brush(&Default::default(), DVec3::ZERO, DQuat::IDENTITY, 1.0);
-            let mesh = match brush.map(|b| v.add(b.as_ref()).map(|_| ())) {
-                Ok(Ok(())) => strata_mesh::mesh_volume(&v),
-                _ => Mesh::default(),
+            let mesh = match strata_editor::LayerTransform::new(DVec3::ZERO, DQuat::IDENTITY, scale) {
+                Ok(t) => match tool.brush(&t, DVec3::ZERO, DQuat::IDENTITY, 1.0).map(|b| v.add(b.as_ref()).map(|_| ()))
+                {
+                    Ok(Ok(())) => {
+                        let mut m = strata_mesh::mesh_volume(&v);
+                        for p in &mut m.positions {
+                            *p = p.map(|c| c * scale as f32);
+                        }
+                        m
+                    }
+                    _ => Mesh::default(),
+                },
+                Err(_) => Mesh::default(),
             };
             self.preview = Some((key.0, key.1, mesh));
         }
@@ -515,13 +569,13 @@ mod tests {
             s.pointer(Some((i as f32 * 0.01, 0.0)), DOWN, 1.0, 1.5, BUDGET);
         }
         s.pointer(Some((0.1, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
-        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert!(s.editor.scene.layers[0].volume != before, "the stroke changed the volume: {}", s.message);
         assert_eq!(s.editor.history().undo_len(), 1);
         assert!(!s.uploads.is_empty(), "remeshed chunks are queued for upload");
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, before);
         s.act(Action::Redo).unwrap();
-        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert!(s.editor.scene.layers[0].volume != before, "the stroke changed the volume: {}", s.message);
         assert!(s.status().contains("crossings"));
     }
 
@@ -565,7 +619,7 @@ mod tests {
             std::thread::sleep(Duration::from_millis(2));
         }
         assert!(s.message.contains("chunks changed"), "{}", s.message);
-        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert!(s.editor.scene.layers[0].volume != before, "the stroke changed the volume: {}", s.message);
         // Holding still does not repeat the dab.
         s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
         assert!(!s.busy());
@@ -581,7 +635,8 @@ mod tests {
         s.editor.tool.radius = 5.0;
         // A bump to smooth away, under the centre of the view.
         let p = s.surface_point(0.0, 0.0, 1.5).unwrap();
-        s.editor.scene.layers[0].volume.add(&Sphere::new(p, 2.5).unwrap()).unwrap();
+        let g = s.editor.scene.layers[0].transform.to_grid(p);
+        s.editor.scene.layers[0].volume.add(&Sphere::new(g, 2.5 / DEFAULT_CELL).unwrap()).unwrap();
         s.editor.reset_caches();
         let bumped = s.editor.scene.layers[0].volume.clone();
         s.smooth_held = true;
@@ -589,22 +644,57 @@ mod tests {
             s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
         }
         s.pointer(Some((0.0, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
-        assert_eq!(s.editor.tool.kind, ToolKind::Add, "Shift only lends the smooth tool");
+        assert_eq!(s.editor.tool.kind, ToolKind::Clay, "Shift only lends the smooth tool");
         let smoothed = s.editor.scene.layers[0].volume.clone();
         assert_ne!(smoothed, bumped, "{}", s.message);
         smoothed.check_invariants().unwrap();
         s.smooth_held = false;
-        for kind in [ToolKind::Inflate, ToolKind::Flatten] {
+        for kind in [ToolKind::Inflate, ToolKind::Flatten, ToolKind::Pinch] {
             s.set_kind(kind);
             let before = s.editor.scene.layers[0].volume.clone();
             s.pointer(Some((0.05, 0.0)), DOWN, 1.0, 1.5, BUDGET);
             s.pointer(Some((0.05, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
             assert_ne!(s.editor.scene.layers[0].volume, before, "{kind:?}: {}", s.message);
         }
-        s.act(Action::Undo).unwrap();
-        s.act(Action::Undo).unwrap();
-        s.act(Action::Undo).unwrap();
-        assert_eq!(s.editor.scene.layers[0].volume, bumped, "three strokes, three undo steps");
+        for _ in 0..4 {
+            s.act(Action::Undo).unwrap();
+        }
+        assert_eq!(s.editor.scene.layers[0].volume, bumped, "four strokes, four undo steps");
+    }
+
+    #[test]
+    fn the_default_ball_is_smooth_and_grab_and_the_inverse_tool_work_through_the_pointer() {
+        let mut s = Studio::new(default_scene());
+        s.editor.finish_meshing();
+        let triangles = s.editor.triangle_count();
+        assert!(triangles >= 100_000, "the default ball has {triangles} triangles");
+        let cells = s.editor.tool.radius / s.editor.scene.layers[0].transform.scale;
+        assert!((cells - 10.0).abs() < 1e-9, "the default brush is 10 cells ({cells})");
+        // Grab: press on the ball and drag sideways; the surface follows, as one step.
+        let before = s.editor.scene.layers[0].volume.clone();
+        s.set_kind(ToolKind::Grab);
+        for i in 0..6 {
+            s.pointer(Some((0.0, i as f32 * 0.01)), DOWN, 1.0, 1.5, BUDGET);
+        }
+        s.pointer(Some((0.0, 0.05)), Buttons::default(), 1.0, 1.5, BUDGET);
+        let grabbed = s.editor.scene.layers[0].volume.clone();
+        assert!(grabbed != before, "grab moved the surface: {}", s.message);
+        grabbed.check_invariants().unwrap();
+        assert_eq!(s.editor.history().undo_len(), 1);
+        // Ctrl or Alt held: clay carves instead of adding.
+        s.set_kind(ToolKind::Clay);
+        s.inverse_held = true;
+        let v0 = grabbed.measured_volume(strata_volume::Axis::X);
+        s.pointer(Some((0.1, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        s.pointer(Some((0.1, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        let v1 = s.editor.scene.layers[0].volume.measured_volume(strata_volume::Axis::X);
+        assert!(v1 < v0, "the inverse of clay carves: {v0} -> {v1}");
+        // Oriented brushes follow the surface under the pointer.
+        s.inverse_held = false;
+        s.editor.tool.orient_to_normal = true;
+        s.pointer(Some((0.2, 0.1)), Buttons::default(), 1.0, 1.5, BUDGET);
+        let n = s.hover_normal.expect("the pointer is over the ball");
+        assert!((s.brush_orientation() * DVec3::Y - n).length() < 1e-9);
     }
 
     #[test]
@@ -613,11 +703,11 @@ mod tests {
         s.editor.finish_meshing();
         s.toggle_symmetry(0);
         assert_eq!(s.editor.tool.symmetry, [true, false, false]);
-        assert_eq!(s.editor.tool.symmetry_center.x, 32.0, "the ball's centre: {}", s.message);
+        assert_eq!(s.editor.tool.symmetry_center.x, 32.0 / DEFAULT_CELL, "the ball's centre: {}", s.message);
         let before = s.editor.scene.layers[0].volume.clone();
         s.pointer(Some((0.3, 0.0)), DOWN, 1.0, 1.5, BUDGET);
         s.pointer(Some((0.3, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
-        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert!(s.editor.scene.layers[0].volume != before, "the stroke changed the volume: {}", s.message);
         s.toggle_symmetry(0);
         assert_eq!(s.editor.tool.symmetry, [false; 3]);
     }
@@ -634,7 +724,7 @@ mod tests {
         }
         assert!(!s.line_mode, "the second click ends the line tool");
         assert!(s.message.starts_with("Line:"), "{}", s.message);
-        assert_ne!(s.editor.scene.layers[0].volume, before);
+        assert!(s.editor.scene.layers[0].volume != before, "the stroke changed the volume: {}", s.message);
         assert_eq!(s.editor.history().undo_len(), 1, "one step");
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, before);

@@ -149,9 +149,9 @@ fn the_layer_name_field_takes_typed_text() {
     h.get_by_label("Name").click();
     h.run();
     assert!(h.get_by_label("Name").is_focused());
-    type_keys(&mut h, " awe");
-    assert_eq!(h.state().studio.editor.scene.layers[0].name, "Clay awe");
-    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Add, "typing a, w, e renamed, toggled nothing");
+    type_keys(&mut h, " awe gp");
+    assert_eq!(h.state().studio.editor.scene.layers[0].name, "Clay awe gp");
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Clay, "typing a, w, e, g, p renamed, toggled nothing");
     assert!(!h.state().studio.wireframe);
     assert!(h.state().studio.is_modified(), "a rename is a change to save");
 }
@@ -207,4 +207,50 @@ fn quit_with_unsaved_changes_asks_first() {
     h.get_by_label("Cancel").click();
     h.run();
     assert!(!h.state().modal_open(), "Cancel keeps the studio open");
+}
+
+#[test]
+fn every_tool_is_one_key_or_click_away_with_its_settings() {
+    let dir = temp("tools");
+    let mut h = harness(&dir);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Clay, "clay is the default tool");
+    // The clay tool shows its fillet; the smooth tool its choice of method.
+    assert!(h.query_all_by_label("fillet (× radius)").count() > 0);
+    for (key, kind) in [
+        (egui::Key::G, ToolKind::Grab),
+        (egui::Key::P, ToolKind::Pinch),
+        (egui::Key::T, ToolKind::Flatten),
+        (egui::Key::I, ToolKind::Inflate),
+        (egui::Key::S, ToolKind::Smooth),
+        (egui::Key::A, ToolKind::Add),
+        (egui::Key::C, ToolKind::Clay),
+    ] {
+        h.key_press(key);
+        h.run();
+        assert_eq!(h.state().studio.editor.tool.kind, kind, "{key:?}");
+    }
+    h.get_by_label("Smooth (S)").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Smooth);
+    h.get_by_label("Paper's smoothing (Eq. 1)").click();
+    h.run();
+    assert!(h.state().studio.editor.tool.paper_smoothing);
+    h.get_by_label("Grab (G)").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Grab);
+    // The alignment tool: orient to the surface, lock strokes to an axis.
+    h.get_by_label("Orient brush to surface").click();
+    h.run();
+    assert!(h.state().studio.editor.tool.orient_to_normal);
+    h.get_by_label("along Y").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.axis_lock, Some(1));
+    // X mirrors; the preview then shows the dab and its image.
+    h.key_press(egui::Key::X);
+    h.run();
+    assert!(h.state().studio.editor.tool.symmetry[0]);
+    let p = h.state().studio.surface_point(0.2, 0.0, 1.6).unwrap();
+    h.state_mut().studio.hover = Some(p);
+    assert_eq!(h.state().studio.preview_dabs().len(), 2, "the dab and its mirror image");
 }

@@ -280,7 +280,8 @@ impl Editor {
                     dabs.push(position);
                 } else {
                     dabs.extend(
-                        (1..=steps).map(|k| self.tool.aligned(&transform, s.last + d * (k as f64 * spacing / len), start)),
+                        (1..=steps)
+                            .map(|k| self.tool.aligned(&transform, s.last + d * (k as f64 * spacing / len), start)),
                     );
                 }
             }
@@ -330,8 +331,14 @@ impl Editor {
     ) -> Result<(), EditorError> {
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let Some(s) = &self.stroke else {
-            self.stroke =
-                Some(Stroke { layer, last: position, start: pose.position, anchor: position, inverted, records: Vec::new() });
+            self.stroke = Some(Stroke {
+                layer,
+                last: position,
+                start: pose.position,
+                anchor: position,
+                inverted,
+                records: Vec::new(),
+            });
             return Ok(());
         };
         let drag = position - s.last;
@@ -427,7 +434,8 @@ impl Editor {
             for (at, brush) in dabs {
                 // (A field tool's dab cannot stop half-way; a cancel is honoured when it ends.)
                 let result = if tool.kind.is_field_tool() {
-                    field_tool_dab(&tool, &transform, &mut volume, at, pressure, inverted, None).map_err(EditorError::from)
+                    field_tool_dab(&tool, &transform, &mut volume, at, pressure, inverted, None)
+                        .map_err(EditorError::from)
                 } else {
                     volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)
                 };

@@ -209,12 +209,7 @@ impl ToolSettings {
 
     /// [`ToolSettings::mirrored`] for a dab that also carries a world vector (a grab's drag, a
     /// pinch's direction): each image with the vector mirrored as its position is.
-    pub fn mirrored_with_vector(
-        &self,
-        layer: &LayerTransform,
-        position: DVec3,
-        vector: DVec3,
-    ) -> Vec<(DVec3, DVec3)> {
+    pub fn mirrored_with_vector(&self, layer: &LayerTransform, position: DVec3, vector: DVec3) -> Vec<(DVec3, DVec3)> {
         let g = layer.to_grid(position);
         let v = layer.rotation.inverse() * vector;
         let c = self.symmetry_center;

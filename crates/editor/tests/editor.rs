@@ -523,7 +523,9 @@ fn the_alignment_tool_snaps_locks_and_orients() {
     let pose = ToolPose { position: DVec3::splat(12.0), orientation: q, pressure: 1.0, buttons: DOWN };
     e.frame(&pose, Duration::ZERO).unwrap();
     let mut direct = Volume::new();
-    direct.add(&strata_volume::brush::Cuboid::oriented(DVec3::splat(12.0), DVec3::splat(3.0), q, 0.0).unwrap()).unwrap();
+    direct
+        .add(&strata_volume::brush::Cuboid::oriented(DVec3::splat(12.0), DVec3::splat(3.0), q, 0.0).unwrap())
+        .unwrap();
     assert_eq!(e.scene.layers[0].volume, direct);
     assert!(!direct.node_inside(I64Vec3::new(15, 15, 12)), "the box's corner turned away from (+x, +y)");
 }

@@ -67,8 +67,9 @@ pub struct FrameSettings<'a> {
     pub grid: bool,
     /// Background colour (linear RGBA).
     pub background: [f64; 4],
-    /// The brush preview, if any.
-    pub preview: Option<Preview<'a>>,
+    /// The brush previews (the dab and its mirror images, the falloff's core), drawn
+    /// translucent over everything else.
+    pub previews: &'a [Preview<'a>],
 }
 
 impl Default for FrameSettings<'_> {
@@ -78,7 +79,7 @@ impl Default for FrameSettings<'_> {
             wireframe: false,
             grid: true,
             background: [0.055, 0.06, 0.075, 1.0],
-            preview: None,
+            previews: &[],
         }
     }
 }
@@ -324,8 +325,14 @@ impl Renderer {
             line_color: [0.05, 0.05, 0.06, 1.0],
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
-        self.preview_buffers = settings.preview.filter(|p| !p.mesh.indices.is_empty()).map(|p| {
-            let vertices = world_vertices(p.mesh, p.model, p.color);
+        // All previews in one pair of buffers, each mesh's indices offset past the ones before.
+        let (mut vertices, mut indices) = (Vec::new(), Vec::new());
+        for p in settings.previews.iter().filter(|p| !p.mesh.indices.is_empty()) {
+            let base = vertices.len() as u32;
+            vertices.extend(world_vertices(p.mesh, p.model, p.color));
+            indices.extend(p.mesh.indices.iter().map(|i| i + base));
+        }
+        self.preview_buffers = (!indices.is_empty()).then(|| {
             let vb = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("preview vertices"),
                 contents: bytemuck::cast_slice(&vertices),
@@ -333,10 +340,10 @@ impl Renderer {
             });
             let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("preview triangles"),
-                contents: bytemuck::cast_slice(&p.mesh.indices),
+                contents: bytemuck::cast_slice(&indices),
                 usage: wgpu::BufferUsages::INDEX,
             });
-            (vb, ib, p.mesh.indices.len() as u32)
+            (vb, ib, indices.len() as u32)
         });
     }
 

@@ -104,7 +104,7 @@ fn a_sphere_renders_where_the_camera_puts_it() {
         color: [0.3, 0.6, 1.0, 0.4],
     };
     let with_preview =
-        render_offscreen(&gpu, &mut r, W, H, &FrameSettings { preview: Some(preview), ..settings }).unwrap();
+        render_offscreen(&gpu, &mut r, W, H, &FrameSettings { previews: &[preview], ..settings }).unwrap();
     let bluish = |i: &Image| {
         (0..H)
             .flat_map(|y| (0..W).map(move |x| (x, y)))

@@ -232,11 +232,11 @@ pub fn flatten(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> 
     Ok(volume.write_region(&region)?)
 }
 
-/// Clay: a ball of the dab's radius added (or, with `erase`, taken away) with a smooth union
-/// (smooth difference) of fillet radius `fillet` (grid units) on the field, so the stroke meets
-/// the model in a soft fillet instead of a crease. The strength blends between the surface as
-/// it was (0) and the full filleted union (1). A fillet of 0 is the exact union of the ball,
-/// through the field.
+/// Clay: a ball added (or, with `erase`, taken away) with a smooth union (smooth difference)
+/// of fillet radius `fillet` (grid units) on the field, so the stroke meets the model in a soft
+/// fillet instead of a crease. The strength says how much clay: the ball's radius is
+/// `strength × radius` (0 adds nothing). A fillet of 0 is the exact union of the ball, through
+/// the field.
 ///
 /// The blend is the polynomial smooth minimum `min(a, b) − h² k / 4`, `h = max(k − |a − b|, 0) / k`
 /// (exact `min` wherever the two fields differ by more than `k`, so the volume away from the
@@ -246,11 +246,15 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
     if fillet < 0.0 {
         return Err(ToolError::BadParameter { what: "the clay fillet", positive: true });
     }
+    let r = dab.radius * dab.strength;
+    if r <= 0.0 {
+        return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
+    }
     let sp = volume.level().spacing();
-    let reach = DVec3::splat(dab.radius + fillet);
+    let reach = DVec3::splat(r + fillet);
     let mut region = volume.read_region(dab.center - reach, dab.center + reach, 2)?;
     let k = (fillet / sp) as f32;
-    let (c, r) = (dab.center, dab.radius);
+    let c = dab.center;
     let d = region.dims;
     for z in 0..d[2] {
         for y in 0..d[1] {
@@ -258,14 +262,9 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
                 let i = region.index(x, y, z);
                 let ball = (((region.grid_point(x, y, z) - c).length() - r) / sp) as f32;
                 let a = region.phi[i];
-                let (a_s, b_s) = if erase { (-a, ball) } else { (a, ball) };
-                let mut m = smooth_min(a_s, b_s, k);
-                if erase {
-                    m = -m;
-                }
-                let blended = a + dab.strength as f32 * (m - a);
-                if blended != a {
-                    region.phi[i] = blended;
+                let m = if erase { -smooth_min(-a, ball, k) } else { smooth_min(a, ball, k) };
+                if m != a {
+                    region.phi[i] = m;
                     region.weight[i] = 1.0;
                 }
             }

@@ -43,6 +43,11 @@ const MAX_LATERAL: f64 = 1.0;
 /// The most nodes a region may hold (about a 256³ box: 64 MB of fields).
 pub const MAX_REGION_NODES: usize = 1 << 24;
 
+/// The distance (node units) a region with no crossing at all reads at every node: farther than
+/// any region reaches, yet finite, so that operators' arithmetic (differences, Laplacians,
+/// blends) stays exact and never overflows.
+pub const FAR: f32 = 1.0e6;
+
 /// The smallest magnitude a read distance takes, so that its sign always says the node's state.
 const MIN_DISTANCE: f32 = 1e-4;
 
@@ -346,7 +351,7 @@ impl Volume {
             }
         }
         for (i, v) in region.phi.iter_mut().enumerate() {
-            let m = if v.is_finite() { v.max(MIN_DISTANCE) } else { f32::MAX };
+            let m = if v.is_finite() { v.max(MIN_DISTANCE) } else { FAR };
             *v = if inside[i] { -m } else { m };
         }
         region.original = region.phi.clone();
