@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 pub mod baselines;
 pub mod suite;
+pub mod tools;
 use strata_volume::brush::Sphere;
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Volume, VoxelBlock};
 

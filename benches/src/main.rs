@@ -78,6 +78,22 @@ enum Command {
         #[arg(long)]
         mesh: Option<std::path::PathBuf>,
     },
+    /// Table 6 alone: per-dab and whole-frame times of every sculpting tool on the Table 1
+    /// canvas (printed, not written to the docs; `suite` writes them).
+    Tools {
+        /// Canvas instructions (radius 10).
+        #[arg(long, default_value_t = 1000)]
+        canvas: usize,
+        /// Brush radii.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![5.0, 10.0, 20.0])]
+        radii: Vec<f64>,
+        /// Dabs per tool and radius.
+        #[arg(long, default_value_t = 100)]
+        dabs: usize,
+        /// Workload seed.
+        #[arg(long, default_value_t = 2021)]
+        seed: u64,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -92,6 +108,7 @@ fn main() -> Result<()> {
         Command::Table1 { count, radii, seed, single } => table1(count, &radii, seed, single),
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
+        Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
         Command::Stroke { seconds } => stroke(seconds),
         Command::Convert { res, mesh } => return convert(res, mesh),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
@@ -130,6 +147,29 @@ fn suite(
     }
     eprintln!("suite done in {:.1} s", start.elapsed().as_secs_f64());
     Ok(())
+}
+
+fn tools(canvas: usize, radii: &[f64], dabs: usize, seed: u64) {
+    let start = std::time::Instant::now();
+    let r = strata_bench::tools::run(canvas, radii, dabs, (0, 0), seed, &mut |step| {
+        eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64());
+    });
+    println!(
+        "| tool | radius | dab (ms) | frame 1 thread (ms) | p99 1 thread (ms) | frame all cores (ms) | chunks changed |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for row in &r.table6 {
+        println!(
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} |",
+            row.tool, row.radius, row.dab_ms, row.frame_1_ms, row.frame_1_p99_ms, row.frame_all_ms, row.changed_chunks
+        );
+    }
+    for row in &r.blur {
+        println!(
+            "radius {}: dense box blur {:.3} ms, segments 1 pass {:.3} ms",
+            row.radius, row.dense_ms, row.segments_ms
+        );
+    }
 }
 
 fn table1(count: usize, radii: &[f64], seed: u64, single_only: bool) {

@@ -41,6 +41,14 @@ pub struct SuiteConfig {
     pub coral_resolutions: Vec<u32>,
     /// Cells per side of the Table 5 sphere's grid.
     pub sphere_cells: u32,
+    /// Instructions (radius 10) building the Table 6 canvas.
+    pub tool_canvas: usize,
+    /// Brush radii of Table 6.
+    pub tool_radii: Vec<f64>,
+    /// Dabs per tool and radius in Table 6.
+    pub tool_dabs: usize,
+    /// Dabs and passes of the smoothing quality run.
+    pub quality: (usize, u32),
     /// Workload seed.
     pub seed: u64,
 }
@@ -57,6 +65,10 @@ impl SuiteConfig {
             mesh_resolutions: vec![256, 512, 1024],
             coral_resolutions: vec![256, 512],
             sphere_cells: 256,
+            tool_canvas: 1000,
+            tool_radii: vec![5.0, 10.0, 20.0],
+            tool_dabs: 100,
+            quality: (60, 12),
             seed: 2021,
         }
     }
@@ -72,6 +84,10 @@ impl SuiteConfig {
             mesh_resolutions: vec![32, 64],
             coral_resolutions: vec![32],
             sphere_cells: 64,
+            tool_canvas: 60,
+            tool_radii: vec![5.0, 10.0],
+            tool_dabs: 3,
+            quality: (4, 2),
             seed: 2021,
         }
     }
@@ -183,6 +199,8 @@ pub struct SuiteResults {
     pub table3: Vec<Table3Row>,
     /// Table 5, and the grid's side in cells.
     pub table5: Vec<Table5Row>,
+    /// Table 6 (sculpting tools), the godot_voxel-style smoothing and the smoothing quality.
+    pub tools: crate::tools::ToolsResults,
 }
 
 /// Runs every table. `mesh` is the scanned mesh of Table 3 (PLY, OBJ or STL).
@@ -201,6 +219,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         table2: Vec::new(),
         table3: Vec::new(),
         table5: Vec::new(),
+        tools: crate::tools::ToolsResults { dabs: 0, table6: Vec::new(), blur: Vec::new(), quality: Vec::new() },
     };
     for &r in &config.radii {
         progress(&format!("table 1: radius {r}"));
@@ -243,6 +262,14 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
     }
     progress("table 5: sphere meshing");
     out.table5 = table5(config.sphere_cells);
+    out.tools = crate::tools::run(
+        config.tool_canvas,
+        &config.tool_radii,
+        config.tool_dabs,
+        config.quality,
+        config.seed,
+        progress,
+    );
     Ok(out)
 }
 
@@ -508,6 +535,60 @@ pub fn markdown(r: &SuiteResults) -> String {
             s,
             "| {} | {} | {:.1} | {:.1} | {:.1} | {} |",
             row.method, row.threads, row.input_ms, row.ms, row.mcells_per_s, row.triangles
+        );
+    }
+    let t = &r.tools;
+    let _ = writeln!(
+        s,
+        "\n### Table 6 — sculpting tools\n\n{} dabs per tool and radius on the surface of a canvas of {} radius-10 Table 1 instructions, with the studio's defaults (strength 0.5, 4 smoothing passes, inflate 0.2 r, pinch 0.5, clay fillet 0.5 r, grab 0.25 r per frame). A tool runs on one thread; the whole frame adds the remesh of the affected chunks, on one thread or on all cores. Targets, one thread: whole frame ≤ 4 ms at radius 10 and ≤ 11.1 ms at radius 20.\n",
+        t.dabs, r.config.tool_canvas
+    );
+    let _ = writeln!(
+        s,
+        "| tool | radius | dab (ms) | frame 1 thread (ms) | p99 1 thread (ms) | frame all cores (ms) | chunks changed |"
+    );
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|");
+    for row in &t.table6 {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} |",
+            row.tool, row.radius, row.dab_ms, row.frame_1_ms, row.frame_1_p99_ms, row.frame_all_ms, row.changed_chunks
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nThe same smoothing the way godot_voxel does it: a 3×3×3 box blur of the dense baseline's field inside the ball, blended by `strength · (1 − d²/r²)`, against one pass of the default (volume-preserving) field smoothing on the segments, same dabs:\n"
+    );
+    let _ = writeln!(s, "| radius | dense box blur (ms) | segments, 1 pass (ms) | dense / segments |");
+    let _ = writeln!(s, "|---:|---:|---:|---:|");
+    for row in &t.blur {
+        let _ = writeln!(
+            s,
+            "| {} | {:.3} | {:.3} | {:.2}× |",
+            row.radius,
+            row.dense_ms,
+            row.segments_ms,
+            row.dense_ms / row.segments_ms
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nSmoothing quality: a sphere of radius 20 roughened by 200 spheres of radius 1.5–3, then {} dabs of radius 9 at full strength, {} passes each, over its whole surface. RMS: radial deviation from the best-fit sphere's radius over 400 directions.\n",
+        r.config.quality.0, r.config.quality.1
+    );
+    let _ =
+        writeln!(s, "| method | RMS before (cells) | RMS after (cells) | RMS reduction | volume change | ms per dab |");
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+    for row in &t.quality {
+        let _ = writeln!(
+            s,
+            "| {} | {:.3} | {:.3} | {:.0} % | {:+.2} % | {:.1} |",
+            row.method,
+            row.rms_before,
+            row.rms_after,
+            (1.0 - row.rms_after / row.rms_before) * 100.0,
+            row.volume_change_pct,
+            row.dab_ms
         );
     }
     s

@@ -24,8 +24,31 @@ fn the_quick_suite_measures_every_table() {
     // Every mesher closes the same sphere with about the same number of triangles.
     let tris: Vec<usize> = results.table5.iter().map(|r| r.triangles).collect();
     assert!(tris.iter().all(|&t| t.abs_diff(tris[0]) * 50 < tris[0]), "{tris:?}");
+    let tools = &results.tools;
+    assert_eq!(tools.table6.len(), config.tool_radii.len() * strata_bench::tools::Tool::ALL.len());
+    assert!(
+        tools.table6.iter().all(|r| r.dab_ms > 0.0 && r.frame_1_ms >= r.dab_ms && r.frame_all_ms > 0.0),
+        "{:?}",
+        tools.table6
+    );
+    assert!(tools.table6.iter().any(|r| r.changed_chunks > 0.0), "the dabs change the canvas");
+    assert_eq!(tools.blur.len(), config.tool_radii.len());
+    assert!(tools.blur.iter().all(|r| r.dense_ms > 0.0 && r.segments_ms > 0.0));
+    assert_eq!(tools.quality.len(), 4);
+    assert!(tools.quality.iter().all(|q| q.rms_after < q.rms_before), "every method smooths: {:?}", tools.quality);
     let md = markdown(&results);
-    for t in ["Table 1", "Table 2", "Table 3", "Table 4", "Table 5", "fast-surface-nets", "bunny", "gyroid coral"] {
+    for t in [
+        "Table 1",
+        "Table 2",
+        "Table 3",
+        "Table 4",
+        "Table 5",
+        "Table 6 — sculpting tools",
+        "godot_voxel",
+        "fast-surface-nets",
+        "bunny",
+        "gyroid coral",
+    ] {
         assert!(md.contains(t), "the markdown names {t}");
     }
     let json = serde_json::to_string(&results).unwrap();

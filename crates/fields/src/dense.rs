@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
 
-use glam::I64Vec3;
+use glam::{DVec3, I64Vec3};
 use strata_volume::brush::Brush;
 use strata_volume::{ChunkKey, CsgOp, KeyHasher, VoxelBlock, hash_table_bytes};
 
@@ -14,6 +14,9 @@ use crate::{
 /// Nodes within this many cells of a brush's bounds are updated: the crossings next to the
 /// brush interpolate fresh values, and so do the central differences that give their normals.
 const MARGIN: f64 = 2.0;
+
+/// The most chunks one smoothing dab may cover (a ball of radius about 250 cells).
+pub const MAX_BLUR_CHUNKS: u64 = 1 << 15;
 
 /// The value of every node no edit has touched: far outside.
 pub const FAR: f32 = 1.0e6;
@@ -81,6 +84,118 @@ impl DenseField {
         let keys = neighbourhood(key);
         gather(scratch, FAR, |i| self.chunks.get(&keys[i]).map(|c| &c[..]));
         scratch.fill_block(key, out);
+    }
+
+    /// godot_voxel's smooth tool on this field (its `VoxelToolLodTerrain` "smooth" mode): inside
+    /// the ball of `radius` (grid units) about `center`, every node moves towards the mean of its
+    /// 3×3×3 neighbourhood (a box blur of the values before the dab), by
+    /// `strength · (1 − d² / r²)`. Returns the chunks whose values changed, sorted; chunks that no
+    /// edit allocated read [`FAR`] and are allocated only if a value in them changes.
+    pub fn smooth_box_blur(&mut self, center: DVec3, radius: f64, strength: f32) -> Result<Vec<ChunkKey>, FieldError> {
+        if !(center.is_finite() && radius.is_finite() && radius > 0.0 && (0.0..=1.0).contains(&strength)) {
+            return Err(FieldError::BadDab);
+        }
+        let lo = (center - DVec3::splat(radius)).floor() - DVec3::ONE;
+        let hi = (center + DVec3::splat(radius)).ceil() + DVec3::ONE;
+        let bounds = strata_volume::brush::Aabb { min: lo, max: hi };
+        if lo.min_element() < -(i32::MAX as f64) * N as f64 || hi.max_element() > (i32::MAX as f64) * N as f64 {
+            return Err(FieldError::OutOfRange(bounds));
+        }
+        let d = hi - lo + DVec3::ONE;
+        let chunks = (d / N as f64).ceil() + DVec3::ONE;
+        if chunks.x * chunks.y * chunks.z > MAX_BLUR_CHUNKS as f64 {
+            return Err(FieldError::TooLarge {
+                chunks: (chunks.x * chunks.y * chunks.z) as u64,
+                limit: MAX_BLUR_CHUNKS,
+            });
+        }
+        let (o, dims) = (lo.as_i64vec3(), [d.x as usize, d.y as usize, d.z as usize]);
+        // The values of the box, copied chunk by chunk (as godot_voxel copies the box to a buffer).
+        let mut values = vec![FAR; dims[0] * dims[1] * dims[2]];
+        let at = |x: usize, y: usize, z: usize| x + dims[0] * (y + dims[1] * z);
+        let n = N as i64;
+        let (klo, khi) =
+            (o.div_euclid(I64Vec3::splat(n)), (o + d.as_i64vec3() - I64Vec3::ONE).div_euclid(I64Vec3::splat(n)));
+        let each_node = |key: I64Vec3, f: &mut dyn FnMut(usize, usize)| {
+            let base = key * n;
+            let (a, b) = ((o - base).max(I64Vec3::ZERO), (o + d.as_i64vec3() - base).min(I64Vec3::splat(n)));
+            for z in a.z..b.z {
+                for y in a.y..b.y {
+                    for x in a.x..b.x {
+                        let g = base + I64Vec3::new(x, y, z) - o;
+                        f(index(x as usize, y as usize, z as usize), at(g.x as usize, g.y as usize, g.z as usize));
+                    }
+                }
+            }
+        };
+        for kz in klo.z..=khi.z {
+            for ky in klo.y..=khi.y {
+                for kx in klo.x..=khi.x {
+                    let key = I64Vec3::new(kx, ky, kz);
+                    if let Some(c) = self.chunks.get(&ChunkKey(key.as_ivec3())) {
+                        each_node(key, &mut |ci, vi| values[vi] = c[ci]);
+                    }
+                }
+            }
+        }
+        // The blur, blended by the ball's weight, into a second buffer.
+        let mut out = values.clone();
+        let r2 = radius * radius;
+        for z in 1..dims[2] - 1 {
+            for y in 1..dims[1] - 1 {
+                for x in 1..dims[0] - 1 {
+                    let p = o.as_dvec3() + DVec3::new(x as f64, y as f64, z as f64);
+                    let d2 = (p - center).length_squared();
+                    if d2 >= r2 {
+                        continue;
+                    }
+                    let mut sum = 0.0f32;
+                    for dz in 0..3 {
+                        for dy in 0..3 {
+                            for dx in 0..3 {
+                                sum += values[at(x + dx - 1, y + dy - 1, z + dz - 1)];
+                            }
+                        }
+                    }
+                    let w = strength * (1.0 - (d2 / r2) as f32);
+                    let i = at(x, y, z);
+                    out[i] = values[i] + (sum / 27.0 - values[i]) * w;
+                }
+            }
+        }
+        let mut changed = Vec::new();
+        for kz in klo.z..=khi.z {
+            for ky in klo.y..=khi.y {
+                for kx in klo.x..=khi.x {
+                    let key = I64Vec3::new(kx, ky, kz);
+                    let ck = ChunkKey(key.as_ivec3());
+                    let mut differs = false;
+                    each_node(key, &mut |_, vi| differs |= out[vi] != values[vi]);
+                    if !differs {
+                        continue;
+                    }
+                    let c = self.chunks.entry(ck).or_insert_with(|| vec![FAR; NODES].into());
+                    each_node(key, &mut |ci, vi| c[ci] = out[vi]);
+                    changed.push(ck);
+                }
+            }
+        }
+        changed.sort_by_key(|k| (k.0.z, k.0.y, k.0.x));
+        Ok(changed)
+    }
+
+    /// The field at grid point `p`, trilinearly interpolated between the nodes.
+    pub fn sample(&self, p: DVec3) -> f32 {
+        let b = p.floor();
+        let f = p - b;
+        let g = b.as_i64vec3();
+        let v = |dx: i64, dy: i64, dz: i64| self.value(g + I64Vec3::new(dx, dy, dz)) as f64;
+        let l = |a: f64, b: f64, t: f64| a + (b - a) * t;
+        let x00 = l(v(0, 0, 0), v(1, 0, 0), f.x);
+        let x10 = l(v(0, 1, 0), v(1, 1, 0), f.x);
+        let x01 = l(v(0, 0, 1), v(1, 0, 1), f.x);
+        let x11 = l(v(0, 1, 1), v(1, 1, 1), f.x);
+        l(l(x00, x10, f.y), l(x01, x11, f.y), f.z) as f32
     }
 
     /// Chunks allocated.

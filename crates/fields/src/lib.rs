@@ -59,6 +59,10 @@ pub enum FieldError {
     /// A narrow-band width that is not finite and positive.
     #[error("band width must be finite and positive, got {0}")]
     BadBand(f32),
+    /// A smoothing dab whose centre, radius or strength is not finite, or whose radius is not
+    /// positive, or whose strength is outside `[0, 1]`.
+    #[error("a smoothing dab needs a finite centre, a finite positive radius and a strength in [0, 1]")]
+    BadDab,
 }
 
 /// At most this many chunks per edit (2²⁰ chunks = 16 GiB of dense values).
