@@ -225,3 +225,44 @@ fn a_field_that_is_zero_on_nodes_decides_them_inside_on_every_axis() {
         assert!(!v.node_inside(I64Vec3::new(x, 16, 17)));
     }
 }
+
+#[test]
+fn a_region_read_within_a_reach_matches_the_full_read_there_and_keeps_every_sign() {
+    use strata_volume::tools::{FAR, Reach};
+    let v = sphere_volume(DVec3::new(20.3, 19.8, 20.1), 9.0);
+    let (min, max) = (DVec3::splat(6.0), DVec3::splat(34.0));
+    let full = v.read_region(min, max, 2).unwrap();
+    for reach in [
+        Reach::ball(DVec3::new(29.0, 20.0, 20.0), 5.0, 3.0),
+        Reach::ball(DVec3::new(29.0, 20.0, 20.0), 5.0, 6.0),
+        Reach::Capsule { a: DVec3::new(12.0, 20.0, 20.0), b: DVec3::new(28.0, 22.0, 19.0), radius: 3.0, depth: 4.5 },
+    ] {
+        let Reach::Capsule { depth, .. } = reach else { unreachable!() };
+        let part = v.read_region_within(min, max, 2, reach).unwrap();
+        assert_eq!(part.dims, full.dims);
+        let (mut inside_reach, mut outside) = (0, 0);
+        for z in 0..full.dims[2] {
+            for y in 0..full.dims[1] {
+                for x in 0..full.dims[0] {
+                    let i = full.index(x, y, z);
+                    assert_eq!(part.was_inside(i), full.was_inside(i), "every node keeps its state");
+                    if part.phi[i].abs() == FAR {
+                        outside += 1;
+                    } else {
+                        // Within the depth the field is the full read's; beyond it an upper bound
+                        // (beyond the band the sweep's paths differ: a little slack).
+                        let (a, b) = (part.phi[i].abs(), full.phi[i].abs());
+                        if b <= depth as f32 {
+                            assert!((a - b).abs() <= 0.05, "within the depth: {a} vs {b}");
+                        } else {
+                            assert!(a >= depth.min(b as f64) as f32 - 0.05, "beyond it an upper bound: {a} vs {b}");
+                        }
+                        inside_reach += 1;
+                    }
+                }
+            }
+        }
+        assert!(inside_reach > 100 && outside > 1000, "{inside_reach} nodes read, {outside} skipped");
+    }
+    assert!(v.read_region_within(min, max, 2, Reach::ball(DVec3::NAN, 3.0, 3.0)).is_err());
+}

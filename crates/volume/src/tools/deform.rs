@@ -13,7 +13,7 @@
 use glam::DVec3;
 
 use super::ops::{Dab, ToolError, falloff, finite};
-use super::region::Region;
+use super::region::{Reach, Region};
 use crate::edit::EditReport;
 use crate::volume::Volume;
 
@@ -84,7 +84,13 @@ pub fn grab(volume: &mut Volume, dab: &Dab, drag: DVec3) -> Result<EditReport, T
     if travel == DVec3::ZERO {
         return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
     }
-    let region = volume.read_region(lo, hi, 2)?;
+    let region = volume.read_region_within(
+        lo,
+        hi,
+        2,
+        // (The field is sampled where the surface was: the band's distances are enough.)
+        Reach::Capsule { a: dab.center, b: dab.center + travel, radius: dab.radius, depth: 0.0 },
+    )?;
     let step = travel / steps as f64;
     let (c0, radius, r2) = (dab.center, dab.radius, dab.radius * dab.radius);
     deform(volume, region, steps, |k, q| {
@@ -113,7 +119,8 @@ pub fn pinch(volume: &mut Volume, dab: &Dab, axis: Option<DVec3>, amount: f64) -
     };
     let sp = volume.level().spacing();
     let r = DVec3::splat(dab.radius);
-    let region = volume.read_region(dab.center - r, dab.center + r, 2)?;
+    let region =
+        volume.read_region_within(dab.center - r, dab.center + r, 2, Reach::ball(dab.center, dab.radius, 0.0))?;
     let normal = field_normal(&region, dab.center);
     // Only the part of `c − x` across the normal and the line's axis (the axis made
     // perpendicular to the normal first, so the two projections are exact together).

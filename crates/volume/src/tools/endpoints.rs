@@ -32,7 +32,8 @@ const REACH: f64 = 2.0;
 
 /// One pass of Eq. 1 smoothing under `dab` (see the module docs).
 pub(crate) fn smooth_endpoints_pass(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> {
-    let mut region = dab.region(volume, 2)?;
+    // Crossings move by less than the neighbour window: the band's distances are enough.
+    let mut region = dab.region(volume, 2, 0.0)?;
     let sp = region.spacing();
     // The crossings by line: (axis, u, v) → (position along the line, leaves the solid).
     let mut lines: HashMap<(usize, i64, i64), Vec<(f64, bool)>> = HashMap::new();

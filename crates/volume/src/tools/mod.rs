@@ -13,4 +13,4 @@ mod region;
 
 pub use deform::{MAX_STEP, MAX_STEPS, grab, pinch};
 pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, smooth};
-pub use region::{BAND, FAR, MAX_REGION_NODES, Region, RegionCrossing, RegionError};
+pub use region::{BAND, FAR, MAX_REGION_NODES, Reach, Region, RegionCrossing, RegionError};

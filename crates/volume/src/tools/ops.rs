@@ -8,7 +8,7 @@
 use glam::DVec3;
 use thiserror::Error;
 
-use super::region::{Region, RegionError};
+use super::region::{Reach, Region, RegionError};
 use crate::edit::EditReport;
 use crate::volume::Volume;
 
@@ -60,11 +60,13 @@ impl Dab {
         self.strength * falloff((p - self.center).length() / self.radius)
     }
 
-    /// Reads the region the dab covers (plus `apron` nodes), sets the weight of every node, and
-    /// returns it with the nodes' grid points, for an operator to fill in.
-    pub(crate) fn region(&self, volume: &Volume, apron: usize) -> Result<Region, ToolError> {
+    /// Reads the region the dab covers (plus `apron` nodes), its field exact within `depth`
+    /// (grid units) of the surface, sets the weight of every node, and returns it for an
+    /// operator to fill in.
+    pub(crate) fn region(&self, volume: &Volume, apron: usize, depth: f64) -> Result<Region, ToolError> {
         let r = DVec3::splat(self.radius);
-        let mut region = volume.read_region(self.center - r, self.center + r, apron)?;
+        let reach = Reach::ball(self.center, self.radius, depth);
+        let mut region = volume.read_region_within(self.center - r, self.center + r, apron, reach)?;
         for z in 0..region.dims[2] {
             for y in 0..region.dims[1] {
                 for x in 0..region.dims[0] {
@@ -94,7 +96,8 @@ pub(crate) fn finite(what: &'static str, v: f64) -> Result<f64, ToolError> {
 /// inflates, negative deflates), less towards the rim by the falloff.
 pub fn inflate(volume: &mut Volume, dab: &Dab, amount: f64) -> Result<EditReport, ToolError> {
     let amount = finite("the inflate amount", amount)?;
-    let mut region = dab.region(volume, 2)?;
+    let sp = volume.level().spacing();
+    let mut region = dab.region(volume, 2, (amount * dab.strength).abs().min(dab.radius) + sp)?;
     let per_node = (amount * volume.level().nodes_per_unit()) as f32;
     for i in 0..region.phi.len() {
         region.phi[i] -= per_node * region.weight[i];
@@ -135,7 +138,9 @@ pub fn smooth(volume: &mut Volume, dab: &Dab, method: Smoothing, passes: u32) ->
         }
         return Ok(report);
     }
-    let mut region = dab.region(volume, 2)?;
+    // A pass moves information one node; the volume correction offsets by up to 4 nodes.
+    let sp = volume.level().spacing();
+    let mut region = dab.region(volume, 2, (passes.min(1000) as f64 + 4.0) * sp)?;
     let before = enclosed(&region.phi);
     let d = region.dims;
     let (sx, sy, sz) = (1, d[0], d[0] * d[1]);
@@ -186,7 +191,8 @@ fn enclosed(phi: &[f32]) -> f64 {
 /// Pulls the surface under the dab towards the plane through the brushed surface's
 /// weighted barycentre with its weighted mean normal.
 pub fn flatten(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> {
-    let mut region = dab.region(volume, 2)?;
+    // The plane may lie anywhere in the ball.
+    let mut region = dab.region(volume, 2, dab.radius)?;
     let sp = region.spacing();
     let d = region.dims;
     // Surface points: nodes within a cell of the surface, moved onto it along the gradient.
@@ -252,15 +258,23 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
     }
     let sp = volume.level().spacing();
     let reach = DVec3::splat(r + fillet);
-    let mut region = volume.read_region(dab.center - reach, dab.center + reach, 2)?;
+    let within = Reach::ball(dab.center, r + fillet, fillet + sp);
+    let mut region = volume.read_region_within(dab.center - reach, dab.center + reach, 2, within)?;
     let k = (fillet / sp) as f32;
     let c = dab.center;
     let d = region.dims;
+    // Nodes farther than this keep their sign (the smooth union only lowers the field by more
+    // than its value within `r + k / 4`) and stay untouched.
+    let owned = r + fillet + sp;
     for z in 0..d[2] {
         for y in 0..d[1] {
             for x in 0..d[0] {
                 let i = region.index(x, y, z);
-                let ball = (((region.grid_point(x, y, z) - c).length() - r) / sp) as f32;
+                let from_centre = (region.grid_point(x, y, z) - c).length();
+                if from_centre > owned {
+                    continue;
+                }
+                let ball = ((from_centre - r) / sp) as f32;
                 let a = region.phi[i];
                 let m = if erase { -smooth_min(-a, ball, k) } else { smooth_min(a, ball, k) };
                 if m != a {

@@ -215,11 +215,95 @@ impl Region {
     }
 }
 
+/// Where a region's field has to be a distance: the rest of its box reads [`FAR`] with the
+/// node's sign (its state stays exact), which saves the distance computation an operator would
+/// not look at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Reach {
+    /// The whole box.
+    Everywhere,
+    /// Nodes within `radius` (grid units) of the segment from `a` to `b` (a ball when the ends
+    /// coincide), plus the region's apron. Their field is the distance to the surface wherever
+    /// that is at most `depth` (grid units, at least [`BAND`] nodes); farther from the surface
+    /// it is the distance to the nearest crossing within `radius + depth` of the segment (an
+    /// upper bound, never below `depth`).
+    Capsule {
+        /// One end (grid coordinates).
+        a: DVec3,
+        /// The other end.
+        b: DVec3,
+        /// Radius (grid units).
+        radius: f64,
+        /// How far from the surface the field must be exact (grid units).
+        depth: f64,
+    },
+}
+
+impl Reach {
+    /// A ball whose field is exact within `depth` of the surface.
+    pub fn ball(center: DVec3, radius: f64, depth: f64) -> Self {
+        Reach::Capsule { a: center, b: center, radius, depth }
+    }
+
+    /// The distance (same units as the arguments) from `p` to the reach's core: the segment, or
+    /// 0 for [`Reach::Everywhere`].
+    fn distance(&self, p: DVec3) -> f64 {
+        match *self {
+            Reach::Everywhere => 0.0,
+            Reach::Capsule { a, b, .. } => {
+                let ab = b - a;
+                let len2 = ab.length_squared();
+                let t = if len2 > 0.0 { ((p - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                (p - (a + ab * t)).length()
+            }
+        }
+    }
+
+    /// The reach in node units (scaled by `inv_sp`, nodes per grid unit), its radius widened by
+    /// `apron` nodes and its depth at least [`BAND`]; `None` for everywhere.
+    fn in_nodes(&self, inv_sp: f64, apron: f64) -> Option<Reach> {
+        match *self {
+            Reach::Everywhere => None,
+            Reach::Capsule { a, b, radius, depth } => Some(Reach::Capsule {
+                a: a * inv_sp,
+                b: b * inv_sp,
+                radius: radius * inv_sp + apron,
+                depth: (depth * inv_sp).max(BAND),
+            }),
+        }
+    }
+
+    fn is_finite(&self) -> bool {
+        match *self {
+            Reach::Everywhere => true,
+            Reach::Capsule { a, b, radius, depth } => {
+                a.is_finite() && b.is_finite() && radius.is_finite() && depth.is_finite()
+            }
+        }
+    }
+}
+
 impl Volume {
     /// Reads the nodes of the box `[min, max]` (grid coordinates, rounded outwards to nodes) plus
     /// `apron` nodes on every side into a [`Region`] (see the module docs).
     pub fn read_region(&self, min: DVec3, max: DVec3, apron: usize) -> Result<Region, RegionError> {
+        self.read_region_within(min, max, apron, Reach::Everywhere)
+    }
+
+    /// [`Volume::read_region`] with the distance computed only within `reach` (plus `apron`
+    /// nodes); the rest of the box reads [`FAR`] with the node's sign. Operators must then own
+    /// only nodes at least one node inside the reach.
+    pub fn read_region_within(
+        &self,
+        min: DVec3,
+        max: DVec3,
+        apron: usize,
+        reach: Reach,
+    ) -> Result<Region, RegionError> {
         if !(min.is_finite() && max.is_finite() && min.cmple(max).all()) {
+            return Err(RegionError::BadBox);
+        }
+        if !reach.is_finite() {
             return Err(RegionError::BadBox);
         }
         let level = self.level;
@@ -308,19 +392,58 @@ impl Volume {
         let mut nearest_d = vec![f64::INFINITY; count];
         let mut best_lateral = vec![f64::INFINITY; count];
         let mut plane_d = vec![f64::INFINITY; count];
+        let reach_nodes = reach.in_nodes(inv_sp, apron as f64);
+        // Which nodes need a distance, and which the sweep runs over: the reach widened by the
+        // band, so that the straight path from a needed node to its nearest crossing (both in
+        // the convex reach widened by the band) is open to the sweep.
+        let within = |extra: f64| -> Vec<bool> {
+            match reach_nodes {
+                None => vec![true; count],
+                Some(r) => {
+                    let Reach::Capsule { radius, depth, .. } = r else { unreachable!("in_nodes keeps the kind") };
+                    let extra = extra.min(depth);
+                    (0..count)
+                        .map(|i| {
+                            let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+                            r.distance((origin + I64Vec3::new(x as i64, y as i64, z as i64)).as_dvec3())
+                                <= radius + extra
+                        })
+                        .collect()
+                }
+            }
+        };
+        let needed = within(0.0);
+        let swept = within(f64::INFINITY);
         for (k, &(p, nrm)) in samples.iter().enumerate() {
+            // A crossing farther than the depth from every needed node is nobody's nearest
+            // within the depth.
+            if let Some(r @ Reach::Capsule { radius, depth, .. }) = reach_nodes
+                && r.distance(p) > radius + depth
+            {
+                continue;
+            }
+            // The nodes of the ball of radius BAND about the crossing, row by row (a row's x
+            // range from what is left of the radius), so no node outside it is visited.
             let lo = (p - DVec3::splat(BAND)).ceil().as_i64vec3() - origin;
             let hi = (p + DVec3::splat(BAND)).floor().as_i64vec3() - origin;
+            let local = p - origin.as_dvec3();
             for z in lo.z.max(0)..=hi.z.min(dims[2] as i64 - 1) {
+                let dz = z as f64 - local.z;
                 for y in lo.y.max(0)..=hi.y.min(dims[1] as i64 - 1) {
-                    for x in lo.x.max(0)..=hi.x.min(dims[0] as i64 - 1) {
-                        let i = region.index(x as usize, y as usize, z as usize);
+                    let dy = y as f64 - local.y;
+                    let left = BAND * BAND - dz * dz - dy * dy;
+                    if left < 0.0 {
+                        continue;
+                    }
+                    let half = left.sqrt();
+                    let x0 = ((local.x - half).ceil() as i64).max(0);
+                    let x1 = ((local.x + half).floor() as i64).min(dims[0] as i64 - 1);
+                    let row = region.index(0, y as usize, z as usize);
+                    for x in x0..=x1 {
+                        let i = row + x as usize;
                         // (Squared distances until the end: no root per pair.)
-                        let r = (origin + I64Vec3::new(x, y, z)).as_dvec3() - p;
+                        let r = DVec3::new(x as f64 - local.x, dy, dz);
                         let d2 = r.length_squared();
-                        if d2 > BAND * BAND {
-                            continue;
-                        }
                         if d2 < nearest_d[i] {
                             nearest_d[i] = d2;
                             nearest[i] = k as u32;
@@ -342,9 +465,10 @@ impl Volume {
         for d in &mut nearest_d {
             *d = d.sqrt();
         }
-        sweep_nearest(&mut nearest, &mut nearest_d, &samples, origin, dims);
+        let points: Vec<DVec3> = samples.iter().map(|s| s.0).collect();
+        sweep_nearest(&mut nearest, &mut nearest_d, &points, origin, dims, &swept);
         for i in 0..count {
-            if nearest_d[i].is_finite() {
+            if needed[i] && nearest_d[i].is_finite() {
                 let close = best_lateral[i] <= MAX_LATERAL * MAX_LATERAL;
                 let d = if close { plane_d[i].min(nearest_d[i]) } else { nearest_d[i] };
                 region.phi[i] = d as f32;
@@ -442,14 +566,21 @@ fn for_owned_nodes(region: &Region, base: I64Vec3, n: i64, mut f: impl FnMut(usi
     }
 }
 
-/// Propagates each node's nearest crossing (`nearest`, with its distance `dist`) to the nodes
-/// beyond the band (those whose `dist` is infinite on entry; nodes in the band already know
-/// theirs exactly), comparing squared distances.
-fn sweep_nearest(nearest: &mut [u32], dist: &mut [f64], samples: &[(DVec3, DVec3)], origin: I64Vec3, dims: [usize; 3]) {
+/// Propagates each node's nearest crossing (`nearest`, with its distance `dist`) to the
+/// `needed` nodes beyond the band (those whose `dist` is infinite on entry; nodes in the band
+/// already know theirs exactly), comparing squared distances.
+fn sweep_nearest(
+    nearest: &mut [u32],
+    dist: &mut [f64],
+    samples: &[DVec3],
+    origin: I64Vec3,
+    dims: [usize; 3],
+    needed: &[bool],
+) {
     if samples.is_empty() {
         return;
     }
-    let open: Vec<bool> = dist.iter().map(|d| !d.is_finite()).collect();
+    let open: Vec<bool> = dist.iter().zip(needed).map(|(d, &n)| n && !d.is_finite()).collect();
     if !open.iter().any(|&o| o) {
         return;
     }
@@ -457,7 +588,8 @@ fn sweep_nearest(nearest: &mut [u32], dist: &mut [f64], samples: &[(DVec3, DVec3
     let steps = [1, dims[0] as i64, (dims[0] * dims[1]) as i64];
     // The 13 neighbours before a node in storage order (a forward pass reads them) and the 13
     // after it (a backward pass): two passes propagate a nearest crossing in every direction, as
-    // a two-pass chamfer transform does; a third and fourth catch what bends around.
+    // a two-pass chamfer transform does; a third catches most of what bends around (0.13 cells
+    // at worst on the test sphere, against 0.17 after two passes and 0.12 after four).
     let mut before = Vec::new();
     for dz in -1i64..=1 {
         for dy in -1i64..=1 {
@@ -470,7 +602,7 @@ fn sweep_nearest(nearest: &mut [u32], dist: &mut [f64], samples: &[(DVec3, DVec3
         }
     }
     let count = dims[0] * dims[1] * dims[2];
-    for pass in 0..4 {
+    for pass in 0..3 {
         let forward = pass % 2 == 0;
         for step in 0..count {
             let i = if forward { step } else { count - 1 - step };
@@ -489,7 +621,7 @@ fn sweep_nearest(nearest: &mut [u32], dist: &mut [f64], samples: &[(DVec3, DVec3
                 if k == u32::MAX || k == nearest[i] {
                     continue;
                 }
-                let dd = (q - samples[k as usize].0).length_squared();
+                let dd = (q - samples[k as usize]).length_squared();
                 if dd < d2[i] {
                     d2[i] = dd;
                     nearest[i] = k;
@@ -647,7 +779,8 @@ mod tests {
                 }
             }
         }
-        sweep_nearest(&mut nearest, &mut dist, &samples, origin, dims);
+        let points: Vec<DVec3> = samples.iter().map(|s| s.0).collect();
+        sweep_nearest(&mut nearest, &mut dist, &points, origin, dims, &vec![true; count]);
         let mut worst = 0.0f64;
         for z in 0..29 {
             for y in 0..29 {
@@ -660,7 +793,7 @@ mod tests {
             }
         }
         // Propagating one crossing per node through its 26 neighbours is not an exact nearest-
-        // point search: on this sphere it overestimates by at most 0.12 cells, beyond the band.
+        // point search: on this sphere it overestimates by at most 0.13 cells, beyond the band.
         assert!(worst < 0.15, "the sweep is {worst} cells off the nearest crossing");
     }
 }
