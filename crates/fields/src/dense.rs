@@ -18,6 +18,9 @@ const MARGIN: f64 = 2.0;
 /// The most chunks one smoothing dab may cover (a ball of radius about 250 cells).
 pub const MAX_BLUR_CHUNKS: u64 = 1 << 15;
 
+/// The magnitude at which [`DenseField::smooth_box_blur`] saturates the values it reads (cells).
+pub const BLUR_CLAMP: f32 = 4.0;
+
 /// The value of every node no edit has touched: far outside.
 pub const FAR: f32 = 1.0e6;
 
@@ -138,9 +141,14 @@ impl DenseField {
                 }
             }
         }
+        // The blur reads the values saturated at ±BLUR_CLAMP cells, as godot_voxel's stored SDF
+        // saturates: this field's far sentinel would otherwise diffuse into the solid pass by
+        // pass. Only values that the blur changes are written back.
+        let clamped: Vec<f32> = values.iter().map(|v| v.clamp(-BLUR_CLAMP, BLUR_CLAMP)).collect();
         // The blur, blended by the ball's weight, into a second buffer.
         let mut out = values.clone();
         let r2 = radius * radius;
+        let mut touched = vec![false; values.len()];
         for z in 1..dims[2] - 1 {
             for y in 1..dims[1] - 1 {
                 for x in 1..dims[0] - 1 {
@@ -153,13 +161,18 @@ impl DenseField {
                     for dz in 0..3 {
                         for dy in 0..3 {
                             for dx in 0..3 {
-                                sum += values[at(x + dx - 1, y + dy - 1, z + dz - 1)];
+                                sum += clamped[at(x + dx - 1, y + dy - 1, z + dz - 1)];
                             }
                         }
                     }
                     let w = strength * (1.0 - (d2 / r2) as f32);
                     let i = at(x, y, z);
-                    out[i] = values[i] + (sum / 27.0 - values[i]) * w;
+                    let blurred = clamped[i] + (sum / 27.0 - clamped[i]) * w;
+                    // (A node whose saturated neighbourhood is uniform keeps its exact value.)
+                    if blurred != clamped[i] {
+                        out[i] = blurred;
+                        touched[i] = true;
+                    }
                 }
             }
         }
@@ -170,12 +183,16 @@ impl DenseField {
                     let key = I64Vec3::new(kx, ky, kz);
                     let ck = ChunkKey(key.as_ivec3());
                     let mut differs = false;
-                    each_node(key, &mut |_, vi| differs |= out[vi] != values[vi]);
+                    each_node(key, &mut |_, vi| differs |= touched[vi] && out[vi] != values[vi]);
                     if !differs {
                         continue;
                     }
                     let c = self.chunks.entry(ck).or_insert_with(|| vec![FAR; NODES].into());
-                    each_node(key, &mut |ci, vi| c[ci] = out[vi]);
+                    each_node(key, &mut |ci, vi| {
+                        if touched[vi] {
+                            c[ci] = out[vi];
+                        }
+                    });
                     changed.push(ck);
                 }
             }

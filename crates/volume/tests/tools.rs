@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 use strata_volume::brush::{Cuboid, Sphere};
-use strata_volume::tools::{Dab, Smoothing, ToolError, flatten, inflate, smooth};
+use strata_volume::tools::{Dab, Smoothing, ToolError, falloff, flatten, inflate, smooth};
 use strata_volume::{Axis, Volume};
 
 struct Rng(u64);
@@ -195,4 +195,36 @@ fn bad_dabs_are_errors_not_panics() {
     let empty = Dab::new(DVec3::splat(200.0), 4.0, 1.0).unwrap();
     assert!(flatten(&mut v, &empty).unwrap().changed.is_empty());
     assert!(smooth(&mut v, &empty, Smoothing::VolumePreserving, 3).unwrap().changed.is_empty());
+}
+
+#[test]
+fn laplacian_smoothing_shrinks_a_sphere_as_mean_curvature_flow() {
+    // On a distance field, `φ += w Δφ / 6` per pass is a step dt = w / 6 of mean-curvature flow:
+    // a sphere's radius follows dr/dt = −2 / r, r² = r₀² − 4t. A dab centred on the sphere, of
+    // radius R, weighs every surface point alike, w = falloff(r / R), so
+    // d(r²)/dt = −4 falloff(r / R); the region is read again at every dab (four passes).
+    let c = DVec3::new(40.2, 39.9, 40.1);
+    let r0 = 12.0;
+    let big = 40.0;
+    let mut v = Volume::new();
+    v.add(&Sphere::new(c, r0).unwrap()).unwrap();
+    let dirs = directions(64);
+    let (_, measured0) = radial_rms(&v, c, &dirs);
+    let dabs = 8;
+    let passes = 4;
+    for _ in 0..dabs {
+        smooth(&mut v, &Dab::new(c, big, 1.0).unwrap(), Smoothing::Laplacian, passes).unwrap();
+    }
+    v.check_invariants().unwrap();
+    let (_, measured) = radial_rms(&v, c, &dirs);
+    // The predicted radius: r² integrated in small steps of t.
+    let t_total = (dabs * passes) as f64 / 6.0;
+    let mut r2 = measured0 * measured0;
+    let steps = 1000;
+    for _ in 0..steps {
+        r2 -= 4.0 * falloff(r2.sqrt() / big) * t_total / steps as f64;
+    }
+    let (drop, predicted) = (measured0 * measured0 - measured * measured, measured0 * measured0 - r2);
+    eprintln!("r² fell by {drop:.2}, mean-curvature flow predicts {predicted:.2} (r {measured0:.3} -> {measured:.3})");
+    assert!((drop - predicted).abs() <= 0.05 * predicted, "r² fell by {drop}, predicted {predicted}");
 }
