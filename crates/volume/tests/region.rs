@@ -235,6 +235,7 @@ fn a_region_read_within_a_reach_matches_the_full_read_there_and_keeps_every_sign
     for reach in [
         Reach::ball(DVec3::new(29.0, 20.0, 20.0), 5.0, 3.0),
         Reach::ball(DVec3::new(29.0, 20.0, 20.0), 5.0, 6.0),
+        Reach::ball(DVec3::new(29.0, 20.0, 20.0), 5.0, 9.0),
         Reach::Capsule { a: DVec3::new(12.0, 20.0, 20.0), b: DVec3::new(28.0, 22.0, 19.0), radius: 3.0, depth: 4.5 },
     ] {
         let Reach::Capsule { depth, .. } = reach else { unreachable!() };
@@ -249,13 +250,16 @@ fn a_region_read_within_a_reach_matches_the_full_read_there_and_keeps_every_sign
                     if part.phi[i].abs() == FAR {
                         outside += 1;
                     } else {
-                        // Within the depth the field is the full read's; beyond it an upper bound
-                        // (beyond the band the sweep's paths differ: a little slack).
+                        // Within the depth the field is the full read's (exactly in the band;
+                        // beyond it the propagation's paths differ: a little slack); beyond the
+                        // depth it is never below the depth.
                         let (a, b) = (part.phi[i].abs(), full.phi[i].abs());
-                        if b <= depth as f32 {
-                            assert!((a - b).abs() <= 0.05, "within the depth: {a} vs {b}");
+                        if b <= 3.0 {
+                            assert_eq!(a, b, "in the band");
+                        } else if b <= depth as f32 {
+                            assert!((a - b).abs() <= 0.15, "within the depth: {a} vs {b}");
                         } else {
-                            assert!(a >= depth.min(b as f64) as f32 - 0.05, "beyond it an upper bound: {a} vs {b}");
+                            assert!(a >= depth as f32 - 0.15, "beyond it never below the depth: {a} vs {b}");
                         }
                         inside_reach += 1;
                     }

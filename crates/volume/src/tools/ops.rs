@@ -138,61 +138,73 @@ pub fn smooth(volume: &mut Volume, dab: &Dab, method: Smoothing, passes: u32) ->
         }
         return Ok(report);
     }
-    // A pass moves information one node; the volume correction offsets by up to 4 nodes.
-    let sp = volume.level().spacing();
-    let mut region = dab.region(volume, 2, (passes.min(1000) as f64 + 4.0) * sp)?;
-    let before = enclosed(&region.phi);
+    // The band's distances are enough: with the field exact only within the band (and one
+    // node beyond it outside), the rough-sphere test gives RMS 0.495 cells and volume +0.02 %
+    // (against 0.497 and +0.03 % with the field exact everywhere), and the sphere's
+    // mean-curvature flow r² falls by 19.21 (against 19.32; the flow predicts 19.71).
+    let mut region = dab.region(volume, 2, 0.0)?;
     let d = region.dims;
     let (sx, sy, sz) = (1, d[0], d[0] * d[1]);
-    let mut next = region.phi.clone();
-    for _ in 0..passes.min(1000) {
-        for z in 1..d[2].saturating_sub(1) {
-            for y in 1..d[1].saturating_sub(1) {
-                for x in 1..d[0].saturating_sub(1) {
-                    let i = region.index(x, y, z);
-                    let w = region.weight[i];
-                    if w <= 0.0 {
-                        continue;
-                    }
-                    let p = &region.phi;
-                    let lap = p[i - sx] + p[i + sx] + p[i - sy] + p[i + sy] + p[i - sz] + p[i + sz] - 6.0 * p[i];
-                    next[i] = p[i] + w * lap / 6.0;
+    // The nodes the dab weighs (never on the region's outer layer), once: only they change, so
+    // only they count in the volume balance.
+    let mut active = Vec::new();
+    for z in 1..d[2].saturating_sub(1) {
+        for y in 1..d[1].saturating_sub(1) {
+            for x in 1..d[0].saturating_sub(1) {
+                let i = region.index(x, y, z);
+                if region.weight[i] > 0.0 {
+                    active.push(i);
                 }
             }
         }
-        region.phi.copy_from_slice(&next);
+    }
+    let before = enclosed(active.iter().map(|&i| region.phi[i]));
+    let mut next = vec![0.0f32; active.len()];
+    for _ in 0..passes.min(1000) {
+        let p = &region.phi;
+        for (n, &i) in next.iter_mut().zip(&active) {
+            let lap = p[i - sx] + p[i + sx] + p[i - sy] + p[i + sy] + p[i - sz] + p[i + sz] - 6.0 * p[i];
+            *n = p[i] + region.weight[i] * lap / 6.0;
+        }
+        for (&n, &i) in next.iter().zip(&active) {
+            region.phi[i] = n;
+        }
     }
     if method == Smoothing::VolumePreserving {
         // The offset δ (node units, times the weight) that restores the enclosed volume, by
         // bisection: the volume grows monotonically with δ.
-        let smoothed = region.phi.clone();
-        let with =
-            |delta: f32| -> Vec<f32> { smoothed.iter().zip(&region.weight).map(|(&p, &w)| p - delta * w).collect() };
+        let pairs: Vec<(f32, f32)> = active.iter().map(|&i| (region.phi[i], region.weight[i])).collect();
         let (mut lo, mut hi) = (-4.0f32, 4.0f32);
-        for _ in 0..30 {
+        for _ in 0..24 {
             let mid = 0.5 * (lo + hi);
-            if enclosed(&with(mid)) < before {
+            if enclosed(pairs.iter().map(|&(p, w)| p - mid * w)) < before {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        region.phi = with(0.5 * (lo + hi));
+        let delta = 0.5 * (lo + hi);
+        for &i in &active {
+            region.phi[i] -= delta * region.weight[i];
+        }
     }
     Ok(volume.write_region(&region)?)
 }
 
 /// The volume a field encloses, in node cells: each node counts by how far inside it is, within
 /// half a cell of the surface (a smoothed step), so the measure moves continuously with the field.
-fn enclosed(phi: &[f32]) -> f64 {
-    phi.iter().map(|&p| (0.5 - p as f64).clamp(0.0, 1.0)).sum()
+fn enclosed(phi: impl Iterator<Item = f32>) -> f64 {
+    phi.map(|p| (0.5 - p as f64).clamp(0.0, 1.0)).sum()
 }
 
 /// Pulls the surface under the dab towards the plane through the brushed surface's
 /// weighted barycentre with its weighted mean normal.
 pub fn flatten(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> {
-    // The plane may lie anywhere in the ball.
-    let mut region = dab.region(volume, 2, dab.radius)?;
+    // The band's distances are enough: the blend's zero set lies between the surface and the
+    // plane, where the plane's distance is exact and the field's is the band's. (Three dabs of
+    // radius 10 on a sphere's cap, and the bumpy-plane test, give the same surface bit for bit
+    // with the field exact to the dab's radius.)
+    let mut region = dab.region(volume, 2, 0.0)?;
     let sp = region.spacing();
     let d = region.dims;
     // Surface points: nodes within a cell of the surface, moved onto it along the gradient.

@@ -40,6 +40,10 @@ pub const BAND: f64 = 3.0;
 /// within this many node steps of the node.
 const MAX_LATERAL: f64 = 1.0;
 
+/// Reads within a reach at most this many nodes deeper than the band grow the nearest crossing
+/// layer by layer from the band; deeper ones sweep.
+const GROW_LAYERS: f64 = 3.0;
+
 /// The most nodes a region may hold (about a 256³ box: 64 MB of fields).
 pub const MAX_REGION_NODES: usize = 1 << 24;
 
@@ -466,12 +470,37 @@ impl Volume {
             *d = d.sqrt();
         }
         let points: Vec<DVec3> = samples.iter().map(|s| s.0).collect();
-        sweep_nearest(&mut nearest, &mut nearest_d, &points, origin, dims, &swept);
+        // Within a reach only `depth` matters. For a shallow depth the nearest crossing grows out
+        // from the band layer by layer, through the nodes within the depth of the surface only,
+        // and the needed nodes it does not reach read one node beyond the depth; for a deep one
+        // the sweep runs over the reach widened by the depth.
+        // (Growing costs the surface times the layers, the sweep the region's volume: growing
+        // wins up to about three layers beyond the band.)
+        let beyond = match reach_nodes {
+            Some(Reach::Capsule { depth, .. }) if depth <= BAND + GROW_LAYERS => {
+                grow_nearest(&mut nearest, &mut nearest_d, &points, origin, dims, &swept, depth);
+                Some(depth + 1.0)
+            }
+            _ => {
+                sweep_nearest(&mut nearest, &mut nearest_d, &points, origin, dims, &swept);
+                None
+            }
+        };
         for i in 0..count {
-            if needed[i] && nearest_d[i].is_finite() {
+            if !needed[i] {
+                continue;
+            }
+            if nearest_d[i].is_finite() {
                 let close = best_lateral[i] <= MAX_LATERAL * MAX_LATERAL;
                 let d = if close { plane_d[i].min(nearest_d[i]) } else { nearest_d[i] };
-                region.phi[i] = d as f32;
+                region.phi[i] = match beyond {
+                    Some(b) => d.min(b) as f32,
+                    None => d as f32,
+                };
+            } else if let Some(b) = beyond
+                && !samples.is_empty()
+            {
+                region.phi[i] = b as f32;
             }
         }
         for (i, v) in region.phi.iter_mut().enumerate() {
@@ -628,6 +657,82 @@ fn sweep_nearest(
                 }
             }
         }
+    }
+    for (d, s) in dist.iter_mut().zip(&d2) {
+        *d = s.sqrt();
+    }
+}
+
+/// Grows each band node's nearest crossing (`nearest`, distance `dist`) out to the `open` nodes
+/// beyond the band that lie within `depth` (nodes) of a crossing, layer by layer through the 26
+/// neighbours: a node takes a neighbour's nearest crossing when that is closer than its own, and
+/// a node that improved passes it on in the next layer. Only the band's outer shell starts (a
+/// node within `BAND − √3` of its crossing has all its neighbours in the band), so the work
+/// follows the surface times the depth, not the region's volume.
+fn grow_nearest(
+    nearest: &mut [u32],
+    dist: &mut [f64],
+    samples: &[DVec3],
+    origin: I64Vec3,
+    dims: [usize; 3],
+    open: &[bool],
+    depth: f64,
+) {
+    if samples.is_empty() || depth <= BAND {
+        return;
+    }
+    let count = dims[0] * dims[1] * dims[2];
+    let inner = BAND - 3f64.sqrt();
+    let mut frontier: Vec<usize> = (0..count).filter(|&i| dist[i].is_finite() && dist[i] > inner).collect();
+    let mut stamp = vec![0u32; count];
+    let mut d2: Vec<f64> = dist.iter().map(|d| d * d).collect();
+    let limit2 = (depth + 1.0) * (depth + 1.0);
+    let point = |i: usize| {
+        let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+        (origin + I64Vec3::new(x as i64, y as i64, z as i64)).as_dvec3()
+    };
+    let mut layer = 0u32;
+    // Each layer moves at least one node step outwards, so depth − band + 2 layers reach the
+    // depth; a few more settle nodes that a bent path reached first.
+    let max_layers = (depth - BAND).ceil() as u32 + 4;
+    while !frontier.is_empty() && layer < max_layers {
+        layer += 1;
+        let mut next = Vec::new();
+        for &i in &frontier {
+            let k = nearest[i];
+            let p = samples[k as usize];
+            let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+            for dz in -1i64..=1 {
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+                        if nx < 0
+                            || ny < 0
+                            || nz < 0
+                            || nx >= dims[0] as i64
+                            || ny >= dims[1] as i64
+                            || nz >= dims[2] as i64
+                        {
+                            continue;
+                        }
+                        let j = nx as usize + dims[0] * (ny as usize + dims[1] * nz as usize);
+                        if !open[j] || nearest[j] == k {
+                            continue;
+                        }
+                        let dd = (point(j) - p).length_squared();
+                        if dd < d2[j] && dd <= limit2 {
+                            d2[j] = dd;
+                            nearest[j] = k;
+                            if stamp[j] != layer {
+                                stamp[j] = layer;
+                                next.push(j);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        frontier = next;
     }
     for (d, s) in dist.iter_mut().zip(&d2) {
         *d = s.sqrt();
