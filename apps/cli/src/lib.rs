@@ -1,6 +1,9 @@
 //! The `strata` command line. `main.rs` only parses arguments; the work lives here so it can be
 //! tested.
 
+pub mod commands;
+pub mod paths;
+
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -63,7 +66,14 @@ fn demo_steps(scale: f64) -> Result<Vec<Step>> {
 /// marching cubes, writes the mesh to each of `outputs` (format from the extension: .glb, .obj,
 /// .stl, .ply) and returns a report of what each edit did and what the volume and mesh hold.
 pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) -> Result<String> {
-    anyhow::ensure!(scale.is_finite() && scale > 0.0 && scale <= 40.0, "scale must be in (0, 40], got {scale}");
+    anyhow::ensure!(scale.is_finite() && scale > 0.0 && scale <= 40.0, "--scale must be in (0, 40], got {scale}");
+    // Every output is checked before the work starts.
+    for path in outputs {
+        paths::check_output(path, &commands::EXPORT_EXTENSIONS, "mesh file")?;
+    }
+    if let Some(path) = scene {
+        paths::check_output(path, &commands::SCENE_EXTENSIONS, "scene file")?;
+    }
     let mut volume = Volume::new();
     let mut out = String::new();
     writeln!(out, "Sculpting the demo scene (scale {scale}):")?;

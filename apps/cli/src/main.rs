@@ -1,34 +1,161 @@
 //! `strata`: the Strata command line.
 
+use std::path::PathBuf;
+use std::process::ExitCode;
+
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
+use strata::commands::{self, Fill, Mesher, Resolution};
 
 #[derive(Parser)]
-#[command(version, about = "Strata: volumetric sculpting on per-grid-line crossing lists")]
+#[command(
+    version,
+    about = "Strata: volumetric sculpting on per-grid-line crossing lists",
+    after_help = "Examples:
+  strata convert bunny.ply --cells 512 -o bunny.strata
+  strata info bunny.strata
+  strata export bunny.strata -o bunny.glb --mesher dc
+  strata render bunny.strata -o bunny.png --size 1280x800
+  strata demo --out demo.glb --scene demo.strata
+
+Every path and argument is checked before any work starts; errors are one line on standard
+error with a non-zero exit code, and nothing half-written is left behind."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
 
+#[derive(Args)]
+#[group(required = true, multiple = false)]
+struct Size {
+    /// Cells along the mesh's longest side.
+    #[arg(long)]
+    cells: Option<u32>,
+    /// The size of a cell, in the mesh's units.
+    #[arg(long, allow_negative_numbers = true)]
+    cell_size: Option<f64>,
+}
+
 #[derive(Subcommand)]
 enum Command {
+    /// Convert a triangle mesh (PLY, OBJ, STL, glTF, GLB) into an editable scene of one layer.
+    #[command(after_help = "Examples:
+  strata convert bunny.ply --cells 512 -o bunny.strata
+  strata convert part.stl --cell-size 0.25 --fill winding -o part.strata")]
+    Convert {
+        /// The mesh file.
+        mesh: PathBuf,
+        #[command(flatten)]
+        size: Size,
+        /// How inside is decided: even-odd crossings (also for meshes with holes) or the winding
+        /// number (uses the triangles' orientation).
+        #[arg(long, value_enum, default_value_t = Fill::EvenOdd)]
+        fill: Fill,
+        /// The scene file to write (.strata).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Export a scene's layers as one mesh (.glb, .obj, .stl, .ply).
+    #[command(after_help = "Examples:
+  strata export scene.strata -o scene.glb
+  strata export scene.strata -o body.stl --mesher dc --layers Body,2")]
+    Export {
+        /// The scene file.
+        scene: PathBuf,
+        /// The mesh file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Marching cubes (smooth) or dual contouring (sharp edges).
+        #[arg(long, value_enum, default_value_t = Mesher::Mc)]
+        mesher: Mesher,
+        /// Layers to export, by index or name, comma-separated (default: the visible ones).
+        #[arg(long, value_delimiter = ',')]
+        layers: Vec<String>,
+    },
+    /// Describe a scene: file version, layers, chunks by kind and level, crossings, memory,
+    /// bounds.
+    #[command(after_help = "Example:\n  strata info scene.strata")]
+    Info {
+        /// The scene file.
+        scene: PathBuf,
+    },
+    /// Render a scene offscreen into a PNG (needs a GPU or a software Vulkan driver).
+    #[command(after_help = "Example:\n  strata render scene.strata -o shot.png --size 1280x800 --wireframe")]
+    Render {
+        /// The scene file.
+        scene: PathBuf,
+        /// The PNG to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Image size, WIDTHxHEIGHT.
+        #[arg(long, default_value = "1280x800", value_parser = commands::parse_size)]
+        size: (u32, u32),
+        /// Draw the wireframe.
+        #[arg(long)]
+        wireframe: bool,
+    },
     /// Sculpt a small scene from analytic brushes and print its statistics.
+    #[command(after_help = "Example:\n  strata demo --out demo.glb --out demo.stl --scene demo.strata")]
     Demo {
         /// Size multiplier (1: a body of radius 24 cells).
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
         /// Write the marching-cubes mesh here (repeatable; .glb, .obj, .stl or .ply).
         #[arg(long = "out")]
-        outputs: Vec<std::path::PathBuf>,
+        outputs: Vec<PathBuf>,
         /// Also save the sculpture as a scene file for the studio (`strata-studio --scene`).
         #[arg(long)]
-        scene: Option<std::path::PathBuf>,
+        scene: Option<PathBuf>,
     },
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().command {
-        Command::Demo { scale, outputs, scene } => print!("{}", strata::demo(scale, &outputs, scene.as_deref())?),
+fn run(command: Command) -> Result<String> {
+    match command {
+        Command::Convert { mesh, size, fill, output } => {
+            let resolution = match (size.cells, size.cell_size) {
+                (Some(n), _) => Resolution::Cells(n),
+                (None, Some(s)) => Resolution::CellSize(s),
+                (None, None) => unreachable!("clap requires one of them"),
+            };
+            commands::convert(&mesh, resolution, fill, &output)
+        }
+        Command::Export { scene, output, mesher, layers } => commands::export(&scene, &output, mesher, &layers),
+        Command::Info { scene } => commands::info(&scene),
+        Command::Render { scene, output, size, wireframe } => commands::render(&scene, &output, size, wireframe),
+        Command::Demo { scale, outputs, scene } => strata::demo(scale, &outputs, scene.as_deref()),
     }
-    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if matches!(e.kind(), clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion) => {
+            e.exit()
+        }
+        Err(e) => {
+            // clap's own message, on one line (its usage hint is what --help shows).
+            let text = e.to_string();
+            let message: Vec<&str> = text
+                .lines()
+                .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+                .flat_map(str::split_whitespace)
+                .collect();
+            let message = message.join(" ");
+            eprintln!("strata: error: {} (see strata --help)", message.trim_start_matches("error: "));
+            return ExitCode::from(2);
+        }
+    };
+    match run(cli.command) {
+        Ok(report) => {
+            print!("{report}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            // One line: the error and its causes, joined (a parser's message may span lines).
+            let line = format!("{e:#}").split_whitespace().collect::<Vec<_>>().join(" ");
+            eprintln!("strata: error: {line}");
+            ExitCode::FAILURE
+        }
+    }
 }

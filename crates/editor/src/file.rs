@@ -124,6 +124,8 @@ pub struct Loaded {
     pub scene: Scene,
     /// What was repaired or dropped (empty for a file this build wrote intact).
     pub report: LoadReport,
+    /// The file format version the scene was read from.
+    pub version: u32,
 }
 
 /// What version 3 stores per layer: everything but the chunks of lists.
@@ -285,7 +287,7 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
         scene_from_record(record, &mut report)
     };
     report.repairs.extend(validate_scene(&mut scene).repairs);
-    Ok(Loaded { scene, report })
+    Ok(Loaded { scene, report, version })
 }
 
 fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {

@@ -1,5 +1,8 @@
-//! Reading triangle meshes (PLY, OBJ, binary or ASCII STL) for conversion into volumes, through
-//! the `ply-rs`, `tobj` and `stl_io` crates (binary STL is read here). Polygons with more than
+//! Reading triangle meshes (PLY, OBJ, binary or ASCII STL, glTF and GLB) for conversion into
+//! volumes, through the `ply-rs`, `tobj`, `stl_io` and `gltf` crates (binary STL is read here).
+//! A glTF scene's triangle primitives are gathered with their nodes' transforms applied (the
+//! default scene, or every root node when there is none); a `.gltf` may name its buffers as
+//! files beside it, read through the same size limit; images are never loaded. Polygons with more than
 //! three corners are split into fans. Every file is validated: finite coordinates, indices in
 //! range, at least one triangle; anything else is an [`ImportError`], never a panic.
 //!
@@ -66,7 +69,7 @@ impl TriangleMesh {
 #[derive(Debug, Error)]
 pub enum ImportError {
     /// The extension names no supported format.
-    #[error("unknown mesh format for {0} (use .ply, .obj or .stl)")]
+    #[error("unknown mesh format for {0} (use .ply, .obj, .stl, .gltf or .glb)")]
     UnknownFormat(String),
     /// The file could not be parsed.
     #[error("cannot parse {path}: {reason}")]
@@ -89,15 +92,82 @@ pub enum ImportError {
     Io(#[from] io::Error),
 }
 
-/// Parses a mesh held in memory; `format` is `"ply"`, `"obj"` or `"stl"`. (Not validated: see
-/// [`load_mesh`].)
+/// The mesh file extensions [`load_mesh`] reads.
+pub const MESH_EXTENSIONS: [&str; 5] = ["ply", "obj", "stl", "gltf", "glb"];
+
+/// Parses a mesh held in memory; `format` is `"ply"`, `"obj"`, `"stl"`, `"gltf"` or `"glb"` (a
+/// `.gltf` held in memory can only use embedded buffers). (Not validated: see [`load_mesh`].)
 pub fn parse_mesh(format: &str, bytes: &[u8]) -> Result<TriangleMesh, String> {
     match format {
         "ply" => read_ply(bytes),
         "obj" => read_obj(bytes),
         "stl" => read_stl(bytes),
+        "gltf" | "glb" => read_gltf(bytes, None),
         other => Err(format!("unknown mesh format {other:?}")),
     }
+}
+
+/// The triangles of a glTF or GLB document, `base` the folder its external buffers are read
+/// from (none: only embedded and data-URI buffers).
+fn read_gltf(bytes: &[u8], base: Option<&Path>) -> Result<TriangleMesh, String> {
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| e.to_string())?;
+    let document = gltf.document;
+    for buffer in document.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = buffer.source()
+            && !uri.starts_with("data:")
+        {
+            let dir = base.ok_or("a glTF in memory cannot read external buffers")?;
+            // External buffers go through the same bounded read as the file itself.
+            let path = dir.join(uri);
+            read_limited(&path, MAX_MESH_BYTES).map_err(|e| format!("buffer {}: {e}", path.display()))?;
+        }
+    }
+    let buffers = gltf::import_buffers(&document, base, gltf.blob).map_err(|e| e.to_string())?;
+    let mut mesh = TriangleMesh::default();
+    let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
+        Some(scene) => scene.nodes().collect(),
+        None => document.nodes().collect(),
+    };
+    let mut stack: Vec<(gltf::Node, glam::DMat4)> = roots.into_iter().map(|n| (n, glam::DMat4::IDENTITY)).collect();
+    let mut visited = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        visited += 1;
+        if visited > 1_000_000 {
+            return Err("the node hierarchy is too deep or cyclic".into());
+        }
+        let local = glam::Mat4::from_cols_array_2d(&node.transform().matrix()).as_dmat4();
+        let world = parent * local;
+        if let Some(m) = node.mesh() {
+            for primitive in m.primitives() {
+                if primitive.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+                let Some(positions) = reader.read_positions() else { continue };
+                let base = mesh.vertices.len() as u32;
+                let mut count = 0u32;
+                for p in positions {
+                    mesh.vertices.push(world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
+                    count += 1;
+                }
+                let indices: Vec<u32> = match reader.read_indices() {
+                    Some(i) => i.into_u32().collect(),
+                    None => (0..count).collect(),
+                };
+                if indices.iter().any(|&i| i >= count) {
+                    return Err("a primitive's index names a vertex that does not exist".into());
+                }
+                // A mirroring transform turns faces inside out: flip them back.
+                let flip = world.determinant() < 0.0;
+                for t in indices.chunks_exact(3) {
+                    let (a, b, c) = (base + t[0], base + t[1], base + t[2]);
+                    mesh.triangles.push(if flip { [a, c, b] } else { [a, b, c] });
+                }
+            }
+        }
+        stack.extend(node.children().map(|c| (c, world)));
+    }
+    Ok(mesh)
 }
 
 /// Reads the mesh at `path`, choosing the format by extension.
@@ -105,12 +175,17 @@ pub fn load_mesh(path: &Path) -> Result<TriangleMesh, ImportError> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let parse = |reason: String| ImportError::Parse { path: name.clone(), reason };
-    if !matches!(ext.as_deref(), Some("ply" | "obj" | "stl")) {
+    if !ext.as_deref().is_some_and(|e| MESH_EXTENSIONS.contains(&e)) {
         return Err(ImportError::UnknownFormat(name));
     }
     let bytes = read_limited(path, MAX_MESH_BYTES)
         .map_err(|e| ImportError::Io(io::Error::new(e.kind(), format!("{name}: {e}"))))?;
-    let mesh = parse_mesh(ext.as_deref().unwrap_or_default(), &bytes).map_err(parse)?;
+    let mesh = match ext.as_deref() {
+        Some("gltf" | "glb") => read_gltf(&bytes, Some(path.parent().unwrap_or(Path::new(".")))),
+        Some(e) => parse_mesh(e, &bytes),
+        None => unreachable!("checked above"),
+    }
+    .map_err(parse)?;
     validate(&mesh).map_err(|reason| ImportError::Invalid { path: name, reason })?;
     Ok(mesh)
 }

@@ -25,7 +25,7 @@ fn exports_read_back_in_every_format() {
     let mut v = Volume::new();
     v.add(&Sphere::new(DVec3::new(5.0, 6.0, 7.0), 9.0).unwrap()).unwrap();
     let mesh = mesh_volume(&v);
-    for ext in ["obj", "stl", "ply"] {
+    for ext in ["obj", "stl", "ply", "glb"] {
         let path = temp(&format!("sphere.{ext}"));
         save_mesh(&mesh, &path).unwrap();
         let back = load_mesh(&path).unwrap();
@@ -125,4 +125,54 @@ fn mesh_files_that_are_not_regular_files_are_refused_before_reading() {
     std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
     let err = load_mesh(&link).unwrap_err().to_string();
     assert!(err.contains("not a regular file"), "{err}");
+}
+
+#[test]
+fn gltf_nodes_are_placed_by_their_transforms_and_bad_gltf_is_an_error() {
+    // A glTF with one triangle in a buffer embedded as a data URI, used by two nodes: one
+    // moved by +10 along x, one mirrored (scale −1 along x) under a parent moved by +5 along y.
+    let floats: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let bytes: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let b64 = {
+        const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut out = String::new();
+        for c in bytes.chunks(3) {
+            let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+            for k in 0..4 {
+                if k <= c.len() {
+                    out.push(T[(n >> (18 - 6 * k) & 63) as usize] as char);
+                } else {
+                    out.push('=');
+                }
+            }
+        }
+        out
+    };
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"mesh":0,"translation":[10,0,0]}},{{"translation":[0,5,0],"children":[2]}},{{"mesh":0,"scale":[-1,1,1]}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+        "bufferViews":[{{"buffer":0,"byteLength":36}}],
+        "buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,{b64}"}}]}}"#
+    );
+    let path = temp("two.gltf");
+    std::fs::write(&path, json).unwrap();
+    let m = load_mesh(&path).unwrap();
+    assert_eq!(m.triangles.len(), 2);
+    let (lo, hi) = m.bounds().unwrap();
+    assert_eq!((lo, hi), (DVec3::new(-1.0, 0.0, 0.0), DVec3::new(11.0, 6.0, 0.0)));
+    // The mirrored copy's faces are flipped back: both triangles face +z.
+    for t in &m.triangles {
+        let [a, b, c] = t.map(|i| m.vertices[i as usize]);
+        assert!((b - a).cross(c - a).z > 0.0, "{t:?}");
+    }
+    // A buffer file that is missing, and garbage, are errors.
+    let missing = temp("missing-buffer.gltf");
+    std::fs::write(&missing, r#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":36,"uri":"nowhere.bin"}]}"#)
+        .unwrap();
+    assert!(load_mesh(&missing).is_err());
+    let garbage = temp("garbage.glb");
+    std::fs::write(&garbage, b"glTF\x02\x00\x00\x00nonsense").unwrap();
+    assert!(load_mesh(&garbage).is_err());
 }

@@ -1,0 +1,337 @@
+//! The `convert`, `export` and `info` commands. Each checks every argument and path before it
+//! starts, reports long work on a progress bar (drawn only when standard error is a terminal),
+//! and writes its output atomically, so a failure leaves no half-written file.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use glam::{DQuat, DVec3};
+use indicatif::{ProgressBar, ProgressStyle};
+use strata_editor::file;
+use strata_editor::{Editor, Layer, LayerTransform, Scene, View};
+use strata_mesh::export::save_mesh;
+use strata_mesh::import::{MESH_EXTENSIONS, load_mesh};
+use strata_mesh::normals::{DEFAULT_CREASE_DEGREES, crease_normals};
+use strata_volume::brush::{MeshBrush, MeshRule};
+use strata_volume::{Axis, Chunk, CsgOp, EditControl, EditSettings, Volume};
+
+use crate::paths::{check_input, check_output};
+
+/// Scene files.
+pub const SCENE_EXTENSIONS: [&str; 1] = ["strata"];
+
+/// Mesh formats written by `export`.
+pub const EXPORT_EXTENSIONS: [&str; 4] = ["glb", "obj", "stl", "ply"];
+
+/// The most cells along a converted mesh's longest side.
+pub const MAX_CELLS: u32 = 16_384;
+
+/// How fine a conversion is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Resolution {
+    /// This many cells along the mesh's longest side.
+    Cells(u32),
+    /// Cells of this size, in the mesh's units.
+    CellSize(f64),
+}
+
+/// How a converted mesh decides inside.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Fill {
+    /// Inside after an odd number of crossings (ignores orientation; meshes with holes too).
+    EvenOdd,
+    /// Inside where the winding number is not zero (uses the triangles' orientation).
+    Winding,
+}
+
+/// Which mesher `export` uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mesher {
+    /// Marching cubes: smooth shapes, vertices on the stored crossings.
+    Mc,
+    /// Dual contouring: keeps sharp edges and corners.
+    Dc,
+}
+
+/// A progress bar on standard error, hidden when that is not a terminal.
+fn bar(len: u64, what: &str) -> ProgressBar {
+    let b = ProgressBar::new(len);
+    b.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} (eta {eta})")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    b.set_message(what.to_string());
+    b
+}
+
+fn spinner(what: &str) -> ProgressBar {
+    let b = ProgressBar::new_spinner();
+    b.set_message(what.to_string());
+    b.enable_steady_tick(Duration::from_millis(120));
+    b
+}
+
+/// Converts the mesh at `mesh` into a scene of one layer at `out`. Returns a report.
+pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> Result<String> {
+    check_input(mesh, &MESH_EXTENSIONS, "mesh file")?;
+    check_output(out, &SCENE_EXTENSIONS, "scene file")?;
+    match resolution {
+        Resolution::Cells(n) if n == 0 || n > MAX_CELLS => {
+            bail!("--cells must be between 1 and {MAX_CELLS}, got {n}")
+        }
+        Resolution::CellSize(s) if !(s.is_finite() && s > 0.0) => {
+            bail!("--cell-size must be a finite positive number, got {s}")
+        }
+        _ => {}
+    }
+    let t0 = Instant::now();
+    let read = spinner(&format!("reading {}", mesh.display()));
+    let tri = load_mesh(mesh);
+    read.finish_and_clear();
+    let tri = tri.map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (lo, hi) = tri.bounds().expect("a loaded mesh has vertices");
+    let extent = (hi - lo).max_element();
+    if !(extent > 0.0 && extent.is_finite()) {
+        bail!("{}: the mesh is flat or a point (extent {extent})", mesh.display());
+    }
+    let cell = match resolution {
+        Resolution::Cells(n) => extent / n as f64,
+        Resolution::CellSize(s) => s,
+    };
+    let cells_long = extent / cell;
+    if !(cells_long <= MAX_CELLS as f64) {
+        bail!("--cell-size {cell} puts {cells_long:.0} cells along the mesh's longest side (at most {MAX_CELLS})");
+    }
+    // Two cells of margin below the mesh, so its solid never touches the grid's lowest nodes;
+    // the layer's transform takes the grid back to the mesh's own units.
+    let origin = lo - DVec3::splat(2.0 * cell);
+    let verts: Vec<DVec3> = tri.vertices.iter().map(|&v| (v - origin) / cell).collect();
+    let rule = match fill {
+        Fill::EvenOdd => MeshRule::EvenOdd,
+        Fill::Winding => MeshRule::NonZero,
+    };
+    let brush = MeshBrush::new(&verts, &tri.triangles, rule).with_context(|| format!("{}", mesh.display()))?;
+    let read_ms = t0.elapsed().as_secs_f64() * 1e3;
+    // The conversion on a worker, its progress (chunks done) on the bar.
+    let control = Arc::new(EditControl::default());
+    let settings = EditSettings { control: Some(control.clone()), ..Default::default() };
+    let t1 = Instant::now();
+    let progress = bar(0, "converting");
+    let volume = std::thread::scope(|s| {
+        let worker = s.spawn(|| {
+            let mut v = Volume::new();
+            v.apply(CsgOp::Add, &brush, &settings).map(|_| v)
+        });
+        while !worker.is_finished() {
+            let (done, total) = control.progress();
+            progress.set_length(total.max(1));
+            progress.set_position(done);
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        worker.join().expect("the conversion does not panic")
+    });
+    progress.finish_and_clear();
+    let volume = volume.with_context(|| format!("converting {}", mesh.display()))?;
+    let convert_ms = t1.elapsed().as_secs_f64() * 1e3;
+    let name = mesh.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh").to_string();
+    let mut scene = Scene::default();
+    scene.layers[0] = Layer::new(name);
+    scene.layers[0].volume = volume;
+    scene.layers[0].transform =
+        LayerTransform::new(origin, DQuat::IDENTITY, cell).context("the mesh's placement is not representable")?;
+    scene.view = View::framing(&scene.layers);
+    let saving = spinner(&format!("writing {}", out.display()));
+    let repairs = file::save(&scene, out).with_context(|| format!("writing {}", out.display()));
+    saving.finish_and_clear();
+    let repairs = repairs?;
+    let v = &scene.layers[0].volume;
+    let stats = v.crossing_stats();
+    let mut r = String::new();
+    writeln!(r, "{}: {} vertices, {} triangles", mesh.display(), tri.vertices.len(), tri.triangles.len())?;
+    writeln!(
+        r,
+        "  cells           {cell} units each, {:.0} along the longest side ({:?} fill{})",
+        cells_long,
+        fill,
+        if brush.is_closed() { "" } else { "; the mesh has holes: inside is decided line by line" }
+    )?;
+    writeln!(r, "  chunks          {} lists, {} solid", stats.list_chunks, stats.solid_chunks)?;
+    writeln!(r, "  crossings       {}", stats.total)?;
+    writeln!(r, "  memory          {}", bytes(v.memory().total()))?;
+    writeln!(r, "  read + index    {read_ms:.0} ms")?;
+    writeln!(r, "  convert         {convert_ms:.0} ms")?;
+    for repair in &repairs.repairs {
+        writeln!(r, "  repaired        {repair}")?;
+    }
+    writeln!(r, "  wrote           {}", out.display())?;
+    Ok(r)
+}
+
+/// Which layers `export` writes: by index or by name, or every visible layer.
+fn select_layers(scene: &Scene, layers: &[String]) -> Result<Vec<usize>> {
+    if layers.is_empty() {
+        return Ok((0..scene.layers.len()).filter(|&i| scene.layers[i].visible).collect());
+    }
+    let mut out = Vec::new();
+    for l in layers {
+        let i = match l.parse::<usize>() {
+            Ok(i) if i < scene.layers.len() => i,
+            Ok(i) => bail!("--layers: there is no layer {i} (the scene has {})", scene.layers.len()),
+            Err(_) => match scene.layers.iter().position(|x| x.name == *l) {
+                Some(i) => i,
+                None => bail!("--layers: no layer is named {l:?}"),
+            },
+        };
+        if !out.contains(&i) {
+            out.push(i);
+        }
+    }
+    Ok(out)
+}
+
+/// Loads a scene file, saying on standard error what was repaired.
+fn load_scene(path: &Path) -> Result<file::Loaded> {
+    check_input(path, &SCENE_EXTENSIONS, "scene file")?;
+    let loaded = file::load(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    if !loaded.report.is_clean() {
+        eprintln!("strata: {}: repaired while loading: {}", path.display(), loaded.report);
+    }
+    Ok(loaded)
+}
+
+/// Exports the chosen layers of the scene at `scene` as one mesh at `out`. Returns a report.
+pub fn export(scene: &Path, out: &Path, mesher: Mesher, layers: &[String]) -> Result<String> {
+    check_input(scene, &SCENE_EXTENSIONS, "scene file")?;
+    check_output(out, &EXPORT_EXTENSIONS, "mesh file")?;
+    let mut s = load_scene(scene)?.scene;
+    let chosen = select_layers(&s, layers)?;
+    for (i, l) in s.layers.iter_mut().enumerate() {
+        l.visible = chosen.contains(&i);
+    }
+    let meshing = spinner(&format!("meshing {} layer(s) with {mesher:?}", chosen.len()));
+    let t = Instant::now();
+    let mesh = Editor::new(s).export_mesh(mesher == Mesher::Dc);
+    let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
+    let mesh = if mesher == Mesher::Mc { crease_normals(&mesh, DEFAULT_CREASE_DEGREES) } else { mesh };
+    meshing.finish_and_clear();
+    if mesh.indices.is_empty() {
+        bail!("{}: the chosen layers hold no surface to export", scene.display());
+    }
+    save_mesh(&mesh, out).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
+    Ok(format!(
+        "{}: {} layer(s), {} triangles, {} vertices ({mesher:?}, {mesh_ms:.0} ms)\n  wrote {}\n",
+        scene.display(),
+        chosen.len(),
+        mesh.triangle_count(),
+        mesh.vertex_count(),
+        out.display()
+    ))
+}
+
+fn bytes(n: usize) -> String {
+    if n >= 1 << 20 { format!("{:.2} MiB ({n} bytes)", n as f64 / (1 << 20) as f64) } else { format!("{n} bytes") }
+}
+
+/// Describes the scene at `path`: file version, layers, chunks by kind and level, crossings,
+/// memory by category and bounds.
+pub fn info(path: &Path) -> Result<String> {
+    let loaded = load_scene(path)?;
+    let s = &loaded.scene;
+    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let mut r = String::new();
+    writeln!(r, "{}: scene file version {}, {} bytes", path.display(), loaded.version, size)?;
+    writeln!(r, "  layers          {}", s.layers.len())?;
+    for (i, l) in s.layers.iter().enumerate() {
+        let v = &l.volume;
+        let stats = v.crossing_stats();
+        let mem = v.memory();
+        let mut levels = std::collections::BTreeMap::new();
+        for (_, chunk) in v.chunks() {
+            if let Chunk::Lists(c) = chunk {
+                *levels.entry(c.level().cells()).or_insert(0u64) += 1;
+            }
+        }
+        let t = &l.transform;
+        writeln!(
+            r,
+            "  [{i}] {:?}{}{}: material {}, cell {} units, at {:.3}, turned {:.1}°",
+            l.name,
+            if l.visible { "" } else { " (hidden)" },
+            if l.locked { " (locked)" } else { "" },
+            l.material,
+            t.scale,
+            t.translation,
+            t.rotation.to_axis_angle().1.to_degrees()
+        )?;
+        writeln!(
+            r,
+            "      chunks      {} lists, {} solid; by cells per side: {}",
+            stats.list_chunks,
+            stats.solid_chunks,
+            if levels.is_empty() {
+                "none".into()
+            } else {
+                levels.iter().map(|(c, n)| format!("{c}: {n}")).collect::<Vec<_>>().join(", ")
+            }
+        )?;
+        writeln!(
+            r,
+            "      crossings   {} (x {}, y {}, z {}); longest chunk line {}",
+            stats.total, stats.per_axis[0], stats.per_axis[1], stats.per_axis[2], stats.max_line
+        )?;
+        writeln!(
+            r,
+            "      memory      {}: positions {}, normals {}, headers {}, chunk map {}",
+            bytes(mem.total()),
+            mem.positions,
+            mem.normals,
+            mem.headers,
+            mem.chunk_map
+        )?;
+        match v.chunk_bounds_grid() {
+            Some((lo, hi)) => {
+                let corners: Vec<DVec3> = (0..8)
+                    .map(|k| {
+                        t.to_world(DVec3::new(
+                            if k & 1 == 0 { lo.x } else { hi.x },
+                            if k & 2 == 0 { lo.y } else { hi.y },
+                            if k & 4 == 0 { lo.z } else { hi.z },
+                        ))
+                    })
+                    .collect();
+                let (a, b) = corners.iter().fold((corners[0], corners[0]), |(a, b), &c| (a.min(c), b.max(c)));
+                writeln!(r, "      bounds      {a:.3} to {b:.3} (world, whole chunks)")?;
+                writeln!(r, "      volume      {:.3} units³", v.measured_volume(Axis::X) * t.scale.powi(3))?;
+            }
+            None => writeln!(r, "      bounds      empty")?,
+        }
+    }
+    writeln!(r, "  materials       {}", s.materials.iter().map(|m| m.name.clone()).collect::<Vec<_>>().join(", "))?;
+    if !loaded.report.is_clean() {
+        writeln!(r, "  repaired        {}", loaded.report)?;
+    }
+    Ok(r)
+}
+
+/// Renders the scene at `scene` offscreen into the PNG at `out` (the studio's headless
+/// renderer: a GPU or a software Vulkan driver). Returns a report.
+pub fn render(scene: &Path, out: &Path, size: (u32, u32), wireframe: bool) -> Result<String> {
+    check_input(scene, &SCENE_EXTENSIONS, "scene file")?;
+    check_output(out, &["png"], "PNG file")?;
+    if size.0 == 0 || size.1 == 0 || size.0 > 8192 || size.1 > 8192 {
+        bail!("--size must be between 1x1 and 8192x8192, got {}x{}", size.0, size.1);
+    }
+    let adapter = strata_studio::screenshot(Some(scene), out, size, wireframe)?;
+    Ok(format!("{}: rendered {}x{} on {adapter}\n  wrote {}\n", scene.display(), size.0, size.1, out.display()))
+}
+
+/// Parses `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once('x').ok_or_else(|| format!("{s:?} is not WIDTHxHEIGHT"))?;
+    let n = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("{s:?} is not WIDTHxHEIGHT"));
+    Ok((n(w)?, n(h)?))
+}
