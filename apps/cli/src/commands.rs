@@ -145,7 +145,9 @@ pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> R
         LayerTransform::new(origin, DQuat::IDENTITY, cell).context("the mesh's placement is not representable")?;
     scene.view = View::framing(&scene.layers);
     let saving = spinner(&format!("writing {}", out.display()));
+    let t2 = Instant::now();
     let repairs = file::save(&scene, out).with_context(|| format!("writing {}", out.display()));
+    let save_ms = t2.elapsed().as_secs_f64() * 1e3;
     saving.finish_and_clear();
     let repairs = repairs?;
     let v = &scene.layers[0].volume;
@@ -164,6 +166,7 @@ pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> R
     writeln!(r, "  memory          {}", bytes(v.memory().total()))?;
     writeln!(r, "  read + index    {read_ms:.0} ms")?;
     writeln!(r, "  convert         {convert_ms:.0} ms")?;
+    writeln!(r, "  check + save    {save_ms:.0} ms")?;
     for repair in &repairs.repairs {
         writeln!(r, "  repaired        {repair}")?;
     }

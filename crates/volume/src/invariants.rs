@@ -49,37 +49,51 @@ impl Volume {
     /// and continuity across chunk borders (a line's state after its last cell equals the state
     /// the next chunk's line starts with).
     pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
-        for (&key, chunk) in &self.chunks {
-            let fail = |what: String| InvariantViolation { key, what };
-            if let Chunk::Lists(lists) = chunk {
-                check_lists(lists).map_err(fail)?;
-                if lists.level() != self.level {
-                    return Err(fail(format!("level {:?} differs from the volume's", lists.level())));
-                }
-                let from_x = states_from(lists, Axis::X);
-                for axis in [Axis::Y, Axis::Z] {
-                    if states_from(lists, axis) != from_x {
-                        return Err(fail(format!("lines along {axis:?} disagree with x lines on node states")));
-                    }
+        use rayon::prelude::*;
+        // Chunks are checked independently (in parallel); of several violations the one of the
+        // smallest key is reported, so the answer does not depend on the thread count.
+        let chunks: Vec<(&ChunkKey, &Chunk)> = self.chunks.iter().collect();
+        let worst = chunks
+            .par_iter()
+            .filter_map(|&(&key, chunk)| self.check_chunk(key, chunk).err())
+            .min_by_key(|v| v.key.0.to_array());
+        match worst {
+            Some(v) => Err(v),
+            None => Ok(()),
+        }
+    }
+
+    /// The invariants of one chunk: its lists, its level, its axes agreeing on node states, and
+    /// continuity with the next chunk along each axis (and with an empty previous chunk).
+    fn check_chunk(&self, key: ChunkKey, chunk: &Chunk) -> Result<(), InvariantViolation> {
+        let fail = |what: String| InvariantViolation { key, what };
+        if let Chunk::Lists(lists) = chunk {
+            check_lists(lists).map_err(fail)?;
+            if lists.level() != self.level {
+                return Err(fail(format!("level {:?} differs from the volume's", lists.level())));
+            }
+            let from_x = states_from(lists, Axis::X);
+            for axis in [Axis::Y, Axis::Z] {
+                if states_from(lists, axis) != from_x {
+                    return Err(fail(format!("lines along {axis:?} disagree with x lines on node states")));
                 }
             }
-            // Continuity with the next chunk along each axis, and with an empty previous chunk.
-            let here = ChunkView::of(Some(chunk));
-            let n = self.level.cells();
-            for axis in Axis::ALL {
-                let step = axis.unit_i64().as_ivec3();
-                let next = self.view(key.offset(step));
-                let prev_missing = !self.chunks.contains_key(&key.offset(-step));
-                let (mut here, mut next) = (here.cursor(axis, 0), next.cursor(axis, 0));
-                for v in 0..n {
-                    for u in 0..n {
-                        let line = here.next_line();
-                        if line.end_inside() != next.next_line().start_inside {
-                            return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
-                        }
-                        if prev_missing && line.start_inside {
-                            return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
-                        }
+        }
+        let here = ChunkView::of(Some(chunk));
+        let n = self.level.cells();
+        for axis in Axis::ALL {
+            let step = axis.unit_i64().as_ivec3();
+            let next = self.view(key.offset(step));
+            let prev_missing = !self.chunks.contains_key(&key.offset(-step));
+            let (mut here, mut next) = (here.cursor(axis, 0), next.cursor(axis, 0));
+            for v in 0..n {
+                for u in 0..n {
+                    let line = here.next_line();
+                    if line.end_inside() != next.next_line().start_inside {
+                        return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
+                    }
+                    if prev_missing && line.start_inside {
+                        return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
                     }
                 }
             }
