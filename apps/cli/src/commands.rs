@@ -8,15 +8,17 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use strata_editor::file;
-use strata_editor::{Editor, Layer, LayerTransform, Scene, View};
+use strata_editor::import::{self, ConvertError};
+pub use strata_editor::import::{MAX_CELLS, Resolution};
+use strata_editor::{Editor, Scene, View};
 use strata_mesh::export::save_mesh;
 use strata_mesh::import::{MESH_EXTENSIONS, load_mesh};
 use strata_mesh::normals::{DEFAULT_CREASE_DEGREES, crease_normals};
-use strata_volume::brush::{MeshBrush, MeshRule};
-use strata_volume::{Axis, Chunk, CsgOp, EditControl, EditSettings, Volume};
+use strata_volume::brush::MeshRule;
+use strata_volume::{Axis, Chunk, EditControl, EditSettings};
 
 use crate::paths::{check_input, check_output};
 
@@ -25,18 +27,6 @@ pub const SCENE_EXTENSIONS: [&str; 1] = ["strata"];
 
 /// Mesh formats written by `export`.
 pub const EXPORT_EXTENSIONS: [&str; 4] = ["glb", "obj", "stl", "ply"];
-
-/// The most cells along a converted mesh's longest side.
-pub const MAX_CELLS: u32 = 16_384;
-
-/// How fine a conversion is.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Resolution {
-    /// This many cells along the mesh's longest side.
-    Cells(u32),
-    /// Cells of this size, in the mesh's units.
-    CellSize(f64),
-}
 
 /// How a converted mesh decides inside.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -93,39 +83,28 @@ pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> R
     let tri = load_mesh(mesh);
     read.finish_and_clear();
     let tri = tri.map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (lo, hi) = tri.bounds().expect("a loaded mesh has vertices");
-    let extent = (hi - lo).max_element();
-    if !(extent > 0.0 && extent.is_finite()) {
-        bail!("{}: the mesh is flat or a point (extent {extent})", mesh.display());
-    }
-    let cell = match resolution {
-        Resolution::Cells(n) => extent / n as f64,
-        Resolution::CellSize(s) => s,
-    };
-    let cells_long = extent / cell;
-    if !(cells_long <= MAX_CELLS as f64) {
-        bail!("--cell-size {cell} puts {cells_long:.0} cells along the mesh's longest side (at most {MAX_CELLS})");
-    }
-    // Two cells of margin below the mesh, so its solid never touches the grid's lowest nodes;
-    // the layer's transform takes the grid back to the mesh's own units.
-    let origin = lo - DVec3::splat(2.0 * cell);
-    let verts: Vec<DVec3> = tri.vertices.iter().map(|&v| (v - origin) / cell).collect();
+    let plan = import::plan(&tri, resolution).map_err(|e| match e {
+        ConvertError::TooFine { cell, cells } => {
+            anyhow::anyhow!(
+                "--cell-size {cell} puts {cells:.0} cells along the mesh's longest side (at most {MAX_CELLS})"
+            )
+        }
+        e => anyhow::anyhow!("{}: {e}", mesh.display()),
+    })?;
     let rule = match fill {
         Fill::EvenOdd => MeshRule::EvenOdd,
         Fill::Winding => MeshRule::NonZero,
     };
-    let brush = MeshBrush::new(&verts, &tri.triangles, rule).with_context(|| format!("{}", mesh.display()))?;
+    let closed = import::is_closed(&tri);
     let read_ms = t0.elapsed().as_secs_f64() * 1e3;
     // The conversion on a worker, its progress (chunks done) on the bar.
     let control = Arc::new(EditControl::default());
     let settings = EditSettings { control: Some(control.clone()), ..Default::default() };
     let t1 = Instant::now();
     let progress = bar(0, "converting");
-    let volume = std::thread::scope(|s| {
-        let worker = s.spawn(|| {
-            let mut v = Volume::new();
-            v.apply(CsgOp::Add, &brush, &settings).map(|_| v)
-        });
+    let name = mesh.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh").to_string();
+    let layer = std::thread::scope(|s| {
+        let worker = s.spawn(|| import::convert(&tri, &plan, rule, &name, &settings));
         while !worker.is_finished() {
             let (done, total) = control.progress();
             progress.set_length(total.max(1));
@@ -135,14 +114,10 @@ pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> R
         worker.join().expect("the conversion does not panic")
     });
     progress.finish_and_clear();
-    let volume = volume.with_context(|| format!("converting {}", mesh.display()))?;
+    let layer = layer.with_context(|| format!("converting {}", mesh.display()))?;
     let convert_ms = t1.elapsed().as_secs_f64() * 1e3;
-    let name = mesh.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh").to_string();
     let mut scene = Scene::default();
-    scene.layers[0] = Layer::new(name);
-    scene.layers[0].volume = volume;
-    scene.layers[0].transform =
-        LayerTransform::new(origin, DQuat::IDENTITY, cell).context("the mesh's placement is not representable")?;
+    scene.layers[0] = layer;
     scene.view = View::framing(&scene.layers);
     let saving = spinner(&format!("writing {}", out.display()));
     let t2 = Instant::now();
@@ -156,13 +131,14 @@ pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> R
     writeln!(r, "{}: {} vertices, {} triangles", mesh.display(), tri.vertices.len(), tri.triangles.len())?;
     writeln!(
         r,
-        "  cells           {cell} units each, {:.0} along the longest side ({:?} fill{})",
-        cells_long,
+        "  cells           {} units each, {:.0} along the longest side ({:?} fill{})",
+        plan.cell,
+        plan.cells_long,
         fill,
-        if brush.is_closed() { "" } else { "; the mesh has holes: inside is decided line by line" }
+        if closed { "" } else { "; the mesh has holes: inside is decided line by line" }
     )?;
     writeln!(r, "  chunks          {} lists, {} solid", stats.list_chunks, stats.solid_chunks)?;
-    writeln!(r, "  crossings       {}", stats.total)?;
+    writeln!(r, "  crossings       {} (estimated {:.0})", stats.total, plan.estimated_crossings)?;
     writeln!(r, "  memory          {}", bytes(v.memory().total()))?;
     writeln!(r, "  read + index    {read_ms:.0} ms")?;
     writeln!(r, "  convert         {convert_ms:.0} ms")?;

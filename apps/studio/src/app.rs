@@ -32,6 +32,7 @@ enum Prompt {
     Open,
     SaveAs,
     Export,
+    Import,
 }
 
 impl Prompt {
@@ -40,6 +41,7 @@ impl Prompt {
             Prompt::Open => "Open scene",
             Prompt::SaveAs => "Save scene as",
             Prompt::Export => "Export mesh",
+            Prompt::Import => "Import mesh as a new layer",
         }
     }
 
@@ -47,6 +49,7 @@ impl Prompt {
         match self {
             Prompt::Open | Prompt::SaveAs => "scene.strata",
             Prompt::Export => "sculpt.glb",
+            Prompt::Import => "mesh.ply",
         }
     }
 }
@@ -56,6 +59,8 @@ impl Prompt {
 enum Then {
     New,
     Open,
+    /// Open the file in `StudioApp::open_next` (dropped on the window, or a recent file).
+    OpenFile,
     Quit,
 }
 
@@ -107,6 +112,12 @@ pub struct StudioApp {
     autosave: Autosave,
     /// A recovery file from a session that did not end cleanly, offered at start.
     recovery: Option<crate::recovery::Found>,
+    /// The scene file to open once the unsaved-changes question is answered.
+    open_next: Option<PathBuf>,
+    /// Recently opened or saved scenes, newest first.
+    pub recent: crate::recent::Recent,
+    /// The keyboard help overlay (F1) is showing.
+    pub help_open: bool,
 }
 
 impl std::fmt::Debug for StudioApp {
@@ -135,7 +146,11 @@ impl StudioApp {
     /// recovery files kept in `recovery_dir` (and one found there offered).
     pub fn headless(studio: Studio, dialogs: Dialogs, recovery_dir: PathBuf) -> Self {
         let recovery = crate::recovery::find(&recovery_dir);
+        let recent = crate::recent::Recent::load(recovery_dir.join(crate::recent::FILE_NAME));
         StudioApp {
+            open_next: None,
+            recent,
+            help_open: false,
             studio,
             viewport: None,
             prompt: None,
@@ -165,6 +180,44 @@ impl StudioApp {
             || self.native.is_some()
             || self.recovery.is_some()
             || self.studio.busy()
+            || self.studio.pending_import.is_some()
+    }
+
+    /// Reads a mesh for import and opens the resolution dialog; says why in the status bar if
+    /// it cannot be read.
+    fn import_path(&mut self, path: PathBuf) -> bool {
+        match self.studio.choose_import(path) {
+            Ok(()) => true,
+            Err(e) => {
+                self.studio.message = e;
+                false
+            }
+        }
+    }
+
+    /// Opens a scene file (dropped or recent), asking first about unsaved changes.
+    fn open_file(&mut self, ctx: &egui::Context, path: PathBuf) {
+        self.open_next = Some(path);
+        self.guard(ctx, Then::OpenFile);
+    }
+
+    /// Files dropped on the window: a scene opens, a mesh is imported as a new layer.
+    fn dropped(&mut self, ctx: &egui::Context) {
+        let files = ctx.input(|i| i.raw.dropped_files.clone());
+        for f in files {
+            let path = f.path().to_path_buf();
+            if path.as_os_str().is_empty() {
+                continue;
+            }
+            let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+            match ext.as_deref() {
+                Some("strata") => self.open_file(ctx, path),
+                Some(e) if strata_mesh::import::MESH_EXTENSIONS.contains(&e) => {
+                    self.import_path(path);
+                }
+                _ => self.studio.message = format!("Cannot open {}: not a scene or a mesh", path.display()),
+            }
+        }
     }
 
     /// Asks for a path: a native dialog where one answers, else the typed prompt.
@@ -181,9 +234,10 @@ impl StudioApp {
                 d = match kind {
                     Prompt::Open | Prompt::SaveAs => d.add_filter("Strata scene", &["strata"]),
                     Prompt::Export => d.add_filter("Mesh", &["glb", "obj", "stl", "ply"]),
+                    Prompt::Import => d.add_filter("Mesh", &strata_mesh::import::MESH_EXTENSIONS),
                 };
                 let answer = match kind {
-                    Prompt::Open => d.pick_file(),
+                    Prompt::Open | Prompt::Import => d.pick_file(),
                     _ => d.set_file_name(kind.suggestion()).save_file(),
                 };
                 let _ = tx.send(answer);
@@ -209,20 +263,23 @@ impl StudioApp {
     fn path_chosen(&mut self, ctx: &egui::Context, kind: Prompt, path: PathBuf, then: Option<Then>) {
         let done = match kind {
             Prompt::Open => {
-                let ok = self.studio.act(Action::Open(path)).is_ok();
+                let ok = self.studio.act(Action::Open(path.clone())).is_ok();
                 if ok {
                     self.autosave.forget();
+                    self.recent.add(&path);
                 }
                 ok
             }
             Prompt::SaveAs => {
-                let ok = self.studio.act(Action::SaveAs(path)).is_ok();
+                let ok = self.studio.act(Action::SaveAs(path.clone())).is_ok();
                 if ok {
                     self.autosave.forget();
+                    self.recent.add(&path);
                 }
                 ok
             }
             Prompt::Export => self.studio.act(Action::Export(path)).is_ok(),
+            Prompt::Import => self.import_path(path),
         };
         if done && let Some(then) = then {
             self.proceed(ctx, then);
@@ -247,6 +304,11 @@ impl StudioApp {
                 self.autosave.forget();
             }
             Then::Open => self.ask_path(ctx, Prompt::Open, None),
+            Then::OpenFile => {
+                if let Some(path) = self.open_next.take() {
+                    self.path_chosen(ctx, Prompt::Open, path, None);
+                }
+            }
             Then::Quit => {
                 self.autosave.forget();
                 self.allow_close = true;
@@ -312,16 +374,41 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::W) {
             let _ = self.studio.act(Action::ToggleWireframe);
         }
-        let shapes = [
-            (Key::Num1, BrushShape::Sphere),
-            (Key::Num2, BrushShape::Box),
-            (Key::Num3, BrushShape::Capsule),
-            (Key::Num4, BrushShape::Cylinder),
-        ];
-        for (key, shape) in shapes {
-            if pressed(Modifiers::NONE, key) {
-                self.studio.editor.tool.shape = shape;
+        if pressed(Modifiers::NONE, Key::B) {
+            let tool = &mut self.studio.editor.tool;
+            tool.shape = match tool.shape {
+                BrushShape::Sphere => BrushShape::Box,
+                BrushShape::Box => BrushShape::Capsule,
+                BrushShape::Capsule => BrushShape::Cylinder,
+                BrushShape::Cylinder => BrushShape::Sphere,
+            };
+            self.studio.message = format!("Brush shape: {:?}", tool.shape);
+        }
+        // Views, in the numpad's conventions (egui does not tell the numpad's digits from the
+        // top row's, so both work): 1 front, 3 right, 7 top, with Ctrl the opposite; 5 switches
+        // orthographic; Home or . frames the model.
+        for (key, view) in [
+            (Key::Num1, strata_render::AxisView::Front),
+            (Key::Num3, strata_render::AxisView::Right),
+            (Key::Num7, strata_render::AxisView::Top),
+        ] {
+            if pressed(Modifiers::COMMAND, key) {
+                let _ = self.studio.act(Action::AxisView(view, true));
+            } else if pressed(Modifiers::NONE, key) {
+                let _ = self.studio.act(Action::AxisView(view, false));
             }
+        }
+        if pressed(Modifiers::NONE, Key::Num5) {
+            let _ = self.studio.act(Action::ToggleOrthographic);
+        }
+        if pressed(Modifiers::NONE, Key::Home) || pressed(Modifiers::NONE, Key::Period) {
+            let _ = self.studio.act(Action::FrameAll);
+        }
+        if pressed(Modifiers::NONE, Key::F1) {
+            self.help_open = !self.help_open;
+        }
+        if self.help_open && pressed(Modifiers::NONE, Key::Escape) {
+            self.help_open = false;
         }
         if pressed(Modifiers::NONE, Key::A) {
             self.studio.set_kind(ToolKind::Add);
@@ -365,6 +452,24 @@ impl StudioApp {
                 if ui.button("Open… (Ctrl+O)").clicked() {
                     self.guard(&ctx, Then::Open);
                 }
+                ui.menu_button("Open recent", |ui| {
+                    let recent: Vec<PathBuf> = self.recent.paths().to_vec();
+                    if recent.is_empty() {
+                        ui.label("No recent scenes");
+                    }
+                    for path in recent {
+                        if ui.button(path.display().to_string()).clicked() {
+                            self.open_file(&ctx, path);
+                        }
+                    }
+                });
+                if ui
+                    .button("Import mesh… (PLY, OBJ, STL, glTF)")
+                    .on_hover_text("Convert a mesh into a new layer (or drop the file on the window)")
+                    .clicked()
+                {
+                    self.ask_path(&ctx, Prompt::Import, None);
+                }
                 if ui.button("Save (Ctrl+S)").clicked() {
                     self.save(&ctx, None);
                 }
@@ -391,6 +496,32 @@ impl StudioApp {
             });
             ui.menu_button("View", |ui| {
                 if ui.checkbox(&mut self.studio.wireframe, "Wireframe (W)").changed() {
+                    ui.close();
+                }
+                let views: [(&str, Action); 7] = [
+                    ("Frame the model (Home, .)", Action::FrameAll),
+                    ("Front (1)", Action::AxisView(strata_render::AxisView::Front, false)),
+                    ("Back (Ctrl+1)", Action::AxisView(strata_render::AxisView::Front, true)),
+                    ("Right (3)", Action::AxisView(strata_render::AxisView::Right, false)),
+                    ("Left (Ctrl+3)", Action::AxisView(strata_render::AxisView::Right, true)),
+                    ("Top (7)", Action::AxisView(strata_render::AxisView::Top, false)),
+                    ("Bottom (Ctrl+7)", Action::AxisView(strata_render::AxisView::Top, true)),
+                ];
+                for (label, action) in views {
+                    if ui.button(label).clicked() {
+                        let _ = self.studio.act(action);
+                        ui.close();
+                    }
+                }
+                let mut ortho = self.studio.camera.orthographic;
+                if ui.checkbox(&mut ortho, "Orthographic (5)").changed() {
+                    let _ = self.studio.act(Action::ToggleOrthographic);
+                    ui.close();
+                }
+            });
+            ui.menu_button("Help", |ui| {
+                if ui.button("Keyboard shortcuts (F1)").clicked() {
+                    self.help_open = true;
                     ui.close();
                 }
             });
@@ -449,7 +580,7 @@ impl StudioApp {
             self.studio.toggle_symmetry(axis);
         }
         let tool = &mut self.studio.editor.tool;
-        ui.label("Shape (1–4)");
+        ui.label("Shape (B cycles; add and erase)");
         ui.horizontal(|ui| {
             for (shape, name) in [
                 (BrushShape::Sphere, "Sphere"),
@@ -540,9 +671,32 @@ impl StudioApp {
                 }
             }
         }
-        if ui.button("Add layer").clicked() {
-            let _ = self.studio.act(Action::AddLayer);
-        }
+        ui.horizontal(|ui| {
+            if ui.button("Add").on_hover_text("Add an empty layer").clicked() {
+                let _ = self.studio.act(Action::AddLayer);
+            }
+            if ui.button("Duplicate").on_hover_text("Copy the selected layer").clicked() {
+                let _ = self.studio.act(Action::DuplicateLayer);
+            }
+            if ui.button("Delete").on_hover_text("Delete the selected layer (clears undo)").clicked() {
+                let _ = self.studio.act(Action::DeleteLayer);
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui.button("Up").on_hover_text("Move the selected layer up the list").clicked() {
+                let _ = self.studio.act(Action::MoveLayer(-1));
+            }
+            if ui.button("Down").on_hover_text("Move the selected layer down the list").clicked() {
+                let _ = self.studio.act(Action::MoveLayer(1));
+            }
+            if ui
+                .button("Merge down")
+                .on_hover_text("Merge the selected layer into the one below it (same rotation and cell size)")
+                .clicked()
+            {
+                let _ = self.studio.act(Action::MergeDown);
+            }
+        });
         if changed {
             self.studio.full_upload = true;
         }
@@ -627,12 +781,88 @@ impl StudioApp {
         ctx.request_repaint_after(Duration::from_millis(50));
     }
 
+    /// The resolution dialog of a mesh about to be imported: cells along its longest side, with
+    /// a live estimate of what the layer will hold.
+    fn import_dialog(&mut self, ctx: &egui::Context) {
+        let Some(p) = self.studio.pending_import.as_mut() else { return };
+        let (mut go, mut cancel) = (false, false);
+        let modal = egui::Modal::new(egui::Id::unique("import mesh")).show(ctx, |ui| {
+            ui.heading("Import mesh as a new layer");
+            ui.label(format!(
+                "{}: {} triangles, {}",
+                p.path.display(),
+                p.mesh.triangles.len(),
+                if p.closed { "closed" } else { "with holes (filled line by line)" }
+            ));
+            ui.add(egui::Slider::new(&mut p.cells, 16..=2048).logarithmic(true).text("cells along the longest side"))
+                .on_hover_text("Finer keeps more detail and takes more memory and time");
+            match p.plan() {
+                Ok(plan) => ui.label(format!(
+                    "cells of {:.4} units · about {:.0} thousand crossings · about {:.1} MiB",
+                    plan.cell,
+                    plan.estimated_crossings / 1e3,
+                    plan.estimated_bytes() / (1024.0 * 1024.0)
+                )),
+                Err(e) => ui.label(e.to_string()),
+            };
+            ui.horizontal(|ui| {
+                go = ui.button("Import").clicked();
+                cancel = ui.button("Cancel").clicked();
+            });
+        });
+        if cancel || modal.should_close() {
+            self.studio.pending_import = None;
+        } else if go && let Err(e) = self.studio.start_import() {
+            self.studio.message = e;
+        }
+    }
+
+    /// A mesh conversion on its worker: a progress bar and a cancel button.
+    fn import_progress(&mut self, ctx: &egui::Context) {
+        if self.studio.poll_import() {
+            ctx.request_repaint();
+            return;
+        }
+        let Some(job) = self.studio.import_job.as_ref() else { return };
+        let (done, total) = job.control.progress();
+        let fraction = if total > 0 { done as f32 / total as f32 } else { 0.0 };
+        let mut cancel = false;
+        egui::Modal::new(egui::Id::unique("importing")).show(ctx, |ui| {
+            ui.heading(format!("Importing {}", job.name));
+            ui.add(egui::ProgressBar::new(fraction).show_percentage().desired_width(320.0));
+            ui.label(format!("{done} of {total} chunks · {:.1} s", job.started.elapsed().as_secs_f64()));
+            cancel = ui.button("Cancel import").on_hover_text("Stop; the scene stays as it was").clicked();
+        });
+        if cancel || ctx.input(|i| i.key_pressed(egui::Key::Escape)) {
+            job.control.cancel();
+        }
+        ctx.request_repaint_after(Duration::from_millis(50));
+    }
+
+    /// The keyboard help overlay (F1).
+    fn help(&mut self, ctx: &egui::Context) {
+        if !self.help_open {
+            return;
+        }
+        let mut open = true;
+        egui::Window::new("Keyboard and mouse").open(&mut open).collapsible(false).show(ctx, |ui| {
+            egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
+                for (keys, what) in crate::SHORTCUTS {
+                    ui.label(*keys);
+                    ui.label(*what);
+                    ui.end_row();
+                }
+            });
+        });
+        self.help_open = open;
+    }
+
     /// The unsaved-changes question.
     fn confirm(&mut self, ctx: &egui::Context) {
         let Some(then) = self.confirm else { return };
         let what = match then {
             Then::New => "starting a new scene",
-            Then::Open => "opening another scene",
+            Then::Open | Then::OpenFile => "opening another scene",
             Then::Quit => "quitting",
         };
         let name = self.studio.path.as_ref().map_or("the new scene".to_string(), |p| p.display().to_string());
@@ -729,7 +959,11 @@ impl StudioApp {
         egui::Panel::left("tools").resizable(false).show(ui, |ui| self.palette(ui));
         egui::Panel::right("layers").show(ui, |ui| self.layers(ui));
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, frame));
+        self.dropped(&ctx);
         self.job_progress(&ctx);
+        self.import_dialog(&ctx);
+        self.import_progress(&ctx);
+        self.help(&ctx);
         self.native_dialog(&ctx);
         self.prompt(&ctx);
         self.confirm(&ctx);
@@ -761,7 +995,7 @@ impl StudioApp {
         let cam = &mut self.studio.camera;
         if response.hovered() {
             if scroll != 0.0 {
-                cam.zoom((-scroll * 0.002).exp());
+                cam.zoom((-scroll * 0.001).exp());
             }
             if middle {
                 cam.pan(-delta.x / rect.height(), delta.y / rect.height());

@@ -9,9 +9,35 @@
 
 mod app;
 mod headless;
+pub mod recent;
 pub mod recovery;
 mod studio;
 
 pub use app::{Dialogs, StudioApp, run_window};
 pub use headless::screenshot;
-pub use studio::{Action, Studio, default_scene};
+pub use studio::{Action, ImportJob, PendingImport, Studio, default_scene};
+
+/// Every keyboard and mouse binding, as the help overlay (F1) lists them.
+pub const SHORTCUTS: &[(&str, &str)] = &[
+    ("Left drag", "sculpt with the current tool"),
+    ("Right drag / middle drag / wheel", "orbit / pan / zoom"),
+    ("Ctrl or Alt held (or Alt + right drag)", "the inverse tool"),
+    ("Shift held", "smooth with any tool"),
+    ("C  A  E", "clay, add, erase"),
+    ("S  I  T", "smooth, inflate, flatten"),
+    ("P  G", "pinch, grab"),
+    ("B", "next brush shape (sphere, box, capsule, cylinder)"),
+    ("[  ]", "brush radius down, up"),
+    ("L", "line tool: click two points"),
+    ("X", "mirror across the layer's x plane"),
+    ("W", "wireframe"),
+    ("1  3  7 (numpad or top row)", "front, right, top view; with Ctrl: back, left, bottom"),
+    ("5", "perspective / orthographic"),
+    ("Home  or  .", "frame the model"),
+    ("Ctrl+Z  Ctrl+Shift+Z  Ctrl+Y", "undo, redo"),
+    ("Ctrl+S  Ctrl+Shift+S", "save, save as"),
+    ("Ctrl+O  Ctrl+N", "open, new"),
+    ("Drop a file on the window", "a scene opens, a mesh is imported as a layer"),
+    ("Escape", "close a prompt or question; cancel a long job"),
+    ("F1", "this help"),
+];

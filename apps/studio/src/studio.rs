@@ -34,6 +34,53 @@ pub enum Action {
     ToggleWireframe,
     /// Add an empty layer and make it active.
     AddLayer,
+    /// Delete the active layer (the last one left is emptied instead).
+    DeleteLayer,
+    /// Copy the active layer into a new layer above it.
+    DuplicateLayer,
+    /// Move the active layer up (`+1`) or down (`−1`) the list.
+    MoveLayer(i32),
+    /// Merge the active layer into the one below it (a union through both transforms).
+    MergeDown,
+    /// Frame the visible layers (Home, numpad period).
+    FrameAll,
+    /// Look along an axis (numpad 1, 3, 7; with Ctrl the opposite view).
+    AxisView(strata_render::AxisView, bool),
+    /// Switch between perspective and orthographic projection (numpad 5).
+    ToggleOrthographic,
+}
+
+/// A mesh chosen for import, waiting for the user to pick its resolution.
+#[derive(Debug)]
+pub struct PendingImport {
+    /// Where it was read from.
+    pub path: PathBuf,
+    /// The triangles.
+    pub mesh: strata_mesh::import::TriangleMesh,
+    /// Cells along the longest side (the dialog's slider).
+    pub cells: u32,
+    /// Whether every edge is shared by two triangles.
+    pub closed: bool,
+}
+
+impl PendingImport {
+    /// The conversion's plan at the chosen resolution (cell size, estimated crossings and
+    /// memory).
+    pub fn plan(&self) -> Result<strata_editor::import::ImportPlan, strata_editor::import::ConvertError> {
+        strata_editor::import::plan(&self.mesh, strata_editor::import::Resolution::Cells(self.cells))
+    }
+}
+
+/// A mesh conversion running on a worker thread.
+#[derive(Debug)]
+pub struct ImportJob {
+    /// The new layer's name.
+    pub name: String,
+    /// Progress and cancel.
+    pub control: std::sync::Arc<strata_volume::EditControl>,
+    /// When it started.
+    pub started: std::time::Instant,
+    worker: std::thread::JoinHandle<Result<Layer, strata_editor::import::ConvertError>>,
 }
 
 /// World units per cell of the default scene's layer: its ball of radius 16 is 64 cells
@@ -110,6 +157,10 @@ pub struct Studio {
     pub line_start: Option<DVec3>,
     /// A button was held in the previous frame (to see presses).
     prev_held: bool,
+    /// A mesh waiting for its import resolution.
+    pub pending_import: Option<PendingImport>,
+    /// A mesh conversion in progress.
+    pub import_job: Option<ImportJob>,
 }
 
 impl Studio {
@@ -140,6 +191,8 @@ impl Studio {
             line_mode: false,
             line_start: None,
             prev_held: false,
+            pending_import: None,
+            import_job: None,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = DEFAULT_RADIUS;
@@ -232,8 +285,149 @@ impl Studio {
                 self.editor.active_layer = n - 1;
                 self.full_upload = true;
             }
+            Action::DeleteLayer | Action::DuplicateLayer | Action::MoveLayer(_) | Action::MergeDown => {
+                self.layer_op(action)?;
+            }
+            Action::FrameAll => {
+                let layers = self.editor.scene.layers.iter().filter(|l| l.visible);
+                let v = View::framing(layers);
+                self.camera.target = v.target.as_vec3();
+                self.camera.distance = v.distance as f32;
+                self.message = "Framed the visible layers".into();
+            }
+            Action::AxisView(view, opposite) => {
+                self.camera.axis_view(view, opposite);
+                self.message = format!("{}{view:?} view", if opposite { "Opposite of the " } else { "" });
+            }
+            Action::ToggleOrthographic => {
+                self.camera.orthographic = !self.camera.orthographic;
+                self.message = if self.camera.orthographic { "Orthographic" } else { "Perspective" }.into();
+            }
         }
         Ok(())
+    }
+
+    /// Deletes, duplicates, moves or merges down the active layer. Layer operations renumber
+    /// layers, which the undo history refers to by number: they clear it (and say so).
+    fn layer_op(&mut self, action: Action) -> Result<(), String> {
+        if self.busy() {
+            return Err("Wait for the large dab or the import to finish".into());
+        }
+        self.editor.end_stroke();
+        let layers = &mut self.editor.scene.layers;
+        let i = self.editor.active_layer.min(layers.len().saturating_sub(1));
+        let what = match action {
+            Action::DeleteLayer => {
+                let name = layers[i].name.clone();
+                if layers.len() == 1 {
+                    layers[0] = Layer::new("Layer 1");
+                } else {
+                    layers.remove(i);
+                }
+                self.editor.active_layer = i.min(layers.len() - 1);
+                format!("Deleted layer {name:?}")
+            }
+            Action::DuplicateLayer => {
+                let mut copy = layers[i].clone();
+                copy.name = format!("{} copy", copy.name);
+                copy.locked = false;
+                layers.insert(i + 1, copy);
+                self.editor.active_layer = i + 1;
+                format!("Duplicated layer {:?}", layers[i].name)
+            }
+            Action::MoveLayer(d) => {
+                let j = i as i64 + d as i64;
+                if j < 0 || j >= layers.len() as i64 {
+                    return Ok(());
+                }
+                layers.swap(i, j as usize);
+                self.editor.active_layer = j as usize;
+                format!("Moved layer {:?} {}", layers[j as usize].name, if d > 0 { "down" } else { "up" })
+            }
+            Action::MergeDown => {
+                if i + 1 >= layers.len() {
+                    return Err("There is no layer below to merge into".into());
+                }
+                let upper = layers[i].clone();
+                let lower = &mut layers[i + 1];
+                if lower.locked {
+                    return Err(format!("Layer {:?} is locked", lower.name));
+                }
+                merge_into(&upper, lower)?;
+                let name = lower.name.clone();
+                layers.remove(i);
+                self.editor.active_layer = i;
+                format!("Merged {:?} into {name:?}", upper.name)
+            }
+            _ => unreachable!("only layer operations"),
+        };
+        self.editor.clear_history();
+        self.editor.reset_caches();
+        self.editor.touch();
+        self.full_upload = true;
+        self.message = format!("{what} (undo history cleared)");
+        Ok(())
+    }
+
+    /// Reads the mesh at `path` for import and offers the resolution dialog.
+    pub fn choose_import(&mut self, path: PathBuf) -> Result<(), String> {
+        let mesh =
+            strata_mesh::import::load_mesh(&path).map_err(|e| format!("Could not import {}: {e}", path.display()))?;
+        let closed = strata_editor::import::is_closed(&mesh);
+        self.pending_import = Some(PendingImport { path, mesh, cells: 256, closed });
+        Ok(())
+    }
+
+    /// Starts converting the pending mesh on a worker thread.
+    pub fn start_import(&mut self) -> Result<(), String> {
+        let pending = self.pending_import.take().ok_or("No mesh is waiting to be imported")?;
+        let plan = pending.plan().map_err(|e| format!("Could not import {}: {e}", pending.path.display()))?;
+        let name = pending.path.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh").to_string();
+        let control = std::sync::Arc::new(strata_volume::EditControl::default());
+        let settings = strata_volume::EditSettings { control: Some(control.clone()), ..Default::default() };
+        let (mesh, layer_name) = (pending.mesh, name.clone());
+        let worker = std::thread::spawn(move || {
+            strata_editor::import::convert(
+                &mesh,
+                &plan,
+                strata_volume::brush::MeshRule::EvenOdd,
+                &layer_name,
+                &settings,
+            )
+        });
+        self.import_job = Some(ImportJob { name, control, started: std::time::Instant::now(), worker });
+        self.message = "Importing…".into();
+        Ok(())
+    }
+
+    /// Collects a finished import (call every frame): the mesh becomes a new active layer, the
+    /// camera frames it and the brush is sized to ten of its cells. Returns whether one finished.
+    pub fn poll_import(&mut self) -> bool {
+        if !self.import_job.as_ref().is_some_and(|j| j.worker.is_finished()) {
+            return false;
+        }
+        let job = self.import_job.take().expect("checked above");
+        let secs = job.started.elapsed().as_secs_f64();
+        match job.worker.join().expect("the conversion does not panic") {
+            Ok(layer) => {
+                let cell = layer.transform.scale;
+                let v = View::framing(std::iter::once(&layer));
+                self.editor.scene.layers.push(layer);
+                self.editor.reset_caches();
+                self.editor.touch();
+                self.editor.active_layer = self.editor.scene.layers.len() - 1;
+                self.editor.tool.radius = 10.0 * cell;
+                self.camera.target = v.target.as_vec3();
+                self.camera.distance = v.distance as f32;
+                self.full_upload = true;
+                self.message = format!("Imported {:?} as a new layer in {secs:.1} s", job.name);
+            }
+            Err(strata_editor::import::ConvertError::Edit(strata_volume::EditError::Cancelled)) => {
+                self.message = "Import cancelled".into();
+            }
+            Err(e) => self.message = format!("Could not import {:?}: {e}", job.name),
+        }
+        true
     }
 
     fn save_to(&mut self, path: &Path) -> Result<(), String> {
@@ -433,9 +627,9 @@ impl Studio {
         true
     }
 
-    /// Whether a background dab is running (the layer it edits is with the worker).
+    /// Whether a background dab or an import is running.
     pub fn busy(&self) -> bool {
-        self.job.is_some()
+        self.job.is_some() || self.import_job.is_some()
     }
 
     /// The world point the tool acts on under viewport point `(x, y)` (NDC): the first surface
@@ -529,6 +723,20 @@ impl Studio {
     pub fn set_kind(&mut self, kind: ToolKind) {
         self.editor.tool.kind = kind;
     }
+}
+
+/// Merges `upper` into `lower`: the union of `upper`'s solid, carried into `lower`'s grid, with
+/// `lower`'s. The layers must share rotation and cell size; `upper`'s offset is rounded to whole
+/// cells of `lower`'s grid (so the merge is exact on the grid).
+fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String> {
+    let (tu, tl) = (upper.transform, lower.transform);
+    let same_turn = (tu.rotation.dot(tl.rotation).abs() - 1.0).abs() < 1e-9;
+    if !same_turn || (tu.scale / tl.scale - 1.0).abs() > 1e-9 {
+        return Err("Merge down needs two layers with the same rotation and cell size".into());
+    }
+    let offset = tl.to_grid(tu.translation).round().as_ivec3();
+    lower.volume.merge_from(&upper.volume, offset, &Default::default()).map_err(|e| format!("Could not merge: {e}"))?;
+    Ok(())
 }
 
 pub(crate) fn camera_of(v: &View) -> Camera {
@@ -695,6 +903,41 @@ mod tests {
         s.pointer(Some((0.2, 0.1)), Buttons::default(), 1.0, 1.5, BUDGET);
         let n = s.hover_normal.expect("the pointer is over the ball");
         assert!((s.brush_orientation() * DVec3::Y - n).length() < 1e-9);
+    }
+
+    #[test]
+    fn merge_down_unites_moved_layers_and_refuses_turned_ones() {
+        let mut s = Studio::new(default_scene());
+        s.act(Action::DuplicateLayer).unwrap();
+        assert_eq!(s.editor.active_layer, 1);
+        // Move the copy 8 cells along x (and a little: the offset is rounded to whole cells).
+        let cell = s.editor.scene.layers[1].transform.scale;
+        s.editor.scene.layers[1].transform.translation.x += 8.2 * cell;
+        s.act(Action::MoveLayer(-1)).unwrap();
+        assert_eq!(s.editor.active_layer, 0);
+        let (upper, lower) = (s.editor.scene.layers[0].clone(), s.editor.scene.layers[1].clone());
+        s.act(Action::MergeDown).unwrap();
+        assert_eq!(s.editor.scene.layers.len(), 1);
+        assert_eq!(s.editor.history().undo_len(), 0, "layer operations clear the history");
+        let merged = &s.editor.scene.layers[0].volume;
+        merged.check_invariants().unwrap();
+        let c = glam::I64Vec3::new(128, 72, 128);
+        for x in -80..90 {
+            let n = c + glam::I64Vec3::new(x, 0, 0);
+            let want = lower.volume.node_inside(n) || upper.volume.node_inside(n - glam::I64Vec3::new(8, 0, 0));
+            assert_eq!(merged.node_inside(n), want, "node {n}");
+        }
+        assert!(merged.node_inside(c + glam::I64Vec3::new(70, 0, 0)), "the moved copy reaches further");
+        // Turned layers are not merged.
+        s.act(Action::DuplicateLayer).unwrap();
+        s.editor.scene.layers[1].transform.rotation = DQuat::from_rotation_y(0.3);
+        s.act(Action::MoveLayer(-1)).unwrap();
+        let err = s.act(Action::MergeDown).unwrap_err();
+        assert!(err.contains("same rotation"), "{err}");
+        assert_eq!(s.editor.scene.layers.len(), 2);
+        // Nothing below the last layer.
+        s.editor.active_layer = 1;
+        assert!(s.act(Action::MergeDown).is_err());
     }
 
     #[test]

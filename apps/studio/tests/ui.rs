@@ -254,3 +254,162 @@ fn every_tool_is_one_key_or_click_away_with_its_settings() {
     h.state_mut().studio.hover = Some(p);
     assert_eq!(h.state().studio.preview_dabs().len(), 2, "the dab and its mirror image");
 }
+
+fn bunny_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply")
+}
+
+/// Steps the harness until the import in progress ends (or 60 s pass).
+fn wait_for_import(h: &mut Harness<'_, StudioApp>) {
+    let start = std::time::Instant::now();
+    while h.state().studio.import_job.is_some() {
+        assert!(start.elapsed() < Duration::from_secs(60), "the import ends");
+        std::thread::sleep(Duration::from_millis(20));
+        h.step();
+    }
+    h.run();
+}
+
+#[test]
+fn a_mesh_is_imported_through_the_menu_with_its_resolution_and_can_be_cancelled() {
+    let dir = temp("import");
+    let mut h = harness(&dir);
+    h.run();
+    // Cancel at the resolution dialog: nothing changes.
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Import mesh… (PLY, OBJ, STL, glTF)").click();
+    h.run();
+    assert!(h.get_by_label("Path:").is_focused());
+    type_keys(&mut h, &bunny_path().display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(h.state().studio.pending_import.is_some(), "{}", h.state().studio.message);
+    assert!(h.query_all_by_label("cells along the longest side").count() > 0);
+    let estimate = h.query_all_by_label_contains("MiB").count();
+    assert!(estimate > 0, "the dialog estimates the memory");
+    h.get_by_label("Cancel").click();
+    h.run();
+    assert!(h.state().studio.pending_import.is_none());
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 1);
+    // Import at a small resolution: a new active layer.
+    h.state_mut().studio.choose_import(bunny_path()).unwrap();
+    h.state_mut().studio.pending_import.as_mut().unwrap().cells = 48;
+    h.run();
+    h.get_by_label("Import").click();
+    h.step();
+    wait_for_import(&mut h);
+    let s = &h.state().studio;
+    assert_eq!(s.editor.scene.layers.len(), 2, "{}", s.message);
+    assert_eq!(s.editor.active_layer, 1);
+    assert_eq!(s.editor.scene.layers[1].name, "bunny");
+    assert!(!s.editor.scene.layers[1].volume.is_empty());
+    // A large import cancelled from its progress window leaves the scene as it was.
+    h.state_mut().studio.choose_import(bunny_path()).unwrap();
+    h.state_mut().studio.pending_import.as_mut().unwrap().cells = 2048;
+    h.run();
+    h.get_by_label("Import").click();
+    h.step();
+    assert!(h.state().studio.import_job.is_some());
+    h.get_by_label("Cancel import").click();
+    h.step();
+    wait_for_import(&mut h);
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 2, "{}", h.state().studio.message);
+    assert!(h.state().studio.message.contains("cancelled"), "{}", h.state().studio.message);
+}
+
+#[derive(Debug)]
+struct Dropped(PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+#[test]
+fn dropped_files_open_scenes_and_import_meshes_and_recent_files_are_remembered() {
+    let dir = temp("drop");
+    let mut h = harness(&dir);
+    h.run();
+    // A dropped mesh opens the import dialog.
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(bunny_path())));
+    h.run();
+    assert!(h.state().studio.pending_import.is_some());
+    h.get_by_label("Cancel").click();
+    h.run();
+    // A saved scene, dropped back after a new scene, opens (no unsaved work to ask about).
+    let path = dir.join("dropped.strata");
+    h.state_mut().studio.act(strata_studio::Action::SaveAs(path.clone())).unwrap();
+    h.state_mut().studio.act(strata_studio::Action::New).unwrap();
+    h.state_mut().studio.editor.scene.layers[0].name = "changed".into();
+    h.state_mut().studio.mark_saved();
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(path.clone())));
+    h.run();
+    assert_eq!(h.state().studio.path.as_deref(), Some(path.as_path()), "{}", h.state().studio.message);
+    assert_eq!(h.state().studio.editor.scene.layers[0].name, "Clay");
+    // Opened scenes are remembered, across restarts of the app.
+    let canonical = std::fs::canonicalize(&path).unwrap();
+    assert_eq!(h.state().recent.paths().first(), Some(&canonical));
+    let again = harness(&dir);
+    assert_eq!(again.state().recent.paths().first(), Some(&canonical));
+    // Something else dropped is refused with a message.
+    let txt = dir.join("notes.txt");
+    std::fs::write(&txt, "hi").unwrap();
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(txt)));
+    h.run();
+    assert!(h.state().studio.message.contains("not a scene or a mesh"));
+}
+
+#[test]
+fn help_views_and_layer_operations_through_keys_and_buttons() {
+    let dir = temp("help");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::F1);
+    h.run();
+    assert!(h.state().help_open);
+    assert!(h.query_all_by_label("this help").count() > 0, "the overlay lists the shortcuts");
+    assert!(h.query_all_by_label("pinch, grab").count() > 0);
+    h.key_press(egui::Key::Escape);
+    h.run();
+    assert!(!h.state().help_open);
+    // Views: 1 front, Ctrl+3 left, 5 orthographic, Home frames.
+    h.key_press(egui::Key::Num1);
+    h.run();
+    assert_eq!((h.state().studio.camera.yaw, h.state().studio.camera.pitch), (0.0, 0.0));
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Num3);
+    h.run();
+    assert!((h.state().studio.camera.yaw - 1.5 * std::f32::consts::PI).abs() < 1e-5);
+    h.key_press(egui::Key::Num5);
+    h.run();
+    assert!(h.state().studio.camera.orthographic);
+    h.state_mut().studio.camera.distance = 5000.0;
+    h.key_press(egui::Key::Home);
+    h.run();
+    assert!(h.state().studio.camera.distance < 500.0, "framed");
+    // B cycles the brush shape.
+    h.key_press(egui::Key::B);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.shape, strata_editor::BrushShape::Box);
+    // Layers: duplicate, move, merge down, delete.
+    h.get_by_label("Duplicate").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 2);
+    assert_eq!(h.state().studio.editor.scene.layers[1].name, "Clay copy");
+    h.get_by_label("Up").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.active_layer, 0);
+    assert_eq!(h.state().studio.editor.scene.layers[0].name, "Clay copy");
+    h.get_by_label("Merge down").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 1, "{}", h.state().studio.message);
+    assert!(h.state().studio.message.contains("undo history cleared"));
+    h.get_by_label("Delete").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 1);
+    assert!(h.state().studio.editor.scene.layers[0].volume.is_empty(), "the last layer is emptied");
+}

@@ -11,6 +11,7 @@
 mod editor;
 pub mod file;
 mod history;
+pub mod import;
 mod pose;
 mod scene;
 mod tool;

@@ -11,7 +11,7 @@ mod camera;
 mod gpu;
 mod renderer;
 
-pub use camera::Camera;
+pub use camera::{AxisView, Camera};
 pub use gpu::{Gpu, Image, RenderError, render_offscreen};
 pub use renderer::{DEPTH_FORMAT, FrameSettings, Preview, Renderer, Vertex};
 

@@ -42,7 +42,7 @@ fn scene(gpu: &Gpu) -> Renderer {
 }
 
 fn camera() -> Camera {
-    Camera { target: CENTRE, distance: 60.0, yaw: 0.6, pitch: 0.3, fov_y: 0.8 }
+    Camera { target: CENTRE, distance: 60.0, yaw: 0.6, pitch: 0.3, fov_y: 0.8, orthographic: false }
 }
 
 fn is_background(p: [u8; 4], bg: [u8; 4]) -> bool {

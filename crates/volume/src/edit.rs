@@ -94,6 +94,9 @@ pub enum EditError {
     /// Stopped through [`EditControl::cancel`].
     #[error("the edit was cancelled")]
     Cancelled,
+    /// Volumes at different resolution levels cannot be merged.
+    #[error("the volumes are stored at different levels")]
+    LevelMismatch,
 }
 
 /// What an edit did.

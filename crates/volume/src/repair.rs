@@ -14,7 +14,7 @@ use crate::axis::Axis;
 use crate::brush::{Aabb, Brush, Span, unit_axis};
 use crate::chunk::{Chunk, ChunkView};
 use crate::coords::{CHUNK_CELLS, ChunkKey, local_pos_to_grid};
-use crate::edit::{CsgOp, EditSettings};
+use crate::edit::{CsgOp, EditError, EditReport, EditSettings};
 use crate::normal::unpack_normal;
 use crate::volume::Volume;
 
@@ -157,6 +157,54 @@ impl Brush for ListsBrush<'_> {
 }
 
 impl Volume {
+    /// The regions of [`REGION_CHUNKS`]³ chunks that hold a stored chunk, each with the box of
+    /// its stored chunks (a sparse volume far from the origin costs its chunks, not the box
+    /// around them).
+    fn regions(&self) -> Vec<(IVec3, IVec3)> {
+        let mut regions: std::collections::BTreeMap<[i32; 3], (IVec3, IVec3)> = Default::default();
+        for k in self.chunks.keys() {
+            let r = regions.entry(k.0.div_euclid(IVec3::splat(REGION_CHUNKS)).to_array()).or_insert((k.0, k.0));
+            *r = (r.0.min(k.0), r.1.max(k.0));
+        }
+        regions.into_values().collect()
+    }
+
+    /// Adds the solid of `other` (at the same level) shifted by `offset` whole cells: how layers
+    /// are merged. Region by region, as a repair rebuilds; one report for all of it (its undo
+    /// restores the volume as it was). A level mismatch or a failed edit changes nothing.
+    pub fn merge_from(
+        &mut self,
+        other: &Volume,
+        offset: IVec3,
+        settings: &EditSettings,
+    ) -> Result<EditReport, EditError> {
+        if other.level != self.level {
+            return Err(EditError::LevelMismatch);
+        }
+        let shift = offset.as_dvec3();
+        let mut report: Option<EditReport> = None;
+        for (lo, hi) in other.regions() {
+            let inner = ListsBrush { volume: other, lo, hi };
+            let brush = crate::brush::Transformed::new(inner, glam::DQuat::IDENTITY, shift, 1.0)
+                .map_err(|_| EditError::BadBounds)?;
+            match self.apply(CsgOp::Add, &brush, settings) {
+                Ok(edit) => {
+                    report = Some(match report {
+                        None => edit,
+                        Some(r) => r.then(edit),
+                    })
+                }
+                Err(e) => {
+                    if let Some(r) = report {
+                        self.restore(r.undo);
+                    }
+                    return Err(e);
+                }
+            }
+        }
+        Ok(report.unwrap_or(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 }))
+    }
+
     /// Rebuilds the volume if it breaks an invariant (see the module docs); returns what was
     /// done. A volume that passes [`Volume::check_invariants`] is left exactly as it is.
     pub fn repair(&mut self) -> RepairReport {
@@ -183,13 +231,8 @@ impl Volume {
         let old = std::mem::replace(self, Volume { chunks: Default::default(), level, cell_size: self.cell_size });
         // The regions that hold a stored chunk, each with the box of its stored chunks (a sparse
         // volume far from the origin costs its chunks, not the box around them).
-        let mut regions: std::collections::BTreeMap<[i32; 3], (IVec3, IVec3)> = Default::default();
-        for k in old.chunks.keys() {
-            let r = regions.entry(k.0.div_euclid(IVec3::splat(REGION_CHUNKS)).to_array()).or_insert((k.0, k.0));
-            *r = (r.0.min(k.0), r.1.max(k.0));
-        }
         let settings = EditSettings { max_chunks: u64::MAX, ..Default::default() };
-        for (lo, hi) in regions.into_values() {
+        for (lo, hi) in old.regions() {
             let brush = ListsBrush { volume: &old, lo, hi };
             if let Ok(edit) = self.apply(CsgOp::Add, &brush, &settings) {
                 report.repaired_nodes += edit.repaired_nodes;
@@ -224,6 +267,29 @@ mod tests {
 
     fn sphere(c: f64, r: f64) -> Sphere {
         Sphere::new(DVec3::splat(c), r).unwrap()
+    }
+
+    #[test]
+    fn merging_a_shifted_volume_is_the_union_of_the_two() {
+        let mut a = Volume::new();
+        a.add(&sphere(20.0, 9.0)).unwrap();
+        let mut b = Volume::new();
+        b.add(&Sphere::new(DVec3::new(12.3, 21.0, 19.6), 6.5).unwrap()).unwrap();
+        b.add(&Sphere::new(DVec3::new(40.0, 5.0, 33.0), 4.0).unwrap()).unwrap();
+        let before = a.clone();
+        let report = a.merge_from(&b, IVec3::new(3, -2, 17), &EditSettings::default()).unwrap();
+        a.check_invariants().unwrap();
+        for z in 0..60i64 {
+            for y in -10..40i64 {
+                for x in 0..60i64 {
+                    let n = I64Vec3::new(x, y, z);
+                    let want = before.node_inside(n) || b.node_inside(n - I64Vec3::new(3, -2, 17));
+                    assert_eq!(a.node_inside(n), want, "node {n}");
+                }
+            }
+        }
+        a.restore(report.undo);
+        assert_eq!(a, before);
     }
 
     #[test]
