@@ -413,3 +413,30 @@ fn help_views_and_layer_operations_through_keys_and_buttons() {
     assert_eq!(h.state().studio.editor.scene.layers.len(), 1);
     assert!(h.state().studio.editor.scene.layers[0].volume.is_empty(), "the last layer is emptied");
 }
+
+#[test]
+fn a_stroke_through_the_pointer_sculpts_and_ctrl_z_takes_it_back() {
+    let dir = temp("stroke");
+    let mut h = harness(&dir);
+    h.run();
+    let before = h.state().studio.editor.scene.layers[0].volume.clone();
+    // The viewport fills the window's middle; its centre looks at the ball.
+    let centre = egui::pos2(640.0, 400.0);
+    h.hover_at(centre);
+    h.step();
+    h.drag_at(centre);
+    h.step();
+    for i in 1..=8 {
+        h.hover_at(centre + egui::vec2(i as f32 * 4.0, 0.0));
+        h.step();
+    }
+    h.drop_at(centre + egui::vec2(32.0, 0.0));
+    h.step();
+    h.step();
+    let after = h.state().studio.editor.scene.layers[0].volume.clone();
+    assert!(after != before, "the drag sculpted: {}", h.state().studio.message);
+    assert_eq!(h.state().studio.editor.history().undo_len(), 1, "one stroke, one step");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert!(h.state().studio.editor.scene.layers[0].volume == before, "Ctrl+Z undid the stroke");
+}

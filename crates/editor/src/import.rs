@@ -19,8 +19,8 @@ use crate::scene::{Layer, LayerTransform};
 pub const MAX_CELLS: u32 = 4096;
 
 /// Bytes a stored crossing costs, headers and chunk map included, as measured on the bunny at
-/// 256 to 1024 cells (4.6 to 4.8): what [`ImportPlan::estimated_bytes`] multiplies by.
-pub const BYTES_PER_CROSSING: f64 = 4.8;
+/// 256 to 1024 cells (4.5 to 4.7): what [`ImportPlan::estimated_bytes`] multiplies by.
+pub const BYTES_PER_CROSSING: f64 = 4.6;
 
 /// How fine a conversion is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -138,4 +138,46 @@ pub fn convert(
 /// by line, which a user should know.
 pub fn is_closed(mesh: &TriangleMesh) -> bool {
     MeshBrush::new(&mesh.vertices, &mesh.triangles, MeshRule::EvenOdd).is_ok_and(|b| b.is_closed())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bunny() -> TriangleMesh {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply");
+        strata_mesh::import::load_mesh(&path).unwrap()
+    }
+
+    #[test]
+    fn the_plan_estimates_what_the_conversion_stores() {
+        let mesh = bunny();
+        for cells in [32, 96] {
+            let plan = plan(&mesh, Resolution::Cells(cells)).unwrap();
+            assert!((plan.cells_long - cells as f64).abs() < 1e-9);
+            let layer = convert(&mesh, &plan, MeshRule::EvenOdd, "bunny", &EditSettings::default()).unwrap();
+            layer.volume.check_invariants().unwrap();
+            let stored = layer.volume.crossing_stats().total as f64;
+            assert!((plan.estimated_crossings / stored - 1.0).abs() < 0.05, "{} vs {stored}", plan.estimated_crossings);
+            let bytes = layer.volume.memory().total() as f64;
+            assert!((plan.estimated_bytes() / bytes - 1.0).abs() < 0.25, "{} vs {bytes}", plan.estimated_bytes());
+            // The layer sits where the mesh was, in the mesh's units.
+            let (lo, _) = mesh.bounds().unwrap();
+            assert!((layer.transform.to_world(DVec3::splat(2.0)) - lo).length() < 1e-9);
+        }
+        assert!(is_closed(&mesh));
+    }
+
+    #[test]
+    fn bad_resolutions_and_flat_meshes_are_refused() {
+        let mesh = bunny();
+        assert_eq!(plan(&mesh, Resolution::Cells(0)), Err(ConvertError::BadCells(0)));
+        assert_eq!(plan(&mesh, Resolution::Cells(MAX_CELLS + 1)), Err(ConvertError::BadCells(MAX_CELLS + 1)));
+        for s in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(matches!(plan(&mesh, Resolution::CellSize(s)), Err(ConvertError::BadCellSize(_))), "{s}");
+        }
+        assert!(matches!(plan(&mesh, Resolution::CellSize(1e-9)), Err(ConvertError::TooFine { .. })));
+        let point = TriangleMesh { vertices: vec![DVec3::ONE; 3], triangles: vec![[0, 1, 2]] };
+        assert_eq!(plan(&point, Resolution::Cells(8)), Err(ConvertError::NoExtent));
+    }
 }

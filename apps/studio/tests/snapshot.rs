@@ -1,0 +1,61 @@
+//! A snapshot of what a new user sees: the default scene rendered by the studio's headless
+//! renderer (lavapipe in CI), compared with the committed image within a small tolerance.
+//! `UPDATE_SNAPSHOTS=1` writes the image anew. Without any adapter the test skips, unless
+//! `STRATA_REQUIRE_GPU=1` (set by CI).
+
+use std::path::{Path, PathBuf};
+
+fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    buf.truncate(info.buffer_size());
+    assert_eq!(info.color_type, png::ColorType::Rgba, "{}", path.display());
+    (info.width, info.height, buf)
+}
+
+#[test]
+fn the_default_scene_looks_as_it_did() {
+    let dir = std::env::temp_dir().join(format!("strata-snapshot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("default_scene.png");
+    match strata_studio::screenshot(None, &out, (320, 200), false) {
+        Ok(_) => {}
+        Err(e) if std::env::var("STRATA_REQUIRE_GPU").as_deref() != Ok("1") => {
+            eprintln!("skipping the snapshot: {e}");
+            return;
+        }
+        Err(e) => panic!("STRATA_REQUIRE_GPU=1 but the render failed: {e}"),
+    }
+    let reference = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/snapshots/default_scene.png");
+    if std::env::var("UPDATE_SNAPSHOTS").as_deref() == Ok("1") || !reference.exists() {
+        assert!(
+            std::env::var("UPDATE_SNAPSHOTS").as_deref() == Ok("1"),
+            "missing {}: run with UPDATE_SNAPSHOTS=1",
+            reference.display()
+        );
+        std::fs::copy(&out, &reference).unwrap();
+        return;
+    }
+    let (w, h, now) = decode(&out);
+    let (rw, rh, was) = decode(&reference);
+    assert_eq!((w, h), (rw, rh));
+    let mut total = 0u64;
+    let mut far = 0usize;
+    for (a, b) in now.chunks_exact(4).zip(was.chunks_exact(4)) {
+        let d = (0..3).map(|c| a[c].abs_diff(b[c]) as u64).max().unwrap();
+        total += d;
+        far += (d > 40) as usize;
+    }
+    let pixels = (w * h) as usize;
+    let mean = total as f64 / pixels as f64;
+    assert!(
+        mean < 1.5 && far * 200 < pixels,
+        "the default scene changed: mean difference {mean:.2}, {far} of {pixels} pixels far off (now at {})",
+        out.display()
+    );
+    // The ball is there: the centre is lit clay, not the background.
+    let centre = 4 * ((h / 2) * w + w / 2) as usize;
+    assert!(now[centre] > 60 && now[centre] > now[centre + 2], "clay-coloured centre: {:?}", &now[centre..centre + 4]);
+}
