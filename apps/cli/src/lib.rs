@@ -77,7 +77,12 @@ pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) ->
     let mut volume = Volume::new();
     let mut out = String::new();
     writeln!(out, "Sculpting the demo scene (scale {scale}):")?;
-    for step in demo_steps(scale)? {
+    let steps = demo_steps(scale)?;
+    // A progress bar on a terminal (a large scale takes a while); nothing when piped.
+    let progress = indicatif::ProgressBar::new(steps.len() as u64 + 1);
+    for step in steps {
+        progress.set_message(step.what);
+        progress.inc(1);
         let t = Instant::now();
         let report = volume
             .apply(step.op, step.brush.as_ref(), &EditSettings::default())
@@ -91,6 +96,8 @@ pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) ->
             t.elapsed().as_secs_f64() * 1e3
         )?;
     }
+    progress.set_message("meshing");
+    progress.inc(1);
     volume.check_invariants().context("the volume's invariants")?;
     let stats = volume.crossing_stats();
     let mem = volume.memory();
@@ -134,6 +141,7 @@ pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) ->
     let t = Instant::now();
     let mesh = mesh_volume(&volume);
     let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
+    progress.finish_and_clear();
     checks::check_closed_manifold(&mesh).context("the marching-cubes mesh")?;
     writeln!(out, "\nMarching cubes ({mesh_ms:.1} ms):")?;
     writeln!(out, "  triangles / vertices   {} / {}", mesh.triangle_count(), mesh.vertex_count())?;

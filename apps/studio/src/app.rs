@@ -480,7 +480,8 @@ impl StudioApp {
                 if ui.button("Export mesh… (glb, obj, stl, ply)").clicked() {
                     self.ask_path(&ctx, Prompt::Export, None);
                 }
-                ui.checkbox(&mut self.studio.export_dual, "Export with dual contouring");
+                ui.checkbox(&mut self.studio.export_dual, "Export with dual contouring")
+                    .on_hover_text("Keep sharp edges and corners in the exported mesh");
                 ui.separator();
                 if ui.button("Quit").clicked() {
                     self.guard(&ctx, Then::Quit);
@@ -588,12 +589,16 @@ impl StudioApp {
                 (BrushShape::Capsule, "Capsule"),
                 (BrushShape::Cylinder, "Cylinder"),
             ] {
-                ui.selectable_value(&mut tool.shape, shape, name);
+                ui.selectable_value(&mut tool.shape, shape, name)
+                    .on_hover_text("The shape of the add and erase brushes (field tools act in a ball)");
             }
         });
-        ui.add(egui::Slider::new(&mut tool.radius, 0.25..=64.0).logarithmic(true).text("radius [ ]"));
-        ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"));
-        ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"));
+        ui.add(egui::Slider::new(&mut tool.radius, 0.25..=64.0).logarithmic(true).text("radius [ ]"))
+            .on_hover_text("Brush radius in world units ([ and ] change it)");
+        ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"))
+            .on_hover_text("How much a pen's pressure scales the radius (0: not at all)");
+        ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"))
+            .on_hover_text("Distance between a stroke's dabs, as a fraction of the radius");
         ui.separator();
         ui.label("Alignment");
         ui.horizontal(|ui| {
@@ -623,11 +628,17 @@ impl StudioApp {
         let mut select = None;
         for (i, layer) in self.studio.editor.scene.layers.iter_mut().enumerate() {
             ui.horizontal(|ui| {
-                if ui.selectable_label(i == active, &layer.name).clicked() {
+                if ui
+                    .selectable_label(i == active, &layer.name)
+                    .on_hover_text("Select: the tools edit this layer")
+                    .clicked()
+                {
                     select = Some(i);
                 }
-                changed |= ui.checkbox(&mut layer.visible, "visible").changed();
-                edited |= ui.checkbox(&mut layer.locked, "locked").changed();
+                changed |=
+                    ui.checkbox(&mut layer.visible, "visible").on_hover_text("Show and export this layer").changed();
+                edited |=
+                    ui.checkbox(&mut layer.locked, "locked").on_hover_text("Keep the tools off this layer").changed();
             });
         }
         if let Some(i) = select {
