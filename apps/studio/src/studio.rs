@@ -257,6 +257,7 @@ impl Studio {
                 self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
             }
             Action::Undo | Action::Redo => {
+                let structure = self.editor.structure_revision();
                 let transforms: Vec<_> = self.editor.scene.layers.iter().map(|l| l.transform).collect();
                 let undo = action == Action::Undo;
                 let done = if undo { self.editor.undo() } else { self.editor.redo() };
@@ -267,7 +268,9 @@ impl Studio {
                     (false, false) => "Nothing to redo".into(),
                 };
                 // A layer moved back or forth: its chunks are drawn with the new placement.
-                if self.editor.scene.layers.iter().map(|l| l.transform).ne(transforms) {
+                if self.editor.scene.layers.iter().map(|l| l.transform).ne(transforms)
+                    || self.editor.structure_revision() != structure
+                {
                     self.full_upload = true;
                 }
             }
@@ -278,11 +281,10 @@ impl Studio {
             }
             Action::ToggleWireframe => self.wireframe = !self.wireframe,
             Action::AddLayer => {
-                let n = self.editor.scene.layers.len() + 1;
-                self.editor.scene.layers.push(Layer::new(format!("Layer {n}")));
-                self.editor.reset_caches();
-                self.editor.touch();
-                self.editor.active_layer = n - 1;
+                let mut layers = self.editor.scene.layers.clone();
+                let n = layers.len() + 1;
+                layers.push(Layer::new(format!("Layer {n}")));
+                self.editor.replace_layers(layers, n - 1);
                 self.full_upload = true;
             }
             Action::DeleteLayer | Action::DuplicateLayer | Action::MoveLayer(_) | Action::MergeDown => {
@@ -314,9 +316,9 @@ impl Studio {
             return Err("Wait for the large dab or the import to finish".into());
         }
         self.editor.end_stroke();
-        let layers = &mut self.editor.scene.layers;
+        let mut layers = self.editor.scene.layers.clone();
         let i = self.editor.active_layer.min(layers.len().saturating_sub(1));
-        let what = match action {
+        let (what, active) = match action {
             Action::DeleteLayer => {
                 let name = layers[i].name.clone();
                 if layers.len() == 1 {
@@ -324,16 +326,14 @@ impl Studio {
                 } else {
                     layers.remove(i);
                 }
-                self.editor.active_layer = i.min(layers.len() - 1);
-                format!("Deleted layer {name:?}")
+                (format!("Deleted layer {name:?}"), i.min(layers.len() - 1))
             }
             Action::DuplicateLayer => {
                 let mut copy = layers[i].clone();
                 copy.name = format!("{} copy", copy.name);
                 copy.locked = false;
                 layers.insert(i + 1, copy);
-                self.editor.active_layer = i + 1;
-                format!("Duplicated layer {:?}", layers[i].name)
+                (format!("Duplicated layer {:?}", layers[i].name), i + 1)
             }
             Action::MoveLayer(d) => {
                 let j = i as i64 + d as i64;
@@ -341,31 +341,26 @@ impl Studio {
                     return Ok(());
                 }
                 layers.swap(i, j as usize);
-                self.editor.active_layer = j as usize;
-                format!("Moved layer {:?} {}", layers[j as usize].name, if d > 0 { "down" } else { "up" })
+                (format!("Moved layer {:?} {}", layers[j as usize].name, if d > 0 { "down" } else { "up" }), j as usize)
             }
             Action::MergeDown => {
                 if i + 1 >= layers.len() {
                     return Err("There is no layer below to merge into".into());
                 }
-                let upper = layers[i].clone();
-                let lower = &mut layers[i + 1];
+                let upper = layers.remove(i);
+                let lower = &mut layers[i];
                 if lower.locked {
                     return Err(format!("Layer {:?} is locked", lower.name));
                 }
                 merge_into(&upper, lower)?;
-                let name = lower.name.clone();
-                layers.remove(i);
-                self.editor.active_layer = i;
-                format!("Merged {:?} into {name:?}", upper.name)
+                (format!("Merged {:?} into {:?}", upper.name, lower.name), i)
             }
             _ => unreachable!("only layer operations"),
         };
-        self.editor.clear_history();
-        self.editor.reset_caches();
-        self.editor.touch();
+        // One undo step that restores the whole list.
+        self.editor.replace_layers(layers, active);
         self.full_upload = true;
-        self.message = format!("{what} (undo history cleared)");
+        self.message = what;
         Ok(())
     }
 
@@ -412,10 +407,11 @@ impl Studio {
             Ok(layer) => {
                 let cell = layer.transform.scale;
                 let v = View::framing(std::iter::once(&layer));
-                self.editor.scene.layers.push(layer);
-                self.editor.reset_caches();
-                self.editor.touch();
-                self.editor.active_layer = self.editor.scene.layers.len() - 1;
+                let mut layers = self.editor.scene.layers.clone();
+                layers.push(layer);
+                let n = layers.len();
+                // An undo step: undo takes the imported layer away again.
+                self.editor.replace_layers(layers, n - 1);
                 self.editor.tool.radius = 10.0 * cell;
                 self.camera.target = v.target.as_vec3();
                 self.camera.distance = v.distance as f32;
@@ -918,7 +914,7 @@ mod tests {
         let (upper, lower) = (s.editor.scene.layers[0].clone(), s.editor.scene.layers[1].clone());
         s.act(Action::MergeDown).unwrap();
         assert_eq!(s.editor.scene.layers.len(), 1);
-        assert_eq!(s.editor.history().undo_len(), 0, "layer operations clear the history");
+        assert_eq!(s.editor.history().undo_len(), 3, "duplicate, move and merge are undo steps");
         let merged = &s.editor.scene.layers[0].volume;
         merged.check_invariants().unwrap();
         let c = glam::I64Vec3::new(128, 72, 128);
@@ -928,6 +924,24 @@ mod tests {
             assert_eq!(merged.node_inside(n), want, "node {n}");
         }
         assert!(merged.node_inside(c + glam::I64Vec3::new(70, 0, 0)), "the moved copy reaches further");
+        // Undo takes the merge back, then the move; redo merges again.
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers.len(), 2);
+        assert!(s.full_upload);
+        assert_eq!(s.editor.scene.layers[0].volume, upper.volume);
+        s.act(Action::Redo).unwrap();
+        assert_eq!(s.editor.scene.layers.len(), 1);
+        let merged = s.editor.scene.layers[0].volume.clone();
+        // A stroke after the merge, then undoing everything, restores the one ball.
+        s.act(Action::Undo).unwrap();
+        s.act(Action::Undo).unwrap();
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.scene.layers.len(), 1);
+        assert_eq!(s.editor.scene.layers[0].volume, lower.volume);
+        for _ in 0..3 {
+            s.act(Action::Redo).unwrap();
+        }
+        assert_eq!(s.editor.scene.layers[0].volume, merged);
         // Turned layers are not merged.
         s.act(Action::DuplicateLayer).unwrap();
         s.editor.scene.layers[1].transform.rotation = DQuat::from_rotation_y(0.3);

@@ -407,7 +407,13 @@ fn help_views_and_layer_operations_through_keys_and_buttons() {
     h.get_by_label("Merge down").click();
     h.run();
     assert_eq!(h.state().studio.editor.scene.layers.len(), 1, "{}", h.state().studio.message);
-    assert!(h.state().studio.message.contains("undo history cleared"));
+    // Layer operations are undo steps like strokes.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 2, "Ctrl+Z took the merge back");
+    h.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers.len(), 1);
     h.get_by_label("Delete").click();
     h.run();
     assert_eq!(h.state().studio.editor.scene.layers.len(), 1);

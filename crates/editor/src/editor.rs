@@ -13,7 +13,7 @@ use thiserror::Error;
 
 use crate::history::{History, HistoryEntry};
 use crate::pose::ToolPose;
-use crate::scene::Scene;
+use crate::scene::{Layer, Scene};
 use crate::tool::{ToolKind, ToolSettings};
 
 /// Why the editor refused something. The scene is unchanged.
@@ -132,6 +132,8 @@ pub struct Editor {
     dirty: Vec<BTreeSet<ChunkKey>>,
     settings: EditSettings,
     revision: u64,
+    /// Counts changes of the layer list (see [`Editor::structure_revision`]).
+    structure: u64,
 }
 
 impl std::fmt::Debug for Editor {
@@ -164,6 +166,7 @@ impl Editor {
             dirty: Vec::new(),
             settings: EditSettings::default(),
             revision: 0,
+            structure: 0,
         };
         e.reset_caches();
         e
@@ -486,7 +489,7 @@ impl Editor {
             records.push(edit.undo);
         }
         self.revision += 1;
-        self.history.push(HistoryEntry { layer, records, transform: None });
+        self.history.push(HistoryEntry { layer, records, transform: None, layers: None });
         Ok(changed)
     }
 
@@ -509,7 +512,12 @@ impl Editor {
         self.queue(layer, &edit.changed);
         self.revision += 1;
         // The history keeps the undo record; the report returned has an empty one.
-        self.history.push(HistoryEntry { layer, records: vec![std::mem::take(&mut edit.undo)], transform: None });
+        self.history.push(HistoryEntry {
+            layer,
+            records: vec![std::mem::take(&mut edit.undo)],
+            transform: None,
+            layers: None,
+        });
         Ok(edit)
     }
 
@@ -529,7 +537,7 @@ impl Editor {
         let old = std::mem::replace(&mut l.transform, checked);
         if old != checked {
             if !(merge && self.history.last_is_transform_of(layer)) {
-                self.history.push(HistoryEntry { layer, records: Vec::new(), transform: Some(old) });
+                self.history.push(HistoryEntry { layer, records: Vec::new(), transform: Some(old), layers: None });
             }
             self.revision += 1;
         }
@@ -576,32 +584,56 @@ impl Editor {
     /// Ends the stroke in progress, making it one undo step.
     pub fn end_stroke(&mut self) {
         if let Some(s) = self.stroke.take() {
-            self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None });
+            self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None, layers: None });
         }
     }
 
     /// Undoes the newest step. Returns whether anything changed.
     pub fn undo(&mut self) -> bool {
         self.end_stroke();
-        let layers = &mut self.scene.layers;
-        let changed = self.history.undo(|i| layers.get_mut(i));
+        let changed = self.history.undo(&mut self.scene.layers, &mut self.active_layer);
         self.after_history(changed)
     }
 
     /// Redoes the newest undone step. Returns whether anything changed.
     pub fn redo(&mut self) -> bool {
         self.end_stroke();
-        let layers = &mut self.scene.layers;
-        let changed = self.history.redo(|i| layers.get_mut(i));
+        let changed = self.history.redo(&mut self.scene.layers, &mut self.active_layer);
         self.after_history(changed)
     }
 
-    fn after_history(&mut self, restored: Option<(usize, Vec<ChunkKey>)>) -> bool {
-        let Some((layer, keys)) = restored else { return false };
+    fn after_history(&mut self, restored: Option<crate::history::Restored>) -> bool {
+        let Some(restored) = restored else { return false };
         self.revision += 1;
-        // Only the restored chunks changed: remesh them and the chunks that read them.
-        self.queue(layer, &keys);
+        match restored {
+            // Only the restored chunks changed: remesh them and the chunks that read them.
+            crate::history::Restored::Chunks(layer, keys) => self.queue(layer, &keys),
+            crate::history::Restored::Layers => {
+                self.reset_caches();
+                self.structure += 1;
+            }
+        }
         true
+    }
+
+    /// Replaces the layer list with `layers` and the active layer with `active` as one undo
+    /// step: how layers are added, deleted, duplicated, reordered and merged. The other steps
+    /// keep referring to the right layers: undoing this one restores the list they were made on.
+    pub fn replace_layers(&mut self, layers: Vec<Layer>, active: usize) {
+        self.end_stroke();
+        let old = std::mem::replace(&mut self.scene.layers, layers);
+        let old_active =
+            std::mem::replace(&mut self.active_layer, active.min(self.scene.layers.len().saturating_sub(1)));
+        self.history.push(HistoryEntry { layers: Some((old, old_active)), ..Default::default() });
+        self.reset_caches();
+        self.revision += 1;
+        self.structure += 1;
+    }
+
+    /// Changes whenever the layer list is replaced or restored by undo or redo (a renderer's
+    /// layers must then be uploaded anew).
+    pub fn structure_revision(&self) -> u64 {
+        self.structure
     }
 
     fn queue(&mut self, layer: usize, changed: &[ChunkKey]) {

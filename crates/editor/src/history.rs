@@ -5,7 +5,8 @@ use strata_volume::{ChunkKey, UndoRecord};
 use crate::scene::{Layer, LayerTransform};
 
 /// One undoable step: the records of every edit of a stroke on one layer, in the order applied,
-/// or a change of the layer's transform.
+/// a change of the layer's transform, or a change of the layer list itself (layers added,
+/// deleted, duplicated, reordered or merged).
 #[derive(Debug, Default)]
 pub struct HistoryEntry {
     /// The layer the step edited.
@@ -14,6 +15,18 @@ pub struct HistoryEntry {
     pub records: Vec<UndoRecord>,
     /// The layer's transform before the step, for a step that moved, turned or scaled it.
     pub transform: Option<LayerTransform>,
+    /// The whole layer list and the active layer before the step, for a step that changed the
+    /// list (layer numbers, which the other steps refer to, are those of the list restored).
+    pub layers: Option<(Vec<Layer>, usize)>,
+}
+
+/// What an undo or redo restored.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Restored {
+    /// Chunks of one layer (and perhaps its transform).
+    Chunks(usize, Vec<ChunkKey>),
+    /// The layer list (and the active layer).
+    Layers,
 }
 
 impl HistoryEntry {
@@ -21,6 +34,7 @@ impl HistoryEntry {
     pub fn bytes(&self) -> usize {
         self.records.iter().map(UndoRecord::heap_bytes).sum::<usize>()
             + self.records.capacity() * std::mem::size_of::<UndoRecord>()
+            + self.layers.as_ref().map_or(0, |(l, _)| l.iter().map(|l| l.volume.memory().total()).sum())
     }
 
     /// The chunks the step's records restore, sorted, without repeats.
@@ -31,12 +45,22 @@ impl HistoryEntry {
         keys
     }
 
-    /// Restores the records in reverse order (and the transform); returns the entry that undoes
-    /// this one.
-    fn apply(self, layer: &mut Layer) -> HistoryEntry {
-        let records = self.records.into_iter().rev().map(|r| layer.volume.restore(r)).collect();
+    /// Restores the step on `layers` (its records in reverse order and its transform, or the
+    /// layer list); returns the entry that undoes this one and what it restored, or `None` (and
+    /// nothing changed) for a step on a layer that no longer exists.
+    fn apply(self, layers: &mut Vec<Layer>, active: &mut usize) -> Option<(HistoryEntry, Restored)> {
+        if let Some((list, was_active)) = self.layers {
+            let now = std::mem::replace(layers, list);
+            let now_active = std::mem::replace(active, was_active);
+            let entry = HistoryEntry { layers: Some((now, now_active)), ..Default::default() };
+            return Some((entry, Restored::Layers));
+        }
+        let layer = layers.get_mut(self.layer)?;
+        let records: Vec<UndoRecord> = self.records.into_iter().rev().map(|r| layer.volume.restore(r)).collect();
         let transform = self.transform.map(|t| std::mem::replace(&mut layer.transform, t));
-        HistoryEntry { layer: self.layer, records, transform }
+        let entry = HistoryEntry { layer: self.layer, records, transform, layers: None };
+        let keys = entry.keys();
+        Some((entry, Restored::Chunks(self.layer, keys)))
     }
 }
 
@@ -62,7 +86,7 @@ impl History {
 
     /// Records a finished step; clears the redo stack.
     pub fn push(&mut self, entry: HistoryEntry) {
-        if entry.records.iter().all(UndoRecord::is_empty) && entry.transform.is_none() {
+        if entry.records.iter().all(UndoRecord::is_empty) && entry.transform.is_none() && entry.layers.is_none() {
             return;
         }
         self.redo.clear();
@@ -73,7 +97,9 @@ impl History {
     /// Whether the newest undo step is a transform change of `layer` (which a continuing drag of
     /// the same transform may merge into).
     pub fn last_is_transform_of(&self, layer: usize) -> bool {
-        self.undo.last().is_some_and(|e| e.layer == layer && e.records.is_empty() && e.transform.is_some())
+        self.undo
+            .last()
+            .is_some_and(|e| e.layer == layer && e.records.is_empty() && e.transform.is_some() && e.layers.is_none())
     }
 
     fn trim(&mut self) {
@@ -84,36 +110,23 @@ impl History {
         }
     }
 
-    /// Undoes the newest step on the volume `volume_of` gives for its layer. Returns the layer
-    /// and the chunks restored.
-    pub fn undo<'a>(
-        &mut self,
-        layer_of: impl FnOnce(usize) -> Option<&'a mut Layer>,
-    ) -> Option<(usize, Vec<ChunkKey>)> {
+    /// Undoes the newest step on `layers` (`active` the active layer, restored with the list).
+    /// Returns what it restored.
+    pub fn undo(&mut self, layers: &mut Vec<Layer>, active: &mut usize) -> Option<Restored> {
         let entry = self.undo.pop()?;
-        let layer = entry.layer;
         // A step on a layer that no longer exists is dropped.
-        let target = layer_of(layer)?;
-        let redo = entry.apply(target);
-        let keys = redo.keys();
+        let (redo, restored) = entry.apply(layers, active)?;
         self.redo.push(redo);
-        Some((layer, keys))
+        Some(restored)
     }
 
-    /// Redoes the newest undone step. Returns the layer and the chunks restored.
-    pub fn redo<'a>(
-        &mut self,
-        layer_of: impl FnOnce(usize) -> Option<&'a mut Layer>,
-    ) -> Option<(usize, Vec<ChunkKey>)> {
+    /// Redoes the newest undone step. Returns what it restored.
+    pub fn redo(&mut self, layers: &mut Vec<Layer>, active: &mut usize) -> Option<Restored> {
         let entry = self.redo.pop()?;
-        let layer = entry.layer;
-        // A step on a layer that no longer exists is dropped.
-        let target = layer_of(layer)?;
-        let undo = entry.apply(target);
-        let keys = undo.keys();
+        let (undo, restored) = entry.apply(layers, active)?;
         self.undo.push(undo);
         self.trim();
-        Some((layer, keys))
+        Some(restored)
     }
 
     /// Steps that can be undone.

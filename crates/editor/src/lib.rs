@@ -17,7 +17,7 @@ mod scene;
 mod tool;
 
 pub use editor::{DabJob, Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pick, to_world};
-pub use history::{History, HistoryEntry};
+pub use history::{History, HistoryEntry, Restored};
 pub use pose::{Buttons, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, TransformError, View};
 pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};
