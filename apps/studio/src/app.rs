@@ -130,14 +130,20 @@ impl StudioApp {
     /// The app on `studio`, with GPU resources from eframe's wgpu state when there is one,
     /// native file dialogs and autosave to the user's recovery folder.
     pub fn new(cc: &eframe::CreationContext<'_>, studio: Studio) -> Self {
+        let dialogs = if std::env::var_os("STRATA_TYPED_PATHS").is_some() { Dialogs::Typed } else { Dialogs::Native };
+        StudioApp::with_gpu(cc, studio, dialogs, crate::recovery::default_dir())
+    }
+
+    /// [`StudioApp::new`] with the dialogs and the recovery folder chosen (for tests that drive
+    /// the whole app, GPU viewport included, through `egui_kittest`'s eframe harness).
+    pub fn with_gpu(cc: &eframe::CreationContext<'_>, studio: Studio, dialogs: Dialogs, recovery_dir: PathBuf) -> Self {
         let viewport = cc.wgpu_render_state.as_ref().map(|rs| Viewport {
             renderer: Renderer::new(&rs.device, wgpu::TextureFormat::Rgba8UnormSrgb),
             size: (0, 0),
             color: None,
             texture_id: None,
         });
-        let dialogs = if std::env::var_os("STRATA_TYPED_PATHS").is_some() { Dialogs::Typed } else { Dialogs::Native };
-        let mut app = StudioApp::headless(studio, dialogs, crate::recovery::default_dir());
+        let mut app = StudioApp::headless(studio, dialogs, recovery_dir);
         app.viewport = viewport;
         app
     }
