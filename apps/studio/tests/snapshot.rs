@@ -103,5 +103,8 @@ fn the_whole_studio_window_with_its_viewport_matches_its_snapshot() {
     h.state_mut().studio.last_remesh_ms = 0.0;
     h.state_mut().studio.last_edit_ms = 0.0;
     h.run_steps(2);
-    h.snapshot("studio_default_scene");
+    // A few hundred pixels may differ (a CPU rasteriser's rounding on another CPU); a missing
+    // panel, model or grid changes tens of thousands.
+    let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(2000);
+    h.snapshot_options("studio_default_scene", &options);
 }
