@@ -118,6 +118,13 @@ struct Stroke {
     records: Vec<strata_volume::UndoRecord>,
 }
 
+impl Stroke {
+    /// A stroke starting at `position` (aligned) for a pose at `start` (as given).
+    fn new(layer: usize, position: DVec3, start: DVec3, inverted: bool) -> Self {
+        Stroke { layer, last: position, start, anchor: position, inverted, records: Vec::new() }
+    }
+}
+
 /// The editor core: feed it one [`ToolPose`] per frame.
 pub struct Editor {
     /// The scene being edited.
@@ -289,14 +296,7 @@ impl Editor {
                 }
             }
             None => {
-                self.stroke = Some(Stroke {
-                    layer,
-                    last: position,
-                    start: pose.position,
-                    anchor: position,
-                    inverted,
-                    records: Vec::new(),
-                });
+                self.stroke = Some(Stroke::new(layer, position, pose.position, inverted));
                 dabs.push(position);
             }
         }
@@ -304,7 +304,8 @@ impl Editor {
         for p in dabs {
             let last = self.stroke.as_ref().map_or(p, |s| s.last);
             let images = self.tool.mirrored(&transform, p, pose.orientation);
-            let directions = self.tool.mirrored_with_vector(&transform, p, p - last);
+            // (The same images, in the same order, each with the stroke's direction.)
+            let directions = self.tool.mirrored_directions(&transform, p, p - last);
             for (k, (at, orientation)) in images.into_iter().enumerate() {
                 let edit = if self.tool.kind.is_field_tool() {
                     let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
@@ -334,14 +335,7 @@ impl Editor {
     ) -> Result<(), EditorError> {
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let Some(s) = &self.stroke else {
-            self.stroke = Some(Stroke {
-                layer,
-                last: position,
-                start: pose.position,
-                anchor: position,
-                inverted,
-                records: Vec::new(),
-            });
+            self.stroke = Some(Stroke::new(layer, position, pose.position, inverted));
             return Ok(());
         };
         let drag = position - s.last;

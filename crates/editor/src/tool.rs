@@ -170,6 +170,55 @@ pub fn orientation_for_normal(normal: DVec3) -> DQuat {
 }
 
 impl ToolSettings {
+    /// The mirror images of grid point `g` under [`ToolSettings::symmetry`], as masks (bit `a`:
+    /// reflected across the plane of axis `a`), the identity first; images that coincide with
+    /// one already listed (a dab on a mirror plane) are left out.
+    fn masks(&self, g: DVec3) -> Vec<usize> {
+        let mut masks = Vec::with_capacity(8);
+        let mut seen: Vec<DVec3> = Vec::with_capacity(8);
+        for mask in 0..8usize {
+            if (0..3).any(|a| mask & (1 << a) != 0 && !self.symmetry[a]) {
+                continue;
+            }
+            let p = self.reflect_point(g, mask);
+            if seen.iter().any(|&o| (o - p).length() <= 1e-9 * (1.0 + p.length())) {
+                continue;
+            }
+            seen.push(p);
+            masks.push(mask);
+        }
+        masks
+    }
+
+    fn reflect_point(&self, mut g: DVec3, mask: usize) -> DVec3 {
+        for a in (0..3).filter(|a| mask & (1 << a) != 0) {
+            g[a] = 2.0 * self.symmetry_center[a] - g[a];
+        }
+        g
+    }
+
+    fn reflect_vector(mut v: DVec3, mask: usize) -> DVec3 {
+        for a in (0..3).filter(|a| mask & (1 << a) != 0) {
+            v[a] = -v[a];
+        }
+        v
+    }
+
+    /// `M R M` for the reflections of `mask`: for each reflected axis the other two vector parts
+    /// of the quaternion change sign (a rotation again).
+    fn reflect_rotation(mut q: DQuat, mask: usize) -> DQuat {
+        for a in (0..3).filter(|a| mask & (1 << a) != 0) {
+            let mut v = [q.x, q.y, q.z];
+            for (b, part) in v.iter_mut().enumerate() {
+                if b != a {
+                    *part = -*part;
+                }
+            }
+            q = DQuat::from_xyzw(v[0], v[1], v[2], q.w);
+        }
+        q
+    }
+
     /// The dab at world point `position` with world `orientation` and its mirror images under
     /// [`ToolSettings::symmetry`], in a layer placed by `layer`: the original first, images that
     /// coincide with one already listed (a dab on a mirror plane) left out. An orientation is
@@ -177,56 +226,37 @@ impl ToolSettings {
     pub fn mirrored(&self, layer: &LayerTransform, position: DVec3, orientation: DQuat) -> Vec<(DVec3, DQuat)> {
         let g = layer.to_grid(position);
         let q = layer.rotation.inverse() * orientation;
-        let c = self.symmetry_center;
-        let mut out: Vec<(DVec3, DQuat)> = Vec::with_capacity(8);
-        let mut grid: Vec<DVec3> = Vec::with_capacity(8);
-        for mask in 0..8usize {
-            if (0..3).any(|a| mask & (1 << a) != 0 && !self.symmetry[a]) {
-                continue;
-            }
-            let (mut gm, mut qm) = (g, q);
-            for a in 0..3 {
-                if mask & (1 << a) != 0 {
-                    gm[a] = 2.0 * c[a] - gm[a];
-                    // M R M for the reflection of axis a: the other two vector parts change sign.
-                    let mut v = [qm.x, qm.y, qm.z];
-                    for (b, part) in v.iter_mut().enumerate() {
-                        if b != a {
-                            *part = -*part;
-                        }
-                    }
-                    qm = DQuat::from_xyzw(v[0], v[1], v[2], qm.w);
-                }
-            }
-            if grid.iter().any(|&o| (o - gm).length() <= 1e-9 * (1.0 + gm.length())) {
-                continue;
-            }
-            grid.push(gm);
-            out.push((layer.to_world(gm), layer.rotation * qm));
-        }
-        out
+        self.masks(g)
+            .into_iter()
+            .map(|m| (layer.to_world(self.reflect_point(g, m)), layer.rotation * Self::reflect_rotation(q, m)))
+            .collect()
     }
 
-    /// [`ToolSettings::mirrored`] for a dab that also carries a world vector (a grab's drag, a
-    /// pinch's direction): each image with the vector mirrored as its position is.
+    /// [`ToolSettings::mirrored`] for a dab that also carries a world direction (a pinch's
+    /// stroke line): the same images, each with the direction mirrored as its position is.
+    pub fn mirrored_directions(&self, layer: &LayerTransform, position: DVec3, vector: DVec3) -> Vec<(DVec3, DVec3)> {
+        let g = layer.to_grid(position);
+        let v = layer.rotation.inverse() * vector;
+        self.masks(g)
+            .into_iter()
+            .map(|m| (layer.to_world(self.reflect_point(g, m)), layer.rotation * Self::reflect_vector(v, m)))
+            .collect()
+    }
+
+    /// The images of a grab's drag: like [`ToolSettings::mirrored_directions`], except that a
+    /// dab on a mirror plane keeps its mirrored drag too (the two drags together keep the
+    /// surface on the plane symmetric: a point on the plane moves only along it).
     pub fn mirrored_with_vector(&self, layer: &LayerTransform, position: DVec3, vector: DVec3) -> Vec<(DVec3, DVec3)> {
         let g = layer.to_grid(position);
         let v = layer.rotation.inverse() * vector;
-        let c = self.symmetry_center;
+        let close = |x: DVec3, y: DVec3| (x - y).length() <= 1e-9 * (1.0 + x.length());
         let mut out: Vec<(DVec3, DVec3)> = Vec::with_capacity(8);
         let mut grid: Vec<(DVec3, DVec3)> = Vec::with_capacity(8);
         for mask in 0..8usize {
             if (0..3).any(|a| mask & (1 << a) != 0 && !self.symmetry[a]) {
                 continue;
             }
-            let (mut gm, mut vm) = (g, v);
-            for a in 0..3 {
-                if mask & (1 << a) != 0 {
-                    gm[a] = 2.0 * c[a] - gm[a];
-                    vm[a] = -vm[a];
-                }
-            }
-            let close = |x: DVec3, y: DVec3| (x - y).length() <= 1e-9 * (1.0 + x.length());
+            let (gm, vm) = (self.reflect_point(g, mask), Self::reflect_vector(v, mask));
             if grid.iter().any(|&(o, ov)| close(o, gm) && close(ov, vm)) {
                 continue;
             }

@@ -529,3 +529,24 @@ fn the_alignment_tool_snaps_locks_and_orients() {
     assert_eq!(e.scene.layers[0].volume, direct);
     assert!(!direct.node_inside(I64Vec3::new(15, 15, 12)), "the box's corner turned away from (+x, +y)");
 }
+
+#[test]
+fn mirrored_directions_pair_with_the_mirrored_images_even_on_a_mirror_plane() {
+    let mut t = strata_editor::ToolSettings { symmetry: [true, false, true], ..Default::default() };
+    t.symmetry_center = DVec3::new(10.0, 0.0, 5.0);
+    let layer = LayerTransform::default();
+    for at in [DVec3::new(10.0, 3.0, 9.0), DVec3::new(13.0, 3.0, 5.0), DVec3::new(10.0, 3.0, 5.0)] {
+        let dir = DVec3::new(1.0, 0.5, -2.0);
+        let images = t.mirrored(&layer, at, DQuat::IDENTITY);
+        let dirs = t.mirrored_directions(&layer, at, dir);
+        assert_eq!(images.len(), dirs.len(), "{at}");
+        for ((p, _), (q, v)) in images.iter().zip(&dirs) {
+            assert_eq!(p, q);
+            assert!((v.length() - dir.length()).abs() < 1e-12);
+        }
+        // A grab on a mirror plane keeps both drags.
+        let drags = t.mirrored_with_vector(&layer, at, dir);
+        assert!(drags.len() >= images.len());
+    }
+    assert_eq!(t.mirrored(&layer, DVec3::new(10.0, 3.0, 5.0), DQuat::IDENTITY).len(), 1, "on both planes: one dab");
+}
