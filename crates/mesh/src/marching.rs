@@ -7,7 +7,7 @@ use std::hash::BuildHasherDefault;
 use glam::I64Vec3;
 use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
-use strata_volume::{Axis, ChunkKey, KeyHasher, Volume, VoxelBlock};
+use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
 
 use crate::Mesh;
 use crate::cases::cases;
@@ -67,6 +67,112 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
             }
         }
     }
+    if !block.seams().is_empty() {
+        split_seams(block, base, out);
+    }
+}
+
+/// Splits the triangles on faces shared with finer neighbours at the vertices the finer meshes
+/// have on them ([`VoxelBlock::seams`]), so both meshes share every edge there. A triangle with
+/// one split edge becomes a fan from its opposite corner; one with more (a corner cut off at a
+/// chunk corner) a fan from its centroid.
+fn split_seams(block: &VoxelBlock, base: [usize; 3], out: &mut Mesh) {
+    let mut chains: HashMap<(u32, u32), Vec<u32>, BuildHasherDefault<KeyHasher>> = HashMap::default();
+    let id = |(axis, l): (Axis, [u16; 3])| {
+        block.crossing_index(axis, l[0] as usize, l[1] as usize, l[2] as usize).map(|i| base[axis.index()] as u32 + i)
+    };
+    for seam in block.seams() {
+        let (Some(a), Some(b)) = (id(seam.a), id(seam.b)) else { continue };
+        let mut ids = vec![a];
+        for p in &seam.points {
+            out.positions.push(p.position());
+            out.normals.push(unpack_normal(p.normal).as_vec3().to_array());
+            ids.push(out.positions.len() as u32 - 1);
+        }
+        ids.push(b);
+        chains.insert((a, b), ids);
+    }
+    // The chain from `a` to `b` without its ends, if the edge is split.
+    let chain = |a: u32, b: u32| -> Option<Vec<u32>> {
+        if let Some(c) = chains.get(&(a, b)) {
+            return Some(c[1..c.len() - 1].to_vec());
+        }
+        chains.get(&(b, a)).map(|c| c[1..c.len() - 1].iter().rev().copied().collect())
+    };
+    let old = std::mem::take(&mut out.indices);
+    for t in old.chunks_exact(3) {
+        let splits: [Option<Vec<u32>>; 3] = [chain(t[0], t[1]), chain(t[1], t[2]), chain(t[2], t[0])];
+        let count = splits.iter().filter(|s| s.is_some()).count();
+        if count == 0 {
+            out.indices.extend_from_slice(t);
+            continue;
+        }
+        if count == 1 {
+            let k = splits.iter().position(|s| s.is_some()).expect("one split");
+            let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let mut path = vec![a];
+            path.extend(splits[k].as_ref().expect("split").iter().copied());
+            path.push(b);
+            for w in path.windows(2) {
+                out.indices.extend_from_slice(&[c, w[0], w[1]]);
+            }
+            continue;
+        }
+        let mut ring = Vec::new();
+        for k in 0..3 {
+            ring.push(t[k]);
+            if let Some(s) = &splits[k] {
+                ring.extend(s.iter().copied());
+            }
+        }
+        let centroid = |i: usize| {
+            let p = t.iter().map(|&v| out.positions[v as usize][i]).sum::<f32>() / 3.0;
+            p
+        };
+        let normal = {
+            let mut n = [0.0f32; 3];
+            for &v in t {
+                for (i, c) in n.iter_mut().enumerate() {
+                    *c += out.normals[v as usize][i];
+                }
+            }
+            let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-12);
+            n.map(|c| c / l)
+        };
+        out.positions.push([centroid(0), centroid(1), centroid(2)]);
+        out.normals.push(normal);
+        let m = out.positions.len() as u32 - 1;
+        for k in 0..ring.len() {
+            out.indices.extend_from_slice(&[m, ring[k], ring[(k + 1) % ring.len()]]);
+        }
+    }
+}
+
+/// A vertex's identity in the whole volume, whatever the level of the block it came from: its
+/// edge's axis and its absolute fixed-point position (65,536 steps per chunk side).
+pub(crate) fn vertex_key(chunk: ChunkKey, level: Level, axis: Axis, lower: [u32; 3], t: f32) -> EdgeKey {
+    let s = level.steps_per_cell() as i64;
+    let mut p = chunk.0.as_i64vec3() * 65536 + I64Vec3::new(lower[0] as i64, lower[1] as i64, lower[2] as i64) * s;
+    // `t` is an exact multiple of 1 / s (a power of two): this gives back the stored steps.
+    p[axis.index()] += (t as f64 * s as f64).round() as i64;
+    (axis as u8, p)
+}
+
+/// The identities of a block's mesh vertices in the order [`mesh_block`] makes them, up to its
+/// seam vertices (centroids of split triangles come after and have none).
+pub(crate) fn block_vertex_keys(block: &VoxelBlock) -> Vec<EdgeKey> {
+    let key = block.key().unwrap_or(ChunkKey::new(0, 0, 0));
+    let level = block.level();
+    let mut ids: Vec<EdgeKey> = Axis::ALL
+        .iter()
+        .flat_map(|&a| block.crossings(a).iter().map(move |c| vertex_key(key, level, a, c.lower.map(u32::from), c.t)))
+        .collect();
+    for seam in block.seams() {
+        for p in &seam.points {
+            ids.push(vertex_key(key, p.level, p.axis, p.lower.map(u32::from), p.t));
+        }
+    }
+    ids
 }
 
 /// The chunks whose cells can hold surface: every stored chunk and the chunks before it on
@@ -76,8 +182,8 @@ pub fn surface_chunks(volume: &Volume) -> Vec<ChunkKey> {
     crate::MeshCache::dependents(&stored)
 }
 
-/// A crossing's identity in the whole volume: its axis and the global node at its lower end.
-type EdgeKey = (u8, I64Vec3);
+/// A crossing's identity in the whole volume (see [`vertex_key`]).
+pub(crate) type EdgeKey = (u8, I64Vec3);
 
 /// One welded mesh of the whole volume (grid units, absolute; f32 positions lose precision far
 /// from the origin, so prefer per-chunk meshes there).
@@ -89,20 +195,7 @@ pub fn mesh_volume(volume: &Volume) -> Mesh {
             volume.extract_block_into(key, block);
             let mut m = Mesh::default();
             mesh_block(block, &mut m);
-            let origin = key.origin_grid();
-            let ids = Axis::ALL
-                .iter()
-                .flat_map(|&a| {
-                    let level = block.level();
-                    block.crossings(a).iter().map(move |c| {
-                        // Global node coordinates in the block's level units.
-                        let n = level.cells() as i64;
-                        let g =
-                            (origin / 16) * n + I64Vec3::new(c.lower[0] as i64, c.lower[1] as i64, c.lower[2] as i64);
-                        (a as u8, g)
-                    })
-                })
-                .collect();
+            let ids = block_vertex_keys(block);
             (key, m, ids)
         })
         .collect();
@@ -110,18 +203,28 @@ pub fn mesh_volume(volume: &Volume) -> Mesh {
     let mut welded: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
     for (key, m, ids) in parts {
         let origin = key.origin_grid().as_vec3();
-        let remap: Vec<u32> = ids
-            .iter()
-            .enumerate()
-            .map(|(i, id)| {
-                *welded.entry(*id).or_insert_with(|| {
-                    let p = m.positions[i];
-                    out.positions.push([p[0] + origin.x, p[1] + origin.y, p[2] + origin.z]);
-                    out.normals.push(m.normals[i]);
-                    out.positions.len() as u32 - 1
-                })
-            })
-            .collect();
+        let place = |out: &mut Mesh, i: usize| {
+            let p = m.positions[i];
+            out.positions.push([p[0] + origin.x, p[1] + origin.y, p[2] + origin.z]);
+            out.normals.push(m.normals[i]);
+            out.positions.len() as u32 - 1
+        };
+        let mut remap: Vec<u32> = Vec::with_capacity(m.positions.len());
+        for (i, id) in ids.iter().enumerate() {
+            let v = match welded.get(id) {
+                Some(&v) => v,
+                None => {
+                    let v = place(&mut out, i);
+                    welded.insert(*id, v);
+                    v
+                }
+            };
+            remap.push(v);
+        }
+        // Centroids of split seam triangles belong to this chunk alone.
+        for i in ids.len()..m.positions.len() {
+            remap.push(place(&mut out, i));
+        }
         out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
     }
     out

@@ -26,6 +26,46 @@ pub struct EdgeCrossing {
     pub normal: PackedNormal,
 }
 
+/// A vertex that a finer neighbour's mesh has on a contour segment of a shared face: a crossing
+/// of the neighbour's level, given in this block's frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SeamPoint {
+    /// The axis of the fine edge it lies on.
+    pub axis: Axis,
+    /// The finer level.
+    pub level: Level,
+    /// Lower node of the fine edge, block-local in units of `level`'s cells.
+    pub lower: [u16; 3],
+    /// Position along the fine edge, strictly between 0 and 1.
+    pub t: f32,
+    /// Outward normal, octahedral-packed.
+    pub normal: PackedNormal,
+}
+
+impl SeamPoint {
+    /// Position in grid units from the block's origin.
+    pub fn position(&self) -> [f32; 3] {
+        let sp = self.level.spacing() as f32;
+        let mut p = self.lower.map(|c| c as f32);
+        p[self.axis.index()] += self.t;
+        p.map(|c| c * sp)
+    }
+}
+
+/// One contour segment of a block face shared with a finer neighbour, between the crossings on
+/// edges `a` and `b` of the block (axis, lower node): the finer mesh passes through `points`
+/// (in order from `a`) on its way, so the triangle of this block on that segment must be split
+/// there for the two meshes to share edges.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SeamSplit {
+    /// The crossing where the segment starts.
+    pub a: (Axis, [u16; 3]),
+    /// The crossing where it ends.
+    pub b: (Axis, [u16; 3]),
+    /// The finer neighbour's vertices between them.
+    pub points: Vec<SeamPoint>,
+}
+
 /// Node states and edge crossings of one chunk plus its apron.
 #[derive(Clone, Debug, Default)]
 pub struct VoxelBlock {
@@ -39,6 +79,9 @@ pub struct VoxelBlock {
     /// `u32::MAX`.
     lookup: [Vec<u32>; 3],
     repaired: u32,
+    /// Edges changed to meet a neighbour of another level (crack patching).
+    patched: u32,
+    pub(crate) seams: Vec<SeamSplit>,
 }
 
 const NONE: u32 = u32::MAX;
@@ -137,6 +180,35 @@ impl VoxelBlock {
         self.repaired
     }
 
+    /// Edges the extractor changed so that the block meets a neighbour of another level: the
+    /// edges from a shared face into the chunk whose face node the coarser side decided
+    /// (crack patching, on the block only; the stored lists are untouched).
+    pub fn patched(&self) -> u32 {
+        self.patched
+    }
+
+    /// The contour segments of faces shared with finer neighbours that the neighbours' meshes
+    /// split (empty where every neighbour has this block's level).
+    pub fn seams(&self) -> &[SeamSplit] {
+        &self.seams
+    }
+
+    /// A block from a dense grid of node states and crossings.
+    pub(crate) fn fill_from_dense(&mut self, key: ChunkKey, level: Level, d: &crate::level::Dense, patched: u32) {
+        self.fill_from_parts(
+            key,
+            level,
+            |x, y, z| d.state([x, y, z]),
+            |axis, lower| {
+                let c = d.crossing(axis, lower);
+                let e = lower[axis.index()] as u32;
+                let s = level.steps_per_cell();
+                let q = crate::level::face::pos(c) as u32;
+                ((q - e * s) as f32 * (1.0 / s as f32), crate::level::face::nrm(c))
+            },
+        );
+        self.patched = patched;
+    }
     /// A block built from functions instead of a volume (for other representations and tests):
     /// `inside(x, y, z)` for every node in `0..=n`, and `crossing(axis, lower, nodes differ)` the
     /// position in `(0, 1)` and outward normal of the crossing on each edge whose nodes differ.
@@ -159,6 +231,20 @@ impl VoxelBlock {
         level: Level,
         inside: impl Fn(usize, usize, usize) -> bool,
         crossing: impl Fn(Axis, [usize; 3]) -> (f32, glam::Vec3),
+    ) {
+        self.fill_from_parts(key, level, inside, |axis, lower| {
+            let (t, normal) = crossing(axis, lower);
+            (t.clamp(1e-6, 1.0 - 1e-6), crate::normal::pack_normal(normal.as_dvec3()))
+        });
+    }
+
+    /// [`VoxelBlock::fill_from_fn`] with packed normals and positions already inside the edge.
+    fn fill_from_parts(
+        &mut self,
+        key: ChunkKey,
+        level: Level,
+        inside: impl Fn(usize, usize, usize) -> bool,
+        crossing: impl Fn(Axis, [usize; 3]) -> (f32, PackedNormal),
     ) {
         self.reset(key, level);
         let n = self.n;
@@ -191,11 +277,7 @@ impl VoxelBlock {
                         let (t, normal) = crossing(axis, lower);
                         let idx = self.node_index(x, y, z);
                         self.lookup[a][idx] = self.crossings[a].len() as u32;
-                        self.crossings[a].push(EdgeCrossing {
-                            lower: lower.map(|c| c as u8),
-                            t: t.clamp(1e-6, 1.0 - 1e-6),
-                            normal: crate::normal::pack_normal(normal.as_dvec3()),
-                        });
+                        self.crossings[a].push(EdgeCrossing { lower: lower.map(|c| c as u8), t, normal });
                     }
                 }
             }
@@ -216,6 +298,8 @@ impl VoxelBlock {
             self.lookup[a].resize(m * m * m, NONE);
         }
         self.repaired = 0;
+        self.patched = 0;
+        self.seams.clear();
     }
 }
 
@@ -232,8 +316,39 @@ impl Volume {
         keys.par_iter().map(|&k| self.extract_block(k)).collect()
     }
 
-    /// Extracts the block of `key` into `out`, reusing its allocations.
+    /// Extracts the block of `key` into `out`, reusing its allocations. Where the chunk or a
+    /// neighbour across a face or an edge is stored at another level, the shared faces are
+    /// patched to meet (see [`VoxelBlock::patched`] and [`VoxelBlock::seams`]).
     pub fn extract_block_into(&self, key: ChunkKey, out: &mut VoxelBlock) {
+        if !self.single_level() {
+            let map = crate::level::LevelMap::stored(self);
+            if !crate::level::plain(&map, key) {
+                crate::level::extract_patched(&map, key, out);
+                return;
+            }
+        }
+        self.extract_plain(key, out);
+    }
+
+    /// The block of `key` meshed at no finer than `cap(k)` for every chunk `k` (level of detail:
+    /// a coarser block sampled from the stored lists, the paper's VI-B), with the seams between
+    /// chunks of different levels patched as in [`Volume::extract_block_into`].
+    pub fn extract_block_capped(&self, key: ChunkKey, cap: &(dyn Fn(ChunkKey) -> Level + Sync), out: &mut VoxelBlock) {
+        let map = crate::level::LevelMap { volume: self, cap: Some(cap), replace: None };
+        if self.single_level() && crate::level::plain(&map, key) {
+            self.extract_plain(key, out);
+        } else {
+            crate::level::extract_patched(&map, key, out);
+        }
+    }
+
+    /// The level `key` is meshed at (its own for a list chunk; for a uniform chunk the highest
+    /// of its list neighbours across a face, else the volume's level).
+    pub fn mesh_level(&self, key: ChunkKey) -> Level {
+        crate::level::LevelMap::stored(self).get(key)
+    }
+
+    fn extract_plain(&self, key: ChunkKey, out: &mut VoxelBlock) {
         let level = self.level_of(key);
         out.reset(key, level);
         let n = level.cells();

@@ -135,18 +135,41 @@ pub fn local_pos_to_grid(q: LocalPos) -> f64 {
 
 /// Quantises a grid-unit offset along a chunk line into the open cell `edge` of `level`: the
 /// result is even and lies strictly between the fixed-point positions of the edge's two nodes,
-/// so a crossing never sits on a node.
+/// so a crossing never sits on a node — of this level or of any finer one (a position on a node
+/// of level [`MAX_LEVEL`] moves by two steps), so raising a chunk's level never finds a crossing
+/// on one of its new nodes and lowering it again gives back the same positions.
 #[inline]
 pub fn quantize_into_edge(t_grid: f64, edge: usize, level: Level) -> LocalPos {
+    quantize_steps(t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64), edge, level)
+}
+
+/// [`quantize_into_edge`] for a position given in fixed-point steps from the chunk's minimum face.
+#[inline]
+pub fn quantize_steps(steps: f64, edge: usize, level: Level) -> LocalPos {
     // In units of two fixed-point steps.
     let s = level.steps_per_cell() as i64 / 2;
     let lo = edge as i64 * s + 1;
     let hi = (edge as i64 + 1) * s - 1;
     // Round half up without a libm call: the cast truncates towards zero and saturates, which
     // the clamp makes harmless for values below `lo` (at least 1) or far beyond `hi`.
-    let q = t_grid * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64 / 2.0) + 0.5;
+    let q = steps / 2.0 + 0.5;
     let q = if q.is_nan() { (lo + hi) / 2 } else { q as i64 };
-    (q.clamp(lo, hi) * 2) as LocalPos
+    let mut q = q.clamp(lo, hi);
+    if q % FINEST_HALF_STEPS == 0 {
+        // On a node of the finest level: one unit towards the inside of the edge.
+        q += if q < hi { 1 } else { -1 };
+    }
+    (q * 2) as LocalPos
+}
+
+/// Half-steps (units of two fixed-point steps) between nodes of the finest level.
+const FINEST_HALF_STEPS: i64 = (4096 >> MAX_LEVEL) / 2;
+
+/// Whether a stored position lies on a node of the finest level (only files written before
+/// resolution levels could be changed hold such positions).
+#[inline]
+pub fn on_finest_node(q: LocalPos) -> bool {
+    (q as i64 / 2) % FINEST_HALF_STEPS == 0
 }
 
 /// The cell (edge index along the line) a fixed-point position lies in.
@@ -165,11 +188,13 @@ mod tests {
             let level = Level::new(k).unwrap();
             let s = level.steps_per_cell();
             for edge in [0, 1, level.cells() - 1] {
-                for t in [-5.0, 0.0, edge as f64 * level.spacing(), 1e9, f64::NAN] {
+                let mid = (edge as f64 + 0.5) * level.spacing();
+                for t in [-5.0, 0.0, edge as f64 * level.spacing(), mid, mid + 0.25, 1e9, f64::NAN] {
                     let q = quantize_into_edge(t, edge, level);
                     assert_eq!(edge_of(q, level), edge);
                     assert_ne!(q as u32 % s, 0, "a crossing must not sit on a node");
                     assert_eq!(q % 2, 0, "positions are even");
+                    assert!(!on_finest_node(q), "nor on a node of a finer level");
                 }
             }
         }

@@ -100,7 +100,7 @@ pub enum EditError {
 }
 
 /// What an edit did.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct EditReport {
     /// Chunks whose data changed, sorted. Meshes of these chunks (and of the neighbours that
     /// read them as their apron) need rebuilding.
@@ -179,7 +179,8 @@ struct EditCtx<'a> {
     /// The brush's field is a distance ([`Brush::field_is_distance`]): chunks far from the
     /// surface are decided by one field value.
     distance_field: bool,
-    table: Option<SpanTable>,
+    /// Span tables by level (index: level number), for the levels of the chunks edited.
+    tables: [Option<SpanTable>; crate::coords::MAX_LEVEL as usize + 1],
 }
 
 /// The brush's spans on every grid line through its box, computed once per edit (a line
@@ -466,14 +467,28 @@ impl Volume {
             }
             CsgOp::Intersect => self.chunks.keys().copied().collect(),
         };
-        let table = SpanTable::build(brush, &bounds, cmin, self.level, settings.parallel);
+        // One span table per level among the chunks edited (mixed levels are rare: most edits
+        // build one). A line shared by chunks of two levels is found the same way in both.
+        let mut levels = [false; crate::coords::MAX_LEVEL as usize + 1];
+        levels[self.level.get() as usize] = true;
+        if !self.single_level() {
+            for k in &keys {
+                if let Some(l) = self.stored_level(*k) {
+                    levels[l.get() as usize] = true;
+                }
+            }
+        }
+        let tables = std::array::from_fn(|k| {
+            let level = Level::new(k as u8).expect("within the maximum level");
+            if levels[k] { SpanTable::build(brush, &bounds, cmin, level, settings.parallel) } else { None }
+        });
         let ctx = EditCtx {
             brush,
             op,
             bounds,
             reconcile: !brush.lines_agree(),
             distance_field: brush.field_is_distance(),
-            table,
+            tables,
         };
         let control = settings.control.as_deref();
         if let Some(c) = control {
@@ -633,7 +648,8 @@ fn edit_chunk(
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
     let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;
-    let table_level = ctx.table.as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
+    let table_level =
+        ctx.tables[level.get() as usize].as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
     if let Some((t, offset)) = table_level
         && ctx.op != CsgOp::Intersect
         && covers_chunk(t, offset, origin, n)

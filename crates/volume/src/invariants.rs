@@ -47,7 +47,8 @@ impl Volume {
     /// Verifies, for every chunk: sorted lists with at most one crossing per cell and none on a
     /// node; lists in chunks that are not uniform; x, y and z lines agreeing on every node state;
     /// and continuity across chunk borders (a line's state after its last cell equals the state
-    /// the next chunk's line starts with).
+    /// the next chunk's line starts with; between chunks of different levels, on the lines of the
+    /// coarser level, which both have).
     pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
         use rayon::prelude::*;
         // Chunks are checked independently (in parallel); of several violations the one of the
@@ -69,9 +70,6 @@ impl Volume {
         let fail = |what: String| InvariantViolation { key, what };
         if let Chunk::Lists(lists) = chunk {
             check_lists(lists).map_err(fail)?;
-            if lists.level() != self.level {
-                return Err(fail(format!("level {:?} differs from the volume's", lists.level())));
-            }
             let from_x = states_from(lists, Axis::X);
             for axis in [Axis::Y, Axis::Z] {
                 if states_from(lists, axis) != from_x {
@@ -80,19 +78,47 @@ impl Volume {
             }
         }
         let here = ChunkView::of(Some(chunk));
-        let n = self.level.cells();
+        let level_of = |v: ChunkView<'_>| match v {
+            ChunkView::Lists(l) => Some(l.level()),
+            ChunkView::Uniform(_) => None,
+        };
         for axis in Axis::ALL {
             let step = axis.unit_i64().as_ivec3();
             let next = self.view(key.offset(step));
             let prev_missing = !self.chunks.contains_key(&key.offset(-step));
-            let (mut here, mut next) = (here.cursor(axis, 0), next.cursor(axis, 0));
-            for v in 0..n {
-                for u in 0..n {
-                    let line = here.next_line();
-                    if line.end_inside() != next.next_line().start_inside {
+            // A uniform chunk has no crossing at any level: it is read at its neighbour's.
+            let (lh, ln) = match (level_of(here), level_of(next)) {
+                (Some(a), Some(b)) => (a, b),
+                (Some(a), None) => (a, a),
+                (None, Some(b)) => (b, b),
+                (None, None) => (self.level, self.level),
+            };
+            let (nh, nn) = (lh.cells(), ln.cells());
+            let ends: Vec<bool> = {
+                let mut c = here.cursor(axis, 0);
+                (0..nh * nh).map(|_| c.next_line().end_inside()).collect()
+            };
+            let starts: Vec<bool> = {
+                let mut c = next.cursor(axis, 0);
+                (0..nn * nn).map(|_| c.next_line().start_inside).collect()
+            };
+            // Lines of the coarser level are lines of both; finer ones end between the other's nodes.
+            let lc = lh.min(ln);
+            let nc = lc.cells();
+            let (fh, fn_) = (nh / nc, nn / nc);
+            for v in 0..nc {
+                for u in 0..nc {
+                    if ends[u * fh + nh * v * fh] != starts[u * fn_ + nn * v * fn_] {
+                        let (u, v) = (u * fh, v * fh);
                         return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
                     }
-                    if prev_missing && line.start_inside {
+                }
+            }
+            if prev_missing {
+                let mut c = here.cursor(axis, 0);
+                for i in 0..nh * nh {
+                    if c.next_line().start_inside {
+                        let (u, v) = (i % nh, i / nh);
                         return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
                     }
                 }

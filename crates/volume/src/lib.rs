@@ -37,6 +37,7 @@ mod chunk;
 pub mod coords;
 mod edit;
 mod invariants;
+mod level;
 mod memory;
 pub mod normal;
 mod query;
@@ -46,7 +47,7 @@ pub mod tools;
 mod volume;
 
 pub use axis::Axis;
-pub use block::{EdgeCrossing, VoxelBlock};
+pub use block::{EdgeCrossing, SeamPoint, SeamSplit, VoxelBlock};
 pub use chunk::{Chunk, ChunkLists, LineRef};
 pub use coords::{ChunkKey, Level};
 pub use edit::{CsgOp, EditControl, EditError, EditReport, EditSettings, UndoRecord};

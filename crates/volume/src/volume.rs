@@ -53,6 +53,9 @@ static SOLID: Chunk = Chunk::Solid;
 pub struct ChunkMap {
     lists: HashMap<ChunkKey, Chunk, Hash>,
     solid: HashSet<ChunkKey, Hash>,
+    /// List chunks stored at each level (derived, kept by `insert` and `remove`).
+    #[serde(skip)]
+    levels: [u32; crate::coords::MAX_LEVEL as usize + 1],
 }
 
 /// Unchecked deserialised form of [`ChunkMap`].
@@ -72,7 +75,13 @@ impl TryFrom<RawChunkMap> for ChunkMap {
         if r.solid.iter().any(|k| r.lists.contains_key(k)) {
             return Err("a chunk stored both as lists and as solid".into());
         }
-        Ok(ChunkMap { lists: r.lists, solid: r.solid })
+        let mut levels = [0; crate::coords::MAX_LEVEL as usize + 1];
+        for c in r.lists.values() {
+            if let Chunk::Lists(l) = c {
+                levels[l.level().get() as usize] += 1;
+            }
+        }
+        Ok(ChunkMap { lists: r.lists, solid: r.solid, levels })
     }
 }
 
@@ -97,6 +106,9 @@ impl ChunkMap {
                 self.solid.insert(key);
             }
             lists => {
+                if let Chunk::Lists(l) = &lists {
+                    self.levels[l.level().get() as usize] += 1;
+                }
                 self.lists.insert(key, lists);
             }
         }
@@ -105,7 +117,20 @@ impl ChunkMap {
 
     /// Empties `key`; returns what was there.
     pub fn remove(&mut self, key: &ChunkKey) -> Option<Chunk> {
-        self.lists.remove(key).or_else(|| self.solid.remove(key).then_some(Chunk::Solid))
+        match self.lists.remove(key) {
+            Some(c) => {
+                if let Chunk::Lists(l) = &c {
+                    self.levels[l.level().get() as usize] -= 1;
+                }
+                Some(c)
+            }
+            None => self.solid.remove(key).then_some(Chunk::Solid),
+        }
+    }
+
+    /// How many list chunks are stored at each level.
+    pub fn level_counts(&self) -> [u32; crate::coords::MAX_LEVEL as usize + 1] {
+        self.levels
     }
 
     /// Every stored key.
@@ -273,6 +298,25 @@ impl Volume {
 
     pub(crate) fn view(&self, key: ChunkKey) -> ChunkView<'_> {
         ChunkView::of(self.chunks.get(&key))
+    }
+
+    /// Whether every list chunk is stored at the volume's level (then no seam needs patching).
+    pub fn single_level(&self) -> bool {
+        let counts = self.chunks.level_counts();
+        counts.iter().enumerate().all(|(k, &c)| c == 0 || k == self.level.get() as usize)
+    }
+
+    /// How many list chunks are stored at each level (index: level number).
+    pub fn level_counts(&self) -> [u32; crate::coords::MAX_LEVEL as usize + 1] {
+        self.chunks.level_counts()
+    }
+
+    /// The level of the list chunk at `key` (`None`: uniform or empty).
+    pub fn stored_level(&self, key: ChunkKey) -> Option<Level> {
+        match self.chunks.get(&key) {
+            Some(Chunk::Lists(l)) => Some(l.level()),
+            _ => None,
+        }
     }
 
     /// The level of the chunk at `key` (uniform chunks report the volume's level).

@@ -1,0 +1,111 @@
+//! Voxel blocks of chunks whose neighbours differ in level (crack patching, the paper's VI-C).
+//!
+//! Every face a block shares with a neighbour is taken from [`effective_face`]: the data of the
+//! coarser chunk, refined by the face table where the block is finer. The block's edges that run
+//! from a face into the chunk are then made to agree with the face's nodes (a crossing added at
+//! the edge's middle where they now differ, removed where they now agree), so the block stays
+//! consistent on all three axes. Only the block changes; the stored lists are untouched.
+//!
+//! The coarser block of a seam also records, for each contour segment on the shared face, the
+//! extra vertices the finer block's contour has on it ([`SeamSplit`]), so a mesher can split its
+//! triangle there and the two meshes share every edge.
+
+use glam::IVec3;
+
+use crate::axis::{Axis, compose};
+use crate::block::{SeamPoint, SeamSplit, VoxelBlock};
+use crate::coords::ChunkKey;
+use crate::level::dense::Dense;
+use crate::level::face::pos;
+use crate::level::read::{LevelMap, effective_face};
+
+/// The face and edge neighbours of a chunk (whose data or level its block depends on).
+pub(crate) const NEIGHBOURS: [IVec3; 18] = [
+    IVec3::new(1, 0, 0),
+    IVec3::new(-1, 0, 0),
+    IVec3::new(0, 1, 0),
+    IVec3::new(0, -1, 0),
+    IVec3::new(0, 0, 1),
+    IVec3::new(0, 0, -1),
+    IVec3::new(1, 1, 0),
+    IVec3::new(1, -1, 0),
+    IVec3::new(-1, 1, 0),
+    IVec3::new(-1, -1, 0),
+    IVec3::new(1, 0, 1),
+    IVec3::new(1, 0, -1),
+    IVec3::new(-1, 0, 1),
+    IVec3::new(-1, 0, -1),
+    IVec3::new(0, 1, 1),
+    IVec3::new(0, 1, -1),
+    IVec3::new(0, -1, 1),
+    IVec3::new(0, -1, -1),
+];
+
+/// Whether the block of `key` can be read by the plain extractor: it and its face and edge
+/// neighbours are all meshed at the level they are stored at, which is the block's level.
+pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
+    let level = map.get(key);
+    let same = |k: ChunkKey| {
+        let stored_ok = map.volume.stored_level(k).is_none_or(|l| l == level);
+        stored_ok && map.get(k) == level
+    };
+    same(key) && NEIGHBOURS.iter().all(|&d| same(key.offset(d)))
+}
+
+/// The block of `key` at its level in `map`, with every shared face taken from its effective
+/// data, and the seams towards finer neighbours recorded.
+pub(crate) fn extract_patched(map: &LevelMap<'_>, key: ChunkKey, out: &mut VoxelBlock) {
+    let level = map.get(key);
+    let n = level.cells();
+    let mut d = Dense::new(level);
+    d.read_own(map.volume.view(key));
+    let mut faces = Vec::with_capacity(6);
+    for normal in Axis::ALL {
+        let step = normal.unit_i64().as_ivec3();
+        for side in 0..2usize {
+            let owner = if side == 0 { key } else { key.offset(step) };
+            let g = effective_face(map, normal, owner, level);
+            d.put_face(&g, side * n);
+            let other = if side == 0 { key.offset(-step) } else { owner };
+            faces.push((side, g, map.get(other)));
+        }
+    }
+    let patched = d.make_consistent();
+    out.fill_from_dense(key, level, &d, patched as u32);
+    for (side, g, other_level) in faces {
+        if other_level <= level {
+            continue;
+        }
+        // The finer neighbour meshes this face refined to its level (the same computation).
+        let fine = g.clone().refine_to(other_level);
+        let r = fine.n / n;
+        let s_fine = other_level.steps_per_cell();
+        for j in 0..n {
+            for i in 0..n {
+                for (a, b, inner) in g.chains(&fine, i, j) {
+                    if inner.is_empty() {
+                        continue;
+                    }
+                    let edge = |(dir, ei, ej): (u8, usize, usize)| {
+                        (g.dir_axis(dir), compose(g.normal, side * n, ei, ej).map(|c| c as u16))
+                    };
+                    let points = inner
+                        .into_iter()
+                        .map(|(dir, fi, fj)| {
+                            let c = fine.crossing((dir, fi, fj));
+                            let e = if dir == 0 { fi } else { fj };
+                            SeamPoint {
+                                axis: fine.dir_axis(dir),
+                                level: other_level,
+                                lower: compose(g.normal, side * n * r, fi, fj).map(|c| c as u16),
+                                t: (pos(c) as u32 - e as u32 * s_fine) as f32 * (1.0 / s_fine as f32),
+                                normal: crate::level::face::nrm(c),
+                            }
+                        })
+                        .collect();
+                    out.seams.push(SeamSplit { a: edge(a), b: edge(b), points });
+                }
+            }
+        }
+    }
+}

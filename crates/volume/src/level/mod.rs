@@ -1,0 +1,78 @@
+//! Resolution levels: raising and lowering a chunk's level, reading any chunk at a coarser level
+//! (level of detail), and the crack patching that lets neighbouring chunks of different levels
+//! mesh into one closed surface.
+//!
+//! Any mix of levels is allowed (no 2:1 rule): the face table refines a face by one level at a
+//! time, so a seam between levels 0 and 2 is refined twice.
+
+mod change;
+mod dense;
+mod extract;
+pub(crate) mod face;
+mod read;
+
+pub(crate) use dense::Dense;
+pub(crate) use extract::{extract_patched, plain};
+pub(crate) use read::LevelMap;
+
+use glam::IVec3;
+
+use crate::coords::{ChunkKey, Level};
+use crate::edit::{EditReport, UndoRecord};
+use crate::volume::Volume;
+
+impl Volume {
+    /// Changes the stored level of the list chunk at `key` to `level`, one level at a time
+    /// (raising by the face table and the cells' Hermite data, lowering by dropping the lines
+    /// the coarser level does not have). Uniform and empty chunks have no level and are left as
+    /// they are. The report's undo restores the volume exactly; `changed` lists the chunks whose
+    /// meshes the change touches (the chunk and its 26 neighbours).
+    pub fn set_chunk_level(&mut self, key: ChunkKey, level: Level) -> EditReport {
+        let mut undo: Vec<(ChunkKey, Option<crate::chunk::Chunk>)> = Vec::new();
+        let remember = |undo: &mut Vec<_>, key: ChunkKey, old: Option<crate::chunk::Chunk>| {
+            if !undo.iter().any(|(k, _): &(ChunkKey, _)| *k == key) {
+                undo.push((key, old));
+            }
+        };
+        while let Some(now) = self.stored_level(key) {
+            if now < level {
+                let Some((built, neighbours)) = change::raise(self, key) else { break };
+                for (k, b) in neighbours {
+                    let old = self.put_built(k, b);
+                    remember(&mut undo, k, old);
+                }
+                let old = self.put_built(key, built);
+                remember(&mut undo, key, old);
+            } else if now > level {
+                let Some(built) = change::lower(self, key) else { break };
+                let old = self.put_built(key, built);
+                remember(&mut undo, key, old);
+            } else {
+                break;
+            }
+        }
+        let changed = if undo.is_empty() {
+            Vec::new()
+        } else {
+            let mut c: Vec<ChunkKey> = (-1..=1)
+                .flat_map(|z| (-1..=1).flat_map(move |y| (-1..=1).map(move |x| key.offset(IVec3::new(x, y, z)))))
+                .collect();
+            c.sort();
+            c
+        };
+        EditReport { changed, undo: UndoRecord { previous: undo }, repaired_nodes: 0 }
+    }
+
+    /// [`Volume::set_chunk_level`] for several chunks, in key order, as one report.
+    pub fn set_chunk_levels(&mut self, keys: &[ChunkKey], level: Level) -> EditReport {
+        let mut keys = keys.to_vec();
+        keys.sort();
+        keys.dedup();
+        let mut report = EditReport::default();
+        for k in keys {
+            let r = self.set_chunk_level(k, level);
+            report = report.then(r);
+        }
+        report
+    }
+}

@@ -1,0 +1,282 @@
+//! Reading lines and faces of a volume at any level, whatever the levels of the chunks that
+//! store them: a finer chunk is sampled (every `2^d`-th line and node, the one crossing of each
+//! coarse edge whose ends differ), a coarser one refined (the 1D rule along a line, the face
+//! table across a face).
+//!
+//! The effective data of a shared face or chunk edge, which every chunk around it meshes, is
+//! that of the coarsest chunk around it (see [`effective_face`]).
+
+use glam::IVec3;
+
+use crate::axis::{Axis, compose};
+use crate::chunk::{ChunkView, ViewCursor, WorkLine, node_mask};
+use crate::coords::{ChunkKey, Level, edge_of};
+use crate::level::face::{FaceGrid, NONE, pack};
+use crate::volume::Volume;
+
+/// The level every chunk is meshed at: a list chunk's own level, lowered to at most `cap(key)`
+/// where a cap is given (level of detail); a uniform chunk (which has no level of its own) at
+/// the highest level among its list neighbours across a face, so a uniform chunk next to a fine
+/// one never lowers the seam, or the volume's level where it has none.
+#[derive(Clone, Copy)]
+pub(crate) struct LevelMap<'v> {
+    pub(crate) volume: &'v Volume,
+    pub(crate) cap: Option<&'v (dyn Fn(ChunkKey) -> Level + Sync)>,
+    /// One chunk taken at another level (a level change being computed).
+    pub(crate) replace: Option<(ChunkKey, Level)>,
+}
+
+impl<'v> LevelMap<'v> {
+    pub(crate) fn stored(volume: &'v Volume) -> Self {
+        LevelMap { volume, cap: None, replace: None }
+    }
+
+    fn capped(&self, key: ChunkKey, l: Level) -> Level {
+        match self.cap {
+            Some(c) => l.min(c(key)),
+            None => l,
+        }
+    }
+
+    /// The level of a list chunk (`None` for a uniform one).
+    fn list_level(&self, key: ChunkKey) -> Option<Level> {
+        if let Some((k, l)) = self.replace
+            && k == key
+        {
+            return Some(l);
+        }
+        match self.volume.view(key) {
+            ChunkView::Lists(l) => Some(self.capped(key, l.level())),
+            ChunkView::Uniform(_) => None,
+        }
+    }
+
+    /// The level chunk `key` is meshed at.
+    pub(crate) fn get(&self, key: ChunkKey) -> Level {
+        if let Some(l) = self.list_level(key) {
+            return l;
+        }
+        let mut best: Option<Level> = None;
+        for axis in Axis::ALL {
+            let d = axis.unit_i64().as_ivec3();
+            for k in [key.offset(d), key.offset(-d)] {
+                if let Some(l) = self.list_level(k) {
+                    best = Some(best.map_or(l, |b| b.max(l)));
+                }
+            }
+        }
+        best.unwrap_or_else(|| self.capped(key, self.volume.level))
+    }
+}
+
+/// Reads lines of one chunk family in increasing index order (restarting for a lower index).
+pub(crate) struct LineReader<'a> {
+    view: ChunkView<'a>,
+    axis: Axis,
+    cursor: Option<ViewCursor<'a>>,
+    next: usize,
+}
+
+impl<'a> LineReader<'a> {
+    pub(crate) fn new(view: ChunkView<'a>, axis: Axis) -> Self {
+        LineReader { view, axis, cursor: None, next: 0 }
+    }
+
+    /// Line `(u, v)` at `level` into `out` (node states `0..=n` and the crossings of the edges
+    /// whose nodes differ). `false` where the chunk is coarser than `level` and holds no line
+    /// there.
+    pub(crate) fn read(&mut self, u: usize, v: usize, level: Level, out: &mut WorkLine) -> bool {
+        let n = level.cells();
+        let stored = match self.view {
+            ChunkView::Uniform(s) => {
+                out.states = if s { node_mask(n) } else { 0 };
+                return true;
+            }
+            ChunkView::Lists(l) => l.level(),
+        };
+        if stored >= level {
+            let f = 1usize << (stored.get() - level.get());
+            let mut fine = WorkLine::EMPTY;
+            self.stored_line(u * f, v * f, stored, &mut fine);
+            if f == 1 {
+                *out = fine;
+            } else {
+                sample_line(&fine, stored, level, out);
+            }
+            true
+        } else {
+            let f = 1usize << (level.get() - stored.get());
+            if u % f != 0 || v % f != 0 {
+                return false;
+            }
+            let mut coarse = WorkLine::EMPTY;
+            self.stored_line(u / f, v / f, stored, &mut coarse);
+            refine_line(&coarse, stored, level, out);
+            true
+        }
+    }
+
+    fn stored_line(&mut self, u: usize, v: usize, level: Level, out: &mut WorkLine) {
+        let n = level.cells();
+        let index = u + n * v;
+        if self.cursor.is_none() || index < self.next {
+            self.cursor = Some(self.view.cursor(self.axis, 0));
+        }
+        let c = self.cursor.as_mut().expect("made above");
+        c.advance_to(index);
+        let line = c.next_line();
+        self.next = index + 1;
+        out.load(line, level);
+    }
+}
+
+/// `fine` (at `from`) sampled at the coarser `to`: every `2^d`-th node, and on each coarse edge
+/// whose ends differ the first crossing of the fine edges it covers.
+pub(crate) fn sample_line(fine: &WorkLine, from: Level, to: Level, out: &mut WorkLine) {
+    let f = 1usize << (from.get() - to.get());
+    let n = to.cells();
+    let mut states = 0u128;
+    for j in 0..=n {
+        states |= ((fine.states >> (j * f)) & 1) << j;
+    }
+    out.states = states;
+    let fine_changes = fine.changes(from.cells());
+    let mut c = out.changes(n);
+    while c != 0 {
+        let e = c.trailing_zeros() as usize;
+        c &= c - 1;
+        let window = (fine_changes >> (e * f)) & ((1u128 << f) - 1);
+        let k = e * f + window.trailing_zeros() as usize;
+        out.pos[e] = fine.pos[k];
+        out.nrm[e] = fine.nrm[k];
+    }
+}
+
+/// `coarse` (at `from`) refined to the finer `to` by the 1D rule: each crossing stays where it
+/// is and the new nodes take the side of it they lie on.
+pub(crate) fn refine_line(coarse: &WorkLine, from: Level, to: Level, out: &mut WorkLine) {
+    let f = 1usize << (to.get() - from.get());
+    let n = to.cells();
+    let s_fine = to.steps_per_cell();
+    let changes = coarse.changes(from.cells());
+    let mut states = 0u128;
+    for j in 0..=n {
+        let e = j / f;
+        let lower = (coarse.states >> e) & 1 == 1;
+        let st = if j % f == 0 {
+            lower
+        } else if (changes >> e) & 1 == 1 {
+            let q = adjusted(coarse.pos[e], s_fine);
+            if ((j as u32) * s_fine) < q as u32 { lower } else { !lower }
+        } else {
+            lower
+        };
+        states |= (st as u128) << j;
+    }
+    out.states = states;
+    let mut c = changes;
+    while c != 0 {
+        let e = c.trailing_zeros() as usize;
+        c &= c - 1;
+        let q = adjusted(coarse.pos[e], s_fine);
+        let k = edge_of(q, to);
+        out.pos[k] = q;
+        out.nrm[k] = coarse.nrm[e];
+    }
+    debug_assert_eq!(out.changes(n).count_ones(), changes.count_ones());
+}
+
+/// A position moved two steps down where it sits on a node `steps` apart (positions in files
+/// written before levels could change).
+#[inline]
+fn adjusted(q: u16, steps: u32) -> u16 {
+    if q as u32 % steps == 0 { q - 2 } else { q }
+}
+
+/// The `(u, v)` index of the line along `axis` through the block-local point `p`.
+#[inline]
+pub(crate) fn line_uv(axis: Axis, p: [usize; 3]) -> (usize, usize) {
+    let (ua, va) = axis.across();
+    (p[ua.index()], p[va.index()])
+}
+
+fn unit(a: Axis) -> IVec3 {
+    a.unit_i64().as_ivec3()
+}
+
+/// The chunk-edge line along `axis` at the minimum corner (across coordinates 0, 0) of `owner`,
+/// at `level`: the data of the coarsest of the four chunks around it, refined to `level`.
+pub(crate) fn effective_line(map: &LevelMap<'_>, axis: Axis, owner: ChunkKey, level: Level, out: &mut WorkLine) {
+    let (p, q) = axis.across();
+    let around = [owner, owner.offset(-unit(p)), owner.offset(-unit(q)), owner.offset(-unit(p) - unit(q))];
+    let coarsest = around.iter().map(|&k| map.get(k)).min().expect("four chunks");
+    let at = coarsest.min(level);
+    let mut reader = LineReader::new(map.volume.view(owner), axis);
+    let mut line = WorkLine::EMPTY;
+    let ok = reader.read(0, 0, at, &mut line);
+    debug_assert!(ok, "a chunk is never coarser than the coarsest around it");
+    if at < level {
+        refine_line(&line, at, level, out);
+    } else {
+        *out = line;
+    }
+}
+
+/// The face normal to `normal` at the minimum face of `owner`, at `level`: the data of the
+/// coarser of its two chunks (refined by the face table where `level` is finer), its border
+/// lines those of the coarsest chunks around them ([`effective_line`]). Every chunk that meshes
+/// this face reads exactly this, so their contours on it agree.
+pub(crate) fn effective_face(map: &LevelMap<'_>, normal: Axis, owner: ChunkKey, level: Level) -> FaceGrid {
+    let lf = map.get(owner).min(map.get(owner.offset(-unit(normal))));
+    if level <= lf { read_face(map, normal, owner, level) } else { read_face(map, normal, owner, lf).refine_to(level) }
+}
+
+/// The face of `owner` at `level` (at most the owner's level) with its border lines replaced by
+/// their effective lines and made consistent.
+fn read_face(map: &LevelMap<'_>, normal: Axis, owner: ChunkKey, level: Level) -> FaceGrid {
+    let (ua, va) = normal.across();
+    let n = level.cells();
+    let mut g = FaceGrid::uniform(level, normal, false);
+    let view = map.volume.view(owner);
+    let mut line = WorkLine::EMPTY;
+    // Lines along u (rows j) and along v (columns i) of the owner.
+    for (d, axis) in [(0u8, ua), (1, va)] {
+        let mut reader = LineReader::new(view, axis);
+        let mut ks: Vec<(usize, (usize, usize))> = (0..n)
+            .map(|k| {
+                let p = if d == 0 { compose(normal, 0, 0, k) } else { compose(normal, 0, k, 0) };
+                (k, line_uv(axis, p))
+            })
+            .collect();
+        ks.sort_by_key(|&(_, (u, v))| u + n * v);
+        for (k, (u, v)) in ks {
+            let ok = reader.read(u, v, level, &mut line);
+            debug_assert!(ok, "read at or below the owner's level");
+            put_line(&mut g, d, k, &line);
+        }
+    }
+    // Border lines: j = 0 and i = 0 start at the owner, j = n and i = n at its neighbours.
+    let borders = [(0u8, 0usize, owner), (0, n, owner.offset(unit(va))), (1, 0, owner), (1, n, owner.offset(unit(ua)))];
+    for (d, k, key) in borders {
+        let axis = if d == 0 { ua } else { va };
+        effective_line(map, axis, key, level, &mut line);
+        put_line(&mut g, d, k, &line);
+    }
+    g.make_consistent();
+    g
+}
+
+/// Writes `line` (states `0..=n` and crossings) as row `k` (d = 0, along u) or column `k`
+/// (d = 1, along v) of `g`.
+fn put_line(g: &mut FaceGrid, d: u8, k: usize, line: &WorkLine) {
+    let n = g.n;
+    let changes = line.changes(n);
+    for t in 0..=n {
+        let (i, j) = if d == 0 { (t, k) } else { (k, t) };
+        g.set_state(i, j, (line.states >> t) & 1 == 1);
+        if t < n {
+            let c = if (changes >> t) & 1 == 1 { pack(line.pos[t], line.nrm[t]) } else { NONE };
+            g.set_crossing((d, i, j), c);
+        }
+    }
+}
