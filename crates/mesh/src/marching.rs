@@ -125,10 +125,7 @@ fn split_seams(block: &VoxelBlock, base: [usize; 3], out: &mut Mesh) {
                 ring.extend(s.iter().copied());
             }
         }
-        let centroid = |i: usize| {
-            let p = t.iter().map(|&v| out.positions[v as usize][i]).sum::<f32>() / 3.0;
-            p
-        };
+        let centroid = |i: usize| t.iter().map(|&v| out.positions[v as usize][i]).sum::<f32>() / 3.0;
         let normal = {
             let mut n = [0.0f32; 3];
             for &v in t {
@@ -188,11 +185,25 @@ pub(crate) type EdgeKey = (u8, I64Vec3);
 /// One welded mesh of the whole volume (grid units, absolute; f32 positions lose precision far
 /// from the origin, so prefer per-chunk meshes there).
 pub fn mesh_volume(volume: &Volume) -> Mesh {
+    mesh_volume_impl(volume, None)
+}
+
+/// [`mesh_volume`] with every chunk `k` meshed at no finer than `cap(k)` (level of detail: the
+/// coarser blocks are sampled from the stored lists, and seams between the levels patched, so
+/// the mesh is closed for any map of caps).
+pub fn mesh_volume_capped(volume: &Volume, cap: &(dyn Fn(ChunkKey) -> Level + Sync)) -> Mesh {
+    mesh_volume_impl(volume, Some(cap))
+}
+
+fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + Sync)>) -> Mesh {
     let keys = surface_chunks(volume);
     let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)> = keys
         .par_iter()
         .map_init(VoxelBlock::default, |block, &key| {
-            volume.extract_block_into(key, block);
+            match cap {
+                Some(c) => volume.extract_block_capped(key, c, block),
+                None => volume.extract_block_into(key, block),
+            }
             let mut m = Mesh::default();
             mesh_block(block, &mut m);
             let ids = block_vertex_keys(block);

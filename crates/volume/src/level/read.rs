@@ -106,7 +106,7 @@ impl<'a> LineReader<'a> {
             true
         } else {
             let f = 1usize << (level.get() - stored.get());
-            if u % f != 0 || v % f != 0 {
+            if !u.is_multiple_of(f) || !v.is_multiple_of(f) {
                 return false;
             }
             let mut coarse = WorkLine::EMPTY;
@@ -190,7 +190,7 @@ pub(crate) fn refine_line(coarse: &WorkLine, from: Level, to: Level, out: &mut W
 /// written before levels could change).
 #[inline]
 fn adjusted(q: u16, steps: u32) -> u16 {
-    if q as u32 % steps == 0 { q - 2 } else { q }
+    if (q as u32).is_multiple_of(steps) { q - 2 } else { q }
 }
 
 /// The `(u, v)` index of the line along `axis` through the block-local point `p`.
