@@ -175,36 +175,34 @@ proptest! {
             if let Err(e) = checks::check_closed_manifold(&mesh) {
                 panic!("after {s:?}: {e}");
             }
+            let dual = strata_mesh::dual_contour_volume(&v);
+            let unbalanced = unbalanced_edges(&dual);
+            prop_assert_eq!(unbalanced, 0, "dual contouring not closed after {:?}", s);
         }
     }
 
-    /// Random level maps and ball edits (smooth shapes, where a node-sampled mesh can hold the
-    /// volume: a box edge alone loses up to an eighth of a cell² per cell of its length, levels
-    /// or not): the welded mesh encloses the lists' volume within 1 % (of at least 2,000
-    /// cells³) plus the spread of the lists' own measures along the three axes.
+    /// Random level maps on a random ball (a smooth body: a crease, such as the rim where two
+    /// balls meet, costs a node-sampled mesh volume whatever the levels, up to 1 % in these
+    /// scenes at one level): after every level change the welded mesh encloses the ball's volume
+    /// within 1 %. (Held against the ball, not `Volume::measured_volume`: that sum gives each
+    /// line the cross-section of the cell after it, which at a seam between levels misses or
+    /// doubles a slab half a coarse cell thick, 1.6 % here.)
     #[test]
-    fn mixed_levels_keep_the_enclosed_volume(steps in prop::collection::vec(random::step(), 1..8)) {
+    fn mixed_levels_keep_the_enclosed_volume(
+        c in prop::array::uniform3(40i32..88),
+        r in 40i32..80,
+        steps in prop::collection::vec(random::step(), 1..8),
+    ) {
         let mut v = Volume::new();
-        v.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 13.0).unwrap()).unwrap();
-        for s in &steps {
-            let s = match *s {
-                random::Step::Edit { op, c, size, .. } => random::Step::Edit { op: op.min(1), shape: 0, c, size },
-                ref l => l.clone(),
-            };
-            random::apply(&mut v, &s);
+        let c = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * 0.25;
+        v.add(&Sphere::new(c, r as f64 * 0.25).unwrap()).unwrap();
+        for s in steps.iter().filter(|s| matches!(s, random::Step::Level { .. })) {
+            random::apply(&mut v, s);
             let mesh = mesh_volume(&v);
             checks::check_closed_manifold(&mesh).unwrap();
-            // The lists' volume is the length of inside segments times the cross-section each
-            // line stands for; along the three axes it differs where faces lie on grid planes
-            // (a line on the face counts in full), and that spread is added to the 1 %.
-            let by_axis = strata_volume::Axis::ALL.map(|a| v.measured_volume(a));
-            let lists = by_axis.iter().sum::<f64>() / 3.0;
-            let spread = by_axis.iter().fold(0.0f64, |m, &x| m.max((x - lists).abs()));
+            let ball = 4.0 / 3.0 * std::f64::consts::PI * (r as f64 * 0.25).powi(3);
             let enclosed = checks::signed_volume(&mesh);
-            prop_assert!(
-                (enclosed - lists).abs() <= 0.01 * lists.max(2000.0) + spread,
-                "mesh {} vs lists {:?}", enclosed, by_axis
-            );
+            prop_assert!((enclosed - ball).abs() <= 0.01 * ball, "mesh {} vs ball {}", enclosed, ball);
         }
     }
 }
@@ -465,4 +463,32 @@ fn open_edges(m: &strata_mesh::Mesh) -> usize {
         }
     }
     count.values().filter(|&&c| c == 1).count()
+}
+
+/// Edges not used as often in one direction as in the other (0: a closed, consistently
+/// oriented surface, manifold or not).
+fn unbalanced_edges(m: &strata_mesh::Mesh) -> usize {
+    let mut uses: std::collections::HashMap<(u32, u32), i32> = std::collections::HashMap::new();
+    for t in m.indices.chunks_exact(3) {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *uses.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+        }
+    }
+    uses.values().filter(|&&c| c != 0).count()
+}
+
+#[test]
+fn dual_contouring_of_mixed_levels_is_closed() {
+    for (a, b) in [(0, 1), (1, 0), (0, 2), (2, 1)] {
+        let mut v = Volume::new();
+        v.add(&Sphere::new(DVec3::new(16.3, 15.8, 16.1), 9.3).unwrap()).unwrap();
+        for k in list_keys(&v) {
+            let _ = v.set_chunk_level(k, level(if k.0.x == 0 { a } else { b }));
+        }
+        let dual = strata_mesh::dual_contour_volume(&v);
+        assert!(!dual.indices.is_empty());
+        assert_eq!(unbalanced_edges(&dual), 0, "levels {a}/{b}");
+        let r = checks::manifold_report(&dual);
+        eprintln!("levels {a}/{b}: {} triangles, {} non-manifold edges", dual.indices.len() / 3, r.non_manifold);
+    }
 }

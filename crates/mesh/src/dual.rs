@@ -17,7 +17,7 @@ use std::hash::BuildHasherDefault;
 use glam::{DVec3, I64Vec3, IVec3, Vec3};
 use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
-use strata_volume::{Axis, ChunkKey, KeyHasher, Volume, VoxelBlock};
+use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
 
 use crate::qef::Qef;
 use crate::{Mesh, MeshCache};
@@ -46,6 +46,18 @@ impl ChunkDual {
         block: &VoxelBlock,
         cell_ok: &dyn Fn([usize; 3]) -> bool,
         edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
+    ) -> ChunkDual {
+        Self::of_with(block, cell_ok, edge_ok, false)
+    }
+
+    /// [`ChunkDual::of`], keeping the edges on the `+` faces too when `apron_edges` (between
+    /// chunks of different levels the finer side owns a shared face's edges, whichever side it
+    /// is on).
+    fn of_with(
+        block: &VoxelBlock,
+        cell_ok: &dyn Fn([usize; 3]) -> bool,
+        edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
+        apron_edges: bool,
     ) -> ChunkDual {
         let n = block.cells();
         let sp = block.level().spacing();
@@ -97,7 +109,7 @@ impl ChunkDual {
             let (ua, va) = axis.across();
             for c in block.crossings(axis) {
                 let lower = c.lower.map(|v| v as usize);
-                if lower[ua.index()] >= n || lower[va.index()] >= n {
+                if !apron_edges && (lower[ua.index()] >= n || lower[va.index()] >= n) {
                     continue; // on the + faces: owned by a neighbour
                 }
                 if edge_ok(axis, lower) {
@@ -163,7 +175,9 @@ fn border_filters(ds: &[IVec3], n: usize) -> (CellFilter, EdgeFilter) {
 }
 
 /// A chunk's dual-contouring mesh: chunk-local positions, and for each vertex the global cell it
-/// stands for (level units), which identifies it across chunks.
+/// stands for, which identifies it across chunks (level units where the volume has one level;
+/// where it mixes levels, the cell's minimum corner in units of the finest level's cells with
+/// the level in the two lowest bits of x).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DualChunkMesh {
     /// The triangles, positions in grid units from the chunk origin.
@@ -177,6 +191,8 @@ pub struct DualChunkMesh {
 pub struct DualCache {
     duals: FastMap<ChunkKey, ChunkDual>,
     meshes: FastMap<ChunkKey, DualChunkMesh>,
+    /// Levels of the chunks the duals were computed at, when the volume mixes levels.
+    levels: Option<FastMap<ChunkKey, Level>>,
 }
 
 impl DualCache {
@@ -199,6 +215,9 @@ impl DualCache {
     /// chunks after each that share a face or an edge (their quads use those vertices). Returns
     /// the chunks whose mesh was rebuilt.
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        if !volume.single_level() || self.levels.is_some() {
+            return self.update_mixed(volume, changed);
+        }
         let vertex_keys = MeshCache::dependents(changed);
         let changed_set: std::collections::HashSet<ChunkKey> = changed.iter().copied().collect();
         let fresh: Vec<(ChunkKey, ChunkDual, Vec<IVec3>)> = vertex_keys
@@ -254,6 +273,152 @@ impl DualCache {
             }
         }
         mesh_keys
+    }
+
+    /// [`DualCache::update`] for volumes whose chunks differ in level (the paper's VI-C: every
+    /// polygon is built around a chunk-corner neighbourhood of up to 2×2×2 chunks, here the four
+    /// cells around each edge, each in whichever chunk holds it at that chunk's level). Every
+    /// sign-changing edge of the finest level around it (its *minimal* edge) gets one polygon
+    /// joining the cells around it, a triangle where a coarser cell holds two of them: with the
+    /// shared faces patched to the coarser side's contour, every polygon edge is shared by an
+    /// even number of polygons, so the surface is closed. Vertices and meshes are recomputed
+    /// for the 3×3×3 chunks around each change.
+    fn update_mixed(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
+            let mut out: Vec<ChunkKey> = keys
+                .iter()
+                .flat_map(|k| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1))))
+                .collect();
+            out.sort();
+            out.dedup();
+            out
+        };
+        if self.levels.is_none() {
+            // From one level to several: everything is recomputed once.
+            self.duals.clear();
+            self.meshes.clear();
+            self.levels = Some(FastMap::default());
+            let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
+            let all = MeshCache::dependents(&stored);
+            return self.update_mixed(volume, &all);
+        }
+        let vertex_keys = around(changed);
+        let fresh: Vec<(ChunkKey, ChunkDual, Level)> = vertex_keys
+            .par_iter()
+            .map_init(VoxelBlock::default, |block, &key| {
+                volume.extract_block_into(key, block);
+                let d = ChunkDual::of_with(block, &|_| true, &|_, _| true, true);
+                (key, d, block.level())
+            })
+            .collect();
+        let levels = self.levels.as_mut().expect("set above");
+        for (key, d, level) in fresh {
+            levels.insert(key, level);
+            if d.cells.is_empty() && d.edges.is_empty() {
+                self.duals.remove(&key);
+            } else {
+                self.duals.insert(key, d);
+            }
+        }
+        let mesh_keys = around(&vertex_keys);
+        let meshes: Vec<(ChunkKey, DualChunkMesh)> =
+            mesh_keys.par_iter().map(|&key| (key, self.assemble_mixed(volume, key))).collect();
+        for (key, m) in meshes {
+            if m.mesh.indices.is_empty() {
+                self.meshes.remove(&key);
+            } else {
+                self.meshes.insert(key, m);
+            }
+        }
+        mesh_keys
+    }
+
+    /// The polygons of the minimal edges `key` owns, in a volume of mixed levels.
+    fn assemble_mixed(&self, volume: &Volume, key: ChunkKey) -> DualChunkMesh {
+        let mut out = DualChunkMesh::default();
+        let Some(own) = self.duals.get(&key) else { return out };
+        let level_of =
+            |k: ChunkKey| self.levels.as_ref().and_then(|l| l.get(&k).copied()).unwrap_or_else(|| volume.mesh_level(k));
+        let own_level = level_of(key);
+        let sp = own_level.spacing();
+        let origin = key.origin_grid().as_dvec3();
+        let mut ids: FastMap<I64Vec3, u32> = FastMap::default();
+        for &(axis, lower, lower_inside) in &own.edges {
+            let (ua, va) = axis.across();
+            let mut mid = origin + DVec3::new(lower[0] as f64, lower[1] as f64, lower[2] as f64) * sp;
+            mid[axis.index()] += 0.5 * sp;
+            // The four quadrants around the edge, counter-clockwise around +axis.
+            let eps = 0.01 * MIN_SPACING;
+            let quadrant = |su: f64, sv: f64| mid + ua.unit() * (su * eps) + va.unit() * (sv * eps);
+            let points = [quadrant(-1.0, -1.0), quadrant(1.0, -1.0), quadrant(1.0, 1.0), quadrant(-1.0, 1.0)];
+            let cells: Vec<(ChunkKey, Level, [usize; 3])> = points
+                .iter()
+                .map(|&p| {
+                    let k = ChunkKey::containing(p).expect("near a stored chunk");
+                    let l = level_of(k);
+                    let local = ((p - k.origin_grid().as_dvec3()) * l.nodes_per_unit()).floor();
+                    (k, l, [local.x as usize, local.y as usize, local.z as usize])
+                })
+                .collect();
+            // The finest chunk around the edge owns it; of several, the first of (+,+), (-,+),
+            // (+,-), (-,-) (for one level: the chunk holding the edge's lower node).
+            let finest = cells.iter().map(|c| c.1).max().expect("four cells");
+            if finest != own_level {
+                continue;
+            }
+            let owner = [2usize, 3, 1, 0].into_iter().find(|&q| cells[q].1 == finest).expect("one is finest");
+            if cells[owner].0 != key {
+                continue;
+            }
+            let mut q: Vec<u32> = Vec::with_capacity(4);
+            let mut complete = true;
+            for &(k, l, local) in &cells {
+                let id = cell_id(k, l, local);
+                if let Some(&i) = ids.get(&id) {
+                    if q.last() != Some(&i) {
+                        q.push(i);
+                    }
+                    continue;
+                }
+                let found = self.duals.get(&k).and_then(|d| d.vertex(local));
+                let Some((_, pos, normal)) = found else {
+                    complete = false;
+                    break;
+                };
+                let i = out.mesh.positions.len() as u32;
+                let shift = (k.origin_grid() - key.origin_grid()).as_vec3();
+                out.mesh.positions.push((pos + shift).to_array());
+                out.mesh.normals.push(normal.to_array());
+                out.cells.push(id);
+                ids.insert(id, i);
+                q.push(i);
+            }
+            if q.len() > 1 && q.first() == q.last() {
+                q.pop();
+            }
+            if !complete || q.len() < 3 {
+                continue;
+            }
+            if !lower_inside {
+                q.reverse();
+            }
+            if q.len() == 3 {
+                out.mesh.indices.extend_from_slice(&q);
+                continue;
+            }
+            let p: Vec<Vec3> = q.iter().map(|&i| Vec3::from(out.mesh.positions[i as usize])).collect();
+            let flat = |a: usize, b: usize, c: usize, d: usize| {
+                let n1 = (p[b] - p[a]).cross(p[c] - p[a]).normalize_or_zero();
+                let n2 = (p[c] - p[a]).cross(p[d] - p[a]).normalize_or_zero();
+                n1.dot(n2)
+            };
+            if flat(0, 1, 2, 3) >= flat(1, 2, 3, 0) {
+                out.mesh.indices.extend_from_slice(&[q[0], q[1], q[2], q[0], q[2], q[3]]);
+            } else {
+                out.mesh.indices.extend_from_slice(&[q[1], q[2], q[3], q[1], q[3], q[0]]);
+            }
+        }
+        out
     }
 
     /// The quads of the edges `key` owns.
@@ -369,6 +534,18 @@ impl DualCache {
         }
         out
     }
+}
+
+/// Node spacing of the finest level (grid units).
+const MIN_SPACING: f64 = 0.25;
+
+/// A cell's identity across chunks and levels: its minimum corner in units of the finest
+/// level's cells, with the level in the two lowest bits of x.
+fn cell_id(key: ChunkKey, level: Level, local: [usize; 3]) -> I64Vec3 {
+    let f = 1i64 << (strata_volume::coords::MAX_LEVEL - level.get());
+    let corner = key.0.as_i64vec3() * (16 << strata_volume::coords::MAX_LEVEL)
+        + I64Vec3::new(local[0] as i64, local[1] as i64, local[2] as i64) * f;
+    I64Vec3::new(corner.x * 4 + level.get() as i64, corner.y, corner.z)
 }
 
 /// One welded dual-contouring mesh of the whole volume (grid units, absolute).
