@@ -100,6 +100,9 @@ mod random {
         Edit { op: u8, shape: u8, c: [i32; 3], size: [i32; 3] },
         /// The chunk at `key` (in the 3³ block around the origin) to a level.
         Level { key: [i32; 3], level: u8 },
+        /// A sculpting tool (0 smooth, 1 inflate, 2 clay, 3 grab, 4 pinch, 5 flatten) at a
+        /// point in quarter cells with a radius in quarter cells.
+        Tool { tool: u8, c: [i32; 3], radius: i32 },
     }
 
     pub fn step() -> impl Strategy<Value = Step> {
@@ -108,6 +111,7 @@ mod random {
                 |(op, shape, c, size)| Step::Edit { op: if op < 6 { 0 } else if op < 9 { 1 } else { 2 }, shape, c, size }
             ),
             2 => (prop::array::uniform3(-1i32..2), 0u8..3).prop_map(|(key, level)| Step::Level { key, level }),
+            2 => (0u8..6, prop::array::uniform3(16i32..112), 8i32..32).prop_map(|(tool, c, radius)| Step::Tool { tool, c, radius }),
         ]
     }
 
@@ -146,6 +150,20 @@ mod random {
                 v.apply(op, b.as_ref(), &EditSettings::default()).unwrap()
             }
             Step::Level { key, level: l } => v.set_chunk_level(ChunkKey::new(key[0], key[1], key[2]), level(l)),
+            Step::Tool { tool, c, radius } => {
+                use strata_volume::tools;
+                let c = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * 0.25;
+                let dab = tools::Dab::new(c, radius as f64 * 0.25, 0.8).unwrap();
+                match tool {
+                    0 => tools::smooth(v, &dab, tools::Smoothing::default(), 2),
+                    1 => tools::inflate(v, &dab, 0.6),
+                    2 => tools::clay(v, &dab, 0.5 * dab.radius, false),
+                    3 => tools::grab(v, &dab, DVec3::new(1.3, -0.7, 0.9)),
+                    4 => tools::pinch(v, &dab, None, 0.5),
+                    _ => tools::flatten(v, &dab),
+                }
+                .unwrap()
+            }
         }
     }
 }
@@ -155,9 +173,11 @@ use proptest::prelude::*;
 proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
-    /// Random level maps and CSG edits (shapes and levels on the grid of every level: boxes and
-    /// box meshes with faces on grid planes, balls centred on nodes): the invariants hold after
-    /// every step, undo restores every step exactly, the welded mesh is closed and manifold.
+    /// Random level maps, CSG edits (shapes and levels on the grid of every level: boxes and box
+    /// meshes with faces on grid planes, balls centred on nodes) and sculpting tools (which read
+    /// at the finest level they touch and write each chunk at its own): the invariants hold
+    /// after every step, undo restores every step exactly, the welded marching-cubes mesh is
+    /// closed and manifold and the dual-contouring mesh closed.
     #[test]
     fn random_levels_and_edits_keep_every_invariant(steps in prop::collection::vec(random::step(), 1..10)) {
         let mut v = Volume::new();

@@ -86,13 +86,9 @@ impl Volume {
             let step = axis.unit_i64().as_ivec3();
             let next = self.view(key.offset(step));
             let prev_missing = !self.chunks.contains_key(&key.offset(-step));
-            // A uniform chunk has no crossing at any level: it is read at its neighbour's.
-            let (lh, ln) = match (level_of(here), level_of(next)) {
-                (Some(a), Some(b)) => (a, b),
-                (Some(a), None) => (a, a),
-                (None, Some(b)) => (b, b),
-                (None, None) => (self.level, self.level),
-            };
+            // A uniform chunk is sampled at the volume's level, as edits sample it: the lines of
+            // a finer neighbour between its nodes are not bound by it.
+            let (lh, ln) = (level_of(here).unwrap_or(self.level), level_of(next).unwrap_or(self.level));
             let (nh, nn) = (lh.cells(), ln.cells());
             let ends: Vec<bool> = {
                 let mut c = here.cursor(axis, 0);
@@ -116,9 +112,10 @@ impl Volume {
             }
             if prev_missing {
                 let mut c = here.cursor(axis, 0);
+                let f = nh / lh.min(self.level).cells();
                 for i in 0..nh * nh {
-                    if c.next_line().start_inside {
-                        let (u, v) = (i % nh, i / nh);
+                    let (u, v) = (i % nh, i / nh);
+                    if c.next_line().start_inside && u % f == 0 && v % f == 0 {
                         return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
                     }
                 }

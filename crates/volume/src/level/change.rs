@@ -34,12 +34,40 @@ use crate::volume::Volume;
 /// The chunk at `key` (lists at level `l`) raised to `l + 1`, and the finer neighbours before it
 /// whose last cells changed.
 pub(crate) fn raise(volume: &Volume, key: ChunkKey) -> Option<(Built, Vec<(ChunkKey, Built)>)> {
+    let s = source(volume, key)?;
+    if s.level.get() >= crate::coords::MAX_LEVEL {
+        return None;
+    }
+    let r = refine(volume, key, &s);
+    let built = r.build();
+    let mut neighbours = Vec::new();
+    for normal in Axis::ALL {
+        let before = key.offset(-normal.unit_i64().as_ivec3());
+        if let Some(b) = end_lines_on(volume, before, normal, &r) {
+            neighbours.push((before, b));
+        }
+    }
+    Some((built, neighbours))
+}
+
+/// The list chunk at `key` refined to `level` (at or above its own) without storing anything:
+/// what raising it would store, with its apron (for tools that work at a finer level than the
+/// chunk's).
+pub(crate) fn refined(volume: &Volume, key: ChunkKey, level: Level) -> Option<Dense> {
+    let mut d = source(volume, key)?;
+    while d.level < level {
+        d = refine(volume, key, &d);
+    }
+    Some(d)
+}
+
+/// The chunk's own data at its level, with the faces its lines end on completed from the
+/// neighbours (`None` for a uniform chunk).
+fn source(volume: &Volume, key: ChunkKey) -> Option<Dense> {
     let ChunkView::Lists(lists) = volume.view(key) else { return None };
     let level = lists.level();
-    let fine = Level::new(level.get() + 1)?;
     let n = level.cells();
     let old_map = LevelMap::stored(volume);
-    // The chunk's own data, with the faces its lines end on completed from the neighbours.
     let mut s = Dense::new(level);
     s.read_own(volume.view(key));
     for normal in Axis::ALL {
@@ -62,6 +90,13 @@ pub(crate) fn raise(volume: &Volume, key: ChunkKey) -> Option<(Built, Vec<(Chunk
         }
     }
     s.make_consistent();
+    Some(s)
+}
+
+/// `s` (the chunk `key` at some level `l`, apron included) refined to `l + 1`.
+fn refine(volume: &Volume, key: ChunkKey, s: &Dense) -> Dense {
+    let n = s.n;
+    let fine = Level::new(s.level.get() + 1).expect("refined below the maximum level");
     let mut r = Dense::new(fine);
     for normal in Axis::ALL {
         for c in 0..=n {
@@ -79,20 +114,12 @@ pub(crate) fn raise(volume: &Volume, key: ChunkKey) -> Option<(Built, Vec<(Chunk
     for z in 0..n {
         for y in 0..n {
             for x in 0..n {
-                refine_centre(&s, &mut r, [x, y, z]);
+                refine_centre(s, &mut r, [x, y, z]);
             }
         }
     }
     r.make_consistent();
-    let built = r.build();
-    let mut neighbours = Vec::new();
-    for normal in Axis::ALL {
-        let before = key.offset(-normal.unit_i64().as_ivec3());
-        if let Some(b) = end_lines_on(volume, before, normal, &r) {
-            neighbours.push((before, b));
-        }
-    }
-    Some((built, neighbours))
+    r
 }
 
 /// The centre node of cell `c` of `s` and the six half-edges through it, in `r` (one level finer).

@@ -6,6 +6,7 @@
 //! time, so a seam between levels 0 and 2 is refined twice.
 
 mod change;
+pub(crate) use change::refined;
 mod dense;
 mod extract;
 pub(crate) mod face;

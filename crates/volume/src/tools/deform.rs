@@ -76,10 +76,10 @@ pub fn grab(volume: &mut Volume, dab: &Dab, drag: DVec3) -> Result<EditReport, T
     if !drag.is_finite() {
         return Err(ToolError::BadParameter { what: "the drag", positive: false });
     }
-    let sp = volume.level().spacing();
     let travel = drag * dab.strength;
     let r = DVec3::splat(dab.radius);
     let (lo, hi) = (dab.center.min(dab.center + travel) - r, dab.center.max(dab.center + travel) + r);
+    let sp = volume.level_near(lo, hi).spacing();
     let steps = step_count(travel.length(), dab.radius, sp)?;
     if travel == DVec3::ZERO {
         return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
@@ -117,10 +117,10 @@ pub fn pinch(volume: &mut Volume, dab: &Dab, axis: Option<DVec3>, amount: f64) -
         Some(a) => a.normalize_or_zero(),
         None => DVec3::ZERO,
     };
-    let sp = volume.level().spacing();
     let r = DVec3::splat(dab.radius);
     let region =
         volume.read_region_within(dab.center - r, dab.center + r, 2, Reach::ball(dab.center, dab.radius, 0.0))?;
+    let sp = region.spacing();
     let normal = field_normal(&region, dab.center);
     // Only the part of `c − x` across the normal and the line's axis (the axis made
     // perpendicular to the normal first, so the two projections are exact together).

@@ -96,9 +96,10 @@ pub(crate) fn finite(what: &'static str, v: f64) -> Result<f64, ToolError> {
 /// inflates, negative deflates), less towards the rim by the falloff.
 pub fn inflate(volume: &mut Volume, dab: &Dab, amount: f64) -> Result<EditReport, ToolError> {
     let amount = finite("the inflate amount", amount)?;
-    let sp = volume.level().spacing();
+    let r = DVec3::splat(dab.radius);
+    let sp = volume.level_near(dab.center - r, dab.center + r).spacing();
     let mut region = dab.region(volume, 2, (amount * dab.strength).abs().min(dab.radius) + sp)?;
-    let per_node = (amount * volume.level().nodes_per_unit()) as f32;
+    let per_node = (amount / region.spacing()) as f32;
     for i in 0..region.phi.len() {
         region.phi[i] -= per_node * region.weight[i];
     }
@@ -268,8 +269,8 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
     if r <= 0.0 {
         return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
     }
-    let sp = volume.level().spacing();
     let reach = DVec3::splat(r + fillet);
+    let sp = volume.level_near(dab.center - reach, dab.center + reach).spacing();
     let within = Reach::ball(dab.center, r + fillet, fillet + sp);
     let mut region = volume.read_region_within(dab.center - reach, dab.center + reach, 2, within)?;
     let k = (fillet / sp) as f32;

@@ -75,9 +75,6 @@ pub enum RegionError {
     /// The region's fields were resized or its volume's level changed since it was read.
     #[error("the region does not match the volume it is written to")]
     Mismatch,
-    /// A chunk the region touches is stored at another level than the volume's.
-    #[error("chunk {0:?} is stored at another level than the volume's")]
-    MixedLevels(ChunkKey),
 }
 
 /// A box of nodes of a volume with their states and a signed distance field.
@@ -287,7 +284,64 @@ impl Reach {
     }
 }
 
+/// How far around a region's box [`Volume::level_near`] looks for finer chunks (grid units): the
+/// apron and the band of any tool's region.
+const LEVEL_MARGIN: f64 = 8.0;
+
 impl Volume {
+    /// The level a region over the box `[min, max]` is read at: the finest among the list chunks
+    /// within a few cells of the box, and the volume's own (so a tool works at the finest
+    /// resolution it touches and writes each chunk back at the chunk's own level).
+    pub fn level_near(&self, min: DVec3, max: DVec3) -> Level {
+        if self.single_level() || !(min.is_finite() && max.is_finite()) {
+            return self.level;
+        }
+        let lo = ChunkKey::containing(min - DVec3::splat(LEVEL_MARGIN));
+        let hi = ChunkKey::containing(max + DVec3::splat(LEVEL_MARGIN));
+        let (Some(lo), Some(hi)) = (lo, hi) else { return self.level };
+        let span = (hi.0 - lo.0 + IVec3::ONE).as_i64vec3();
+        if span.x * span.y * span.z > 4096 {
+            // A huge box: the finest level anywhere.
+            let counts = self.level_counts();
+            let top = counts.iter().rposition(|&c| c > 0).unwrap_or(0);
+            return self.level.max(Level::new(top as u8).expect("a stored level"));
+        }
+        let mut level = self.level;
+        for z in lo.0.z..=hi.0.z {
+            for y in lo.0.y..=hi.0.y {
+                for x in lo.0.x..=hi.0.x {
+                    if let Some(l) = self.stored_level(ChunkKey::new(x, y, z)) {
+                        level = level.max(l);
+                    }
+                }
+            }
+        }
+        level
+    }
+
+    /// The own nodes and crossings of the list chunk `key` (stored at `stored`) at `level` (at
+    /// or above it) into `block`; `false` if it cannot be read there.
+    fn read_own_at(&self, key: ChunkKey, stored: Level, level: Level, block: &mut crate::VoxelBlock) -> bool {
+        if stored == level && (self.single_level() || crate::level::plain(&crate::level::LevelMap::stored(self), key)) {
+            self.extract_block_into(key, block);
+            return true;
+        }
+        let dense = if stored == level {
+            let mut d = crate::level::Dense::new(level);
+            d.read_own(self.view(key));
+            // Edges between apron nodes, which no own line holds: given crossings, never read.
+            d.make_consistent();
+            d
+        } else {
+            match crate::level::refined(self, key, level) {
+                Some(d) => d,
+                None => return false,
+            }
+        };
+        block.fill_from_dense(key, level, &dense, 0);
+        true
+    }
+
     /// Reads the nodes of the box `[min, max]` (grid coordinates, rounded outwards to nodes) plus
     /// `apron` nodes on every side into a [`Region`] (see the module docs).
     pub fn read_region(&self, min: DVec3, max: DVec3, apron: usize) -> Result<Region, RegionError> {
@@ -310,7 +364,7 @@ impl Volume {
         if !reach.is_finite() {
             return Err(RegionError::BadBox);
         }
-        let level = self.level;
+        let level = self.level_near(min, max);
         let inv_sp = level.nodes_per_unit();
         let limit = (i32::MAX as f64 - 2.0) * level.cells() as f64;
         let lo = (min * inv_sp).floor() - DVec3::splat(apron as f64);
@@ -359,10 +413,12 @@ impl Volume {
                             }
                         }
                         ChunkView::Lists(l) => {
-                            if l.level() != level {
-                                return Err(RegionError::MixedLevels(key));
+                            // The chunk's own stored data at the region's level: as the plain
+                            // block where it and its neighbours share that level, else its own
+                            // lines (or, for a coarser chunk, what raising it would store).
+                            if !self.read_own_at(key, l.level(), level, &mut block) {
+                                continue;
                             }
-                            self.extract_block_into(key, &mut block);
                             for_owned_nodes(&region, base, n, |i, local| {
                                 inside[i] = block.inside(local[0], local[1], local[2]);
                             });
@@ -520,11 +576,7 @@ impl Volume {
     /// record. Nodes the operator does not own, and crossings between them, stay bit for bit.
     pub fn write_region(&mut self, region: &Region) -> Result<EditReport, RegionError> {
         let count = region.dims[0] * region.dims[1] * region.dims[2];
-        if region.phi.len() != count
-            || region.weight.len() != count
-            || region.original.len() != count
-            || region.level != self.level
-        {
+        if region.phi.len() != count || region.weight.len() != count || region.original.len() != count {
             return Err(RegionError::Mismatch);
         }
         // The box of owned nodes.
@@ -540,7 +592,7 @@ impl Volume {
         if lo.x > hi.x {
             return Ok(report);
         }
-        let level = self.level;
+        let level = region.level;
         let n = level.cells() as i64;
         // Chunk c holds nodes c n ..= c n + n along each line, so a node on a chunk plane is also
         // the last node of the chunk below.
@@ -551,13 +603,19 @@ impl Volume {
             for ky in klo.y..=khi.y {
                 for kx in klo.x..=khi.x {
                     let key = ChunkKey(IVec3::new(kx as i32, ky as i32, kz as i32));
-                    if let ChunkView::Lists(l) = self.view(key)
-                        && l.level() != level
-                    {
-                        return Err(RegionError::MixedLevels(key));
+                    // A chunk is written at its own level (a new one at the volume's), its nodes
+                    // every `stride` nodes of the region.
+                    let chunk_level = match self.view(key) {
+                        ChunkView::Lists(l) => l.level(),
+                        ChunkView::Uniform(_) => self.level.min(level),
+                    };
+                    if chunk_level > level {
+                        return Err(RegionError::Mismatch);
                     }
+                    let stride = 1i64 << (level.get() - chunk_level.get());
                     let base = I64Vec3::new(kx, ky, kz) * n;
-                    if let Some(built) = rewrite_chunk(self.view(key), base, level, region, (lo, hi), &mut builder) {
+                    let at = Stride { base, level: chunk_level, stride };
+                    if let Some(built) = rewrite_chunk(self.view(key), at, region, (lo, hi), &mut builder) {
                         results.push((key, built));
                     }
                 }
@@ -739,16 +797,25 @@ fn grow_nearest(
     }
 }
 
-/// The chunk at node `base` with the region's owned nodes (box `owned`) written in, or `None`
-/// if nothing in it changes.
-fn rewrite_chunk(
-    old: ChunkView<'_>,
+/// Where a chunk's nodes sit among a region's: its node 0 at region node `base`, one node of the
+/// chunk's `level` every `stride` region nodes (1 where the levels agree).
+#[derive(Clone, Copy, Debug)]
+struct Stride {
     base: I64Vec3,
     level: Level,
+    stride: i64,
+}
+
+/// The chunk at `at` with the region's owned nodes (box `owned`) written in, or `None` if
+/// nothing in it changes.
+fn rewrite_chunk(
+    old: ChunkView<'_>,
+    at: Stride,
     region: &Region,
     owned: (I64Vec3, I64Vec3),
     b: &mut ChunkBuilder,
 ) -> Option<Built> {
+    let Stride { base, level, stride } = at;
     let n = level.cells();
     let sp = level.spacing();
     b.begin(level);
@@ -762,14 +829,14 @@ fn rewrite_chunk(
         let mut next = 0;
         for v in 0..n {
             for u in 0..n {
-                let g0 = base + I64Vec3::from_array(compose(axis, 0, u as i64, v as i64));
+                let g0 = base + I64Vec3::from_array(compose(axis, 0, u as i64, v as i64)) * stride;
                 // Lines that hold no owned node are copied as they are.
                 let (gu, gv) = (g0[ua.index()], g0[va.index()]);
                 if gu < owned.0[ua.index()]
                     || gu > owned.1[ua.index()]
                     || gv < owned.0[va.index()]
                     || gv > owned.1[va.index()]
-                    || g0[a] + (n as i64) < owned.0[a]
+                    || g0[a] + (n as i64) * stride < owned.0[a]
                     || g0[a] > owned.1[a]
                 {
                     continue;
@@ -782,7 +849,7 @@ fn rewrite_chunk(
                 new_line.states = old_line.states;
                 // Per node of the line: its region index if the operator owns it.
                 let mut ids = [usize::MAX; crate::chunk::MAX_NODES];
-                let step = axis.unit_i64();
+                let step = axis.unit_i64() * stride;
                 let mut any = false;
                 for (j, id) in ids.iter_mut().enumerate().take(n + 1) {
                     if let Some(i) = region.local(g0 + step * j as i64) {
@@ -815,10 +882,22 @@ fn rewrite_chunk(
                         new_line.nrm[e] = old_line.nrm[e];
                         continue;
                     }
-                    // Both ends are in the region: an owned node is never on its outer layer.
-                    let (f0, f1) = (region.effective(i0) as f64, region.effective(i1) as f64);
+                    // Both ends are in the region where the chunk has the region's level (an
+                    // owned node is never on its outer layer); a coarser chunk's edge spans
+                    // `stride` region nodes, so its far end can lie beyond: that end kept its
+                    // state, and a distance of a coarse cell stands in for its field.
+                    let value = |i: usize, j: usize| {
+                        if i == usize::MAX {
+                            let inside = (new_line.states >> j) & 1 == 1;
+                            if inside { -(stride as f64) } else { stride as f64 }
+                        } else {
+                            region.effective(i) as f64
+                        }
+                    };
+                    let (f0, f1) = (value(i0, e), value(i1, e + 1));
                     let t = if (f0 <= 0.0) != (f1 <= 0.0) && f0 != f1 { (f0 / (f0 - f1)).clamp(0.0, 1.0) } else { 0.5 };
-                    let grad = region.gradient(i0) * (1.0 - t) + region.gradient(i1) * t;
+                    let grad_at = |i: usize| if i == usize::MAX { DVec3::ZERO } else { region.gradient(i) };
+                    let grad = grad_at(i0) * (1.0 - t) + grad_at(i1) * t;
                     let entering = (new_line.states >> (e + 1)) & 1 == 1;
                     let fallback = if entering { -axis.unit() } else { axis.unit() };
                     let mut normal = grad.normalize_or(fallback);
