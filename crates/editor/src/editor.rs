@@ -1,14 +1,14 @@
 //! The editor: a scene, the tool, the stroke in progress, history and mesh caches.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
+use glam::{DVec3, IVec3};
 use std::sync::Arc;
 use strata_mesh::{Mesh, MeshCache, dual_contour_volume};
 use strata_volume::brush::BrushError;
 
-use strata_volume::{ChunkKey, EditControl, EditError, EditReport, EditSettings, Volume};
+use strata_volume::{ChunkKey, EditControl, EditError, EditReport, EditSettings, Level, Volume};
 use thiserror::Error;
 
 use crate::history::{History, HistoryEntry};
@@ -59,6 +59,53 @@ pub struct FrameReport {
     pub remeshed: Vec<(usize, ChunkKey)>,
     /// Chunks still waiting for a remesh after this frame.
     pub pending: usize,
+}
+
+/// Where the viewer is, for level of detail: a chunk is meshed at the coarsest level whose cell,
+/// seen from `eye` at the chunk's nearest point, spans at most `pixel_error` pixels.
+/// Hysteresis: a chunk goes coarser only once the coarser level looks at most
+/// `pixel_error / 1.5`, so a camera resting near a threshold does not make chunks flicker.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LodView {
+    /// The eye, in world units.
+    pub eye: DVec3,
+    /// Pixels per radian of view (the viewport's height in pixels over the vertical field of
+    /// view in radians).
+    pub pixels_per_radian: f64,
+    /// The largest cell a chunk may show, in pixels.
+    pub pixel_error: f64,
+}
+
+impl LodView {
+    /// Whether every field is finite and positive where it must be.
+    pub fn is_valid(&self) -> bool {
+        self.eye.is_finite()
+            && self.pixels_per_radian.is_finite()
+            && self.pixels_per_radian > 0.0
+            && self.pixel_error.is_finite()
+            && self.pixel_error > 0.0
+    }
+
+    /// The level for a chunk stored at `stored`, now meshed at `current`, whose base cell is
+    /// `cell` world units, `distance` world units from the eye.
+    pub fn level_for(&self, stored: Level, current: Level, cell: f64, distance: f64) -> Level {
+        let pixels = |l: Level| cell * l.spacing() / distance * self.pixels_per_radian;
+        // The coarsest level that is fine enough.
+        let mut want = stored;
+        while want.get() > 0 {
+            let coarser = Level::new(want.get() - 1).expect("above the base");
+            if pixels(coarser) <= self.pixel_error {
+                want = coarser;
+            } else {
+                break;
+            }
+        }
+        if want < current && pixels(want) > self.pixel_error / 1.5 {
+            // Not clearly fine enough yet: stay.
+            return current.min(stored);
+        }
+        want
+    }
 }
 
 /// One dab applied on a worker thread ([`Editor::start_dab_job`]), for edits too large for a
@@ -137,6 +184,12 @@ pub struct Editor {
     stroke: Option<Stroke>,
     caches: Vec<MeshCache>,
     dirty: Vec<BTreeSet<ChunkKey>>,
+    /// Meshes computed but not yet shown: a chunk's new mesh is committed only together with
+    /// every neighbour's, so no seam is ever drawn between a new mesh and a stale one.
+    staged: Vec<HashMap<ChunkKey, Mesh>>,
+    /// Level-of-detail caps by layer (chunks missing are meshed at their stored level).
+    lod: Vec<HashMap<ChunkKey, Level>>,
+    view: Option<LodView>,
     settings: EditSettings,
     revision: u64,
     /// Counts changes of the layer list (see [`Editor::structure_revision`]).
@@ -171,6 +224,9 @@ impl Editor {
             stroke: None,
             caches: Vec::new(),
             dirty: Vec::new(),
+            staged: Vec::new(),
+            lod: Vec::new(),
+            view: None,
             settings: EditSettings::default(),
             revision: 0,
             structure: 0,
@@ -192,6 +248,8 @@ impl Editor {
     /// Rebuilds the per-layer caches and queues every chunk (after layers are added or removed).
     pub fn reset_caches(&mut self) {
         self.caches = self.scene.layers.iter().map(|_| MeshCache::new()).collect();
+        self.staged = self.scene.layers.iter().map(|_| HashMap::new()).collect();
+        self.lod = self.scene.layers.iter().map(|_| HashMap::new()).collect();
         self.dirty = self
             .scene
             .layers
@@ -631,25 +689,112 @@ impl Editor {
     }
 
     fn queue(&mut self, layer: usize, changed: &[ChunkKey]) {
-        self.dirty[layer].extend(MeshCache::dependents(changed));
+        let keys = self.caches[layer].affected(&self.scene.layers[layer].volume, changed);
+        self.dirty[layer].extend(keys);
     }
 
-    /// Remeshes queued chunks, in batches, until `budget` is spent (at least one batch).
+    /// Remeshes queued chunks, in batches, until `budget` is spent (at least one batch), then
+    /// shows the new meshes that can be shown without a crack (see [`Editor::commit_staged`]).
     fn remesh(&mut self, budget: Duration, report: &mut FrameReport) {
         let t0 = Instant::now();
         const BATCH: usize = 16;
+        let mut computed = false;
         for layer in 0..self.dirty.len() {
             while !self.dirty[layer].is_empty() {
-                if !report.remeshed.is_empty() && t0.elapsed() >= budget {
+                if computed && t0.elapsed() >= budget {
                     break;
                 }
                 let batch: Vec<ChunkKey> = std::iter::from_fn(|| self.dirty[layer].pop_first()).take(BATCH).collect();
-                self.caches[layer].remesh(&self.scene.layers[layer].volume, &batch);
-                report.remeshed.extend(batch.into_iter().map(|k| (layer, k)));
+                let lod = &self.lod[layer];
+                let cap = |k: ChunkKey| lod.get(&k).copied().unwrap_or(Level::FINEST);
+                let capped: Option<strata_mesh::LevelCap<'_>> = if lod.is_empty() { None } else { Some(&cap) };
+                let fresh = self.caches[layer].compute(&self.scene.layers[layer].volume, &batch, capped);
+                self.staged[layer].extend(fresh);
+                computed = true;
             }
+            self.commit_staged(layer, report);
         }
         report.remesh_time = t0.elapsed();
-        report.pending = self.dirty.iter().map(BTreeSet::len).sum();
+        report.pending =
+            self.dirty.iter().map(BTreeSet::len).sum::<usize>() + self.staged.iter().map(HashMap::len).sum::<usize>();
+    }
+
+    /// Shows the staged meshes of `layer` that no queued chunk can still change the seams of: a
+    /// staged chunk waits while a neighbour (across a face, edge or corner) is queued, or is
+    /// itself waiting; all the others are committed at once, in this frame.
+    fn commit_staged(&mut self, layer: usize, report: &mut FrameReport) {
+        if self.staged[layer].is_empty() {
+            return;
+        }
+        let dirty = &self.dirty[layer];
+        let staged = &self.staged[layer];
+        let around = |k: ChunkKey| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1)));
+        let mut waiting: BTreeSet<ChunkKey> =
+            staged.keys().copied().filter(|&k| around(k).any(|n| dirty.contains(&n))).collect();
+        let mut frontier: Vec<ChunkKey> = waiting.iter().copied().collect();
+        while let Some(k) = frontier.pop() {
+            for n in around(k) {
+                if staged.contains_key(&n) && waiting.insert(n) {
+                    frontier.push(n);
+                }
+            }
+        }
+        let ready: Vec<ChunkKey> = staged.keys().copied().filter(|k| !waiting.contains(k)).collect();
+        let fresh: Vec<(ChunkKey, Mesh)> =
+            ready.iter().map(|k| (*k, self.staged[layer].remove(k).expect("staged"))).collect();
+        self.caches[layer].commit(fresh);
+        report.remeshed.extend(ready.into_iter().map(|k| (layer, k)));
+    }
+
+    /// Level of detail by camera distance: with a view, every list chunk of every layer is
+    /// meshed at the coarsest level whose cell looks no larger than the view's pixel error from
+    /// the eye (see [`LodView`]); chunks whose level changes are queued with their neighbours.
+    /// `None` meshes everything at its stored level.
+    pub fn set_view(&mut self, view: Option<LodView>) {
+        self.view = view;
+        for layer in 0..self.scene.layers.len() {
+            let l = &self.scene.layers[layer];
+            let mut next: HashMap<ChunkKey, Level> = HashMap::new();
+            if let Some(v) = view.filter(|v| v.is_valid()) {
+                for (key, _) in l.volume.chunks() {
+                    let Some(stored) = l.volume.stored_level(key) else { continue };
+                    let centre = key.origin_grid().as_dvec3() + DVec3::splat(8.0);
+                    let world_cell = l.volume.cell_size() * l.transform.scale;
+                    let distance = (l.transform.to_world(centre * l.volume.cell_size()) - v.eye).length();
+                    // The chunk's half diagonal: the nearest point of the chunk counts.
+                    let near = (distance - 13.9 * world_cell).max(1e-9);
+                    let current = self.lod[layer].get(&key).copied().unwrap_or(stored);
+                    let level = v.level_for(stored, current, world_cell, near);
+                    if level < stored {
+                        next.insert(key, level);
+                    }
+                }
+            }
+            let old = std::mem::replace(&mut self.lod[layer], next);
+            let mut moved: Vec<ChunkKey> = Vec::new();
+            for (k, l) in &old {
+                if self.lod[layer].get(k) != Some(l) {
+                    moved.push(*k);
+                }
+            }
+            for (k, l) in &self.lod[layer] {
+                if old.get(k) != Some(l) {
+                    moved.push(*k);
+                }
+            }
+            if !moved.is_empty() {
+                let keys: Vec<ChunkKey> = moved
+                    .iter()
+                    .flat_map(|k| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1))))
+                    .collect();
+                self.dirty[layer].extend(keys);
+            }
+        }
+    }
+
+    /// The level-of-detail cap of a chunk of a layer (`None`: meshed at its stored level).
+    pub fn lod_level(&self, layer: usize, key: ChunkKey) -> Option<Level> {
+        self.lod.get(layer)?.get(&key).copied()
     }
 
     /// Remeshes everything queued, whatever it takes (before a screenshot or an export).
@@ -659,9 +804,15 @@ impl Editor {
         report.remeshed
     }
 
-    /// Chunks waiting for a remesh.
+    /// Chunks waiting for a remesh, or remeshed and waiting for their neighbours to be shown.
     pub fn pending(&self) -> usize {
-        self.dirty.iter().map(BTreeSet::len).sum()
+        self.dirty.iter().map(BTreeSet::len).sum::<usize>() + self.staged.iter().map(HashMap::len).sum::<usize>()
+    }
+
+    /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown.
+    pub fn is_pending(&self, layer: usize, key: ChunkKey) -> bool {
+        self.dirty.get(layer).is_some_and(|d| d.contains(&key))
+            || self.staged.get(layer).is_some_and(|s| s.contains_key(&key))
     }
 
     /// The marching-cubes mesh cache of a layer.
@@ -807,8 +958,36 @@ fn field_tool_dab(
         }
         // (Grab drags through `Editor::grab_to`; a dab of it alone has nothing to drag.)
         ToolKind::Grab => Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 }),
+        ToolKind::Detail => {
+            let target = if inverted { volume.level() } else { tool.detail_level.max(volume.level()) };
+            Ok(volume.set_chunk_levels(&chunks_in_ball(volume, dab.center, radius), target))
+        }
         _ => flatten(volume, &dab),
     }
+}
+
+/// The list chunks of `volume` that a ball (grid coordinates) reaches.
+fn chunks_in_ball(volume: &Volume, center: DVec3, radius: f64) -> Vec<ChunkKey> {
+    let c = strata_volume::coords::CHUNK_CELLS as f64;
+    let (Some(lo), Some(hi)) =
+        (ChunkKey::containing(center - DVec3::splat(radius)), ChunkKey::containing(center + DVec3::splat(radius)))
+    else {
+        return Vec::new();
+    };
+    let mut keys = Vec::new();
+    for z in lo.0.z..=hi.0.z {
+        for y in lo.0.y..=hi.0.y {
+            for x in lo.0.x..=hi.0.x {
+                let k = ChunkKey::new(x, y, z);
+                let min = k.origin_grid().as_dvec3();
+                let nearest = center.clamp(min, min + DVec3::splat(c));
+                if volume.stored_level(k).is_some() && (nearest - center).length() <= radius {
+                    keys.push(k);
+                }
+            }
+        }
+    }
+    keys
 }
 
 /// Moves a grid-space mesh into world space.

@@ -32,11 +32,15 @@ pub enum ToolKind {
     Pinch,
     /// Drag the surface under the brush with the pointer (the brush follows it).
     Grab,
+    /// Add resolution where fine detail is sculpted: raises the chunks under a ball of the
+    /// radius to [`ToolSettings::detail_level`]; inverse: lowers them to the layer's base level.
+    /// The surface stays as it was (raising reproduces it; lowering keeps the coarser lines).
+    Detail,
 }
 
 impl ToolKind {
     /// Every tool, in palette order.
-    pub const ALL: [ToolKind; 8] = [
+    pub const ALL: [ToolKind; 9] = [
         ToolKind::Clay,
         ToolKind::Add,
         ToolKind::Erase,
@@ -45,6 +49,7 @@ impl ToolKind {
         ToolKind::Flatten,
         ToolKind::Pinch,
         ToolKind::Grab,
+        ToolKind::Detail,
     ];
 
     /// The tool's name.
@@ -58,6 +63,7 @@ impl ToolKind {
             ToolKind::Flatten => "Flatten",
             ToolKind::Pinch => "Pinch",
             ToolKind::Grab => "Grab",
+            ToolKind::Detail => "Detail",
         }
     }
 
@@ -72,6 +78,7 @@ impl ToolKind {
             ToolKind::Flatten => "flatten",
             ToolKind::Pinch => "magnify",
             ToolKind::Grab => "grab",
+            ToolKind::Detail => "lower detail",
         }
     }
 
@@ -136,12 +143,15 @@ pub struct ToolSettings {
     /// Alignment: turn box, capsule and cylinder brushes so that their y axis follows the
     /// surface normal under the pointer (the studio passes it in the pose's orientation).
     pub orient_to_normal: bool,
+    /// The level the detail tool raises chunks to (1: 32 cells per chunk side, 2: 64).
+    pub detail_level: strata_volume::Level,
 }
 
 impl Default for ToolSettings {
     fn default() -> Self {
         ToolSettings {
             kind: ToolKind::Clay,
+            detail_level: strata_volume::Level::FINEST,
             shape: BrushShape::Sphere,
             radius: 6.0,
             strength: 0.0,

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 
 use glam::IVec3;
 use rayon::prelude::*;
-use strata_volume::{ChunkKey, Volume, VoxelBlock};
+use strata_volume::{ChunkKey, Level, Volume, VoxelBlock};
 
 use crate::{Mesh, mesh_block};
 
@@ -13,7 +13,12 @@ use crate::{Mesh, mesh_block};
 #[derive(Debug, Default, Clone)]
 pub struct MeshCache {
     meshes: HashMap<ChunkKey, Mesh>,
+    /// Whether a volume of mixed levels was meshed: seams then reach every neighbour.
+    mixed: bool,
 }
+
+/// A level-of-detail cap: chunk `k` is meshed at no finer than `cap(k)`.
+pub type LevelCap<'a> = &'a (dyn Fn(ChunkKey) -> Level + Sync);
 
 impl MeshCache {
     /// An empty cache.
@@ -41,10 +46,26 @@ impl MeshCache {
         keys
     }
 
+    /// The chunks whose meshes depend on the chunks in `changed` of `volume`: where every chunk
+    /// has one level, [`MeshCache::dependents`]; where levels mix (or did, in this cache), the
+    /// 3×3×3 chunks around each, whose seams the change can move. Sorted, without repeats.
+    pub fn affected(&self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        if volume.single_level() && !self.mixed {
+            return Self::dependents(changed);
+        }
+        let mut keys: Vec<ChunkKey> = changed
+            .iter()
+            .flat_map(|k| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1))))
+            .collect();
+        keys.sort();
+        keys.dedup();
+        keys
+    }
+
     /// Remeshes what an edit that changed `changed` can have affected, in parallel. Returns the
     /// chunks whose mesh was rebuilt (upload those).
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
-        let keys = Self::dependents(changed);
+        let keys = self.affected(volume, changed);
         self.remesh(volume, &keys);
         keys
     }
@@ -52,15 +73,29 @@ impl MeshCache {
     /// Remeshes exactly `keys` (for example a share of [`MeshCache::dependents`] that fits a
     /// frame's time budget), in parallel.
     pub fn remesh(&mut self, volume: &Volume, keys: &[ChunkKey]) {
-        let fresh: Vec<(ChunkKey, Mesh)> = keys
-            .par_iter()
+        let fresh = self.compute(volume, keys, None);
+        self.commit(fresh);
+    }
+
+    /// The meshes of `keys`, in parallel, without storing them (with an optional level-of-detail
+    /// cap): [`MeshCache::commit`] them together, so neighbours swap in the same frame.
+    pub fn compute(&mut self, volume: &Volume, keys: &[ChunkKey], cap: Option<LevelCap<'_>>) -> Vec<(ChunkKey, Mesh)> {
+        self.mixed |= !volume.single_level() || cap.is_some();
+        keys.par_iter()
             .map_init(VoxelBlock::default, |block, &key| {
-                volume.extract_block_into(key, block);
+                match cap {
+                    Some(c) => volume.extract_block_capped(key, c, block),
+                    None => volume.extract_block_into(key, block),
+                }
                 let mut mesh = Mesh::default();
                 mesh_block(block, &mut mesh);
                 (key, mesh)
             })
-            .collect();
+            .collect()
+    }
+
+    /// Stores meshes made by [`MeshCache::compute`] (an empty mesh removes the chunk's).
+    pub fn commit(&mut self, fresh: Vec<(ChunkKey, Mesh)>) {
         for (key, mesh) in fresh {
             if mesh.indices.is_empty() {
                 self.meshes.remove(&key);

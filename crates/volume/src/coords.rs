@@ -85,9 +85,12 @@ impl Level {
     /// The base level, 16 cells per chunk side.
     pub const BASE: Level = Level(0);
 
+    /// The finest level, [`MAX_LEVEL`] (64 cells per chunk side).
+    pub const FINEST: Level = Level(MAX_LEVEL);
+
     /// The level `k`, or `None` above [`MAX_LEVEL`].
-    pub fn new(k: u8) -> Option<Level> {
-        (k <= MAX_LEVEL).then_some(Level(k))
+    pub const fn new(k: u8) -> Option<Level> {
+        if k <= MAX_LEVEL { Some(Level(k)) } else { None }
     }
 
     /// The level number.
