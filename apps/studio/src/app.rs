@@ -446,6 +446,9 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::G) {
             self.studio.set_kind(ToolKind::Grab);
         }
+        if pressed(Modifiers::NONE, Key::D) {
+            self.studio.set_kind(ToolKind::Detail);
+        }
     }
 
     fn menu(&mut self, ui: &mut egui::Ui) {
@@ -525,6 +528,10 @@ impl StudioApp {
                     let _ = self.studio.act(Action::ToggleOrthographic);
                     ui.close();
                 }
+                ui.checkbox(&mut self.studio.lod, "Level of detail")
+                    .on_hover_text("Mesh far chunks that were given more detail at a coarser level");
+                ui.add(egui::Slider::new(&mut self.studio.lod_pixels, 0.5..=8.0).text("largest cell (px)"))
+                    .on_hover_text("How large a cell level of detail may show on screen");
             });
             ui.menu_button("Help", |ui| {
                 if ui.button("Keyboard shortcuts (F1)").clicked() {
@@ -551,6 +558,11 @@ impl StudioApp {
             (ToolKind::Flatten, "T", "Pull the surface towards the plane that fits it under the brush"),
             (ToolKind::Pinch, "P", "Pull the surface towards the stroke into a crease (Ctrl/Alt: push apart)"),
             (ToolKind::Grab, "G", "Drag the surface under the brush with the pointer"),
+            (
+                ToolKind::Detail,
+                "D",
+                "Add resolution under the brush for fine detail (Ctrl/Alt: back to the layer's base level)",
+            ),
         ];
         for row in tips.chunks(3) {
             ui.horizontal(|ui| {
@@ -566,6 +578,16 @@ impl StudioApp {
         if tool.kind == ToolKind::Clay {
             ui.add(egui::Slider::new(&mut tool.fillet, 0.0..=2.0).text("fillet (× radius)"))
                 .on_hover_text("How softly clay blends into the surface: 0 is a plain union");
+        }
+        if tool.kind == ToolKind::Detail {
+            ui.horizontal(|ui| {
+                ui.label("raise to");
+                for k in 1..=strata_volume::coords::MAX_LEVEL {
+                    let level = strata_volume::Level::new(k).expect("a level");
+                    ui.selectable_value(&mut tool.detail_level, level, format!("{}³ cells", 16 << k))
+                        .on_hover_text("Cells per chunk side the chunks under the brush get");
+                }
+            });
         }
         if tool.kind == ToolKind::Smooth {
             ui.checkbox(&mut tool.paper_smoothing, "Paper's smoothing (Eq. 1)").on_hover_text(
@@ -1048,6 +1070,7 @@ impl StudioApp {
         let Some(vp) = self.viewport.as_mut() else { return };
         let ppp = ui.ctx().pixels_per_point();
         let size = (((rect.width() * ppp) as u32).max(1), ((rect.height() * ppp) as u32).max(1));
+        self.studio.viewport_height = size.1 as f32;
         if vp.size != size || vp.color.is_none() {
             let make = |format, usage, label, view_formats: &[wgpu::TextureFormat]| {
                 rs.device.create_texture(&wgpu::TextureDescriptor {

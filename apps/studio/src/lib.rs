@@ -25,7 +25,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Shift held", "smooth with any tool"),
     ("C  A  E", "clay, add, erase"),
     ("S  I  T", "smooth, inflate, flatten"),
-    ("P  G", "pinch, grab"),
+    ("P  G  D", "pinch, grab, detail (raise the chunks' resolution under the brush)"),
     ("B", "next brush shape (sphere, box, capsule, cylinder)"),
     ("[  ]", "brush radius down, up"),
     ("L", "line tool: click two points"),

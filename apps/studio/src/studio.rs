@@ -161,6 +161,15 @@ pub struct Studio {
     pub pending_import: Option<PendingImport>,
     /// A mesh conversion in progress.
     pub import_job: Option<ImportJob>,
+    /// Level of detail by camera distance: far chunks stored above their layer's base level
+    /// are meshed coarser.
+    pub lod: bool,
+    /// The largest cell, in pixels, level of detail may show.
+    pub lod_pixels: f64,
+    /// The viewport's height in pixels (for level of detail).
+    pub viewport_height: f32,
+    /// The view level of detail was last set for.
+    last_lod: Option<strata_editor::LodView>,
 }
 
 impl Studio {
@@ -193,6 +202,10 @@ impl Studio {
             prev_held: false,
             pending_import: None,
             import_job: None,
+            lod: true,
+            lod_pixels: 1.5,
+            viewport_height: 720.0,
+            last_lod: None,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = DEFAULT_RADIUS;
@@ -458,6 +471,7 @@ impl Studio {
     /// The tool acts at the surface under the pointer (or on the ground plane when nothing is
     /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
     pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
+        self.update_lod();
         // Holding Shift smooths, whatever the tool; Ctrl or Alt turns the primary button into
         // the inverse tool (the sculptors' conventions).
         let kind = self.editor.tool.kind;
@@ -473,6 +487,19 @@ impl Studio {
         }
         self.prev_held = buttons.primary || buttons.secondary;
         self.editor.tool.kind = kind;
+    }
+
+    /// Tells the editor where the camera is, for level of detail (when the view changed).
+    pub fn update_lod(&mut self) {
+        let view = self.lod.then(|| strata_editor::LodView {
+            eye: self.camera.eye().as_dvec3(),
+            pixels_per_radian: (self.viewport_height.max(1.0) / self.camera.fov_y.max(1e-3)) as f64,
+            pixel_error: self.lod_pixels.max(0.1),
+        });
+        if view != self.last_lod {
+            self.editor.set_view(view);
+            self.last_lod = view;
+        }
     }
 
     /// Arms or disarms the line tool (`L`).
@@ -677,8 +704,22 @@ impl Studio {
     /// The status bar's live figures.
     pub fn status(&self) -> String {
         let scene = &self.editor.scene;
+        let levels = scene
+            .layers
+            .get(self.editor.active_layer)
+            .map(|l| {
+                let counts = l.volume.level_counts();
+                let parts: Vec<String> = counts
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, c)| **c > 0)
+                    .map(|(k, c)| format!("{c}×{}³", 16 << k))
+                    .collect();
+                if parts.is_empty() { String::new() } else { format!(" · chunks {}", parts.join(" ")) }
+            })
+            .unwrap_or_default();
         format!(
-            "{} · memory {:.2} MiB · {} crossings · {} triangles · edit {:.2} ms · remesh {:.2} ms · {} chunks queued · history {} steps",
+            "{}{levels} · memory {:.2} MiB · {} crossings · {} triangles · edit {:.2} ms · remesh {:.2} ms · {} chunks queued · history {} steps",
             self.message,
             scene.volume_bytes() as f64 / (1024.0 * 1024.0),
             scene.crossings(),

@@ -218,6 +218,7 @@ fn every_tool_is_one_key_or_click_away_with_its_settings() {
     // The clay tool shows its fillet; the smooth tool its choice of method.
     assert!(h.query_all_by_label("fillet (× radius)").count() > 0);
     for (key, kind) in [
+        (egui::Key::D, ToolKind::Detail),
         (egui::Key::G, ToolKind::Grab),
         (egui::Key::P, ToolKind::Pinch),
         (egui::Key::T, ToolKind::Flatten),
@@ -373,7 +374,7 @@ fn help_views_and_layer_operations_through_keys_and_buttons() {
     h.run();
     assert!(h.state().help_open);
     assert!(h.query_all_by_label("this help").count() > 0, "the overlay lists the shortcuts");
-    assert!(h.query_all_by_label("pinch, grab").count() > 0);
+    assert!(h.query_all_by_label("pinch, grab, detail (raise the chunks' resolution under the brush)").count() > 0);
     h.key_press(egui::Key::Escape);
     h.run();
     assert!(!h.state().help_open);
@@ -445,4 +446,39 @@ fn a_stroke_through_the_pointer_sculpts_and_ctrl_z_takes_it_back() {
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.run();
     assert!(h.state().studio.editor.scene.layers[0].volume == before, "Ctrl+Z undid the stroke");
+}
+
+#[test]
+fn the_detail_tool_raises_the_resolution_where_it_is_dragged() {
+    let dir = temp("detail");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::D);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Detail);
+    h.get_by_label("32³ cells").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.detail_level, strata_volume::Level::new(1).unwrap());
+    let centre = egui::pos2(640.0, 400.0);
+    h.hover_at(centre);
+    h.step();
+    h.drag_at(centre);
+    h.step();
+    for i in 1..=4 {
+        h.hover_at(centre + egui::vec2(i as f32 * 4.0, 0.0));
+        h.step();
+    }
+    h.drop_at(centre + egui::vec2(16.0, 0.0));
+    h.step();
+    h.step();
+    let v = &h.state().studio.editor.scene.layers[0].volume;
+    let counts = v.level_counts();
+    assert!(counts[1] > 0, "chunks under the drag were raised: {counts:?} ({})", h.state().studio.message);
+    assert!(counts[0] > 0, "and the others kept the base level");
+    v.check_invariants().unwrap();
+    assert!(h.state().studio.status().contains("×32³"), "the status bar counts the chunks by level");
+    assert_eq!(h.state().studio.editor.history().undo_len(), 1, "one stroke, one step");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume.level_counts()[1], 0, "Ctrl+Z undid it");
 }
