@@ -710,6 +710,20 @@ impl StudioApp {
                 }
             }
         }
+        if let Some(l) = self.studio.editor.scene.layers.get(self.studio.editor.active_layer) {
+            let base = l.volume.level().cells();
+            ui.label(format!("Base resolution {base}³ cells per chunk")).on_hover_text(
+                "New chunks of this layer get this resolution; the detail tool (D) raises chunks above it",
+            );
+        }
+        ui.horizontal(|ui| {
+            ui.label("new layers");
+            for k in 0..=strata_volume::coords::MAX_LEVEL {
+                let level = strata_volume::Level::new(k).expect("a level");
+                ui.selectable_value(&mut self.studio.new_layer_level, level, format!("{}³", 16 << k))
+                    .on_hover_text("The base resolution (cells per chunk side) of layers added with Add");
+            }
+        });
         ui.horizontal(|ui| {
             if ui.button("Add").on_hover_text("Add an empty layer").clicked() {
                 let _ = self.studio.act(Action::AddLayer);

@@ -170,6 +170,9 @@ pub struct Studio {
     pub viewport_height: f32,
     /// The view level of detail was last set for.
     last_lod: Option<strata_editor::LodView>,
+    /// The base resolution level of layers added from now on (the detail tool raises chunks
+    /// above it; new chunks of a layer are made at its base).
+    pub new_layer_level: strata_volume::Level,
 }
 
 impl Studio {
@@ -206,6 +209,7 @@ impl Studio {
             lod_pixels: 1.5,
             viewport_height: 720.0,
             last_lod: None,
+            new_layer_level: strata_volume::Level::BASE,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = DEFAULT_RADIUS;
@@ -296,7 +300,11 @@ impl Studio {
             Action::AddLayer => {
                 let mut layers = self.editor.scene.layers.clone();
                 let n = layers.len() + 1;
-                layers.push(Layer::new(format!("Layer {n}")));
+                let mut layer = Layer::new(format!("Layer {n}"));
+                let cell = layer.volume.cell_size();
+                layer.volume = strata_volume::Volume::with_level(self.new_layer_level);
+                layer.volume.set_cell_size(cell).expect("the default cell size is valid");
+                layers.push(layer);
                 self.editor.replace_layers(layers, n - 1);
                 self.full_upload = true;
             }

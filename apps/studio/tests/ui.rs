@@ -482,3 +482,19 @@ fn the_detail_tool_raises_the_resolution_where_it_is_dragged() {
     h.run();
     assert_eq!(h.state().studio.editor.scene.layers[0].volume.level_counts()[1], 0, "Ctrl+Z undid it");
 }
+
+#[test]
+fn a_layer_can_be_added_at_a_finer_base_resolution() {
+    let dir = temp("base");
+    let mut h = harness(&dir);
+    h.run();
+    assert!(h.query_all_by_label("Base resolution 16³ cells per chunk").count() > 0);
+    h.get_by_label("64³").click();
+    h.run();
+    h.get_by_label("Add").click();
+    h.run();
+    let layers = &h.state().studio.editor.scene.layers;
+    assert_eq!(layers.len(), 2);
+    assert_eq!(layers[1].volume.level(), strata_volume::Level::FINEST, "the new layer's base is 64³");
+    assert!(h.query_all_by_label("Base resolution 64³ cells per chunk").count() > 0);
+}
