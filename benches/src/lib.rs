@@ -9,6 +9,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 pub mod baselines;
+pub mod lod;
 pub mod suite;
 pub mod tools;
 use strata_volume::brush::Sphere;

@@ -94,6 +94,19 @@ enum Command {
         #[arg(long, default_value_t = 2021)]
         seed: u64,
     },
+    /// Table 7 alone (level of detail): views, level changes, memory of detail where sculpted
+    /// and sculpting frames, printed (not written to the docs; `suite` writes them).
+    Lod {
+        /// Finest cells along the models' longest side.
+        #[arg(long, default_value_t = 1024)]
+        res: u32,
+        /// Sculpting frames.
+        #[arg(long, default_value_t = 300)]
+        frames: usize,
+        /// The mesh (PLY, OBJ or STL); the shipped bunny by default.
+        #[arg(long)]
+        mesh: Option<std::path::PathBuf>,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -109,6 +122,7 @@ fn main() -> Result<()> {
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
         Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
+        Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
         Command::Stroke { seconds } => stroke(seconds),
         Command::Convert { res, mesh } => return convert(res, mesh),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
@@ -146,6 +160,19 @@ fn suite(
         eprintln!("rewrote the suite section of {}", path.display());
     }
     eprintln!("suite done in {:.1} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn lod(res: u32, frames: usize, mesh: Option<std::path::PathBuf>) -> Result<()> {
+    let path = mesh.unwrap_or_else(|| strata_bench::suite::repo_root().join("tests/data/bunny.ply"));
+    let m = strata_mesh::import::load_mesh(&path)?;
+    let start = std::time::Instant::now();
+    let r = strata_bench::lod::run(&m.vertices, &m.triangles, res, frames, 2021, &mut |step| {
+        eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64());
+    })?;
+    let mut s = String::new();
+    strata_bench::suite::lod_markdown(&mut s, &r);
+    println!("{s}");
     Ok(())
 }
 

@@ -49,6 +49,10 @@ pub struct SuiteConfig {
     pub tool_dabs: usize,
     /// Dabs and passes of the smoothing quality run.
     pub quality: (usize, u32),
+    /// Finest cells along the longest side of the Table 7 models.
+    pub lod_resolution: u32,
+    /// Frames of the Table 7 sculpting run.
+    pub lod_frames: usize,
     /// Workload seed.
     pub seed: u64,
 }
@@ -69,6 +73,8 @@ impl SuiteConfig {
             tool_radii: vec![5.0, 10.0, 20.0],
             tool_dabs: 100,
             quality: (60, 12),
+            lod_resolution: 1024,
+            lod_frames: 300,
             seed: 2021,
         }
     }
@@ -88,6 +94,8 @@ impl SuiteConfig {
             tool_radii: vec![5.0, 10.0],
             tool_dabs: 3,
             quality: (4, 2),
+            lod_resolution: 128,
+            lod_frames: 10,
             seed: 2021,
         }
     }
@@ -201,6 +209,8 @@ pub struct SuiteResults {
     pub table5: Vec<Table5Row>,
     /// Table 6 (sculpting tools), the godot_voxel-style smoothing and the smoothing quality.
     pub tools: crate::tools::ToolsResults,
+    /// Table 7 (level of detail).
+    pub lod: Option<crate::lod::LodResults>,
 }
 
 /// Runs every table. `mesh` is the scanned mesh of Table 3 (PLY, OBJ or STL).
@@ -220,6 +230,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         table3: Vec::new(),
         table5: Vec::new(),
         tools: crate::tools::ToolsResults { dabs: 0, table6: Vec::new(), blur: Vec::new(), quality: Vec::new() },
+        lod: None,
     };
     for &r in &config.radii {
         progress(&format!("table 1: radius {r}"));
@@ -270,6 +281,15 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         config.seed,
         progress,
     );
+    let tris: Vec<[u32; 3]> = scanned.triangles.clone();
+    out.lod = Some(crate::lod::run(
+        &scanned.vertices,
+        &tris,
+        config.lod_resolution,
+        config.lod_frames,
+        config.seed,
+        progress,
+    )?);
     Ok(out)
 }
 
@@ -591,7 +611,78 @@ pub fn markdown(r: &SuiteResults) -> String {
             row.dab_ms
         );
     }
+    if let Some(l) = &r.lod {
+        lod_markdown(&mut s, l);
+    }
     s
+}
+
+/// Table 7's markdown, appended to `s`.
+pub fn lod_markdown(s: &mut String, l: &crate::lod::LodResults) {
+    let _ = writeln!(
+        s,
+        "\n### Table 7 — level of detail\n\nThe models stored at the finest level (64³ cells a chunk), {} finest cells along their longest side, meshed (marching cubes, welded, all cores) at full resolution and as seen along a diagonal from where the model's diagonal spans 1,080 (near), 360 (middle) and 108 (far) pixels of a 1,080-pixel, 45° view: each chunk at the coarsest level whose cell, at the chunk's nearest point, spans at most {} pixel (blocks of coarser levels sampled from the stored lists, seams patched). Target: far view ≤ 15 % of the full triangles, no open edge.\n",
+        l.resolution,
+        crate::lod::PIXEL_ERROR
+    );
+    let _ = writeln!(
+        s,
+        "| model | view | chunks at 16³ / 32³ / 64³ | triangles | % of full | mesh (MiB) | meshing (ms) | open edges |"
+    );
+    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|");
+    let mut full = 1usize;
+    for row in &l.views {
+        if row.view == "full resolution" {
+            full = row.triangles.max(1);
+        }
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} / {} / {} | {} | {:.1} % | {:.1} | {:.0} | {} |",
+            row.model,
+            row.view,
+            row.chunks_at[0],
+            row.chunks_at[1],
+            row.chunks_at[2],
+            row.triangles,
+            row.triangles as f64 / full as f64 * 100.0,
+            row.mesh_bytes as f64 / (1024.0 * 1024.0),
+            row.mesh_ms,
+            row.open_edges
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nChanging one chunk's stored level (the bunny's first {} list chunks):\n",
+        l.changes.first().map_or(0, |c| c.chunks)
+    );
+    let _ = writeln!(s, "| change | ms per chunk |");
+    let _ = writeln!(s, "|---|---:|");
+    for row in &l.changes {
+        let _ = writeln!(s, "| {} | {:.2} |", row.change, row.ms_per_chunk);
+    }
+    let _ = writeln!(s, "\nMemory of the bunny with detail only where it was sculpted:\n");
+    let _ = writeln!(s, "| stored | list chunks at 16³ / 32³ / 64³ | memory (MiB) |");
+    let _ = writeln!(s, "|---|---|---:|");
+    for row in &l.memory {
+        let _ = writeln!(
+            s,
+            "| {} | {} / {} / {} | {:.2} |",
+            row.layout,
+            row.chunks_at[0],
+            row.chunks_at[1],
+            row.chunks_at[2],
+            row.bytes as f64 / (1024.0 * 1024.0)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nWhole frames of the editor (edit, remesh of at least one batch of 16 chunks, new meshes committed with their neighbours) while a clay stroke of radius 10 cells (strength 0.5) runs over the bunny with level of detail on, the camera at the near view, one thread. Target: p99 ≤ 11.1 ms.\n"
+    );
+    let _ = writeln!(s, "| bunny stored as | frames | mean (ms) | p99 (ms) |");
+    let _ = writeln!(s, "|---|---:|---:|---:|");
+    for (name, n, mean, p99) in &l.sculpt {
+        let _ = writeln!(s, "| {name} | {n} | {mean:.2} | {p99:.2} |");
+    }
 }
 
 /// Markers around the suite's section in `docs/BENCHMARKS.md`.

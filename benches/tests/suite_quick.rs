@@ -36,8 +36,21 @@ fn the_quick_suite_measures_every_table() {
     assert!(tools.blur.iter().all(|r| r.dense_ms > 0.0 && r.segments_ms > 0.0));
     assert_eq!(tools.quality.len(), 4);
     assert!(tools.quality.iter().all(|q| q.rms_after < q.rms_before), "every method smooths: {:?}", tools.quality);
+    let lod = results.lod.as_ref().expect("Table 7 ran");
+    assert_eq!(lod.views.len(), 8, "two models, full and three views each");
+    assert!(lod.views.iter().all(|v| v.open_edges == 0 && v.triangles > 0), "{:?}", lod.views);
+    for model in lod.views.chunks(4) {
+        assert!(model[3].triangles <= model[1].triangles, "far has no more triangles than near: {model:?}");
+        assert!(model[3].triangles < model[0].triangles, "far has fewer than full: {model:?}");
+    }
+    assert_eq!(lod.changes.len(), 4);
+    assert!(lod.changes.iter().all(|c| c.ms_per_chunk > 0.0 && c.chunks > 0));
+    assert!(lod.memory[0].bytes < lod.memory[1].bytes && lod.memory[1].bytes < lod.memory[2].bytes, "{:?}", lod.memory);
+    assert_eq!(lod.sculpt.len(), 2);
+    assert!(lod.sculpt.iter().all(|s| s.1 > 0 && s.3 >= s.2 && s.2 > 0.0), "{:?}", lod.sculpt);
     let md = markdown(&results);
     for t in [
+        "Table 7 — level of detail",
         "Table 1",
         "Table 2",
         "Table 3",

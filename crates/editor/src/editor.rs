@@ -108,6 +108,33 @@ impl LodView {
     }
 }
 
+/// The level-of-detail caps of the list chunks of `volume` (placed by `transform`) seen from
+/// `view`, given the caps they have now (`current`, for the hysteresis): chunks to be meshed below
+/// their stored level, and that level. Each chunk counts from its nearest point to the eye
+/// (its centre's distance less half its diagonal).
+pub fn lod_levels(
+    volume: &Volume,
+    transform: &crate::scene::LayerTransform,
+    view: &LodView,
+    current: &HashMap<ChunkKey, Level>,
+) -> HashMap<ChunkKey, Level> {
+    let mut next = HashMap::new();
+    let world_cell = volume.cell_size() * transform.scale;
+    let half_diagonal = 8.0 * 3f64.sqrt() * world_cell;
+    for (key, _) in volume.chunks() {
+        let Some(stored) = volume.stored_level(key) else { continue };
+        let centre = key.origin_grid().as_dvec3() + DVec3::splat(8.0);
+        let distance = (transform.to_world(centre * volume.cell_size()) - view.eye).length();
+        let near = (distance - half_diagonal).max(1e-9);
+        let now = current.get(&key).copied().unwrap_or(stored);
+        let level = view.level_for(stored, now, world_cell, near);
+        if level < stored {
+            next.insert(key, level);
+        }
+    }
+    next
+}
+
 /// One dab applied on a worker thread ([`Editor::start_dab_job`]), for edits too large for a
 /// frame: the layer's volume is with the worker until [`Editor::finish_dab_job`] takes it back.
 #[derive(Debug)]
@@ -754,22 +781,10 @@ impl Editor {
         self.view = view;
         for layer in 0..self.scene.layers.len() {
             let l = &self.scene.layers[layer];
-            let mut next: HashMap<ChunkKey, Level> = HashMap::new();
-            if let Some(v) = view.filter(|v| v.is_valid()) {
-                for (key, _) in l.volume.chunks() {
-                    let Some(stored) = l.volume.stored_level(key) else { continue };
-                    let centre = key.origin_grid().as_dvec3() + DVec3::splat(8.0);
-                    let world_cell = l.volume.cell_size() * l.transform.scale;
-                    let distance = (l.transform.to_world(centre * l.volume.cell_size()) - v.eye).length();
-                    // The chunk's half diagonal: the nearest point of the chunk counts.
-                    let near = (distance - 13.9 * world_cell).max(1e-9);
-                    let current = self.lod[layer].get(&key).copied().unwrap_or(stored);
-                    let level = v.level_for(stored, current, world_cell, near);
-                    if level < stored {
-                        next.insert(key, level);
-                    }
-                }
-            }
+            let next = match view.filter(|v| v.is_valid()) {
+                Some(v) => lod_levels(&l.volume, &l.transform, &v, &self.lod[layer]),
+                None => HashMap::new(),
+            };
             let old = std::mem::replace(&mut self.lod[layer], next);
             let mut moved: Vec<ChunkKey> = Vec::new();
             for (k, l) in &old {

@@ -16,7 +16,7 @@ mod pose;
 mod scene;
 mod tool;
 
-pub use editor::{DabJob, Editor, EditorError, FrameReport, LodView, PICK_CHUNK_STEPS, Pick, to_world};
+pub use editor::{DabJob, Editor, EditorError, FrameReport, LodView, PICK_CHUNK_STEPS, Pick, lod_levels, to_world};
 pub use history::{History, HistoryEntry, Restored};
 pub use pose::{Buttons, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, TransformError, View};
