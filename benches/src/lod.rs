@@ -215,8 +215,7 @@ fn detail_memory(volume: &Volume) -> Vec<DetailMemoryRow> {
     let (lo, hi) = volume.chunk_bounds_grid().expect("a model");
     let keys: Vec<ChunkKey> =
         volume.chunks().filter(|(k, _)| volume.stored_level(*k).is_some()).map(|(k, _)| k).collect();
-    let mut base = volume.clone();
-    let _ = base.set_chunk_levels(&keys, Level::BASE);
+    let base = at_base(volume);
     // The list chunks a ball a fifth of the model's size (at least a chunk and a half) reaches.
     let c = lo + (hi - lo) * DVec3::new(0.7, 0.7, 0.6);
     let r = ((hi - lo).max_element() / 5.0).max(24.0);
@@ -240,6 +239,16 @@ fn detail_memory(volume: &Volume) -> Vec<DetailMemoryRow> {
         row("detail raised where sculpted (a ball a fifth of the model)", &detailed),
         row("finest level everywhere (64³ cells a chunk)", volume),
     ]
+}
+
+/// `volume` with every chunk lowered to the base level, as a volume whose base (the level of
+/// new chunks) is 16³.
+fn at_base(volume: &Volume) -> Volume {
+    let mut v = volume.clone();
+    let keys: Vec<ChunkKey> = v.chunks().map(|(k, _)| k).collect();
+    let _ = v.set_chunk_levels(&keys, Level::BASE);
+    let chunks: Vec<(ChunkKey, strata_volume::Chunk)> = v.chunks().map(|(k, c)| (k, c.clone())).collect();
+    Volume::from_chunks(Level::BASE, v.cell_size(), chunks).expect("a valid cell size")
 }
 
 /// Whole frames of the editor (one thread) while a clay stroke of radius 10 cells of the model's
@@ -310,9 +319,7 @@ pub fn run(
     let memory = detail_memory(&model);
     progress("table 7: sculpting with level of detail");
     let mut sculpt = Vec::new();
-    let mut base = model.clone();
-    let keys: Vec<ChunkKey> = base.chunks().map(|(k, _)| k).collect();
-    let _ = base.set_chunk_levels(&keys, Level::BASE);
+    let base = at_base(&model);
     for (name, v) in [("16³ chunks (the base level)", &base), ("64³ chunks (the finest level)", &model)] {
         let (n, mean, p99) = sculpt_frames(v, frames);
         sculpt.push((name.to_string(), n, mean, p99));

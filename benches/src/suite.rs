@@ -94,7 +94,7 @@ impl SuiteConfig {
             tool_radii: vec![5.0, 10.0],
             tool_dabs: 3,
             quality: (4, 2),
-            lod_resolution: 128,
+            lod_resolution: 256,
             lod_frames: 10,
             seed: 2021,
         }

@@ -87,24 +87,23 @@ impl LodView {
     }
 
     /// The level for a chunk stored at `stored`, now meshed at `current`, whose base cell is
-    /// `cell` world units, `distance` world units from the eye.
+    /// `cell` world units, `distance` world units from the eye: where `current` shows cells
+    /// larger than the pixel error, the coarsest level that does not; else the coarsest level
+    /// that shows at most two thirds of it, if coarser than `current`.
     pub fn level_for(&self, stored: Level, current: Level, cell: f64, distance: f64) -> Level {
         let pixels = |l: Level| cell * l.spacing() / distance * self.pixels_per_radian;
-        // The coarsest level that is fine enough.
-        let mut want = stored;
-        while want.get() > 0 {
-            let coarser = Level::new(want.get() - 1).expect("above the base");
-            if pixels(coarser) <= self.pixel_error {
-                want = coarser;
-            } else {
-                break;
-            }
+        let current = current.min(stored);
+        // The coarsest level at or above `from` whose cells look at most `limit` pixels.
+        let coarsest = |limit: f64| -> Option<Level> {
+            (0..=stored.get()).map(|k| Level::new(k).expect("a level")).find(|&l| pixels(l) <= limit)
+        };
+        if pixels(current) > self.pixel_error {
+            return coarsest(self.pixel_error).unwrap_or(stored).max(current);
         }
-        if want < current && pixels(want) > self.pixel_error / 1.5 {
-            // Not clearly fine enough yet: stay.
-            return current.min(stored);
+        match coarsest(self.pixel_error / 1.5) {
+            Some(l) if l < current => l,
+            _ => current,
         }
-        want
     }
 }
 

@@ -334,7 +334,7 @@ impl Volume {
     /// a coarser block sampled from the stored lists, the paper's VI-B), with the seams between
     /// chunks of different levels patched as in [`Volume::extract_block_into`].
     pub fn extract_block_capped(&self, key: ChunkKey, cap: &(dyn Fn(ChunkKey) -> Level + Sync), out: &mut VoxelBlock) {
-        let map = crate::level::LevelMap { volume: self, cap: Some(cap), replace: None };
+        let map = crate::level::LevelMap::new(self, Some(cap), None);
         if self.single_level() && crate::level::plain(&map, key) {
             self.extract_plain(key, out);
         } else {

@@ -514,6 +514,21 @@ impl ChunkLists {
         self.raw_cursor_head(axis, index, n * n)
     }
 
+    /// A [`RawCursor`] at line `index` of `axis` that reuses the family's nonempty bits already
+    /// expanded by [`ChunkLists::family_nonempty`] (for readers that open many cursors).
+    pub(crate) fn raw_cursor_from(&self, axis: Axis, index: usize, nonempty: &FamilyBits) -> RawCursor<'_> {
+        let mut c = RawCursor {
+            lists: self,
+            nonempty: nonempty.clone(),
+            raw: self.raw_positions(),
+            normals: self.normals(),
+            index: 0,
+            cross: self.family_start(axis),
+        };
+        c.advance_to(index);
+        c
+    }
+
     /// A [`RawCursor`] that reads no further than line `lines` (rounded up to a multiple of 64):
     /// only that many nonempty bits are expanded.
     fn raw_cursor_head(&self, axis: Axis, index: usize, lines: usize) -> RawCursor<'_> {

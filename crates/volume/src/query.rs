@@ -333,34 +333,92 @@ impl Iterator for Dda {
 
 impl Volume {
     /// The enclosed volume (grid units³) measured from the lines along `axis`: the total length
-    /// of their inside segments times the cross-section each line stands for.
+    /// of their inside segments times the cross-section each line stands for (the cell after it
+    /// on both across axes). Where a chunk follows a chunk of another level on an across axis
+    /// (uniform chunks count at the volume's level), that sum is off by half the difference of
+    /// their spacings times the inside length of the later chunk's first lines; the measure adds
+    /// that back, so it does not depend on where the levels change.
     pub fn measured_volume(&self, axis: Axis) -> f64 {
         let mut total = 0.0;
-        for chunk in self.chunks.values() {
+        let spacing_of = |k: ChunkKey| self.stored_level(k).unwrap_or(self.level).spacing();
+        let single = self.single_level();
+        for (&key, chunk) in self.chunks.iter() {
             match chunk {
-                Chunk::Solid => total += (CHUNK_CELLS * CHUNK_CELLS * CHUNK_CELLS) as f64,
+                Chunk::Solid => {
+                    total += (CHUNK_CELLS * CHUNK_CELLS * CHUNK_CELLS) as f64;
+                    if !single {
+                        total += self.seam_correction(key, axis, None, &spacing_of);
+                    }
+                }
                 Chunk::Lists(l) => {
                     let n = l.level().cells();
                     let area = l.level().spacing() * l.level().spacing();
                     let mut steps = 0u64;
                     let mut cursor = l.cursor(axis, 0);
-                    for _ in 0..n * n {
+                    // Inside steps of the first row of lines along each across axis.
+                    let mut first = [0u64; 2];
+                    for i in 0..n * n {
                         let line = cursor.next_line();
-                        let mut inside_from = line.start_inside.then_some(0u64);
-                        for q in line.positions() {
-                            match inside_from.take() {
-                                Some(s) => steps += q as u64 - s,
-                                None => inside_from = Some(q as u64),
-                            }
+                        let len = inside_steps(line);
+                        steps += len;
+                        if i % n == 0 {
+                            first[0] += len;
                         }
-                        if let Some(s) = inside_from {
-                            steps += CHUNK_STEPS as u64 - s;
+                        if i < n {
+                            first[1] += len;
                         }
                     }
                     total += steps as f64 * (CHUNK_CELLS as f64 / CHUNK_STEPS as f64) * area;
+                    if !single {
+                        total += self.seam_correction(key, axis, Some((l.level(), first)), &spacing_of);
+                    }
                 }
             }
         }
         total
     }
+
+    /// The correction of [`Volume::measured_volume`] at the chunk `key`'s minimum faces across
+    /// `axis`: `lists` gives its level and the inside steps of its first row of lines along
+    /// each across axis (`None`: a solid chunk).
+    fn seam_correction(
+        &self,
+        key: ChunkKey,
+        axis: Axis,
+        lists: Option<(crate::coords::Level, [u64; 2])>,
+        spacing_of: &dyn Fn(ChunkKey) -> f64,
+    ) -> f64 {
+        let (ua, va) = axis.across();
+        let sp = lists.map_or(self.level.spacing(), |(l, _)| l.spacing());
+        let mut c = 0.0;
+        for (k, across) in [ua, va].into_iter().enumerate() {
+            let before = spacing_of(key.offset(-across.unit_i64().as_ivec3()));
+            if before == sp {
+                continue;
+            }
+            // The first row's inside length times its extent along the other across axis.
+            let row = match lists {
+                Some((_, first)) => first[k] as f64 * (CHUNK_CELLS as f64 / CHUNK_STEPS as f64) * sp,
+                None => (CHUNK_CELLS * CHUNK_CELLS) as f64,
+            };
+            c += (before - sp) / 2.0 * row;
+        }
+        c
+    }
+}
+
+/// Fixed-point steps of `line` that are inside.
+fn inside_steps(line: crate::chunk::LineRef<'_>) -> u64 {
+    let mut steps = 0u64;
+    let mut inside_from = line.start_inside.then_some(0u64);
+    for q in line.positions() {
+        match inside_from.take() {
+            Some(s) => steps += q as u64 - s,
+            None => inside_from = Some(q as u64),
+        }
+    }
+    if let Some(s) = inside_from {
+        steps += CHUNK_STEPS as u64 - s;
+    }
+    steps
 }

@@ -104,7 +104,7 @@ fn refine(volume: &Volume, key: ChunkKey, s: &Dense) -> Dense {
         }
     }
     // Where the neighbour after the chunk is as fine as the new level, its nodes decide.
-    let new_map = LevelMap { volume, cap: None, replace: Some((key, fine)) };
+    let new_map = LevelMap::new(volume, None, Some((key, fine)));
     for normal in Axis::ALL {
         let owner = key.offset(normal.unit_i64().as_ivec3());
         if volume.stored_level(owner).is_some_and(|l| l >= fine) {

@@ -47,10 +47,15 @@ impl Dense {
     /// Fills the lines the chunk of `view` owns (`u, v < n` on every family: its own nodes,
     /// the apron nodes its lines end on, and its cells), read at this level.
     pub(crate) fn read_own(&mut self, view: ChunkView<'_>) {
+        self.read_own_with(|axis| LineReader::new(view, axis));
+    }
+
+    /// [`Dense::read_own`] through readers `reader(axis)` gives.
+    pub(crate) fn read_own_with<'a>(&mut self, mut reader_for: impl FnMut(Axis) -> LineReader<'a>) {
         let n = self.n;
         let mut line = WorkLine::EMPTY;
         for axis in Axis::ALL {
-            let mut reader = LineReader::new(view, axis);
+            let mut reader = reader_for(axis);
             for v in 0..n {
                 for u in 0..n {
                     let ok = reader.read(u, v, self.level, &mut line);

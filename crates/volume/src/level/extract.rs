@@ -58,7 +58,7 @@ pub(crate) fn extract_patched(map: &LevelMap<'_>, key: ChunkKey, out: &mut Voxel
     let level = map.get(key);
     let n = level.cells();
     let mut d = Dense::new(level);
-    d.read_own(map.volume.view(key));
+    d.read_own_with(|axis| map.reader(key, axis));
     let mut faces = Vec::with_capacity(6);
     for normal in Axis::ALL {
         let step = normal.unit_i64().as_ivec3();

@@ -9,7 +9,10 @@
 use glam::IVec3;
 
 use crate::axis::{Axis, compose};
-use crate::chunk::{ChunkView, ViewCursor, WorkLine, node_mask};
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use crate::chunk::{ChunkLists, ChunkView, FamilyBits, RawCursor, WorkLine, node_mask};
 use crate::coords::{ChunkKey, Level, edge_of};
 use crate::level::face::{FaceGrid, NONE, pack};
 use crate::volume::Volume;
@@ -18,17 +21,55 @@ use crate::volume::Volume;
 /// where a cap is given (level of detail); a uniform chunk (which has no level of its own) at
 /// the highest level among its list neighbours across a face, so a uniform chunk next to a fine
 /// one never lowers the seam, or the volume's level where it has none.
-#[derive(Clone, Copy)]
+/// It also keeps, for the reads of one block, each chunk family's start states and nonempty
+/// bits once derived (a block reads lines of up to 19 chunks in no single order).
 pub(crate) struct LevelMap<'v> {
     pub(crate) volume: &'v Volume,
     pub(crate) cap: Option<&'v (dyn Fn(ChunkKey) -> Level + Sync)>,
     /// One chunk taken at another level (a level change being computed).
     pub(crate) replace: Option<(ChunkKey, Level)>,
+    families: RefCell<Vec<(ChunkKey, Axis, Rc<Family>)>>,
+}
+
+/// What reading any line of one chunk family needs, derived once.
+pub(crate) struct Family {
+    starts: FamilyBits,
+    nonempty: FamilyBits,
+}
+
+impl Family {
+    fn of(lists: &ChunkLists, axis: Axis) -> Rc<Family> {
+        Rc::new(Family { starts: lists.family_starts(axis), nonempty: lists.family_nonempty(axis) })
+    }
 }
 
 impl<'v> LevelMap<'v> {
+    pub(crate) fn new(
+        volume: &'v Volume,
+        cap: Option<&'v (dyn Fn(ChunkKey) -> Level + Sync)>,
+        replace: Option<(ChunkKey, Level)>,
+    ) -> Self {
+        LevelMap { volume, cap, replace, families: RefCell::new(Vec::new()) }
+    }
+
     pub(crate) fn stored(volume: &'v Volume) -> Self {
-        LevelMap { volume, cap: None, replace: None }
+        Self::new(volume, None, None)
+    }
+
+    /// A reader of the lines of `key` along `axis`, sharing what earlier readers derived.
+    pub(crate) fn reader(&self, key: ChunkKey, axis: Axis) -> LineReader<'v> {
+        let view = self.volume.view(key);
+        let ChunkView::Lists(lists) = view else { return LineReader::new(view, axis) };
+        let mut families = self.families.borrow_mut();
+        let family = match families.iter().find(|(k, a, _)| *k == key && *a == axis) {
+            Some((_, _, f)) => f.clone(),
+            None => {
+                let f = Family::of(lists, axis);
+                families.push((key, axis, f.clone()));
+                f
+            }
+        };
+        LineReader { view, axis, family: Some(family), cursor: None, next: 0 }
     }
 
     fn capped(&self, key: ChunkKey, l: Level) -> Level {
@@ -69,17 +110,19 @@ impl<'v> LevelMap<'v> {
     }
 }
 
-/// Reads lines of one chunk family in increasing index order (restarting for a lower index).
+/// Reads lines of one chunk family, fastest in increasing index order (a lower index opens a
+/// new cursor).
 pub(crate) struct LineReader<'a> {
     view: ChunkView<'a>,
     axis: Axis,
-    cursor: Option<ViewCursor<'a>>,
+    family: Option<Rc<Family>>,
+    cursor: Option<RawCursor<'a>>,
     next: usize,
 }
 
 impl<'a> LineReader<'a> {
     pub(crate) fn new(view: ChunkView<'a>, axis: Axis) -> Self {
-        LineReader { view, axis, cursor: None, next: 0 }
+        LineReader { view, axis, family: None, cursor: None, next: 0 }
     }
 
     /// Line `(u, v)` at `level` into `out` (node states `0..=n` and the crossings of the edges
@@ -117,14 +160,16 @@ impl<'a> LineReader<'a> {
     }
 
     fn stored_line(&mut self, u: usize, v: usize, level: Level, out: &mut WorkLine) {
+        let ChunkView::Lists(lists) = self.view else { unreachable!("stored lines are read from lists") };
         let n = level.cells();
         let index = u + n * v;
-        if self.cursor.is_none() || index < self.next {
-            self.cursor = Some(self.view.cursor(self.axis, 0));
+        let family = self.family.get_or_insert_with(|| Family::of(lists, self.axis)).clone();
+        match self.cursor.as_mut() {
+            Some(c) if index >= self.next => c.advance_to(index),
+            _ => self.cursor = Some(lists.raw_cursor_from(self.axis, index, &family.nonempty)),
         }
         let c = self.cursor.as_mut().expect("made above");
-        c.advance_to(index);
-        let line = c.next_line();
+        let line = c.next_with(family.starts.get(index));
         self.next = index + 1;
         out.load(line, level);
     }
@@ -211,7 +256,7 @@ pub(crate) fn effective_line(map: &LevelMap<'_>, axis: Axis, owner: ChunkKey, le
     let around = [owner, owner.offset(-unit(p)), owner.offset(-unit(q)), owner.offset(-unit(p) - unit(q))];
     let coarsest = around.iter().map(|&k| map.get(k)).min().expect("four chunks");
     let at = coarsest.min(level);
-    let mut reader = LineReader::new(map.volume.view(owner), axis);
+    let mut reader = map.reader(owner, axis);
     let mut line = WorkLine::EMPTY;
     let ok = reader.read(0, 0, at, &mut line);
     debug_assert!(ok, "a chunk is never coarser than the coarsest around it");
@@ -237,11 +282,10 @@ fn read_face(map: &LevelMap<'_>, normal: Axis, owner: ChunkKey, level: Level) ->
     let (ua, va) = normal.across();
     let n = level.cells();
     let mut g = FaceGrid::uniform(level, normal, false);
-    let view = map.volume.view(owner);
     let mut line = WorkLine::EMPTY;
     // Lines along u (rows j) and along v (columns i) of the owner.
     for (d, axis) in [(0u8, ua), (1, va)] {
-        let mut reader = LineReader::new(view, axis);
+        let mut reader = map.reader(owner, axis);
         let mut ks: Vec<(usize, (usize, usize))> = (0..n)
             .map(|k| {
                 let p = if d == 0 { compose(normal, 0, 0, k) } else { compose(normal, 0, k, 0) };
