@@ -419,8 +419,17 @@ fn level_of_detail_meshes_stay_within_a_coarse_cell_and_closed() {
         assert!(h <= coarse_cell, "cap {cap}: {h} > {coarse_cell}");
         assert!(lod.indices.len() < full.indices.len());
     }
-    let mixed = strata_mesh::mesh_volume_capped(&v, &|k| level(((k.0.x + 2 * k.0.y + k.0.z).rem_euclid(3)) as u8));
+    let rings = |k: ChunkKey| level(((k.0.x + 2 * k.0.y + k.0.z).rem_euclid(3)) as u8);
+    let mixed = strata_mesh::mesh_volume_capped(&v, &rings);
     checks::check_closed_manifold(&mixed).unwrap();
+    // Blocks sampled below their stored level, plainly or patched, never need repairs.
+    for cap in [&(|_| level(1)) as &(dyn Fn(ChunkKey) -> Level + Sync), &rings] {
+        for k in strata_mesh::surface_chunks(&v) {
+            let mut b = strata_volume::VoxelBlock::default();
+            v.extract_block_capped(k, cap, &mut b);
+            assert_eq!(b.repaired(), 0, "{k:?}");
+        }
+    }
 }
 
 /// Held against an independent implementation: the transvoxel crate's transition cells at a

@@ -337,6 +337,8 @@ impl Volume {
         let map = crate::level::LevelMap::new(self, Some(cap), None);
         if self.single_level() && crate::level::plain(&map, key) {
             self.extract_plain(key, out);
+        } else if crate::level::same_level_around(&map, key) {
+            extract_sampled(&map, key, out);
         } else {
             crate::level::extract_patched(&map, key, out);
         }
@@ -414,6 +416,53 @@ impl Volume {
             if axis != Axis::X && (!expected_ok || out.crossings[a].len() != expected_changes(out, axis)) {
                 fill_missing(out, axis);
             }
+        }
+    }
+}
+
+/// The block of `key` where it and every face and edge neighbour are meshed at one level at or
+/// below their stored levels (level of detail away from the boundaries between its rings):
+/// every line read straight from its owner at that level, nothing to patch.
+fn extract_sampled(map: &crate::level::LevelMap<'_>, key: ChunkKey, out: &mut VoxelBlock) {
+    let level = map.get(key);
+    out.reset(key, level);
+    let n = level.cells();
+    let m = n + 1;
+    let s = level.steps_per_cell();
+    let inv_s = 1.0 / s as f32;
+    let mut line = crate::chunk::WorkLine::EMPTY;
+    for axis in Axis::ALL {
+        let (ua, va) = axis.across();
+        let a = axis.index();
+        // Readers of this chunk, its neighbours along `ua`, `va` and both.
+        let owners = [key, key.offset(unit(ua)), key.offset(unit(va)), key.offset(unit(ua) + unit(va))];
+        let mut readers: [Option<crate::level::LineReader<'_>>; 4] = [None, None, None, None];
+        for v in 0..=n {
+            for u in 0..=n {
+                let k = usize::from(u == n) + 2 * usize::from(v == n);
+                let reader = readers[k].get_or_insert_with(|| map.reader(owners[k], axis));
+                let ok = reader.read(u % n, v % n, level, &mut line);
+                debug_assert!(ok, "every chunk around is at or above the block's level");
+                if axis == Axis::X {
+                    out.rows[u + m * v] = line.states;
+                }
+                let mut c = line.changes(n);
+                while c != 0 {
+                    let e = c.trailing_zeros() as usize;
+                    c &= c - 1;
+                    let lower = compose(axis, e, u, v);
+                    let idx = out.node_index(lower[0], lower[1], lower[2]);
+                    out.lookup[a][idx] = out.crossings[a].len() as u32;
+                    out.crossings[a].push(EdgeCrossing {
+                        lower: lower.map(|c| c as u8),
+                        t: (line.pos[e] as u32 - e as u32 * s) as f32 * inv_s,
+                        normal: line.nrm[e],
+                    });
+                }
+            }
+        }
+        if axis != Axis::X && out.crossings[a].len() != expected_changes(out, axis) {
+            fill_missing(out, axis);
         }
     }
 }

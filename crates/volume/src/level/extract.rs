@@ -52,6 +52,13 @@ pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     same(key) && NEIGHBOURS.iter().all(|&d| same(key.offset(d)))
 }
 
+/// Whether `key` and its face and edge neighbours are all meshed at one level in `map` (then
+/// every line can be read straight from its owner at that level, with nothing to patch).
+pub(crate) fn same_level_around(map: &LevelMap<'_>, key: ChunkKey) -> bool {
+    let level = map.get(key);
+    NEIGHBOURS.iter().all(|&d| map.get(key.offset(d)) == level)
+}
+
 /// The block of `key` at its level in `map`, with every shared face taken from its effective
 /// data, and the seams towards finer neighbours recorded.
 pub(crate) fn extract_patched(map: &LevelMap<'_>, key: ChunkKey, out: &mut VoxelBlock) {

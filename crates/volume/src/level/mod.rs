@@ -13,8 +13,8 @@ pub(crate) mod face;
 mod read;
 
 pub(crate) use dense::Dense;
-pub(crate) use extract::{extract_patched, plain};
-pub(crate) use read::LevelMap;
+pub(crate) use extract::{extract_patched, plain, same_level_around};
+pub(crate) use read::{LevelMap, LineReader};
 
 use glam::IVec3;
 
