@@ -406,17 +406,7 @@ impl DualCache {
                 out.mesh.indices.extend_from_slice(&q);
                 continue;
             }
-            let p: Vec<Vec3> = q.iter().map(|&i| Vec3::from(out.mesh.positions[i as usize])).collect();
-            let flat = |a: usize, b: usize, c: usize, d: usize| {
-                let n1 = (p[b] - p[a]).cross(p[c] - p[a]).normalize_or_zero();
-                let n2 = (p[c] - p[a]).cross(p[d] - p[a]).normalize_or_zero();
-                n1.dot(n2)
-            };
-            if flat(0, 1, 2, 3) >= flat(1, 2, 3, 0) {
-                out.mesh.indices.extend_from_slice(&[q[0], q[1], q[2], q[0], q[2], q[3]]);
-            } else {
-                out.mesh.indices.extend_from_slice(&[q[1], q[2], q[3], q[1], q[3], q[0]]);
-            }
+            push_quad(&mut out.mesh, [q[0], q[1], q[2], q[3]]);
         }
         out
     }
@@ -478,18 +468,7 @@ impl DualCache {
             if !lower_inside {
                 q.reverse();
             }
-            let p = q.map(|i| Vec3::from(out.mesh.positions[i as usize]));
-            let flat = |a: usize, b: usize, c: usize, d: usize| {
-                let n1 = (p[b] - p[a]).cross(p[c] - p[a]).normalize_or_zero();
-                let n2 = (p[c] - p[a]).cross(p[d] - p[a]).normalize_or_zero();
-                n1.dot(n2)
-            };
-            // Split along the diagonal whose two triangles agree more.
-            if flat(0, 1, 2, 3) >= flat(1, 2, 3, 0) {
-                out.mesh.indices.extend_from_slice(&[q[0], q[1], q[2], q[0], q[2], q[3]]);
-            } else {
-                out.mesh.indices.extend_from_slice(&[q[1], q[2], q[3], q[1], q[3], q[0]]);
-            }
+            push_quad(&mut out.mesh, q);
         }
         out
     }
@@ -533,6 +512,22 @@ impl DualCache {
             out.indices.extend(m.mesh.indices.iter().map(|&i| remap[i as usize]));
         }
         out
+    }
+}
+
+/// Appends the quad `q` (counter-clockwise) as two triangles, split along the diagonal whose
+/// two triangles agree more.
+fn push_quad(mesh: &mut Mesh, q: [u32; 4]) {
+    let p = q.map(|i| Vec3::from(mesh.positions[i as usize]));
+    let flat = |a: usize, b: usize, c: usize, d: usize| {
+        let n1 = (p[b] - p[a]).cross(p[c] - p[a]).normalize_or_zero();
+        let n2 = (p[c] - p[a]).cross(p[d] - p[a]).normalize_or_zero();
+        n1.dot(n2)
+    };
+    if flat(0, 1, 2, 3) >= flat(1, 2, 3, 0) {
+        mesh.indices.extend_from_slice(&[q[0], q[1], q[2], q[0], q[2], q[3]]);
+    } else {
+        mesh.indices.extend_from_slice(&[q[1], q[2], q[3], q[1], q[3], q[0]]);
     }
 }
 

@@ -57,6 +57,18 @@ pub(crate) struct FaceGrid {
 /// One in-plane edge of a face grid: direction (0: along `u`, 1: along `v`) and lower node.
 pub(crate) type FaceEdge = (u8, usize, usize);
 
+/// Every edge of a face grid of `n` cells: direction, lower node and upper node.
+fn edges(n: usize) -> impl Iterator<Item = (u8, usize, usize, usize, usize)> {
+    (0..2u8).flat_map(move |d| {
+        (0..=n).flat_map(move |j| {
+            (0..=n).filter_map(move |i| {
+                let (i1, j1) = if d == 0 { (i + 1, j) } else { (i, j + 1) };
+                (i1 <= n && j1 <= n).then_some((d, i, j, i1, j1))
+            })
+        })
+    })
+}
+
 impl FaceGrid {
     /// A plane of one state without crossings.
     pub(crate) fn uniform(level: Level, normal: Axis, inside: bool) -> Self {
@@ -109,28 +121,19 @@ impl FaceGrid {
     /// how many edges changed. A plane read from consistent lists changes only where its
     /// border lines were replaced by a coarser neighbour's.
     pub(crate) fn make_consistent(&mut self) -> usize {
-        let n = self.n;
         let mut changed = 0;
-        for d in 0..2u8 {
-            for j in 0..=n {
-                for i in 0..=n {
-                    let (i1, j1) = if d == 0 { (i + 1, j) } else { (i, j + 1) };
-                    if i1 > n || j1 > n {
-                        continue;
-                    }
-                    let (a, b) = (self.state(i, j), self.state(i1, j1));
-                    let c = self.crossing((d, i, j));
-                    if a == b && c != NONE {
-                        self.set_crossing((d, i, j), NONE);
-                        changed += 1;
-                    } else if a != b && c == NONE {
-                        let e = if d == 0 { i } else { j };
-                        let q = quantize_steps((e as f64 + 0.5) * self.level.steps_per_cell() as f64, e, self.level);
-                        let normal = self.normal_near((d, i, j), a);
-                        self.set_crossing((d, i, j), pack(q, normal));
-                        changed += 1;
-                    }
-                }
+        for (d, i, j, i1, j1) in edges(self.n) {
+            let (a, b) = (self.state(i, j), self.state(i1, j1));
+            let c = self.crossing((d, i, j));
+            if a == b && c != NONE {
+                self.set_crossing((d, i, j), NONE);
+                changed += 1;
+            } else if a != b && c == NONE {
+                let e = if d == 0 { i } else { j };
+                let q = quantize_steps((e as f64 + 0.5) * self.level.steps_per_cell() as f64, e, self.level);
+                let normal = self.normal_near((d, i, j), a);
+                self.set_crossing((d, i, j), pack(q, normal));
+                changed += 1;
             }
         }
         changed
@@ -202,30 +205,22 @@ impl FaceGrid {
         }
         // Coarse edges: the crossing stays where it is, in the half it lies in; the middle node
         // takes the state of the other half's far end.
-        for d in 0..2u8 {
-            for j in 0..=n {
-                for i in 0..=n {
-                    let (i1, j1) = if d == 0 { (i + 1, j) } else { (i, j + 1) };
-                    if i1 > n || j1 > n {
-                        continue;
-                    }
-                    let (a, b) = (self.state(i, j), self.state(i1, j1));
-                    let (mi, mj) = (i + i1, j + j1);
-                    let c = self.crossing((d, i, j));
-                    if c == NONE {
-                        f.set_state(mi, mj, a);
-                        continue;
-                    }
-                    let e = if d == 0 { i } else { j };
-                    let mid = (e as f64 + 0.5) * s;
-                    // A position on the middle node (only in files from before levels could
-                    // change) moves two steps down.
-                    let q = if pos(c) as f64 == mid { pos(c) - 2 } else { pos(c) };
-                    let (state, lower) = if (q as f64) < mid { (b, (2 * i, 2 * j)) } else { (a, (mi, mj)) };
-                    f.set_state(mi, mj, state);
-                    f.set_crossing((d, lower.0, lower.1), pack(q, nrm(c)));
-                }
+        for (d, i, j, i1, j1) in edges(n) {
+            let (a, b) = (self.state(i, j), self.state(i1, j1));
+            let (mi, mj) = (i + i1, j + j1);
+            let c = self.crossing((d, i, j));
+            if c == NONE {
+                f.set_state(mi, mj, a);
+                continue;
             }
+            let e = if d == 0 { i } else { j };
+            let mid = (e as f64 + 0.5) * s;
+            // A position on the middle node (only in files from before levels could change)
+            // moves two steps down.
+            let q = if pos(c) as f64 == mid { pos(c) - 2 } else { pos(c) };
+            let (state, lower) = if (q as f64) < mid { (b, (2 * i, 2 * j)) } else { (a, (mi, mj)) };
+            f.set_state(mi, mj, state);
+            f.set_crossing((d, lower.0, lower.1), pack(q, nrm(c)));
         }
         for j in 0..n {
             for i in 0..n {
