@@ -17,6 +17,23 @@ fn temp(name: &str) -> PathBuf {
     dir
 }
 
+/// A left drag from the viewport's centre (which looks at the default ball) to the right, in
+/// `steps` moves of 4 points, then the release.
+fn drag_over_the_ball(h: &mut Harness<'static, StudioApp>, steps: usize) {
+    let centre = egui::pos2(640.0, 400.0);
+    h.hover_at(centre);
+    h.step();
+    h.drag_at(centre);
+    h.step();
+    for i in 1..=steps {
+        h.hover_at(centre + egui::vec2(i as f32 * 4.0, 0.0));
+        h.step();
+    }
+    h.drop_at(centre + egui::vec2(steps as f32 * 4.0, 0.0));
+    h.step();
+    h.step();
+}
+
 fn harness(dir: &std::path::Path) -> Harness<'static, StudioApp> {
     let app = StudioApp::headless(Studio::new(default_scene()), Dialogs::Typed, dir.join("recovery"));
     Harness::builder()
@@ -427,19 +444,7 @@ fn a_stroke_through_the_pointer_sculpts_and_ctrl_z_takes_it_back() {
     let mut h = harness(&dir);
     h.run();
     let before = h.state().studio.editor.scene.layers[0].volume.clone();
-    // The viewport fills the window's middle; its centre looks at the ball.
-    let centre = egui::pos2(640.0, 400.0);
-    h.hover_at(centre);
-    h.step();
-    h.drag_at(centre);
-    h.step();
-    for i in 1..=8 {
-        h.hover_at(centre + egui::vec2(i as f32 * 4.0, 0.0));
-        h.step();
-    }
-    h.drop_at(centre + egui::vec2(32.0, 0.0));
-    h.step();
-    h.step();
+    drag_over_the_ball(&mut h, 8);
     let after = h.state().studio.editor.scene.layers[0].volume.clone();
     assert!(after != before, "the drag sculpted: {}", h.state().studio.message);
     assert_eq!(h.state().studio.editor.history().undo_len(), 1, "one stroke, one step");
@@ -459,18 +464,7 @@ fn the_detail_tool_raises_the_resolution_where_it_is_dragged() {
     h.get_by_label("32³ cells").click();
     h.run();
     assert_eq!(h.state().studio.editor.tool.detail_level, strata_volume::Level::new(1).unwrap());
-    let centre = egui::pos2(640.0, 400.0);
-    h.hover_at(centre);
-    h.step();
-    h.drag_at(centre);
-    h.step();
-    for i in 1..=4 {
-        h.hover_at(centre + egui::vec2(i as f32 * 4.0, 0.0));
-        h.step();
-    }
-    h.drop_at(centre + egui::vec2(16.0, 0.0));
-    h.step();
-    h.step();
+    drag_over_the_ball(&mut h, 4);
     let v = &h.state().studio.editor.scene.layers[0].volume;
     let counts = v.level_counts();
     assert!(counts[1] > 0, "chunks under the drag were raised: {counts:?} ({})", h.state().studio.message);

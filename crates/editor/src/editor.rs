@@ -3,7 +3,7 @@
 use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
 
-use glam::{DVec3, IVec3};
+use glam::DVec3;
 use std::sync::Arc;
 use strata_mesh::{Mesh, MeshCache, dual_contour_volume};
 use strata_volume::brush::BrushError;
@@ -754,7 +754,7 @@ impl Editor {
         }
         let dirty = &self.dirty[layer];
         let staged = &self.staged[layer];
-        let around = |k: ChunkKey| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1)));
+        let around = |k: ChunkKey| k.around();
         let mut waiting: BTreeSet<ChunkKey> =
             staged.keys().copied().filter(|&k| around(k).any(|n| dirty.contains(&n))).collect();
         let mut frontier: Vec<ChunkKey> = waiting.iter().copied().collect();
@@ -797,10 +797,7 @@ impl Editor {
                 }
             }
             if !moved.is_empty() {
-                let keys: Vec<ChunkKey> = moved
-                    .iter()
-                    .flat_map(|k| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1))))
-                    .collect();
+                let keys: Vec<ChunkKey> = moved.iter().flat_map(|k| k.around()).collect();
                 self.dirty[layer].extend(keys);
             }
         }

@@ -201,8 +201,7 @@ fn remeshing_respects_the_budget_and_catches_up() {
         let r = e.frame(&ToolPose::at(DVec3::splat(30.0), false), Duration::ZERO).unwrap();
         // A new mesh is shown only with all its neighbours': none of them still waits.
         for &(layer, key) in &r.remeshed {
-            for d in 0..27 {
-                let n = key.offset(glam::IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1));
+            for n in key.around() {
                 assert!(!e.is_pending(layer, n), "{key:?} shown while {n:?} waits");
             }
         }

@@ -53,10 +53,7 @@ impl MeshCache {
         if volume.single_level() && !self.mixed {
             return Self::dependents(changed);
         }
-        let mut keys: Vec<ChunkKey> = changed
-            .iter()
-            .flat_map(|k| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1))))
-            .collect();
+        let mut keys: Vec<ChunkKey> = changed.iter().flat_map(|k| k.around()).collect();
         keys.sort();
         keys.dedup();
         keys

@@ -285,10 +285,7 @@ impl DualCache {
     /// for the 3×3×3 chunks around each change.
     fn update_mixed(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
         let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
-            let mut out: Vec<ChunkKey> = keys
-                .iter()
-                .flat_map(|k| (0..27).map(move |d| k.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1))))
-                .collect();
+            let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
             out.sort();
             out.dedup();
             out

@@ -54,6 +54,12 @@ impl ChunkKey {
         ChunkKey(self.0.wrapping_add(d))
     }
 
+    /// This chunk and its 26 neighbours (across a face, an edge or a corner): the chunks whose
+    /// meshes can share a seam with it.
+    pub fn around(self) -> impl Iterator<Item = ChunkKey> {
+        (0..27).map(move |d| self.offset(IVec3::new(d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1)))
+    }
+
     /// The chunk holding the grid point `p_grid` (a point on a chunk's minimum face belongs to it).
     pub fn containing(p_grid: DVec3) -> Option<ChunkKey> {
         let c = (p_grid / CHUNK_CELLS as f64).floor();

@@ -16,8 +16,6 @@ pub(crate) use dense::Dense;
 pub(crate) use extract::{extract_patched, plain, same_level_around};
 pub(crate) use read::{LevelMap, LineReader};
 
-use glam::IVec3;
-
 use crate::coords::{ChunkKey, Level};
 use crate::edit::{EditReport, UndoRecord};
 use crate::volume::Volume;
@@ -55,9 +53,7 @@ impl Volume {
         let changed = if undo.is_empty() {
             Vec::new()
         } else {
-            let mut c: Vec<ChunkKey> = (-1..=1)
-                .flat_map(|z| (-1..=1).flat_map(move |y| (-1..=1).map(move |x| key.offset(IVec3::new(x, y, z)))))
-                .collect();
+            let mut c: Vec<ChunkKey> = key.around().collect();
             c.sort();
             c
         };
