@@ -20,7 +20,7 @@ use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
 
 use crate::qef::Qef;
-use crate::{Mesh, MeshCache};
+use crate::{Mesh, MeshCache, VertexMaterial};
 
 /// How far (in cells) a vertex may leave its cell: half a cell, so vertices of neighbouring
 /// cells can meet but never cross. With 0 the tips of rotated box corners were cut by up to
@@ -34,8 +34,9 @@ type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<KeyHasher>>;
 struct ChunkDual {
     n: usize,
     /// Vertices of the chunk's mixed cells, sorted by local cell index `x + n (y + n z)`:
-    /// (cell index, position in grid units from the chunk origin, normal).
-    cells: Vec<(u32, Vec3, Vec3)>,
+    /// (cell index, position in grid units from the chunk origin, normal, the blend of the
+    /// materials of the cell's solid corners).
+    cells: Vec<(u32, Vec3, Vec3, VertexMaterial)>,
     /// Owned sign-changing edges: axis, lower node, whether the lower node is inside.
     edges: Vec<(Axis, [u16; 3], bool)>,
 }
@@ -101,7 +102,21 @@ impl ChunkDual {
                     let local = qef.solve().clamp(DVec3::splat(-CELL_MARGIN), DVec3::splat(1.0 + CELL_MARGIN));
                     let pos = (DVec3::new(x as f64, y as f64, z as f64) + local) * sp;
                     let index = (x + n * (y + n * z)) as u32;
-                    d.cells.push((index, pos.as_vec3(), normal.normalize_or(DVec3::Z).as_vec3()));
+                    let material = if block.has_materials() {
+                        let mut ids = [0u8; 8];
+                        let mut k = 0;
+                        for c in 0..8 {
+                            let (cx, cy, cz) = (x + (c & 1), y + (c >> 1 & 1), z + (c >> 2));
+                            if block.inside(cx, cy, cz) {
+                                ids[k] = block.material(cx, cy, cz);
+                                k += 1;
+                            }
+                        }
+                        VertexMaterial::blend(&ids[..k])
+                    } else {
+                        VertexMaterial::single(0)
+                    };
+                    d.cells.push((index, pos.as_vec3(), normal.normalize_or(DVec3::Z).as_vec3(), material));
                 }
             }
         }
@@ -145,7 +160,7 @@ impl ChunkDual {
         self.sort_edges();
     }
 
-    fn vertex(&self, cell: [usize; 3]) -> Option<(u32, Vec3, Vec3)> {
+    fn vertex(&self, cell: [usize; 3]) -> Option<(u32, Vec3, Vec3, VertexMaterial)> {
         let index = (cell[0] + self.n * (cell[1] + self.n * cell[2])) as u32;
         self.cells.binary_search_by_key(&index, |c| c.0).ok().map(|i| self.cells[i])
     }
@@ -378,14 +393,13 @@ impl DualCache {
                     continue;
                 }
                 let found = self.duals.get(&k).and_then(|d| d.vertex(local));
-                let Some((_, pos, normal)) = found else {
+                let Some((_, pos, normal, material)) = found else {
                     complete = false;
                     break;
                 };
                 let i = out.mesh.positions.len() as u32;
                 let shift = (k.origin_grid() - key.origin_grid()).as_vec3();
-                out.mesh.positions.push((pos + shift).to_array());
-                out.mesh.normals.push(normal.to_array());
+                out.mesh.push_vertex((pos + shift).to_array(), normal.to_array(), material, false);
                 out.cells.push(id);
                 ids.insert(id, i);
                 q.push(i);
@@ -443,13 +457,12 @@ impl DualCache {
                 let local = cell - chunk.as_i64vec3() * n;
                 let source = if inside_chunk { Some(own) } else { self.duals.get(&key.offset(chunk)) };
                 let found = source.and_then(|d| d.vertex([local.x as usize, local.y as usize, local.z as usize]));
-                let Some((_, pos, normal)) = found else {
+                let Some((_, pos, normal, material)) = found else {
                     complete = false;
                     break;
                 };
                 let i = out.mesh.positions.len() as u32;
-                out.mesh.positions.push((pos + chunk.as_vec3() * 16.0).to_array());
-                out.mesh.normals.push(normal.to_array());
+                out.mesh.push_vertex((pos + chunk.as_vec3() * 16.0).to_array(), normal.to_array(), material, false);
                 out.cells.push(global);
                 if inside_chunk {
                     own_ids[local_slot] = i;
@@ -493,18 +506,12 @@ impl DualCache {
         let mut welded: FastMap<I64Vec3, u32> = FastMap::default();
         for key in keys {
             let m = &self.meshes[key];
-            let origin = key.origin_grid().as_vec3();
+            let origin = key.origin_grid().as_vec3().to_array();
             let remap: Vec<u32> = m
                 .cells
                 .iter()
                 .enumerate()
-                .map(|(i, cell)| {
-                    *welded.entry(*cell).or_insert_with(|| {
-                        out.positions.push((Vec3::from(m.mesh.positions[i]) + origin).to_array());
-                        out.normals.push(m.mesh.normals[i]);
-                        out.positions.len() as u32 - 1
-                    })
-                })
+                .map(|(i, cell)| *welded.entry(*cell).or_insert_with(|| out.push_vertex_from(&m.mesh, i, origin)))
                 .collect();
             out.indices.extend(m.mesh.indices.iter().map(|&i| remap[i as usize]));
         }

@@ -1,5 +1,14 @@
 //! Mesh files: binary glTF 2.0 (`.glb`), Wavefront OBJ, binary STL and binary PLY.
 //!
+//! With a palette ([`save_mesh_with`]), the formats that can carry colour do: every vertex's
+//! colour is its material blend ([`crate::VertexMaterial`]) over the palette's colours (sRGB
+//! bytes). A glb gets `COLOR_0` (normalised unsigned bytes, VEC4) and one primitive per material
+//! present, split by each triangle's dominant material, each with a glTF material named after
+//! the palette entry (base colour white, so the vertex colours show unchanged; its roughness
+//! from the palette); an OBJ gets vertex colours (`v x y z r g b`, as Blender and tobj read
+//! them), `usemtl` groups by dominant material and an MTL file beside it (`Kd` per material);
+//! a PLY gets `red green blue` bytes per vertex. STL has no colour.
+//!
 //! Saving is atomic: the file is written to a temporary file in the same folder, flushed and
 //! renamed over the target, so a crash mid-save leaves any previous file intact.
 
@@ -65,22 +74,95 @@ fn validate(mesh: &Mesh) -> Result<(), ExportError> {
     if mesh.normals.len() != mesh.positions.len() {
         return Err(ExportError::Malformed("normals and positions differ in count"));
     }
+    if !mesh.materials.is_empty() && mesh.materials.len() != mesh.positions.len() {
+        return Err(ExportError::Malformed("vertex materials and positions differ in count"));
+    }
     if mesh.positions.iter().flatten().any(|v| !v.is_finite()) {
         return Err(ExportError::Malformed("a position is not finite"));
     }
     Ok(())
 }
 
-/// Writes `mesh` to `path` in the format its extension names, atomically.
+/// One palette entry as exports see it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportMaterial {
+    /// Material name (glTF material name, OBJ `newmtl`).
+    pub name: String,
+    /// Linear RGB in `[0, 1]`.
+    pub color: [f32; 3],
+    /// Perceptual roughness in `[0, 1]`.
+    pub roughness: f32,
+}
+
+/// Linear to sRGB-encoded byte.
+fn srgb_byte(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// A linear colour channel as a linear byte (glTF's `COLOR_0` is linear).
+fn linear_byte(c: f32) -> u8 {
+    (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// The linear colour of vertex `i` over `palette` (ids past its end count as its first entry).
+pub fn vertex_color(mesh: &Mesh, i: usize, palette: &[ExportMaterial]) -> [f32; 3] {
+    let m = mesh.material(i);
+    let mut c = [0.0f32; 3];
+    for (id, w) in m.ids.iter().zip(m.weights) {
+        let p = palette.get(*id as usize).or(palette.first()).map_or([0.8; 3], |p| p.color);
+        for k in 0..3 {
+            c[k] += p[k] * w as f32 / 255.0;
+        }
+    }
+    c
+}
+
+/// The dominant material of each triangle: the most common dominant id of its corners (the
+/// first corner's on a three-way tie).
+fn triangle_materials(mesh: &Mesh) -> Vec<u8> {
+    mesh.triangles()
+        .map(|t| {
+            let d = t.map(|i| mesh.material(i as usize).dominant());
+            if d[1] == d[2] { d[1] } else { d[0] }
+        })
+        .collect()
+}
+
+/// Writes `mesh` to `path` in the format its extension names, atomically, without colours.
 pub fn save_mesh(mesh: &Mesh, path: &Path) -> Result<(), ExportError> {
+    save_mesh_with(mesh, path, &[])
+}
+
+/// [`save_mesh`] with the vertex materials coloured from `palette` (see the module docs; an
+/// empty palette writes no colour). An OBJ's MTL file is written beside it, atomically too.
+pub fn save_mesh_with(mesh: &Mesh, path: &Path, palette: &[ExportMaterial]) -> Result<(), ExportError> {
     let format = MeshFormat::from_path(path).ok_or_else(|| ExportError::UnknownFormat(path.display().to_string()))?;
     validate(mesh)?;
+    let mtl = (format == MeshFormat::Obj && !palette.is_empty()).then(|| path.with_extension("mtl"));
+    if let Some(mtl) = &mtl {
+        write_atomic(mtl, |w| write_mtl(mesh, palette, w))?;
+    }
+    let mtl_name = mtl.as_ref().and_then(|m| m.file_name()).and_then(|n| n.to_str()).map(str::to_owned);
+    write_atomic(path, |w| match format {
+        MeshFormat::Glb => Ok(write_glb(mesh, palette, w)?),
+        MeshFormat::Obj => Ok(write_obj(mesh, palette, mtl_name.as_deref(), w)?),
+        MeshFormat::Stl => Ok(write_stl(mesh, w)?),
+        MeshFormat::Ply => Ok(write_ply(mesh, palette, w)?),
+    })
+}
+
+fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<(), ExportError>,
+) -> Result<(), ExportError> {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("mesh");
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
     let result = (|| -> Result<(), ExportError> {
         let mut w = BufWriter::new(File::create(&tmp)?);
-        write_mesh(mesh, format, &mut w)?;
+        write(&mut w)?;
         let file = w.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         std::fs::rename(&tmp, path)?;
@@ -96,24 +178,64 @@ pub fn save_mesh(mesh: &Mesh, path: &Path) -> Result<(), ExportError> {
 pub fn write_mesh(mesh: &Mesh, format: MeshFormat, w: &mut impl Write) -> Result<(), ExportError> {
     validate(mesh)?;
     match format {
-        MeshFormat::Glb => write_glb(mesh, w)?,
-        MeshFormat::Obj => write_obj(mesh, w)?,
+        MeshFormat::Glb => write_glb(mesh, &[], w)?,
+        MeshFormat::Obj => write_obj(mesh, &[], None, w)?,
         MeshFormat::Stl => write_stl(mesh, w)?,
-        MeshFormat::Ply => write_ply(mesh, w)?,
+        MeshFormat::Ply => write_ply(mesh, &[], w)?,
     }
     Ok(())
 }
 
-fn write_obj(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
+/// The name a material is written under: the palette's, made safe for OBJ and MTL lines.
+fn material_name(palette: &[ExportMaterial], id: u8) -> String {
+    let name = palette.get(id as usize).map_or("material", |p| p.name.as_str());
+    let safe: String = name.chars().map(|c| if c.is_alphanumeric() || c == '-' { c } else { '_' }).collect();
+    format!("{id}_{safe}")
+}
+
+fn write_mtl(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> Result<(), ExportError> {
+    let mut used: Vec<u8> = triangle_materials(mesh);
+    used.sort_unstable();
+    used.dedup();
+    writeln!(w, "# Strata materials")?;
+    for id in used {
+        let p = palette.get(id as usize).or(palette.first()).expect("a palette");
+        writeln!(w, "newmtl {}", material_name(palette, id))?;
+        writeln!(w, "Kd {} {} {}", p.color[0], p.color[1], p.color[2])?;
+        writeln!(w, "Ns {}", ((1.0 - p.roughness.clamp(0.0, 1.0)) * 1000.0).round())?;
+        writeln!(w, "illum 2")?;
+    }
+    Ok(())
+}
+
+fn write_obj(mesh: &Mesh, palette: &[ExportMaterial], mtl: Option<&str>, w: &mut impl Write) -> io::Result<()> {
     writeln!(w, "# Strata mesh: {} vertices, {} triangles", mesh.vertex_count(), mesh.triangle_count())?;
-    for p in &mesh.positions {
-        writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+    if let Some(mtl) = mtl {
+        writeln!(w, "mtllib {mtl}")?;
+    }
+    for (i, p) in mesh.positions.iter().enumerate() {
+        if palette.is_empty() {
+            writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+        } else {
+            let c = vertex_color(mesh, i, palette);
+            writeln!(w, "v {} {} {} {} {} {}", p[0], p[1], p[2], c[0], c[1], c[2])?;
+        }
     }
     for n in &mesh.normals {
         writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;
     }
-    for [a, b, c] in mesh.triangles() {
-        let (a, b, c) = (a + 1, b + 1, c + 1);
+    let materials = triangle_materials(mesh);
+    let mut order: Vec<usize> = (0..mesh.triangle_count()).collect();
+    if mtl.is_some() {
+        order.sort_by_key(|&t| materials[t]);
+    }
+    let mut current = None;
+    for t in order {
+        if mtl.is_some() && current != Some(materials[t]) {
+            current = Some(materials[t]);
+            writeln!(w, "usemtl {}", material_name(palette, materials[t]))?;
+        }
+        let (a, b, c) = (mesh.indices[3 * t] + 1, mesh.indices[3 * t + 1] + 1, mesh.indices[3 * t + 2] + 1);
         writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
     }
     Ok(())
@@ -138,16 +260,21 @@ fn write_stl(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
     Ok(())
 }
 
-fn write_ply(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
+fn write_ply(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io::Result<()> {
+    let colors =
+        if palette.is_empty() { "" } else { "property uchar red\nproperty uchar green\nproperty uchar blue\n" };
     write!(
         w,
-        "ply\nformat binary_little_endian 1.0\ncomment Strata mesh\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        "ply\nformat binary_little_endian 1.0\ncomment Strata mesh\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n{colors}element face {}\nproperty list uchar int vertex_indices\nend_header\n",
         mesh.vertex_count(),
         mesh.triangle_count()
     )?;
-    for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+    for (i, (p, n)) in mesh.positions.iter().zip(&mesh.normals).enumerate() {
         for x in p.iter().chain(n) {
             w.write_all(&x.to_le_bytes())?;
+        }
+        if !palette.is_empty() {
+            w.write_all(&vertex_color(mesh, i, palette).map(srgb_byte))?;
         }
     }
     for t in mesh.triangles() {
@@ -159,9 +286,9 @@ fn write_ply(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
     Ok(())
 }
 
-fn write_glb(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
+fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io::Result<()> {
     let nv = mesh.vertex_count();
-    let mut bin: Vec<u8> = Vec::with_capacity(nv * 24 + mesh.indices.len() * 4);
+    let mut bin: Vec<u8> = Vec::with_capacity(nv * 28 + mesh.indices.len() * 4);
     for p in &mesh.positions {
         p.iter().for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
     }
@@ -169,8 +296,36 @@ fn write_glb(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
     for n in &mesh.normals {
         n.iter().for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
     }
+    let colors_at = bin.len();
+    if !palette.is_empty() {
+        for i in 0..nv {
+            let c = vertex_color(mesh, i, palette).map(linear_byte);
+            bin.extend_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+    }
+    // Index ranges: one for the whole mesh, or one per dominant material.
+    let mut groups: Vec<(Option<u8>, usize, usize)> = Vec::new();
     let indices_at = bin.len();
-    mesh.indices.iter().for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
+    if palette.is_empty() {
+        mesh.indices.iter().for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
+        groups.push((None, indices_at, mesh.indices.len()));
+    } else {
+        let materials = triangle_materials(mesh);
+        let mut used = materials.clone();
+        used.sort_unstable();
+        used.dedup();
+        for id in used {
+            let at = bin.len();
+            let mut count = 0;
+            for (t, _) in materials.iter().enumerate().filter(|(_, m)| **m == id) {
+                for i in &mesh.indices[3 * t..3 * t + 3] {
+                    bin.extend_from_slice(&i.to_le_bytes());
+                }
+                count += 3;
+            }
+            groups.push((Some(id), at, count));
+        }
+    }
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
@@ -181,28 +336,50 @@ fn write_glb(mesh: &Mesh, w: &mut impl Write) -> io::Result<()> {
             max[k] = max[k].max(p[k]);
         }
     }
-    let json = serde_json::json!({
+    let mut views = vec![
+        serde_json::json!({ "buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": 34962 }),
+        serde_json::json!({ "buffer": 0, "byteOffset": normals_at, "byteLength": colors_at - normals_at, "target": 34962 }),
+    ];
+    let mut accessors = vec![
+        serde_json::json!({ "bufferView": 0, "componentType": 5126, "count": nv, "type": "VEC3", "min": min, "max": max }),
+        serde_json::json!({ "bufferView": 1, "componentType": 5126, "count": nv, "type": "VEC3" }),
+    ];
+    let mut attributes = serde_json::json!({ "POSITION": 0, "NORMAL": 1 });
+    if !palette.is_empty() {
+        views.push(serde_json::json!({ "buffer": 0, "byteOffset": colors_at, "byteLength": indices_at - colors_at, "target": 34962 }));
+        accessors.push(serde_json::json!({ "bufferView": 2, "componentType": 5121, "normalized": true, "count": nv, "type": "VEC4" }));
+        attributes["COLOR_0"] = serde_json::json!(2);
+    }
+    let mut primitives = Vec::new();
+    let mut materials = Vec::new();
+    for (id, at, count) in groups {
+        views.push(serde_json::json!({ "buffer": 0, "byteOffset": at, "byteLength": count * 4, "target": 34963 }));
+        accessors.push(serde_json::json!({ "bufferView": views.len() - 1, "componentType": 5125, "count": count, "type": "SCALAR" }));
+        let mut prim =
+            serde_json::json!({ "attributes": attributes.clone(), "indices": accessors.len() - 1, "mode": 4 });
+        if let Some(id) = id {
+            let p = palette.get(id as usize).or(palette.first()).expect("a palette");
+            materials.push(serde_json::json!({
+                "name": p.name,
+                "pbrMetallicRoughness": { "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": p.roughness.clamp(0.0, 1.0) }
+            }));
+            prim["material"] = serde_json::json!(materials.len() - 1);
+        }
+        primitives.push(prim);
+    }
+    let mut json = serde_json::json!({
         "asset": { "version": "2.0", "generator": "Strata" },
         "scene": 0,
         "scenes": [ { "nodes": [0] } ],
         "nodes": [ { "mesh": 0, "name": "strata" } ],
-        "meshes": [ { "primitives": [ {
-            "attributes": { "POSITION": 0, "NORMAL": 1 },
-            "indices": 2,
-            "mode": 4
-        } ] } ],
+        "meshes": [ { "primitives": primitives } ],
         "buffers": [ { "byteLength": bin.len() } ],
-        "bufferViews": [
-            { "buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": 34962 },
-            { "buffer": 0, "byteOffset": normals_at, "byteLength": indices_at - normals_at, "target": 34962 },
-            { "buffer": 0, "byteOffset": indices_at, "byteLength": mesh.indices.len() * 4, "target": 34963 }
-        ],
-        "accessors": [
-            { "bufferView": 0, "componentType": 5126, "count": nv, "type": "VEC3", "min": min, "max": max },
-            { "bufferView": 1, "componentType": 5126, "count": nv, "type": "VEC3" },
-            { "bufferView": 2, "componentType": 5125, "count": mesh.indices.len(), "type": "SCALAR" }
-        ]
+        "bufferViews": views,
+        "accessors": accessors
     });
+    if !materials.is_empty() {
+        json["materials"] = serde_json::json!(materials);
+    }
     let mut text = serde_json::to_vec(&json).map_err(io::Error::other)?;
     while !text.len().is_multiple_of(4) {
         text.push(b' ');

@@ -37,4 +37,4 @@ pub mod qef;
 pub use cache::{LevelCap, MeshCache};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks};
-pub use mesh::Mesh;
+pub use mesh::{Mesh, VertexMaterial};

@@ -9,8 +9,8 @@ use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
 
-use crate::Mesh;
 use crate::cases::cases;
+use crate::{Mesh, VertexMaterial};
 
 /// Meshes the cells `0..n` of one block into `out` (cleared first). Positions are grid units
 /// relative to the block's origin; vertex `i` of the axis-`a` crossings is vertex
@@ -20,12 +20,16 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
     out.clear();
     let n = block.cells();
     let sp = block.level().spacing() as f32;
+    let with_materials = block.has_materials();
     for axis in Axis::ALL {
         for c in block.crossings(axis) {
             let mut p = c.lower.map(|v| v as f32);
             p[axis.index()] += c.t;
             out.positions.push(p.map(|v| v * sp));
             out.normals.push(unpack_normal(c.normal).as_vec3().to_array());
+            if with_materials {
+                out.materials.push(VertexMaterial::single(edge_material(block, axis, c.lower)));
+            }
         }
     }
     let base = [0, block.crossings(Axis::X).len(), block.crossings(Axis::X).len() + block.crossings(Axis::Y).len()];
@@ -72,6 +76,18 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
     }
 }
 
+/// The material of the solid end of the edge along `axis` from node `lower` (a vertex on the
+/// edge takes it whole: the other end is empty).
+pub(crate) fn edge_material(block: &VoxelBlock, axis: Axis, lower: [u8; 3]) -> u8 {
+    let [x, y, z] = lower.map(usize::from);
+    if block.inside(x, y, z) {
+        return block.material(x, y, z);
+    }
+    let mut l = [x, y, z];
+    l[axis.index()] += 1;
+    block.material(l[0], l[1], l[2])
+}
+
 /// Splits the triangles on faces shared with finer neighbours at the vertices the finer meshes
 /// have on them ([`VoxelBlock::seams`]), so both meshes share every edge there. A triangle with
 /// one split edge becomes a fan from its opposite corner; one with more (a corner cut off at a
@@ -85,8 +101,8 @@ fn split_seams(block: &VoxelBlock, base: [usize; 3], out: &mut Mesh) {
         let (Some(a), Some(b)) = (id(seam.a), id(seam.b)) else { continue };
         let mut ids = vec![a];
         for p in &seam.points {
-            out.positions.push(p.position());
-            out.normals.push(unpack_normal(p.normal).as_vec3().to_array());
+            let material = out.material(a as usize);
+            out.push_vertex(p.position(), unpack_normal(p.normal).as_vec3().to_array(), material, false);
             ids.push(out.positions.len() as u32 - 1);
         }
         ids.push(b);
@@ -136,8 +152,8 @@ fn split_seams(block: &VoxelBlock, base: [usize; 3], out: &mut Mesh) {
             let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-12);
             n.map(|c| c / l)
         };
-        out.positions.push([centroid(0), centroid(1), centroid(2)]);
-        out.normals.push(normal);
+        let material = out.material(t[0] as usize);
+        out.push_vertex([centroid(0), centroid(1), centroid(2)], normal, material, false);
         let m = out.positions.len() as u32 - 1;
         for k in 0..ring.len() {
             out.indices.extend_from_slice(&[m, ring[k], ring[(k + 1) % ring.len()]]);
@@ -213,13 +229,8 @@ fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + S
     let mut out = Mesh::default();
     let mut welded: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
     for (key, m, ids) in parts {
-        let origin = key.origin_grid().as_vec3();
-        let place = |out: &mut Mesh, i: usize| {
-            let p = m.positions[i];
-            out.positions.push([p[0] + origin.x, p[1] + origin.y, p[2] + origin.z]);
-            out.normals.push(m.normals[i]);
-            out.positions.len() as u32 - 1
-        };
+        let origin = key.origin_grid().as_vec3().to_array();
+        let place = |out: &mut Mesh, i: usize| out.push_vertex_from(&m, i, origin);
         let mut remap: Vec<u32> = Vec::with_capacity(m.positions.len());
         for (i, id) in ids.iter().enumerate() {
             let v = match welded.get(id) {

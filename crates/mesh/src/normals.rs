@@ -59,8 +59,7 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
                 }
                 None => {
                     let index = out.positions.len() as u32;
-                    out.positions.push(mesh.positions[v]);
-                    out.normals.push([0.0; 3]);
+                    out.push_vertex(mesh.positions[v], [0.0; 3], mesh.material(v), !mesh.materials.is_empty());
                     groups.push((f, index));
                     index
                 }

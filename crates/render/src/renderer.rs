@@ -474,6 +474,7 @@ mod tests {
             positions: vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             normals: vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             indices: vec![0, 1, 2],
+            ..Default::default()
         };
         let model =
             Mat4::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::from_rotation_y(1.0), Vec3::X * 5.0);

@@ -82,11 +82,42 @@ pub struct VoxelBlock {
     /// Edges changed to meet a neighbour of another level (crack patching).
     patched: u32,
     pub(crate) seams: Vec<SeamSplit>,
+    /// Material of every node (`x + (n+1) (y + (n+1) z)`), read in the chunk that owns it;
+    /// empty when the volume has no material but 0.
+    materials: Vec<crate::MaterialId>,
 }
 
 const NONE: u32 = u32::MAX;
 
 impl VoxelBlock {
+    /// The material of node `(x, y, z)` (each in `0..=n`), meaningful where the node is inside:
+    /// the id stored for the node of the chunk that owns it (at a coarser block level, the
+    /// stored node it coincides with; across a border to a coarser chunk, its nearest node).
+    #[inline]
+    pub fn material(&self, x: usize, y: usize, z: usize) -> crate::MaterialId {
+        if self.materials.is_empty() { 0 } else { self.materials[self.node_index(x, y, z)] }
+    }
+
+    /// Whether any node of the block may have a material other than 0.
+    pub fn has_materials(&self) -> bool {
+        !self.materials.is_empty()
+    }
+
+    /// Sets the material of every node from `id(x, y, z)` (for blocks built with
+    /// [`VoxelBlock::from_fn`]).
+    pub fn set_materials(&mut self, id: impl Fn(usize, usize, usize) -> crate::MaterialId) {
+        let m = self.n + 1;
+        self.materials.clear();
+        self.materials.resize(m * m * m, 0);
+        for z in 0..m {
+            for y in 0..m {
+                for x in 0..m {
+                    self.materials[x + m * (y + m * z)] = id(x, y, z);
+                }
+            }
+        }
+    }
+
     /// The chunk this block was extracted from (`None` before the first extraction).
     pub fn key(&self) -> Option<ChunkKey> {
         self.key
@@ -300,6 +331,7 @@ impl VoxelBlock {
         self.repaired = 0;
         self.patched = 0;
         self.seams.clear();
+        self.materials.clear();
     }
 }
 
@@ -324,10 +356,49 @@ impl Volume {
             let map = crate::level::LevelMap::stored(self);
             if !crate::level::plain(&map, key) {
                 crate::level::extract_patched(&map, key, out);
+                self.fill_block_materials(out);
                 return;
             }
         }
         self.extract_plain(key, out);
+        self.fill_block_materials(out);
+    }
+
+    /// Fills the block's node materials from the chunks owning its nodes (nothing when the
+    /// volume has no material but 0).
+    fn fill_block_materials(&self, out: &mut VoxelBlock) {
+        out.materials.clear();
+        let Some(key) = out.key else { return };
+        if !self.has_materials() {
+            return;
+        }
+        let n = out.n;
+        let m = n + 1;
+        out.materials.resize(m * m * m, 0);
+        // The owners: this chunk and its neighbours across the far faces, edges and corner.
+        let mut decoded: [Option<(usize, Vec<crate::MaterialId>)>; 8] = Default::default();
+        for z in 0..m {
+            for y in 0..m {
+                for x in 0..m {
+                    let far = [x == n, y == n, z == n];
+                    let o = usize::from(far[0]) + 2 * usize::from(far[1]) + 4 * usize::from(far[2]);
+                    let (on, ids) = decoded[o].get_or_insert_with(|| {
+                        let owner = key.offset(IVec3::new(far[0] as i32, far[1] as i32, far[2] as i32));
+                        let level = self.level_of(owner);
+                        let mut v = Vec::new();
+                        self.decode_materials(owner, level, &mut v);
+                        (level.cells(), v)
+                    });
+                    let on = *on;
+                    let at = |c: usize, far: bool| {
+                        let c = if far { 0 } else { c };
+                        ((c * on + n / 2) / n).min(on - 1)
+                    };
+                    let i = at(x, far[0]) + on * (at(y, far[1]) + on * at(z, far[2]));
+                    out.materials[x + m * (y + m * z)] = ids[i];
+                }
+            }
+        }
     }
 
     /// The block of `key` meshed at no finer than `cap(k)` for every chunk `k` (level of detail:
@@ -342,6 +413,7 @@ impl Volume {
         } else {
             crate::level::extract_patched(&map, key, out);
         }
+        self.fill_block_materials(out);
     }
 
     /// The level `key` is meshed at (its own for a list chunk; for a uniform chunk the highest

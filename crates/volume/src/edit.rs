@@ -11,6 +11,7 @@ use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, WorkLine, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, edge_of, quantize_into_edge};
+use crate::material::MaterialRule;
 use crate::normal::{flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, pack_oriented};
 use crate::volume::Volume;
@@ -37,12 +38,15 @@ pub struct EditSettings {
     pub max_chunks: u64,
     /// Progress and cancellation, for an edit run on another thread (`None`: neither).
     pub control: Option<std::sync::Arc<EditControl>>,
+    /// The material an [`CsgOp::Add`] gives the nodes it makes solid (nodes already solid keep
+    /// theirs; subtraction and intersection change no surviving node's material).
+    pub material: crate::MaterialId,
 }
 
 impl Default for EditSettings {
-    /// Parallel, at most 2²⁰ chunks, no progress or cancellation.
+    /// Parallel, at most 2²⁰ chunks, no progress or cancellation, material 0.
     fn default() -> Self {
-        EditSettings { parallel: true, max_chunks: 1 << 20, control: None }
+        EditSettings { parallel: true, max_chunks: 1 << 20, control: None, material: 0 }
     }
 }
 
@@ -123,6 +127,12 @@ impl EditReport {
                 self.undo.previous.push((key, chunk));
             }
         }
+        let seen: std::collections::HashSet<ChunkKey> = self.undo.materials.iter().map(|(k, _)| *k).collect();
+        for (key, m) in later.undo.materials {
+            if !seen.contains(&key) {
+                self.undo.materials.push((key, m));
+            }
+        }
         self.changed.extend(later.changed);
         self.changed.sort_by_key(|k| k.0.to_array());
         self.changed.dedup();
@@ -136,12 +146,16 @@ impl EditReport {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct UndoRecord {
     pub(crate) previous: Vec<(ChunkKey, Option<Chunk>)>,
+    /// Previous materials of the chunks whose materials changed.
+    pub(crate) materials: crate::material::MaterialUndo,
 }
 
 impl UndoRecord {
     /// Chunks the record restores.
     pub fn keys(&self) -> impl Iterator<Item = ChunkKey> + '_ {
-        self.previous.iter().map(|(k, _)| *k)
+        let only_materials =
+            self.materials.iter().map(|(k, _)| *k).filter(|k| !self.previous.iter().any(|(p, _)| p == k));
+        self.previous.iter().map(|(k, _)| *k).chain(only_materials)
     }
 
     /// Heap bytes the record holds (for history memory budgets).
@@ -156,11 +170,13 @@ impl UndoRecord {
                     _ => 0,
                 })
                 .sum::<usize>()
+            + self.materials.capacity() * std::mem::size_of::<(ChunkKey, Option<crate::ChunkMaterials>)>()
+            + self.materials.iter().map(|(_, m)| m.as_ref().map_or(0, crate::ChunkMaterials::heap_bytes)).sum::<usize>()
     }
 
     /// Whether the record restores nothing.
     pub fn is_empty(&self) -> bool {
-        self.previous.is_empty()
+        self.previous.is_empty() && self.materials.is_empty()
     }
 }
 
@@ -531,12 +547,20 @@ impl Volume {
             report.undo.previous.push((key, previous));
             report.repaired_nodes += repaired;
         }
+        let rule = match op {
+            CsgOp::Add => MaterialRule::Fill(settings.material),
+            CsgOp::Subtract | CsgOp::Intersect => MaterialRule::Nearest,
+        };
+        report.undo.materials = self.update_materials(&report.undo.previous, rule);
         Ok(report)
     }
 
     /// Puts back the chunks of `record` and returns the record that undoes this (a redo).
     pub fn restore(&mut self, record: UndoRecord) -> UndoRecord {
-        let mut redo = UndoRecord { previous: Vec::with_capacity(record.previous.len()) };
+        let mut redo = UndoRecord {
+            previous: Vec::with_capacity(record.previous.len()),
+            materials: Vec::with_capacity(record.materials.len()),
+        };
         for (key, chunk) in record.previous {
             let now = match chunk {
                 Some(c) => self.chunks.insert(key, c),
@@ -544,12 +568,16 @@ impl Volume {
             };
             redo.previous.push((key, now));
         }
+        for (key, m) in record.materials {
+            let now = self.store_materials(key, m);
+            redo.materials.push((key, now));
+        }
         redo
     }
 }
 
 /// Chunks whose lines can see a change: chunk `c` holds nodes `16c ..= 16c + 16` on each line.
-fn chunk_range(bounds: &Aabb, limit: u64) -> Result<(IVec3, IVec3), EditError> {
+pub(crate) fn chunk_range(bounds: &Aabb, limit: u64) -> Result<(IVec3, IVec3), EditError> {
     let c = CHUNK_CELLS as f64;
     let lo = (bounds.min / c).ceil() - DVec3::ONE;
     let hi = (bounds.max / c).floor();

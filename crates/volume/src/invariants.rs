@@ -19,7 +19,7 @@ pub struct InvariantViolation {
 
 /// Node states of a chunk's own nodes (`0..n` on each axis) as read from the lines along one
 /// axis, as `rows[y + n z]` with bit `x`.
-fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
+pub(crate) fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
     let level = lists.level();
     let n = level.cells();
     let mut rows = vec![0u128; n * n];
@@ -60,7 +60,7 @@ impl Volume {
             .min_by_key(|v| v.key.0.to_array());
         match worst {
             Some(v) => Err(v),
-            None => Ok(()),
+            None => self.check_materials(),
         }
     }
 

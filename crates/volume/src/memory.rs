@@ -18,6 +18,9 @@ pub struct MemoryReport {
     pub headers: usize,
     /// The chunk map's tables.
     pub chunk_map: usize,
+    /// Node materials: the material map's table and the chunks' runs (see
+    /// [`crate::material`]; 0 for a volume of material 0 only).
+    pub materials: usize,
     /// Crossings stored (not bytes).
     pub crossings: usize,
 }
@@ -25,7 +28,7 @@ pub struct MemoryReport {
 impl MemoryReport {
     /// All bytes.
     pub fn total(&self) -> usize {
-        self.positions + self.normals + self.headers + self.chunk_map
+        self.positions + self.normals + self.headers + self.chunk_map + self.materials
     }
 
     /// All bytes except normals.
@@ -56,7 +59,11 @@ pub fn hash_table_bytes(capacity: usize, slot: usize) -> usize {
 impl Volume {
     /// Bytes held, by category.
     pub fn memory(&self) -> MemoryReport {
-        let mut r = MemoryReport { chunk_map: self.chunks.table_bytes(), ..Default::default() };
+        let mut r = MemoryReport {
+            chunk_map: self.chunks.table_bytes(),
+            materials: self.material_bytes(),
+            ..Default::default()
+        };
         for chunk in self.chunks.values() {
             if let Chunk::Lists(l) = chunk {
                 let (all, c) = (l.heap_bytes(), l.crossing_bytes());

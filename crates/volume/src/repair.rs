@@ -202,7 +202,11 @@ impl Volume {
                 }
             }
         }
-        Ok(report.unwrap_or(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 }))
+        let mut report =
+            report.unwrap_or(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
+        let node_shift = offset.as_i64vec3() * (1i64 << self.level.get());
+        self.carry_materials(other, node_shift, &report.undo.previous, &mut report.undo.materials);
+        Ok(report)
     }
 
     /// Rebuilds the volume if it breaks an invariant (see the module docs); returns what was
@@ -228,7 +232,10 @@ impl Volume {
             self.chunks.remove(k);
         }
         report.dropped_chunks = wrong_level.len();
-        let old = std::mem::replace(self, Volume { chunks: Default::default(), level, cell_size: self.cell_size });
+        let old = std::mem::replace(
+            self,
+            Volume { chunks: Default::default(), materials: Default::default(), level, cell_size: self.cell_size },
+        );
         // The regions that hold a stored chunk, each with the box of its stored chunks (a sparse
         // volume far from the origin costs its chunks, not the box around them).
         let settings = EditSettings { max_chunks: u64::MAX, ..Default::default() };
@@ -238,6 +245,10 @@ impl Volume {
                 report.repaired_nodes += edit.repaired_nodes;
             }
         }
+        // Materials follow their nodes (the rebuild changes no node's state on the x lines).
+        let previous: Vec<(ChunkKey, Option<Chunk>)> = self.chunks.keys().map(|k| (*k, None)).collect();
+        let mut undo = Vec::new();
+        self.carry_materials(&old, glam::I64Vec3::ZERO, &previous, &mut undo);
         report.chunks_after = self.chunk_count();
         report
     }

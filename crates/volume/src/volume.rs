@@ -39,7 +39,7 @@ impl Hasher for KeyHasher {
     }
 }
 
-type Hash = BuildHasherDefault<KeyHasher>;
+pub(crate) type Hash = BuildHasherDefault<KeyHasher>;
 
 /// The every-solid chunk, for references into [`ChunkMap`].
 static SOLID: Chunk = Chunk::Solid;
@@ -186,6 +186,8 @@ impl<'a> IntoIterator for &'a ChunkMap {
 #[serde(try_from = "RawVolume")]
 pub struct Volume {
     pub(crate) chunks: ChunkMap,
+    /// Node materials of the chunks that have any other than 0 (see [`crate::material`]).
+    pub(crate) materials: crate::material::MaterialMap,
     pub(crate) level: Level,
     pub(crate) cell_size: f64,
 }
@@ -194,6 +196,7 @@ pub struct Volume {
 #[derive(serde::Deserialize)]
 struct RawVolume {
     chunks: ChunkMap,
+    materials: crate::material::MaterialMap,
     level: Level,
     cell_size: f64,
 }
@@ -205,7 +208,10 @@ impl TryFrom<RawVolume> for Volume {
         if !(r.cell_size.is_finite() && r.cell_size > 0.0) {
             return Err(format!("the cell size {} is not finite and positive", r.cell_size));
         }
-        Ok(Volume { chunks: r.chunks, level: r.level, cell_size: r.cell_size })
+        if let Some(k) = r.materials.keys().find(|k| !r.chunks.contains_key(k)) {
+            return Err(format!("materials stored for the empty chunk {:?}", k.0.to_array()));
+        }
+        Ok(Volume { chunks: r.chunks, materials: r.materials, level: r.level, cell_size: r.cell_size })
     }
 }
 
@@ -223,7 +229,7 @@ impl Volume {
 
     /// An empty volume whose chunks are created at `level` (`16 << level` cells per side).
     pub fn with_level(level: Level) -> Self {
-        Volume { chunks: ChunkMap::default(), level, cell_size: 1.0 }
+        Volume { chunks: ChunkMap::default(), materials: Default::default(), level, cell_size: 1.0 }
     }
 
     /// A volume holding exactly `chunks` (later entries replace earlier ones with the same key;
@@ -238,7 +244,7 @@ impl Volume {
         if !(cell_size.is_finite() && cell_size > 0.0) {
             return None;
         }
-        let mut v = Volume { chunks: ChunkMap::default(), level, cell_size };
+        let mut v = Volume { chunks: ChunkMap::default(), materials: Default::default(), level, cell_size };
         for (key, chunk) in chunks {
             v.chunks.insert(key, chunk);
         }

@@ -28,7 +28,15 @@ impl Volume {
     /// meshes the change touches (the chunk and its 26 neighbours).
     pub fn set_chunk_level(&mut self, key: ChunkKey, level: Level) -> EditReport {
         let mut undo: Vec<(ChunkKey, Option<crate::chunk::Chunk>)> = Vec::new();
-        let remember = |undo: &mut Vec<_>, key: ChunkKey, old: Option<crate::chunk::Chunk>| {
+        let mut material_undo: crate::material::MaterialUndo = Vec::new();
+        // Each step's materials follow its chunks (resampled where the level changed); the record
+        // keeps the oldest contents of every chunk.
+        let mut remember = |volume: &mut Volume, undo: &mut Vec<_>, key: ChunkKey, old: Option<crate::chunk::Chunk>| {
+            for (k, m) in volume.update_materials(&[(key, old.clone())], crate::material::MaterialRule::Nearest) {
+                if !material_undo.iter().any(|(j, _)| *j == k) {
+                    material_undo.push((k, m));
+                }
+            }
             if !undo.iter().any(|(k, _): &(ChunkKey, _)| *k == key) {
                 undo.push((key, old));
             }
@@ -38,14 +46,14 @@ impl Volume {
                 let Some((built, neighbours)) = change::raise(self, key) else { break };
                 for (k, b) in neighbours {
                     let old = self.put_built(k, b);
-                    remember(&mut undo, k, old);
+                    remember(self, &mut undo, k, old);
                 }
                 let old = self.put_built(key, built);
-                remember(&mut undo, key, old);
+                remember(self, &mut undo, key, old);
             } else if now > level {
                 let Some(built) = change::lower(self, key) else { break };
                 let old = self.put_built(key, built);
-                remember(&mut undo, key, old);
+                remember(self, &mut undo, key, old);
             } else {
                 break;
             }
@@ -57,7 +65,7 @@ impl Volume {
             c.sort();
             c
         };
-        EditReport { changed, undo: UndoRecord { previous: undo }, repaired_nodes: 0 }
+        EditReport { changed, undo: UndoRecord { previous: undo, materials: material_undo }, repaired_nodes: 0 }
     }
 
     /// [`Volume::set_chunk_level`] for several chunks, in key order, as one report.

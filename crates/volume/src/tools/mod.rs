@@ -12,5 +12,5 @@ mod ops;
 mod region;
 
 pub use deform::{MAX_STEP, MAX_STEPS, grab, pinch};
-pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, smooth};
+pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, paint, smooth};
 pub use region::{BAND, FAR, MAX_REGION_NODES, Reach, Region, RegionCrossing, RegionError};

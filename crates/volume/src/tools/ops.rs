@@ -27,6 +27,9 @@ pub enum ToolError {
     /// Reading or writing the region failed.
     #[error(transparent)]
     Region(#[from] RegionError),
+    /// A paint dab spanning more chunks than an edit may.
+    #[error(transparent)]
+    Edit(#[from] crate::EditError),
 }
 
 /// One application of a tool: where, how large, how strong.
@@ -38,6 +41,9 @@ pub struct Dab {
     pub radius: f64,
     /// Strength in `[0, 1]`: the falloff's factor.
     pub strength: f64,
+    /// The material of the matter the dab adds (clay) or paints ([`paint`]); 0 from
+    /// [`Dab::new`]. Tools that only move the surface give new nodes their neighbours' material.
+    pub material: crate::MaterialId,
 }
 
 impl Dab {
@@ -52,7 +58,7 @@ impl Dab {
         if !(strength.is_finite() && (0.0..=1.0).contains(&strength)) {
             return Err(ToolError::BadParameter { what: "the dab strength (in [0, 1])", positive: false });
         }
-        Ok(Dab { center, radius, strength })
+        Ok(Dab { center, radius, strength, material: 0 })
     }
 
     /// The dab's weight at grid point `p`: strength × falloff.
@@ -297,7 +303,17 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
             }
         }
     }
-    Ok(volume.write_region(&region)?)
+    Ok(volume.write_region_with(&region, (!erase).then_some(dab.material))?)
+}
+
+/// Paints the solid nodes within the dab with `dab.material`, leaving node states and crossings
+/// bit for bit: a node is painted where the dab's weight (strength × falloff) beats the node's
+/// dither threshold (a fixed hash of its position), so the falloff shows as a share of painted
+/// nodes, the same ones on every dab, and a dab of strength 1 paints its centre solidly.
+pub fn paint(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> {
+    let ball = crate::brush::Sphere::new(dab.center, dab.radius)
+        .map_err(|_| ToolError::BadParameter { what: "the dab radius", positive: true })?;
+    Ok(volume.paint_where(&ball, dab.material, &|p| dab.weight(p))?)
 }
 
 /// The polynomial smooth minimum of `a` and `b` with blend radius `k` (`min` for `k = 0`).

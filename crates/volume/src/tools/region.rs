@@ -575,6 +575,16 @@ impl Volume {
     /// Writes `region` back (see the module docs): returns the changed chunks and the undo
     /// record. Nodes the operator does not own, and crossings between them, stay bit for bit.
     pub fn write_region(&mut self, region: &Region) -> Result<EditReport, RegionError> {
+        self.write_region_with(region, None)
+    }
+
+    /// [`Volume::write_region`], where the nodes made solid get material `fill` (`None`: the
+    /// material of a face neighbour that was solid, else of the run they continue).
+    pub fn write_region_with(
+        &mut self,
+        region: &Region,
+        fill: Option<crate::MaterialId>,
+    ) -> Result<EditReport, RegionError> {
         let count = region.dims[0] * region.dims[1] * region.dims[2];
         if region.phi.len() != count || region.weight.len() != count || region.original.len() != count {
             return Err(RegionError::Mismatch);
@@ -629,6 +639,8 @@ impl Volume {
             report.changed.push(key);
             report.undo.previous.push((key, previous));
         }
+        let rule = fill.map_or(crate::material::MaterialRule::Nearest, crate::material::MaterialRule::Fill);
+        report.undo.materials = self.update_materials(&report.undo.previous, rule);
         report.changed.sort_by_key(|k| k.0.to_array());
         Ok(report)
     }
