@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 pub mod baselines;
 pub mod lod;
+pub mod materials;
 pub mod suite;
 pub mod tools;
 use strata_volume::brush::Sphere;
@@ -183,7 +184,13 @@ pub fn replay_frames(instructions: &[Instruction], parallel: bool, mesher: Meshe
     FrameReplay { frames, triangles }
 }
 
-fn extract(volume: &Volume, keys: &[ChunkKey], parallel: bool, block: &mut VoxelBlock, blocks: &mut Vec<VoxelBlock>) {
+pub(crate) fn extract(
+    volume: &Volume,
+    keys: &[ChunkKey],
+    parallel: bool,
+    block: &mut VoxelBlock,
+    blocks: &mut Vec<VoxelBlock>,
+) {
     if parallel {
         blocks.resize_with(keys.len().max(blocks.len()), VoxelBlock::default);
         blocks[..keys.len()].par_iter_mut().zip(keys).for_each(|(b, &k)| volume.extract_block_into(k, b));

@@ -211,6 +211,8 @@ pub struct SuiteResults {
     pub tools: crate::tools::ToolsResults,
     /// Table 7 (level of detail).
     pub lod: Option<crate::lod::LodResults>,
+    /// Table 8 (materials).
+    pub materials: Option<crate::materials::MaterialsResults>,
 }
 
 /// Runs every table. `mesh` is the scanned mesh of Table 3 (PLY, OBJ or STL).
@@ -231,6 +233,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         table5: Vec::new(),
         tools: crate::tools::ToolsResults { dabs: 0, table6: Vec::new(), blur: Vec::new(), quality: Vec::new() },
         lod: None,
+        materials: None,
     };
     for &r in &config.radii {
         progress(&format!("table 1: radius {r}"));
@@ -287,6 +290,19 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         &tris,
         config.lod_resolution,
         config.lod_frames,
+        config.seed,
+        progress,
+    )?);
+    let radii: Vec<f64> = config.radii.iter().copied().filter(|r| *r == 10.0 || *r == 20.0).collect();
+    let paint_radii: Vec<f64> = config.tool_radii.iter().copied().filter(|r| *r == 10.0 || *r == 20.0).collect();
+    out.materials = Some(crate::materials::run(
+        config.count,
+        &radii,
+        Some((&name, &scanned.vertices, &tris)),
+        config.lod_resolution,
+        config.tool_canvas,
+        &paint_radii,
+        config.tool_dabs,
         config.seed,
         progress,
     )?);
@@ -613,6 +629,9 @@ pub fn markdown(r: &SuiteResults) -> String {
     }
     if let Some(l) = &r.lod {
         lod_markdown(&mut s, l);
+    }
+    if let Some(m) = &r.materials {
+        crate::materials::markdown(&mut s, m);
     }
     s
 }

@@ -144,7 +144,7 @@ pub struct ToolsResults {
 
 /// Surface points of `v` and a tangent direction at each: rays from far outside the canvas
 /// towards random points of its middle, where they first meet the solid.
-fn surface_points(v: &Volume, count: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
+pub(crate) fn surface_points(v: &Volume, count: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
     let mut rng = SplitMix64::new(seed);
     let c = DVec3::splat(CANVAS_CELLS * 0.5);
     let mut out = Vec::with_capacity(count);
@@ -164,11 +164,11 @@ fn surface_points(v: &Volume, count: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
     out
 }
 
-fn mean_ms(d: &[Duration]) -> f64 {
+pub(crate) fn mean_ms(d: &[Duration]) -> f64 {
     d.iter().map(Duration::as_secs_f64).sum::<f64>() * 1e3 / d.len().max(1) as f64
 }
 
-fn p99_ms(d: &[Duration]) -> f64 {
+pub(crate) fn p99_ms(d: &[Duration]) -> f64 {
     let mut s: Vec<f64> = d.iter().map(|x| x.as_secs_f64() * 1e3).collect();
     s.sort_by(f64::total_cmp);
     s.get(((s.len() as f64 * 0.99).ceil() as usize).saturating_sub(1)).copied().unwrap_or(0.0)

@@ -48,9 +48,18 @@ fn the_quick_suite_measures_every_table() {
     assert!(lod.memory[0].bytes < lod.memory[1].bytes && lod.memory[1].bytes < lod.memory[2].bytes, "{:?}", lod.memory);
     assert_eq!(lod.sculpt.len(), 2);
     assert!(lod.sculpt.iter().all(|s| s.1 > 0 && s.3 >= s.2 && s.2 > 0.0), "{:?}", lod.sculpt);
+    let mat = results.materials.as_ref().expect("Table 8 ran");
+    assert_eq!(mat.workload.len(), 2, "radius 10 without and with materials");
+    assert_eq!(mat.workload[0].material_bytes, 0, "draws of material 0 store no materials");
+    assert!(mat.workload[1].material_bytes > 0 && mat.workload[1].material_chunks > 0);
+    assert_eq!(mat.workload[0].crossings, mat.workload[1].crossings, "materials never change the shape");
+    let scan = mat.scan.as_ref().expect("the scan was painted");
+    assert!(scan.material_bytes > 0 && scan.crossings > 0);
+    assert!(mat.paint.len() == 1 && mat.paint[0].frame_ms >= mat.paint[0].dab_ms && mat.paint[0].dabs > 0);
     let md = markdown(&results);
     for t in [
         "Table 7 — level of detail",
+        "Table 8 — materials",
         "Table 1",
         "Table 2",
         "Table 3",

@@ -14,7 +14,7 @@ use strata_editor::file;
 use strata_editor::import::{self, ConvertError};
 pub use strata_editor::import::{MAX_CELLS, Resolution};
 use strata_editor::{Editor, Scene, View};
-use strata_mesh::export::save_mesh;
+use strata_mesh::export::save_mesh_with;
 use strata_mesh::import::{MESH_EXTENSIONS, load_mesh};
 use strata_mesh::normals::{DEFAULT_CREASE_DEGREES, crease_normals};
 use strata_volume::brush::MeshRule;
@@ -150,6 +150,24 @@ pub fn convert(mesh: &Path, resolution: Resolution, fill: Fill, out: &Path) -> R
     Ok(r)
 }
 
+/// The names of the materials a volume's nodes use (`none` for an empty volume).
+fn layer_materials(scene: &strata_editor::Scene, v: &strata_volume::Volume) -> String {
+    if v.chunk_count() == 0 {
+        return "none".into();
+    }
+    let mut ids = std::collections::BTreeSet::new();
+    if v.chunks().count() > v.material_chunks().count() {
+        ids.insert(0u8);
+    }
+    for (_, m) in v.material_chunks() {
+        ids.extend(m.change_points().unwrap_or_default().into_iter().map(|p| p.1));
+    }
+    ids.iter()
+        .map(|&i| scene.materials.get(i as usize).map_or(format!("#{i}"), |m| m.name.clone()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Which layers `export` writes: by index or by name, or every visible layer.
 fn select_layers(scene: &Scene, layers: &[String]) -> Result<Vec<usize>> {
     if layers.is_empty() {
@@ -193,6 +211,7 @@ pub fn export(scene: &Path, out: &Path, mesher: Mesher, layers: &[String]) -> Re
     }
     let meshing = spinner(&format!("meshing {} layer(s) with {mesher:?}", chosen.len()));
     let t = Instant::now();
+    let palette = s.export_palette();
     let mesh = Editor::new(s).export_mesh(mesher == Mesher::Dc);
     let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
     let mesh = if mesher == Mesher::Mc { crease_normals(&mesh, DEFAULT_CREASE_DEGREES) } else { mesh };
@@ -200,7 +219,7 @@ pub fn export(scene: &Path, out: &Path, mesher: Mesher, layers: &[String]) -> Re
     if mesh.indices.is_empty() {
         bail!("{}: the chosen layers hold no surface to export", scene.display());
     }
-    save_mesh(&mesh, out).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
+    save_mesh_with(&mesh, out, &palette).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
     Ok(format!(
         "{}: {} layer(s), {} triangles, {} vertices ({mesher:?}, {mesh_ms:.0} ms)\n  wrote {}\n",
         scene.display(),
@@ -237,11 +256,11 @@ pub fn info(path: &Path) -> Result<String> {
         let t = &l.transform;
         writeln!(
             r,
-            "  [{i}] {:?}{}{}: material {}, cell {} units, at {:.3}, turned {:.1}°",
+            "  [{i}] {:?}{}{}: materials {}, cell {} units, at {:.3}, turned {:.1}°",
             l.name,
             if l.visible { "" } else { " (hidden)" },
             if l.locked { " (locked)" } else { "" },
-            l.material,
+            layer_materials(s, &l.volume),
             t.scale,
             t.translation,
             t.rotation.to_axis_angle().1.to_degrees()

@@ -449,6 +449,12 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::D) {
             self.studio.set_kind(ToolKind::Detail);
         }
+        if pressed(Modifiers::NONE, Key::V) {
+            self.studio.set_kind(ToolKind::Paint);
+        }
+        if pressed(Modifiers::NONE, Key::K) {
+            self.studio.toggle_eyedropper();
+        }
     }
 
     fn menu(&mut self, ui: &mut egui::Ui) {
@@ -563,6 +569,11 @@ impl StudioApp {
                 "D",
                 "Add resolution under the brush for fine detail (Ctrl/Alt: back to the layer's base level)",
             ),
+            (
+                ToolKind::Paint,
+                "V",
+                "Paint the current material without changing the shape (Ctrl/Alt: the first material)",
+            ),
         ];
         for row in tips.chunks(3) {
             ui.horizontal(|ui| {
@@ -646,6 +657,57 @@ impl StudioApp {
             .on_hover_text("Turn box, capsule and cylinder brushes onto the surface normal under the pointer");
         ui.separator();
         ui.label("Ctrl or Alt + drag: the inverse tool. Shift: smooth. L: line tool. X: mirror X.");
+        ui.separator();
+        self.materials(ui);
+    }
+
+    /// The material palette: the current material (what add and clay add and paint paints),
+    /// each material's colour, texture, scale and roughness, the eyedropper and a new material.
+    fn materials(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Materials");
+        let mut changed = false;
+        let current = &mut self.studio.editor.tool.material;
+        let palette = &mut self.studio.editor.scene.materials;
+        ui.horizontal_wrapped(|ui| {
+            for (i, m) in palette.iter().enumerate() {
+                let [r, g, b] = m.color.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8);
+                let text = egui::RichText::new(&m.name).strong().color(egui::Color32::from_rgb(r, g, b));
+                ui.selectable_value(current, i as u8, text).on_hover_text("Add, clay and paint use this material");
+            }
+        });
+        if let Some(m) = palette.get_mut(*current as usize) {
+            ui.horizontal(|ui| {
+                let label = ui.label("material name");
+                changed |= ui.text_edit_singleline(&mut m.name).labelled_by(label.id).changed();
+            });
+            ui.horizontal(|ui| {
+                ui.label("colour");
+                changed |= ui.color_edit_button_rgb(&mut m.color).changed();
+                egui::ComboBox::from_label("texture").selected_text(m.texture.name()).show_ui(ui, |ui| {
+                    for t in strata_editor::Texture::ALL {
+                        changed |= ui.selectable_value(&mut m.texture, t, t.name()).changed();
+                    }
+                });
+            });
+            changed |= ui
+                .add(egui::Slider::new(&mut m.scale, 1.0..=128.0).logarithmic(true).text("texture scale"))
+                .on_hover_text("World units per repeat of the texture")
+                .changed();
+            changed |= ui.add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness")).changed();
+        }
+        ui.horizontal(|ui| {
+            let dropper = if self.studio.eyedropper { "Eyedropper (armed)" } else { "Eyedropper (K)" };
+            if ui.button(dropper).on_hover_text("Click the model to take the material under the pointer").clicked() {
+                self.studio.toggle_eyedropper();
+            }
+            if ui.button("New material").clicked() {
+                self.studio.add_material();
+            }
+        });
+        if changed {
+            self.studio.palette_changed = true;
+            self.studio.editor.touch();
+        }
     }
 
     fn layers(&mut self, ui: &mut egui::Ui) {
@@ -1009,7 +1071,9 @@ impl StudioApp {
         egui::Panel::bottom("status").show(ui, |ui| {
             ui.label(self.studio.status());
         });
-        egui::Panel::left("tools").resizable(false).show(ui, |ui| self.palette(ui));
+        egui::Panel::left("tools").resizable(false).show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| self.palette(ui));
+        });
         egui::Panel::right("layers").show(ui, |ui| self.layers(ui));
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, frame));
         self.dropped(&ctx);
@@ -1132,16 +1196,28 @@ impl StudioApp {
         if self.studio.full_upload {
             upload_all(&self.studio, &rs.device, &rs.queue, &mut vp.renderer);
             self.studio.full_upload = false;
+            self.studio.palette_changed = false;
             self.studio.uploads.clear();
         } else {
+            if self.studio.palette_changed {
+                vp.renderer.set_palette(&rs.queue, &crate::headless::palette(&self.studio.editor.scene));
+                self.studio.palette_changed = false;
+            }
             for (layer, key) in std::mem::take(&mut self.studio.uploads) {
                 let scene = &self.studio.editor.scene;
                 let Some(l) = scene.layers.get(layer) else { continue };
                 let mesh = self.studio.editor.mesh_cache(layer).and_then(|c| c.mesh(key));
                 match mesh.filter(|_| l.visible) {
                     Some(mesh) => {
-                        let color = scene.materials.get(l.material as usize).map_or([0.7, 0.6, 0.5], |m| m.color);
-                        vp.renderer.upload_chunk(&rs.device, &rs.queue, layer as u32, key, mesh, layer_model(l), color);
+                        vp.renderer.upload_chunk(
+                            &rs.device,
+                            &rs.queue,
+                            layer as u32,
+                            key,
+                            mesh,
+                            layer_model(l),
+                            [1.0; 3],
+                        );
                     }
                     None => vp.renderer.remove_chunk(layer as u32, key),
                 }

@@ -37,17 +37,31 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
 pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, queue: &wgpu::Queue, renderer: &mut Renderer) {
     renderer.clear();
     let scene = &studio.editor.scene;
+    renderer.set_palette(queue, &palette(scene));
     for (i, layer) in scene.layers.iter().enumerate() {
         if !layer.visible {
             continue;
         }
         let Some(cache) = studio.editor.mesh_cache(i) else { continue };
-        let color = scene.materials.get(layer.material as usize).map_or([0.7, 0.6, 0.5], |m| m.color);
         let model = layer_model(layer);
         for (key, mesh) in cache.iter() {
-            renderer.upload_chunk(device, queue, i as u32, key, mesh, model, color);
+            renderer.upload_chunk(device, queue, i as u32, key, mesh, model, [1.0; 3]);
         }
     }
+}
+
+/// The scene's palette as the renderer draws it.
+pub(crate) fn palette(scene: &strata_editor::Scene) -> Vec<strata_render::PaletteEntry> {
+    scene
+        .materials
+        .iter()
+        .map(|m| strata_render::PaletteEntry {
+            color: m.color,
+            texture: m.texture.layer(),
+            scale: m.scale,
+            roughness: m.roughness,
+        })
+        .collect()
 }
 
 /// A layer's grid-to-world matrix.

@@ -26,6 +26,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("C  A  E", "clay, add, erase"),
     ("S  I  T", "smooth, inflate, flatten"),
     ("P  G  D", "pinch, grab, detail (raise the chunks' resolution under the brush)"),
+    ("V  K", "paint the current material, eyedropper (click the model to take its material)"),
     ("B", "next brush shape (sphere, box, capsule, cylinder)"),
     ("[  ]", "brush radius down, up"),
     ("L", "line tool: click two points"),

@@ -155,6 +155,11 @@ pub struct Studio {
     pub line_mode: bool,
     /// The line's first end, once clicked.
     pub line_start: Option<DVec3>,
+    /// The eyedropper is armed: the next click on the model makes the material under it the
+    /// current material.
+    pub eyedropper: bool,
+    /// The palette changed (a material added or edited): the renderer needs it again.
+    pub palette_changed: bool,
     /// A button was held in the previous frame (to see presses).
     prev_held: bool,
     /// A mesh waiting for its import resolution.
@@ -190,6 +195,8 @@ impl Studio {
             last_remesh_ms: 0.0,
             uploads: Vec::new(),
             full_upload: true,
+            eyedropper: false,
+            palette_changed: true,
             hover: None,
             hover_normal: None,
             inverse_held: false,
@@ -269,7 +276,7 @@ impl Studio {
             }
             Action::Export(path) => {
                 let mesh = self.editor.export_mesh(self.export_dual);
-                strata_mesh::export::save_mesh(&mesh, &path)
+                strata_mesh::export::save_mesh_with(&mesh, &path, &self.editor.scene.export_palette())
                     .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
                 self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
             }
@@ -488,7 +495,9 @@ impl Studio {
         }
         let buttons =
             if self.inverse_held && buttons.primary { Buttons { primary: false, secondary: true } } else { buttons };
-        if self.line_mode && self.job.is_none() {
+        if self.eyedropper && self.job.is_none() {
+            self.eyedropper_click(ndc, buttons, aspect);
+        } else if self.line_mode && self.job.is_none() {
             self.line_click(ndc, buttons, pressure, aspect);
         } else {
             self.pointer_with_tool(ndc, buttons, pressure, aspect, budget);
@@ -508,6 +517,55 @@ impl Studio {
             self.editor.set_view(view);
             self.last_lod = view;
         }
+    }
+
+    /// Arms or disarms the eyedropper (`K`).
+    pub fn toggle_eyedropper(&mut self) {
+        self.eyedropper = !self.eyedropper;
+        self.message = if self.eyedropper {
+            "Eyedropper: click the model to take its material".into()
+        } else {
+            "Eyedropper off".into()
+        };
+    }
+
+    /// A frame of the armed eyedropper: a click on the model takes the material under it.
+    fn eyedropper_click(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, aspect: f32) {
+        let pick = ndc.and_then(|(x, y)| {
+            let (o, d) = self.camera.ray(x, y, aspect);
+            self.editor.pick(o.as_dvec3(), d.as_dvec3(), 1.0e4)
+        });
+        self.hover = pick.as_ref().map(|p| p.point);
+        let held = buttons.primary || buttons.secondary;
+        if !held || self.prev_held {
+            return;
+        }
+        let Some(pick) = pick else { return };
+        match self.editor.material_at(&pick) {
+            Some(id) => {
+                self.editor.tool.material = id;
+                let name = self.editor.scene.materials.get(id as usize).map_or("?", |m| m.name.as_str());
+                self.message = format!("Material: {name}");
+            }
+            None => self.message = "Eyedropper: no material there".into(),
+        }
+        self.eyedropper = false;
+    }
+
+    /// Adds a material to the palette (a copy of the current one) and makes it current.
+    pub fn add_material(&mut self) -> Option<u8> {
+        let palette = &mut self.editor.scene.materials;
+        if palette.len() >= strata_volume::MATERIAL_IDS {
+            self.message = format!("The palette is full ({} materials)", strata_volume::MATERIAL_IDS);
+            return None;
+        }
+        let base = palette.get(self.editor.tool.material as usize).cloned().unwrap_or_else(|| palette[0].clone());
+        palette.push(strata_editor::Material { name: format!("{} {}", base.name, palette.len()), ..base });
+        let id = (palette.len() - 1) as u8;
+        self.editor.tool.material = id;
+        self.palette_changed = true;
+        self.editor.touch();
+        Some(id)
     }
 
     /// Arms or disarms the line tool (`L`).

@@ -492,3 +492,52 @@ fn a_layer_can_be_added_at_a_finer_base_resolution() {
     assert_eq!(layers[1].volume.level(), strata_volume::Level::FINEST, "the new layer's base is 64³");
     assert!(h.query_all_by_label("Base resolution 64³ cells per chunk").count() > 0);
 }
+
+#[test]
+fn paint_an_eyedropper_and_a_new_material_from_the_palette() {
+    let dir = temp("paint");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::V);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Paint);
+    h.get_by_label("Grass").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.material, 2, "the palette sets the current material");
+    h.state_mut().studio.editor.tool.field_strength = 1.0;
+    let shape: Vec<_> = h.state().studio.editor.scene.layers[0].volume.chunks().map(|(k, c)| (k, c.clone())).collect();
+    drag_over_the_ball(&mut h, 4);
+    let v = &h.state().studio.editor.scene.layers[0].volume;
+    assert!(v.has_materials(), "the stroke painted ({})", h.state().studio.message);
+    let now: Vec<_> = v.chunks().map(|(k, c)| (k, c.clone())).collect();
+    assert!(now == shape, "painting never changes the shape");
+    v.check_invariants().unwrap();
+    assert_eq!(h.state().studio.editor.history().undo_len(), 1, "one stroke, one step");
+    // Another material, then the eyedropper on the painted spot takes grass back.
+    h.get_by_label("Red").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.material, 5);
+    h.key_press(egui::Key::K);
+    h.run();
+    assert!(h.state().studio.eyedropper);
+    let centre = egui::pos2(640.0, 400.0);
+    h.hover_at(centre);
+    h.step();
+    h.drag_at(centre);
+    h.step();
+    h.drop_at(centre);
+    h.step();
+    assert!(!h.state().studio.eyedropper, "one click, then it disarms");
+    assert_eq!(h.state().studio.editor.tool.material, 2, "{}", h.state().studio.message);
+    // A new material joins the palette and becomes current; its colour is editable.
+    let before = h.state().studio.editor.scene.materials.len();
+    h.get_by_label("New material").click();
+    h.run();
+    let s = &h.state().studio;
+    assert_eq!(s.editor.scene.materials.len(), before + 1);
+    assert_eq!(s.editor.tool.material as usize, before);
+    // Undo takes the paint away exactly.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert!(!h.state().studio.editor.scene.layers[0].volume.has_materials(), "Ctrl+Z undid the paint");
+}

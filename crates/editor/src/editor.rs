@@ -44,6 +44,14 @@ pub enum EditorError {
     /// A field tool's dab was refused (a bad parameter, a region too large).
     #[error(transparent)]
     Tool(#[from] strata_volume::tools::ToolError),
+    /// The current material is not in the scene's palette.
+    #[error("material {id} is not in the palette ({count} materials)")]
+    UnknownMaterial {
+        /// The tool's material.
+        id: u8,
+        /// Materials in the palette.
+        count: usize,
+    },
 }
 
 /// What one frame did.
@@ -351,6 +359,7 @@ impl Editor {
     fn stroke_to(&mut self, pose: &ToolPose, report: &mut FrameReport) -> Result<(), EditorError> {
         let layer = self.active_layer;
         self.check_editable(layer)?;
+        self.check_material()?;
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let spacing = self.tool.dab_spacing();
         let transform = self.scene.layers[layer].transform;
@@ -397,7 +406,8 @@ impl Editor {
                     field_tool_dab(&self.tool, &l.transform, &mut l.volume, at, pose.pressure, inverted, direction)?
                 } else {
                     let brush = self.tool.brush(&transform, at, orientation, pose.pressure)?;
-                    self.scene.layers[layer].volume.apply(op, brush.as_ref(), &self.settings)?
+                    let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
+                    self.scene.layers[layer].volume.apply(op, brush.as_ref(), &settings)?
                 };
                 self.record(layer, edit);
             }
@@ -457,6 +467,24 @@ impl Editor {
         Ok(())
     }
 
+    /// Refuses a current material the palette does not have.
+    fn check_material(&self) -> Result<(), EditorError> {
+        let count = self.scene.materials.len();
+        if self.tool.material as usize >= count {
+            return Err(EditorError::UnknownMaterial { id: self.tool.material, count });
+        }
+        Ok(())
+    }
+
+    /// The material of the solid under a pick (the eyedropper): the nearest solid node of the
+    /// cell just inside the picked surface.
+    pub fn material_at(&self, pick: &Pick) -> Option<strata_volume::MaterialId> {
+        let l = self.scene.layers.get(pick.layer)?;
+        let inward = l.transform.dir_to_grid(-pick.normal).normalize_or_zero();
+        let p = l.transform.to_grid(pick.point) + inward * 0.25 * l.volume.level().spacing();
+        l.volume.material_near(p)
+    }
+
     /// Queues an edit of the stroke in progress for meshing and keeps its undo record.
     fn record(&mut self, layer: usize, edit: EditReport) {
         self.queue(layer, &edit.changed);
@@ -494,6 +522,7 @@ impl Editor {
         self.end_stroke();
         let layer = self.active_layer;
         self.check_editable(layer)?;
+        self.check_material()?;
         let l = &mut self.scene.layers[layer];
         let inverted = pose.buttons.secondary && !pose.buttons.primary;
         let op = self.tool.kind.op(inverted);
@@ -504,7 +533,8 @@ impl Editor {
         let placeholder = Volume::with_level(l.volume.level());
         let mut volume = std::mem::replace(&mut l.volume, placeholder);
         let control = Arc::new(EditControl::default());
-        let settings = EditSettings { control: Some(control.clone()), ..self.settings.clone() };
+        let settings =
+            EditSettings { control: Some(control.clone()), material: self.tool.material, ..self.settings.clone() };
         let (tool, transform, pressure) = (self.tool, l.transform, pose.pressure);
         if tool.kind == ToolKind::Grab {
             // A grab drags with the pointer: a single dab has nothing to drag.
@@ -586,7 +616,8 @@ impl Editor {
         if l.locked {
             return Err(EditorError::Locked(layer));
         }
-        let mut edit = l.volume.apply(op, brush, &self.settings)?;
+        let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
+        let mut edit = l.volume.apply(op, brush, &settings)?;
         self.queue(layer, &edit.changed);
         self.revision += 1;
         // The history keeps the undo record; the report returned has an empty one.
@@ -867,8 +898,9 @@ impl Editor {
             let mut m = if dual { dual_contour_volume(&l.volume) } else { strata_mesh::mesh_volume(&l.volume) };
             to_world(&mut m, &l.transform);
             let base = out.positions.len() as u32;
-            out.positions.extend_from_slice(&m.positions);
-            out.normals.extend_from_slice(&m.normals);
+            for i in 0..m.vertex_count() {
+                out.push_vertex_from(&m, i, [0.0; 3]);
+            }
             out.indices.extend(m.indices.iter().map(|i| i + base));
         }
         out
@@ -947,10 +979,12 @@ fn field_tool_dab(
     inverted: bool,
     direction: Option<DVec3>,
 ) -> Result<EditReport, strata_volume::tools::ToolError> {
-    use strata_volume::tools::{Dab, Smoothing, clay, flatten, inflate, pinch, smooth};
+    use strata_volume::tools::{Dab, Smoothing, clay, flatten, inflate, paint, pinch, smooth};
     let radius = tool.radius_at(pressure) / transform.scale;
-    let dab = Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))?;
+    let dab =
+        Dab { material: tool.material, ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))? };
     match tool.kind {
+        ToolKind::Paint => paint(volume, &Dab { material: if inverted { 0 } else { tool.material }, ..dab }),
         ToolKind::Clay => clay(volume, &dab, tool.fillet.clamp(0.0, 4.0) * radius, inverted),
         ToolKind::Smooth => {
             let method = if inverted {

@@ -2,9 +2,13 @@
 //!
 //! Layout (little-endian): the 8-byte magic `b"STRATA\x00S"`, the format version (`u32`), the
 //! payload length (`u64`), the CRC-32 (IEEE) of the payload (`u32`), then the payload, in
-//! postcard. Version 3 (written since the second wave) frames every chunk of lists on its own,
-//! with its own CRC-32, beside the layer's metadata and its list of solid chunk keys; version 2
-//! (the whole [`Scene`] as one postcard value) is still read.
+//! postcard. Version 4 (written since materials) frames every chunk of lists on its own, with its
+//! own CRC-32, beside the layer's metadata and its list of solid chunk keys, and frames the node
+//! materials of every chunk that has any but material 0 the same way (a postcard
+//! [`strata_volume::ChunkMaterials`]); the palette's entries carry texture, scale and roughness.
+//! Versions 3 (the same without node materials: one material per layer) and 2 (the whole scene
+//! as one postcard value) are still read: a layer's material becomes the material of its every
+//! node, and the palette's entries get the plain texture.
 //!
 //! What is guaranteed:
 //! - **Never refuse what can be saved, never write what cannot be read.** [`save`] runs the
@@ -13,7 +17,9 @@
 //!   in what is written, and the repairs are returned. Loading a file the editor wrote gives
 //!   back exactly the saved scene.
 //! - **Recover what can be recovered.** [`load`] refuses a file only when nothing can be read
-//!   (wrong magic, a newer or too old version, a truncated file, a payload that does not parse).
+//!   (wrong magic, a newer or too old version, a truncated file, a payload that does not parse)
+//!   or when a node names a material the palette does not have (such a file was not written by
+//!   Strata; guessing a material would silently change the model).
 //!   Everything else is repaired and reported in [`LoadReport`]: a layer with an invalid
 //!   transform gets a valid one, a chunk whose bytes fail their CRC or do not decode is dropped,
 //!   a volume whose lists disagree is rebuilt from its x lines ([`Volume::repair`]), an invalid
@@ -34,7 +40,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use serde::{Deserialize, Serialize};
-use strata_volume::{Chunk, ChunkKey, ChunkLists, Level, Volume};
+use strata_volume::{Chunk, ChunkKey, ChunkLists, ChunkMap, ChunkMaterials, Level, Volume};
 use thiserror::Error;
 
 use crate::scene::{Layer, LayerTransform, Material, Scene, View};
@@ -42,7 +48,7 @@ use crate::scene::{Layer, LayerTransform, Material, Scene, View};
 /// The first eight bytes of every scene file.
 pub const MAGIC: [u8; 8] = *b"STRATA\x00S";
 /// The format version this build writes and the newest it reads.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 /// The oldest version this build reads. Version 1 stored chunk lists with per-line start bits
 /// and unary counts (before the layout of `strata-volume`'s `ChunkLists` changed).
 pub const OLDEST_VERSION: u32 = 2;
@@ -89,6 +95,16 @@ pub enum SceneFileError {
     /// The payload does not decode into a scene.
     #[error("scene file payload is invalid: {0}")]
     Payload(String),
+    /// A node names a material the palette does not have.
+    #[error("layer {layer:?} uses material {id}, but the scene's palette has only {count} materials")]
+    UnknownMaterial {
+        /// The layer's name.
+        layer: String,
+        /// The largest id used.
+        id: u8,
+        /// Materials in the palette.
+        count: usize,
+    },
     /// Reading or writing failed.
     #[error(transparent)]
     Io(#[from] io::Error),
@@ -128,9 +144,24 @@ pub struct Loaded {
     pub version: u32,
 }
 
-/// What version 3 stores per layer: everything but the chunks of lists.
+/// What version 4 stores per layer.
 #[derive(Serialize, Deserialize)]
 struct LayerRecord {
+    name: String,
+    transform: LayerTransform,
+    visible: bool,
+    locked: bool,
+    level: u8,
+    cell_size: f64,
+    solid: Vec<ChunkKey>,
+    lists: Vec<ChunkRecord>,
+    /// Framed [`ChunkMaterials`], one per chunk with materials.
+    materials: Vec<ChunkRecord>,
+}
+
+/// What version 3 stored per layer: one material for the whole layer, no node materials.
+#[derive(Deserialize)]
+struct LayerRecordV3 {
     name: String,
     transform: LayerTransform,
     visible: bool,
@@ -140,6 +171,72 @@ struct LayerRecord {
     cell_size: f64,
     solid: Vec<ChunkKey>,
     lists: Vec<ChunkRecord>,
+}
+
+/// A palette entry of versions 2 and 3.
+#[derive(Serialize, Deserialize)]
+struct MaterialV3 {
+    name: String,
+    color: [f32; 3],
+}
+
+#[derive(Deserialize)]
+struct SceneRecordV3 {
+    layers: Vec<LayerRecordV3>,
+    materials: Vec<MaterialV3>,
+    view: View,
+}
+
+/// A version 2 file: the scene of that time as one postcard value.
+#[derive(Serialize, Deserialize)]
+struct SceneV2 {
+    layers: Vec<LayerV2>,
+    materials: Vec<MaterialV3>,
+    view: View,
+}
+
+#[derive(Serialize, Deserialize)]
+struct LayerV2 {
+    name: String,
+    transform: LayerTransform,
+    visible: bool,
+    locked: bool,
+    material: u32,
+    volume: VolumeV2,
+}
+
+#[derive(Serialize, Deserialize)]
+struct VolumeV2 {
+    chunks: ChunkMap,
+    level: Level,
+    cell_size: f64,
+}
+
+/// The payload of a version 2 file holding `scene` (its layers' one material each taken from
+/// the material of their first solid node), for tests of the reader.
+#[doc(hidden)]
+pub fn encode_version_2_payload(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
+    let v2 = SceneV2 {
+        layers: scene
+            .layers
+            .iter()
+            .map(|l| LayerV2 {
+                name: l.name.clone(),
+                transform: l.transform,
+                visible: l.visible,
+                locked: l.locked,
+                material: l.volume.max_material().unwrap_or(0) as u32,
+                volume: VolumeV2 {
+                    chunks: ChunkMap::from_chunks(l.volume.chunks().map(|(k, c)| (k, c.clone()))),
+                    level: l.volume.level(),
+                    cell_size: l.volume.cell_size(),
+                },
+            })
+            .collect(),
+        materials: scene.materials.iter().map(|m| MaterialV3 { name: m.name.clone(), color: m.color }).collect(),
+        view: scene.view,
+    };
+    postcard::to_allocvec(&v2).map_err(|e| SceneFileError::Payload(e.to_string()))
 }
 
 /// One chunk of lists, framed: its key, the CRC-32 of its bytes and its bytes (a postcard
@@ -164,7 +261,29 @@ pub fn validate_scene(scene: &mut Scene) -> LoadReport {
     let mut report = LoadReport::default();
     if scene.materials.is_empty() {
         scene.materials = Scene::default().materials;
-        report.repairs.push("the scene had no materials; the default material was added".into());
+        report.repairs.push("the scene had no materials; the built-in palette was added".into());
+    }
+    if scene.materials.len() > strata_volume::MATERIAL_IDS {
+        report.repairs.push(format!(
+            "the palette had {} materials; those past the {}th were dropped",
+            scene.materials.len(),
+            strata_volume::MATERIAL_IDS
+        ));
+        scene.materials.truncate(strata_volume::MATERIAL_IDS);
+    }
+    for (i, m) in scene.materials.iter_mut().enumerate() {
+        if !m.is_valid() {
+            let fixed = Material {
+                color: m.color.map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.5 }),
+                scale: if m.scale.is_finite() && m.scale > 0.0 { m.scale } else { 16.0 },
+                roughness: if m.roughness.is_finite() { m.roughness.clamp(0.0, 1.0) } else { 0.7 },
+                ..m.clone()
+            };
+            report
+                .repairs
+                .push(format!("material {i} ({:?}): colour, scale or roughness out of range; clamped", m.name));
+            *m = fixed;
+        }
     }
     for l in &mut scene.layers {
         let name = &l.name;
@@ -176,9 +295,12 @@ pub fn validate_scene(scene: &mut Scene) -> LoadReport {
             ));
             l.transform = fixed;
         }
-        if l.material as usize >= scene.materials.len() {
-            report.repairs.push(format!("layer {name:?}: material {} does not exist; it uses material 0", l.material));
-            l.material = 0;
+        if l.volume.max_material().is_some_and(|m| m as usize >= scene.materials.len()) {
+            let chunks = l.volume.clamp_materials(scene.materials.len());
+            report.repairs.push(format!(
+                "layer {name:?}: nodes in {chunks} chunks used materials past the palette's {}; they use material 0",
+                scene.materials.len()
+            ));
         }
         let r = l.volume.repair();
         if let Some(problem) = &r.problem {
@@ -209,6 +331,13 @@ pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
     for l in &scene.layers {
         let mut solid = Vec::new();
         let mut lists = Vec::new();
+        let mut materials = Vec::new();
+        let mut with_materials: Vec<(ChunkKey, &ChunkMaterials)> = l.volume.material_chunks().collect();
+        with_materials.sort_by_key(|(k, _)| k.0.to_array());
+        for (key, m) in with_materials {
+            let bytes = postcard::to_allocvec(m).map_err(payload_err)?;
+            materials.push(ChunkRecord { key, crc: crc32fast::hash(&bytes), bytes });
+        }
         let mut chunks: Vec<(ChunkKey, &Chunk)> = l.volume.chunks().collect();
         // A canonical order: the same scene always gives the same bytes.
         chunks.sort_by_key(|(k, _)| k.0.to_array());
@@ -226,11 +355,11 @@ pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
             transform: l.transform,
             visible: l.visible,
             locked: l.locked,
-            material: l.material,
             level: l.volume.level().get(),
             cell_size: l.volume.cell_size(),
             solid,
             lists,
+            materials,
         });
     }
     let record = SceneRecord { layers, materials: scene.materials.clone(), view: scene.view };
@@ -267,27 +396,92 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
     }
     let intact = crc32fast::hash(payload) == word(20);
     let mut report = LoadReport::default();
-    let mut scene = if version == 2 {
-        // One postcard value: nothing to recover from a damaged one.
-        if !intact {
-            return Err(SceneFileError::Checksum);
+    let parse_err =
+        |e: postcard::Error| if intact { SceneFileError::Payload(e.to_string()) } else { SceneFileError::Checksum };
+    let damaged = "the file's checksum does not match: it was damaged after it was written; every chunk was checked against its own checksum, but layer names, transforms and settings could not be verified";
+    let (mut scene, fills) = match version {
+        2 => {
+            // One postcard value: nothing to recover from a damaged one.
+            if !intact {
+                return Err(SceneFileError::Checksum);
+            }
+            let v2: SceneV2 = postcard::from_bytes(payload).map_err(|e| SceneFileError::Payload(e.to_string()))?;
+            let fills = v2.layers.iter().map(|l| Some(l.material)).collect();
+            let layers = v2
+                .layers
+                .into_iter()
+                .map(|l| {
+                    let volume = Volume::from_chunks(
+                        l.volume.level,
+                        l.volume.cell_size,
+                        l.volume.chunks.iter().map(|(k, c)| (*k, c.clone())),
+                    )
+                    .ok_or_else(|| {
+                        SceneFileError::Payload(format!("layer {:?}: cell size not finite and positive", l.name))
+                    })?;
+                    Ok(Layer { name: l.name, transform: l.transform, visible: l.visible, locked: l.locked, volume })
+                })
+                .collect::<Result<Vec<Layer>, SceneFileError>>()?;
+            (Scene { layers, materials: v2.materials.into_iter().map(material_v3).collect(), view: v2.view }, fills)
         }
-        postcard::from_bytes::<Scene>(payload).map_err(|e| SceneFileError::Payload(e.to_string()))?
-    } else {
-        let record: SceneRecord = match postcard::from_bytes(payload) {
-            Ok(r) => r,
-            Err(_) if !intact => return Err(SceneFileError::Checksum),
-            Err(e) => return Err(SceneFileError::Payload(e.to_string())),
-        };
-        if !intact {
-            report.repairs.push(
-                "the file's checksum does not match: it was damaged after it was written; every chunk was checked against its own checksum, but layer names, transforms and settings could not be verified".into(),
-            );
+        3 => {
+            let record: SceneRecordV3 = postcard::from_bytes(payload).map_err(parse_err)?;
+            if !intact {
+                report.repairs.push(damaged.into());
+            }
+            let fills = record.layers.iter().map(|l| Some(l.material)).collect();
+            let layers = record
+                .layers
+                .into_iter()
+                .map(|l| LayerRecord {
+                    name: l.name,
+                    transform: l.transform,
+                    visible: l.visible,
+                    locked: l.locked,
+                    level: l.level,
+                    cell_size: l.cell_size,
+                    solid: l.solid,
+                    lists: l.lists,
+                    materials: Vec::new(),
+                })
+                .collect();
+            let materials = record.materials.into_iter().map(material_v3).collect();
+            (scene_from_record(SceneRecord { layers, materials, view: record.view }, &mut report), fills)
         }
-        scene_from_record(record, &mut report)
+        _ => {
+            let record: SceneRecord = postcard::from_bytes(payload).map_err(parse_err)?;
+            if !intact {
+                report.repairs.push(damaged.into());
+            }
+            let fills = vec![None; record.layers.len()];
+            (scene_from_record(record, &mut report), fills)
+        }
     };
+    // Versions 2 and 3: each layer's one material becomes its nodes'.
+    for (l, fill) in scene.layers.iter_mut().zip(fills) {
+        let Some(m) = fill else { continue };
+        let count = scene.materials.len().max(1);
+        let m = if (m as usize) < count {
+            m as u8
+        } else {
+            report.repairs.push(format!("layer {:?}: material {m} does not exist; it uses material 0", l.name));
+            0
+        };
+        l.volume.fill_materials(m);
+    }
+    for l in &scene.layers {
+        if let Some(id) = l.volume.max_material()
+            && id as usize >= scene.materials.len().max(1)
+        {
+            return Err(SceneFileError::UnknownMaterial { layer: l.name.clone(), id, count: scene.materials.len() });
+        }
+    }
     report.repairs.extend(validate_scene(&mut scene).repairs);
     Ok(Loaded { scene, report, version })
+}
+
+fn material_v3(m: MaterialV3) -> Material {
+    Material::new(m.name, m.color, crate::scene::Texture::Plain)
 }
 
 fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
@@ -324,15 +518,23 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
                     .push(format!("layer {name:?}: chunk ({x}, {y}, {z}) does not decode ({e}) and was dropped")),
             }
         }
-        let volume = Volume::from_chunks(level, cell_size, chunks).expect("cell size checked");
-        layers.push(Layer {
-            name,
-            transform: l.transform,
-            visible: l.visible,
-            locked: l.locked,
-            material: l.material,
-            volume,
-        });
+        let mut volume = Volume::from_chunks(level, cell_size, chunks).expect("cell size checked");
+        for c in l.materials {
+            let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
+            if crc32fast::hash(&c.bytes) != c.crc {
+                report.repairs.push(format!(
+                    "layer {name:?}: the materials of chunk ({x}, {y}, {z}) failed their checksum; its nodes use material 0"
+                ));
+                continue;
+            }
+            match postcard::from_bytes::<ChunkMaterials>(&c.bytes) {
+                Ok(m) => volume.set_chunk_materials(c.key, Some(m)),
+                Err(e) => report.repairs.push(format!(
+                    "layer {name:?}: the materials of chunk ({x}, {y}, {z}) do not decode ({e}); its nodes use material 0"
+                )),
+            }
+        }
+        layers.push(Layer { name, transform: l.transform, visible: l.visible, locked: l.locked, volume });
     }
     Scene { layers, materials: record.materials, view: record.view }
 }
@@ -363,9 +565,11 @@ pub fn save(scene: &Scene, path: &Path) -> Result<LoadReport, SceneFileError> {
 pub fn is_valid(scene: &Scene) -> bool {
     let v = &scene.view;
     !scene.materials.is_empty()
+        && scene.materials.len() <= strata_volume::MATERIAL_IDS
+        && scene.materials.iter().all(Material::is_valid)
         && scene.layers.iter().all(|l| {
             l.transform.is_valid()
-                && (l.material as usize) < scene.materials.len()
+                && l.volume.max_material().is_none_or(|m| (m as usize) < scene.materials.len())
                 && l.volume.check_invariants().is_ok()
         })
         && v.target.is_finite()

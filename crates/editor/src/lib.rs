@@ -19,5 +19,5 @@ mod tool;
 pub use editor::{DabJob, Editor, EditorError, FrameReport, LodView, PICK_CHUNK_STEPS, Pick, lod_levels, to_world};
 pub use history::{History, HistoryEntry, Restored};
 pub use pose::{Buttons, ToolPose};
-pub use scene::{Layer, LayerTransform, Material, Scene, TransformError, View};
+pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View};
 pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};

@@ -94,13 +94,92 @@ impl LayerTransform {
     }
 }
 
-/// A material: a name and a base colour (linear RGB).
+/// The surface pattern a material is textured with: procedural textures made by the renderer
+/// at start (no image files, no licence question), projected triplanar.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Texture {
+    /// No pattern: the colour alone.
+    #[default]
+    Plain,
+    /// Fine grain with soft tool marks.
+    Clay,
+    /// Cracked, layered stone.
+    Rock,
+    /// Blades and patches.
+    Grass,
+    /// Fine speckle with ripples.
+    Sand,
+    /// Bright, soft drifts.
+    Snow,
+}
+
+impl Texture {
+    /// Every texture, in palette order (the renderer's texture layers follow it).
+    pub const ALL: [Texture; 6] =
+        [Texture::Plain, Texture::Clay, Texture::Rock, Texture::Grass, Texture::Sand, Texture::Snow];
+
+    /// Its name in the UI.
+    pub fn name(self) -> &'static str {
+        match self {
+            Texture::Plain => "Plain",
+            Texture::Clay => "Clay",
+            Texture::Rock => "Rock",
+            Texture::Grass => "Grass",
+            Texture::Sand => "Sand",
+            Texture::Snow => "Snow",
+        }
+    }
+
+    /// Its layer in the renderer's texture array.
+    pub fn layer(self) -> u32 {
+        Texture::ALL.iter().position(|&t| t == self).unwrap_or(0) as u32
+    }
+}
+
+/// A material of the scene's palette; volume nodes refer to it by its index (a
+/// [`strata_volume::MaterialId`], so at most 256 materials).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
     /// Shown in the UI.
     pub name: String,
     /// Linear RGB in `[0, 1]`.
     pub color: [f32; 3],
+    /// Surface pattern.
+    pub texture: Texture,
+    /// World units per texture repeat (finite, positive).
+    pub scale: f32,
+    /// Perceptual roughness in `[0, 1]`.
+    pub roughness: f32,
+}
+
+impl Material {
+    /// A material of `color` with `texture`, a 16-unit repeat and roughness 0.7.
+    pub fn new(name: impl Into<String>, color: [f32; 3], texture: Texture) -> Self {
+        Material { name: name.into(), color, texture, scale: 16.0, roughness: 0.7 }
+    }
+
+    /// Whether every field is in range (finite colour in `[0, 1]`, positive scale, roughness in
+    /// `[0, 1]`).
+    pub fn is_valid(&self) -> bool {
+        self.color.iter().all(|c| (0.0..=1.0).contains(c))
+            && self.scale.is_finite()
+            && self.scale > 0.0
+            && (0.0..=1.0).contains(&self.roughness)
+    }
+
+    /// The built-in palette of a new scene: clay, rock, grass, sand, snow and plain colours.
+    pub fn builtin() -> Vec<Material> {
+        vec![
+            Material::new("Clay", [0.50, 0.36, 0.26], Texture::Clay),
+            Material { roughness: 0.9, scale: 24.0, ..Material::new("Rock", [0.32, 0.30, 0.28], Texture::Rock) },
+            Material { roughness: 0.85, ..Material::new("Grass", [0.18, 0.36, 0.09], Texture::Grass) },
+            Material { roughness: 0.8, ..Material::new("Sand", [0.76, 0.64, 0.40], Texture::Sand) },
+            Material { roughness: 0.5, ..Material::new("Snow", [0.90, 0.92, 0.95], Texture::Snow) },
+            Material { roughness: 0.4, ..Material::new("Red", [0.70, 0.08, 0.06], Texture::Plain) },
+            Material { roughness: 0.4, ..Material::new("Blue", [0.06, 0.18, 0.65], Texture::Plain) },
+            Material { roughness: 0.6, ..Material::new("White", [0.85, 0.85, 0.85], Texture::Plain) },
+        ]
+    }
 }
 
 /// One layer: a volume and how it is shown.
@@ -114,9 +193,7 @@ pub struct Layer {
     pub visible: bool,
     /// Locked layers refuse edits.
     pub locked: bool,
-    /// Index into [`Scene::materials`].
-    pub material: u32,
-    /// The solid.
+    /// The solid, with the material of every solid node (indices into [`Scene::materials`]).
     pub volume: Volume,
 }
 
@@ -128,7 +205,6 @@ impl Layer {
             transform: LayerTransform::default(),
             visible: true,
             locked: false,
-            material: 0,
             volume: Volume::new(),
         }
     }
@@ -193,7 +269,7 @@ impl View {
 pub struct Scene {
     /// Layers, drawn in order.
     pub layers: Vec<Layer>,
-    /// Materials layers refer to.
+    /// The palette the volumes' node materials index (at least one, at most 256).
     pub materials: Vec<Material>,
     /// The saved camera.
     pub view: View,
@@ -201,11 +277,7 @@ pub struct Scene {
 
 impl Default for Scene {
     fn default() -> Self {
-        Scene {
-            layers: vec![Layer::new("Layer 1")],
-            materials: vec![Material { name: "Clay".into(), color: [0.50, 0.36, 0.26] }],
-            view: View::default(),
-        }
+        Scene { layers: vec![Layer::new("Layer 1")], materials: Material::builtin(), view: View::default() }
     }
 }
 
@@ -213,6 +285,18 @@ impl Scene {
     /// Crossings stored over all layers.
     pub fn crossings(&self) -> usize {
         self.layers.iter().map(|l| l.volume.memory().crossings).sum()
+    }
+
+    /// The palette as mesh exports take it.
+    pub fn export_palette(&self) -> Vec<strata_mesh::export::ExportMaterial> {
+        self.materials
+            .iter()
+            .map(|m| strata_mesh::export::ExportMaterial {
+                name: m.name.clone(),
+                color: m.color,
+                roughness: m.roughness,
+            })
+            .collect()
     }
 
     /// Bytes held by all layers' volumes.

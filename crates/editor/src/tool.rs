@@ -36,11 +36,16 @@ pub enum ToolKind {
     /// radius to [`ToolSettings::detail_level`]; inverse: lowers them to the layer's base level.
     /// The surface stays as it was (raising reproduces it; lowering keeps the coarser lines).
     Detail,
+    /// Give the solid under a ball of the radius the current material
+    /// ([`ToolSettings::material`]) without changing its shape; the falloff (scaled by the field
+    /// strength) shows as a dithered share of painted nodes. Inverse: paint the scene's first
+    /// material back.
+    Paint,
 }
 
 impl ToolKind {
     /// Every tool, in palette order.
-    pub const ALL: [ToolKind; 9] = [
+    pub const ALL: [ToolKind; 10] = [
         ToolKind::Clay,
         ToolKind::Add,
         ToolKind::Erase,
@@ -50,6 +55,7 @@ impl ToolKind {
         ToolKind::Pinch,
         ToolKind::Grab,
         ToolKind::Detail,
+        ToolKind::Paint,
     ];
 
     /// The tool's name.
@@ -64,6 +70,7 @@ impl ToolKind {
             ToolKind::Pinch => "Pinch",
             ToolKind::Grab => "Grab",
             ToolKind::Detail => "Detail",
+            ToolKind::Paint => "Paint",
         }
     }
 
@@ -79,6 +86,7 @@ impl ToolKind {
             ToolKind::Pinch => "magnify",
             ToolKind::Grab => "grab",
             ToolKind::Detail => "lower detail",
+            ToolKind::Paint => "paint the first material",
         }
     }
 
@@ -145,6 +153,9 @@ pub struct ToolSettings {
     pub orient_to_normal: bool,
     /// The level the detail tool raises chunks to (1: 32 cells per chunk side, 2: 64).
     pub detail_level: strata_volume::Level,
+    /// The current material (an index into the scene's palette): what add and clay give the
+    /// matter they add, and what paint paints.
+    pub material: strata_volume::MaterialId,
 }
 
 impl Default for ToolSettings {
@@ -164,6 +175,7 @@ impl Default for ToolSettings {
             grid_snap: 0.0,
             axis_lock: None,
             orient_to_normal: false,
+            material: 0,
         }
     }
 }

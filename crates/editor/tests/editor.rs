@@ -287,6 +287,7 @@ fn field_tools_stroke_as_one_undo_step_and_keep_the_volume_consistent() {
         e.tool.kind = kind;
         e.tool.radius = 5.0;
         e.tool.field_strength = 1.0;
+        e.tool.material = 3; // (paint changes materials only)
         drag(&mut e, DVec3::new(25.0, 18.0, 14.0), DVec3::new(25.0, 18.0, 18.0), 6, DOWN);
         let after = e.scene.layers[0].volume.clone();
         after.check_invariants().unwrap();

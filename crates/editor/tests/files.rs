@@ -37,13 +37,16 @@ fn scene() -> Scene {
         LayerTransform { translation: DVec3::new(40.0, 0.0, -3.0), rotation: DQuat::from_rotation_z(0.3), scale: 0.25 };
     b.volume.add(&Cuboid::new(DVec3::new(-20.0, 3.0, 5.0), DVec3::new(6.0, 2.0, 9.0)).unwrap()).unwrap();
     b.volume.subtract(&Torus::new(DVec3::new(-20.0, 3.0, 5.0), DVec3::Y, 5.0, 1.5).unwrap()).unwrap();
-    b.material = 1;
+    b.volume.fill_materials(1);
     b.locked = true;
     let mut c = Layer::new("hidden, empty");
     c.visible = false;
     s.layers.push(b);
     s.layers.push(c);
-    s.materials.push(Material { name: "Moss".into(), color: [0.2, 0.5, 0.1] });
+    s.materials.push(Material::new("Moss", [0.2, 0.5, 0.1], strata_editor::Texture::Grass));
+    // Node materials of several runs in one layer.
+    s.layers[0].volume.paint(&Sphere::new(DVec3::new(12.0, 9.0, 10.0), 4.0).unwrap(), 8).unwrap();
+    s.layers[0].volume.paint(&Cuboid::new(DVec3::new(4.0, 9.0, 10.0), DVec3::splat(2.5)).unwrap(), 3).unwrap();
     s.view.yaw = -1.2;
     s
 }
@@ -207,9 +210,9 @@ fn a_damaged_chunk_is_dropped_and_reported_and_the_rest_recovered() {
 #[test]
 fn saving_repairs_what_loading_would_refuse_and_says_so() {
     let mut s = scene();
-    // A zero rotation set through the API, a material that does not exist, a NaN view.
+    // A zero rotation set through the API, nodes of a material the palette lacks, a NaN view.
     s.layers[1].transform.rotation = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
-    s.layers[2].material = 7;
+    s.layers[1].volume.fill_materials(40);
     s.view.distance = f64::INFINITY;
     assert!(!file::is_valid(&s));
     let path = temp("repaired.strata");
@@ -219,11 +222,12 @@ fn saving_repairs_what_loading_would_refuse_and_says_so() {
     let back = load(&path).unwrap();
     assert!(back.report.is_clean(), "what was saved needs no repair: {}", back.report);
     assert!(back.scene.layers[1].transform.is_valid());
-    assert_eq!(back.scene.layers[1].volume, s.layers[1].volume);
-    assert_eq!(back.scene.layers[2].material, 0);
+    let chunks = |v: &strata_volume::Volume| v.chunks().map(|(k, c)| (k, c.clone())).collect::<Vec<_>>();
+    assert_eq!(chunks(&back.scene.layers[1].volume), chunks(&s.layers[1].volume));
+    assert_eq!(back.scene.layers[1].volume.max_material(), Some(0), "unknown materials became material 0");
     assert!(back.scene.view.distance.is_finite());
     // The validated copy is what was written; the scene passed in is untouched.
-    assert_eq!(s.layers[2].material, 7);
+    assert_eq!(s.layers[1].volume.max_material(), Some(40));
     let mut fixed = s.clone();
     assert_eq!(file::validate_scene(&mut fixed), report);
     assert_eq!(fixed, back.scene);
@@ -259,15 +263,52 @@ fn a_cell_size_that_is_not_finite_and_positive_is_refused_on_deserialisation() {
 #[test]
 fn version_2_files_still_open() {
     let s = scene();
-    let payload = postcard::to_allocvec(&s).unwrap();
+    let payload = file::encode_version_2_payload(&s).unwrap();
     let mut bytes = file::MAGIC.to_vec();
     bytes.extend_from_slice(&2u32.to_le_bytes());
     bytes.extend_from_slice(&(payload.len() as u64).to_le_bytes());
     bytes.extend_from_slice(&crc32fast_hash(&payload).to_le_bytes());
     bytes.extend_from_slice(&payload);
     let back = decode(&bytes).unwrap();
-    assert!(back.report.is_clean());
-    assert_eq!(back.scene, s);
+    assert!(back.report.is_clean(), "{}", back.report);
+    assert_eq!(back.version, 2);
+    // The shape comes back exactly; each layer's one material becomes its every node's.
+    for (a, b) in back.scene.layers.iter().zip(&s.layers) {
+        assert_eq!(a.volume.chunks().collect::<Vec<_>>(), b.volume.chunks().collect::<Vec<_>>());
+        assert_eq!(a.name, b.name);
+    }
+    assert_eq!(
+        back.scene.layers[1].volume.chunk_materials(strata_volume::ChunkKey::new(-2, 0, 0)).cloned(),
+        Some(strata_volume::ChunkMaterials::Uniform(1))
+    );
+    assert_eq!(back.scene.materials.len(), s.materials.len());
+    assert!(back.scene.materials.iter().zip(&s.materials).all(|(a, b)| a.name == b.name && a.color == b.color));
+}
+
+#[test]
+fn unknown_material_ids_in_a_file_are_refused_with_a_clear_error() {
+    let mut s = scene();
+    s.layers[1].volume.fill_materials(200);
+    // `encode` writes what it is given (`save` would repair it first).
+    let err = decode(&encode(&s).unwrap()).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("rocks") && text.contains("200") && text.contains("palette"), "{text}");
+}
+
+#[test]
+fn materials_survive_save_and_load_bit_for_bit() {
+    let s = scene();
+    assert!(s.layers[0].volume.material_chunks().any(|(_, m)| matches!(m, strata_volume::ChunkMaterials::Runs(_))));
+    let back = decode(&encode(&s).unwrap()).unwrap();
+    assert!(back.report.is_clean(), "{}", back.report);
+    for (a, b) in back.scene.layers.iter().zip(&s.layers) {
+        let mut ma: Vec<_> = a.volume.material_chunks().map(|(k, m)| (k, m.clone())).collect();
+        let mut mb: Vec<_> = b.volume.material_chunks().map(|(k, m)| (k, m.clone())).collect();
+        ma.sort_by_key(|(k, _)| k.0.to_array());
+        mb.sort_by_key(|(k, _)| k.0.to_array());
+        assert_eq!(ma, mb);
+    }
+    assert_eq!(back.scene.materials[8].texture, strata_editor::Texture::Grass);
 }
 
 #[cfg(unix)]

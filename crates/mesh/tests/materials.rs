@@ -123,7 +123,8 @@ fn obj_with_mtl_and_ply_keep_the_colours() {
     let pal = palette();
     let obj = temp("slab.obj");
     save_mesh_with(&mesh, &obj, &pal).unwrap();
-    let (models, materials) = tobj::load_obj(&obj, &tobj::LoadOptions { single_index: true, ..Default::default() }).unwrap();
+    let (models, materials) =
+        tobj::load_obj(&obj, &tobj::LoadOptions { single_index: true, ..Default::default() }).unwrap();
     let materials = materials.unwrap();
     let mut found: Vec<(String, [f32; 3])> =
         materials.iter().map(|m| (m.name.clone(), m.diffuse.unwrap_or_default())).collect();

@@ -4,16 +4,20 @@
 //! (an offscreen texture read back to a PNG). GPU buffers live per chunk and are replaced only
 //! for the chunks a remesh touched. Lighting is a key light over a hemispheric ambient; a ground
 //! grid gives scale, a translucent brush preview shows where the tool will act, and a wireframe
-//! overlay shows the triangles. The WGSL source is `shaders/mesh.wgsl`, embedded here.
+//! overlay shows the triangles. Meshes are textured by material: each vertex blends up to four
+//! entries of a palette ([`Renderer::set_palette`]: colour, procedural detail texture, scale,
+//! roughness), projected triplanar (see [`textures`]). The WGSL source is `shaders/mesh.wgsl`,
+//! embedded here.
 #![warn(missing_docs)]
 
 mod camera;
 mod gpu;
 mod renderer;
+pub mod textures;
 
 pub use camera::{AxisView, Camera};
 pub use gpu::{Gpu, Image, RenderError, render_offscreen};
-pub use renderer::{DEPTH_FORMAT, FrameSettings, Preview, Renderer, Vertex};
+pub use renderer::{DEPTH_FORMAT, FrameSettings, PALETTE_SIZE, PaletteEntry, Preview, Renderer, Vertex};
 
 /// The WGSL source of every pipeline.
 pub const SHADER: &str = include_str!("../../../shaders/mesh.wgsl");

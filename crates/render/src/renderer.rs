@@ -21,12 +21,38 @@ pub struct Vertex {
     pub position: [f32; 3],
     /// Unit normal.
     pub normal: [f32; 3],
-    /// Linear RGBA.
+    /// Linear RGBA (for meshes, a tint over the materials' colours).
     pub color: [f32; 4],
+    /// Up to four palette indices.
+    pub ids: [u8; 4],
+    /// Their weights in 255ths (all zero: no material, the colour alone).
+    pub weights: [u8; 4],
 }
 
-const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
-    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x4];
+const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 5] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x4, 3 => Uint8x4, 4 => Unorm8x4];
+
+/// One material of the palette the renderer textures meshes with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PaletteEntry {
+    /// Linear RGB.
+    pub color: [f32; 3],
+    /// Layer of the detail texture ([`crate::textures::LAYERS`]).
+    pub texture: u32,
+    /// World units per texture repeat.
+    pub scale: f32,
+    /// Perceptual roughness in `[0, 1]`.
+    pub roughness: f32,
+}
+
+impl Default for PaletteEntry {
+    fn default() -> Self {
+        PaletteEntry { color: [0.72, 0.62, 0.52], texture: 0, scale: 16.0, roughness: 0.7 }
+    }
+}
+
+/// Entries of the palette uniform.
+pub const PALETTE_SIZE: usize = 256;
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
     wgpu::VertexBufferLayout {
@@ -100,6 +126,10 @@ pub struct Renderer {
     grid: wgpu::RenderPipeline,
     preview: wgpu::RenderPipeline,
     uniforms: wgpu::Buffer,
+    palette: wgpu::Buffer,
+    /// The detail texture, filled on the first [`Renderer::prepare`] (which has a queue).
+    detail: wgpu::Texture,
+    detail_filled: bool,
     bind_group: wgpu::BindGroup,
     chunks: HashMap<(u32, ChunkKey), GpuChunk>,
     grid_vertices: wgpu::Buffer,
@@ -123,16 +153,44 @@ impl Renderer {
         });
         let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("strata frame"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("strata"),
@@ -145,10 +203,21 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let palette = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("strata palette"),
+            contents: bytemuck::cast_slice(&palette_uniforms(&[PaletteEntry::default()])),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let detail = detail_texture(device);
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("strata frame"),
             layout: &bind_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniforms.as_entire_binding() }],
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: uniforms.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: palette.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&detail.0) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&detail.1) },
+            ],
         });
         let pipeline = |label: &str, vs: &str, fs: &str, topology: wgpu::PrimitiveTopology, blend: bool| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -205,6 +274,9 @@ impl Renderer {
             grid,
             preview,
             uniforms,
+            palette,
+            detail: detail.2,
+            detail_filled: false,
             bind_group,
             chunks: HashMap::new(),
             grid_vertices,
@@ -216,7 +288,8 @@ impl Renderer {
 
     /// Replaces the GPU data of chunk `key` of `layer` with `mesh` (relative to the chunk's
     /// origin, as the mesh caches store it; the layer's grid is placed in the world by `model`),
-    /// coloured `color`. An empty mesh removes the chunk. The chunk's buffers are rewritten in
+    /// tinted `color` (multiplying the colours of its vertices' materials, see
+    /// [`Renderer::set_palette`]; white shows them as they are). An empty mesh removes the chunk. The chunk's buffers are rewritten in
     /// place when the new mesh fits them (a remeshed chunk rarely grows much) and reallocated
     /// half as large again as needed otherwise, so a stroke mostly writes, not allocates.
     #[allow(clippy::too_many_arguments)]
@@ -235,7 +308,7 @@ impl Renderer {
             return;
         }
         let model = model * Mat4::from_translation(key.origin_grid().as_vec3());
-        let vertices = world_vertices(mesh, model, [color[0], color[1], color[2], 1.0]);
+        let vertices = world_vertices(mesh, model, [color[0], color[1], color[2], 1.0], true);
         let edges = edge_indices(&mesh.indices);
         let data: [(&[u8], wgpu::BufferUsages); 3] = [
             (bytemuck::cast_slice(&vertices), wgpu::BufferUsages::VERTEX),
@@ -310,8 +383,35 @@ impl Renderer {
         self.uploads
     }
 
+    /// Sets the materials meshes are drawn with: entry `i` for material id `i` (ids past the
+    /// end are drawn with entry 0; at most [`PALETTE_SIZE`] entries are used).
+    pub fn set_palette(&mut self, queue: &wgpu::Queue, entries: &[PaletteEntry]) {
+        queue.write_buffer(&self.palette, 0, bytemuck::cast_slice(&palette_uniforms(entries)));
+    }
+
     /// Writes the frame's uniforms and preview buffers; call before [`Renderer::draw`].
     pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, settings: &FrameSettings<'_>, aspect: f32) {
+        if !self.detail_filled {
+            for (mip, texels) in crate::textures::detail_mips().iter().enumerate() {
+                let side = (crate::textures::SIZE >> mip) as u32;
+                queue.write_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.detail,
+                        mip_level: mip as u32,
+                        origin: wgpu::Origin3d::ZERO,
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    texels,
+                    wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(side), rows_per_image: Some(side) },
+                    wgpu::Extent3d {
+                        width: side,
+                        height: side,
+                        depth_or_array_layers: crate::textures::LAYERS.len() as u32,
+                    },
+                );
+            }
+            self.detail_filled = true;
+        }
         let cam = settings.camera;
         // The key light comes from above and to the upper left of the view, so the lit side,
         // the terminator and the shadowed side all show.
@@ -329,7 +429,7 @@ impl Renderer {
         let (mut vertices, mut indices) = (Vec::new(), Vec::new());
         for p in settings.previews.iter().filter(|p| !p.mesh.indices.is_empty()) {
             let base = vertices.len() as u32;
-            vertices.extend(world_vertices(p.mesh, p.model, p.color));
+            vertices.extend(world_vertices(p.mesh, p.model, p.color, false));
             indices.extend(p.mesh.indices.iter().map(|i| i + base));
         }
         self.preview_buffers = (!indices.is_empty()).then(|| {
@@ -419,15 +519,65 @@ impl Renderer {
 }
 
 /// Vertices of `mesh` moved into the world by `model` (normals by its inverse transpose).
-fn world_vertices(mesh: &Mesh, model: Mat4, color: [f32; 4]) -> Vec<Vertex> {
+/// The palette as the shader's uniform block: per entry (colour, 0) then (layer, scale,
+/// roughness, 0); unused entries repeat entry 0.
+fn palette_uniforms(entries: &[PaletteEntry]) -> Vec<[f32; 4]> {
+    let first = entries.first().copied().unwrap_or_default();
+    (0..PALETTE_SIZE)
+        .flat_map(|i| {
+            let e = entries.get(i).copied().unwrap_or(first);
+            let layer = e.texture.min(crate::textures::LAYERS.len() as u32 - 1) as f32;
+            let scale = if e.scale.is_finite() && e.scale > 0.0 { e.scale } else { 16.0 };
+            [[e.color[0], e.color[1], e.color[2], 0.0], [layer, scale, e.roughness.clamp(0.0, 1.0), 0.0]]
+        })
+        .collect()
+}
+
+/// The (empty) detail texture array with its full mip chain, its view and its repeating sampler.
+fn detail_texture(device: &wgpu::Device) -> (wgpu::TextureView, wgpu::Sampler, wgpu::Texture) {
+    let side = crate::textures::SIZE as u32;
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("strata detail textures"),
+        size: wgpu::Extent3d { width: side, height: side, depth_or_array_layers: crate::textures::LAYERS.len() as u32 },
+        mip_level_count: side.trailing_zeros() + 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    });
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("strata detail sampler"),
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        address_mode_w: wgpu::AddressMode::Repeat,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        ..Default::default()
+    });
+    (view, sampler, texture)
+}
+
+fn world_vertices(mesh: &Mesh, model: Mat4, color: [f32; 4], with_materials: bool) -> Vec<Vertex> {
     let normal_matrix = Mat3::from_mat4(model).inverse().transpose();
     mesh.positions
         .iter()
         .zip(&mesh.normals)
-        .map(|(p, n)| Vertex {
-            position: model.transform_point3(Vec3::from(*p)).to_array(),
-            normal: (normal_matrix * Vec3::from(*n)).normalize_or(Vec3::Y).to_array(),
-            color,
+        .enumerate()
+        .map(|(i, (p, n))| {
+            let m = mesh.material(i);
+            Vertex {
+                position: model.transform_point3(Vec3::from(*p)).to_array(),
+                normal: (normal_matrix * Vec3::from(*n)).normalize_or(Vec3::Y).to_array(),
+                color,
+                ids: m.ids,
+                weights: if with_materials { m.weights } else { [0; 4] },
+            }
         })
         .collect()
 }
@@ -444,7 +594,7 @@ fn grid_vertices() -> Vec<Vertex> {
     let extent = 256.0f32;
     let mut line = |a: Vec3, b: Vec3, color: [f32; 4]| {
         for p in [a, b] {
-            v.push(Vertex { position: p.to_array(), normal: [0.0, 1.0, 0.0], color });
+            v.push(Vertex { position: p.to_array(), normal: [0.0, 1.0, 0.0], color, ids: [0; 4], weights: [0; 4] });
         }
     };
     for i in -32..=32 {
@@ -478,7 +628,7 @@ mod tests {
         };
         let model =
             Mat4::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::from_rotation_y(1.0), Vec3::X * 5.0);
-        let v = world_vertices(&mesh, model, [1.0; 4]);
+        let v = world_vertices(&mesh, model, [1.0; 4], true);
         assert!((Vec3::from(v[1].position) - Vec3::new(5.0, 2.0, 0.0)).length() < 1e-5);
         for x in &v {
             assert!((Vec3::from(x.normal).length() - 1.0).abs() < 1e-5);

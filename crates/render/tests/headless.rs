@@ -145,3 +145,40 @@ fn chunk_buffers_are_replaced_and_removed() {
     assert!((0..48).all(|y| (0..64).all(|x| img.pixel(x, y) == bg)), "nothing left to draw");
     assert!(render_offscreen(&gpu, &mut r, 0, 10, &FrameSettings::default()).is_err());
 }
+
+#[test]
+fn painted_materials_show_in_their_palette_colours() {
+    let Some(gpu) = gpu() else { return };
+    let mut volume = Volume::new();
+    volume.add(&Sphere::new(CENTRE.as_dvec3(), RADIUS as f64).unwrap()).unwrap();
+    // The half x < 24 red (id 1), the rest blue (id 2).
+    let half = |lo: f64| {
+        strata_volume::brush::Cuboid::new(DVec3::new(lo + 12.0, 24.0, 24.0), DVec3::new(12.0, 20.0, 20.0)).unwrap()
+    };
+    volume.paint(&half(0.0), 1).unwrap();
+    volume.paint(&half(24.0), 2).unwrap();
+    let cache = MeshCache::build(&volume);
+    let mut r = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    let entry = |color: [f32; 3]| strata_render::PaletteEntry { color, texture: 2, scale: 8.0, roughness: 0.9 };
+    r.set_palette(&gpu.queue, &[entry([0.5; 3]), entry([0.8, 0.05, 0.05]), entry([0.05, 0.05, 0.8])]);
+    for (key, mesh) in cache.iter() {
+        r.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [1.0; 3]);
+    }
+    // Looking along -z at the sphere: x grows to the right of the image.
+    let cam = Camera { target: CENTRE, distance: 60.0, yaw: 0.0, pitch: 0.0, fov_y: 0.8, orthographic: false };
+    let settings = FrameSettings { camera: cam, grid: false, ..Default::default() };
+    let img = render_offscreen(&gpu, &mut r, W, H, &settings).unwrap();
+    let (mut left, mut right) = ([0u64; 3], [0u64; 3]);
+    for y in H / 2 - 10..H / 2 + 10 {
+        for dx in 10..40 {
+            let (l, rr) = (img.pixel(W / 2 - dx, y), img.pixel(W / 2 + dx, y));
+            for k in 0..3 {
+                left[k] += l[k] as u64;
+                right[k] += rr[k] as u64;
+            }
+        }
+    }
+    let (red_side, blue_side) = if left[0] > right[0] { (left, right) } else { (right, left) };
+    assert!(red_side[0] > 2 * red_side[2], "one side red: {red_side:?}");
+    assert!(blue_side[2] > 2 * blue_side[0], "the other blue: {blue_side:?}");
+}

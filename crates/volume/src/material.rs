@@ -385,6 +385,40 @@ impl Volume {
         was
     }
 
+    /// The largest material id any node has (`None` for an empty volume; 0 without materials).
+    pub fn max_material(&self) -> Option<MaterialId> {
+        if self.chunks.is_empty() {
+            return None;
+        }
+        let ids = self.materials.values().flat_map(|m| m.change_points().unwrap_or_default().into_iter().map(|p| p.1));
+        Some(ids.max().unwrap_or(0))
+    }
+
+    /// Gives the nodes whose material is `count` or above material 0 (after a palette lost
+    /// entries); returns how many chunks changed. Node states are untouched.
+    pub fn clamp_materials(&mut self, count: usize) -> usize {
+        let bad: Vec<ChunkKey> = self
+            .materials
+            .iter()
+            .filter(|(_, m)| m.change_points().map_or(true, |p| p.iter().any(|e| e.1 as usize >= count)))
+            .map(|(k, _)| *k)
+            .collect();
+        let mut ids = Vec::new();
+        for &key in &bad {
+            let level = self.level_of(key);
+            self.decode_materials(key, level, &mut ids);
+            for id in ids.iter_mut() {
+                if *id as usize >= count {
+                    *id = 0;
+                }
+            }
+            let rows = own_states(self.view(key), level);
+            let next = ChunkMaterials::encode(&ids, &rows, level.cells());
+            self.store_materials(key, next);
+        }
+        bad.len()
+    }
+
     /// Gives every solid node material `id` (for scenes written before materials were stored,
     /// where a layer had one material).
     pub fn fill_materials(&mut self, id: MaterialId) {

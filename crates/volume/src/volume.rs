@@ -86,6 +86,15 @@ impl TryFrom<RawChunkMap> for ChunkMap {
 }
 
 impl ChunkMap {
+    /// A map holding `chunks` (later entries replace earlier ones with the same key).
+    pub fn from_chunks(chunks: impl IntoIterator<Item = (ChunkKey, Chunk)>) -> Self {
+        let mut m = ChunkMap::default();
+        for (k, c) in chunks {
+            m.insert(k, c);
+        }
+        m
+    }
+
     /// The chunk at `key` (`None`: all empty).
     #[inline]
     pub fn get(&self, key: &ChunkKey) -> Option<&Chunk> {
