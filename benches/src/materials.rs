@@ -84,6 +84,9 @@ pub struct MaterialsResults {
     pub paint: Vec<PaintRow>,
 }
 
+/// A scanned mesh to paint: its name, vertices and triangles.
+pub type Scan<'a> = (&'a str, &'a [DVec3], &'a [[u32; 3]]);
+
 /// Replays `ins` on one thread, draws of material `material(i)`.
 fn replay_with(ins: &[Instruction], radius: f64, materials: bool, seed: u64) -> WorkloadRow {
     let mut rng = SplitMix64::new(seed);
@@ -122,7 +125,7 @@ fn replay_with(ins: &[Instruction], radius: f64, materials: bool, seed: u64) -> 
 pub fn run(
     count: usize,
     radii: &[f64],
-    scan: Option<(&str, &[DVec3], &[[u32; 3]])>,
+    scan: Option<Scan<'_>>,
     resolution: u32,
     canvas: usize,
     paint_radii: &[f64],
