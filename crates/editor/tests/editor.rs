@@ -559,3 +559,36 @@ fn mirrored_directions_pair_with_the_mirrored_images_even_on_a_mirror_plane() {
     }
     assert_eq!(t.mirrored(&layer, DVec3::new(10.0, 3.0, 5.0), DQuat::IDENTITY).len(), 1, "on both planes: one dab");
 }
+
+#[test]
+fn add_clay_and_paint_use_the_current_material_and_refuse_one_outside_the_palette() {
+    let mut e = Editor::default();
+    let count = e.scene.materials.len();
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 4.0;
+    e.tool.material = 3;
+    drag(&mut e, DVec3::new(10.0, 10.0, 10.0), DVec3::new(20.0, 10.0, 10.0), 8, DOWN);
+    let v = &e.scene.layers[0].volume;
+    assert_eq!(v.node_material_at(glam::I64Vec3::new(15, 10, 10)), Some(3), "add with material");
+    e.tool.kind = ToolKind::Clay;
+    e.tool.material = 4;
+    drag(&mut e, DVec3::new(15.0, 14.0, 10.0), DVec3::new(15.0, 14.5, 10.0), 2, DOWN);
+    let v = &e.scene.layers[0].volume;
+    assert!(
+        v.material_chunks().any(|(_, m)| m.change_points().unwrap().iter().any(|p| p.1 == 4)),
+        "clay adds its material"
+    );
+    v.check_invariants().unwrap();
+    // A material the palette lacks: the stroke is refused, nothing changes.
+    let before = e.scene.layers[0].volume.clone();
+    e.tool.kind = ToolKind::Paint;
+    e.tool.material = count as u8;
+    let pose =
+        ToolPose { position: DVec3::new(15.0, 10.0, 10.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
+    let err = e.frame(&pose, BUDGET).unwrap_err();
+    assert!(err.to_string().contains("not in the palette"), "{err}");
+    assert_eq!(e.scene.layers[0].volume, before);
+    // The eyedropper reads the material under a pick.
+    let pick = e.pick(DVec3::new(15.0, 10.0, -20.0), DVec3::Z, 100.0).expect("the stroke is hit");
+    assert_eq!(e.material_at(&pick), Some(3));
+}
