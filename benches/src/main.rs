@@ -107,6 +107,19 @@ enum Command {
         #[arg(long)]
         mesh: Option<std::path::PathBuf>,
     },
+    /// Table 8 alone (materials): the workload with and without materials, the painted scan
+    /// and paint dabs, printed (not written to the docs; `suite` writes them).
+    Materials {
+        /// Instructions per radius.
+        #[arg(long, default_value_t = 1000)]
+        count: usize,
+        /// Cells along the scan's longest side.
+        #[arg(long, default_value_t = 1024)]
+        res: u32,
+        /// Paint dabs per radius.
+        #[arg(long, default_value_t = 100)]
+        dabs: usize,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -123,6 +136,7 @@ fn main() -> Result<()> {
         Command::MeshSpeed { seed } => mesh_speed(seed),
         Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
         Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
+        Command::Materials { count, res, dabs } => return materials(count, res, dabs),
         Command::Stroke { seconds } => stroke(seconds),
         Command::Convert { res, mesh } => return convert(res, mesh),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
@@ -172,6 +186,30 @@ fn lod(res: u32, frames: usize, mesh: Option<std::path::PathBuf>) -> Result<()> 
     })?;
     let mut s = String::new();
     strata_bench::suite::lod_markdown(&mut s, &r);
+    println!("{s}");
+    Ok(())
+}
+
+fn materials(count: usize, res: u32, dabs: usize) -> Result<()> {
+    let path = strata_bench::suite::repo_root().join("tests/data/bunny.ply");
+    let m = strata_mesh::import::load_mesh(&path)?;
+    let start = std::time::Instant::now();
+    let scan = ("bunny", &m.vertices[..], &m.triangles[..]);
+    let r = strata_bench::materials::run(
+        count,
+        &[10.0, 20.0],
+        Some(scan),
+        res,
+        1000,
+        &[10.0, 20.0],
+        dabs,
+        2021,
+        &mut |step| {
+            eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64());
+        },
+    )?;
+    let mut s = String::new();
+    strata_bench::materials::markdown(&mut s, &r);
     println!("{s}");
     Ok(())
 }

@@ -375,27 +375,42 @@ impl Volume {
         let n = out.n;
         let m = n + 1;
         out.materials.resize(m * m * m, 0);
-        // The owners: this chunk and its neighbours across the far faces, edges and corner.
-        let mut decoded: [Option<(usize, Vec<crate::MaterialId>)>; 8] = Default::default();
-        for z in 0..m {
-            for y in 0..m {
-                for x in 0..m {
-                    let far = [x == n, y == n, z == n];
-                    let o = usize::from(far[0]) + 2 * usize::from(far[1]) + 4 * usize::from(far[2]);
-                    let (on, ids) = decoded[o].get_or_insert_with(|| {
-                        let owner = key.offset(IVec3::new(far[0] as i32, far[1] as i32, far[2] as i32));
-                        let level = self.level_of(owner);
-                        let mut v = Vec::new();
-                        self.decode_materials(owner, level, &mut v);
-                        (level.cells(), v)
-                    });
-                    let on = *on;
-                    let at = |c: usize, far: bool| {
-                        let c = if far { 0 } else { c };
-                        ((c * on + n / 2) / n).min(on - 1)
-                    };
-                    let i = at(x, far[0]) + on * (at(y, far[1]) + on * at(z, far[2]));
-                    out.materials[x + m * (y + m * z)] = ids[i];
+        // The owners: this chunk (o = 0) and its neighbours across the far faces, edges and
+        // corner (bit 0: x = n, bit 1: y = n, bit 2: z = n), each read at its stored level.
+        let mut ids = Vec::new();
+        for o in 0..8usize {
+            let far = [o & 1 == 1, o & 2 == 2, o & 4 == 4];
+            let owner = key.offset(IVec3::new(far[0] as i32, far[1] as i32, far[2] as i32));
+            let range = |f: bool| if f { n..m } else { 0..n };
+            let (xs, ys, zs) = (range(far[0]), range(far[1]), range(far[2]));
+            match self.chunk_materials(owner) {
+                None => {} // material 0: already there
+                Some(crate::ChunkMaterials::Uniform(id)) => {
+                    for z in zs {
+                        for y in ys.clone() {
+                            let row = m * (y + m * z);
+                            out.materials[row + xs.start..row + xs.end].fill(*id);
+                        }
+                    }
+                }
+                Some(_) => {
+                    let level = self.level_of(owner);
+                    let on = level.cells();
+                    self.decode_materials(owner, level, &mut ids);
+                    let at = |c: usize, far: bool| if far { 0 } else { ((c * on + n / 2) / n).min(on - 1) };
+                    for z in zs {
+                        for y in ys.clone() {
+                            let src = on * (at(y, far[1]) + on * at(z, far[2]));
+                            let row = m * (y + m * z);
+                            if on == n && !far[0] {
+                                out.materials[row..row + n].copy_from_slice(&ids[src..src + n]);
+                            } else {
+                                for x in xs.clone() {
+                                    out.materials[row + x] = ids[src + at(x, far[0])];
+                                }
+                            }
+                        }
+                    }
                 }
             }
         }

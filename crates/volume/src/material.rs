@@ -191,18 +191,26 @@ impl ChunkMaterials {
         let mut current: Option<MaterialId> = None;
         let mut last_at = 0usize;
         for (r, &row) in rows.iter().enumerate() {
+            // Runs of solid nodes, each scanned for ids other than the current one.
             let mut bits = row;
             while bits != 0 {
-                let x = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let i = x + n * r;
-                let id = ids[i];
-                if current != Some(id) {
-                    push_varint(&mut out, i - last_at);
-                    out.push(id);
-                    last_at = i;
-                    current = Some(id);
-                    points += 1;
+                let a = bits.trailing_zeros() as usize;
+                let b = a + (bits >> a).trailing_ones() as usize;
+                bits &= !(((1u128 << (b - a)) - 1) << a);
+                let base = n * r;
+                let mut i = base + a;
+                let end = base + b;
+                while i < end {
+                    let id = ids[i];
+                    if current != Some(id) {
+                        push_varint(&mut out, i - last_at);
+                        out.push(id);
+                        last_at = i;
+                        current = Some(id);
+                        points += 1;
+                    }
+                    // Skip the rest of this id's stretch.
+                    i += 1 + ids[i + 1..end].iter().position(|&v| v != id).unwrap_or(end - i - 1);
                 }
             }
         }
@@ -261,7 +269,18 @@ pub(crate) fn own_states(view: ChunkView<'_>, level: Level) -> Vec<u128> {
     match view {
         ChunkView::Uniform(false) => vec![0; n * n],
         ChunkView::Uniform(true) => vec![(1u128 << n) - 1; n * n],
-        ChunkView::Lists(l) => crate::invariants::states_from(l, Axis::X),
+        ChunkView::Lists(l) => {
+            // The x lines, in index order `y + n z`, unpacked a line at a time.
+            let mut cursor = l.cursor(Axis::X, 0);
+            let mut line = crate::chunk::WorkLine::EMPTY;
+            let own = (1u128 << n) - 1;
+            (0..n * n)
+                .map(|_| {
+                    line.load(cursor.next_line(), level);
+                    line.states & own
+                })
+                .collect()
+        }
     }
 }
 
@@ -534,8 +553,33 @@ impl Volume {
                 ChunkView::Lists(l) => l.level(),
                 ChunkView::Uniform(_) => level,
             };
-            let after = own_states(self.view(*key), level);
             let old = self.materials.get(key);
+            // Cases decided without the previous node states: a chunk of one material that
+            // gains nodes of that material (or only loses or moves nodes), or of material 0
+            // that gains material 0.
+            let keeps = match (old, rule) {
+                (Some(ChunkMaterials::Uniform(u)), MaterialRule::Fill(f)) => (f == *u).then_some(*u),
+                (Some(ChunkMaterials::Uniform(u)), MaterialRule::Nearest) => Some(*u),
+                (None, MaterialRule::Fill(0)) => Some(0),
+                _ => None,
+            };
+            if let (Some(u), true) = (keeps, before_level == level) {
+                let next = match self.view(*key) {
+                    ChunkView::Uniform(false) => None,
+                    ChunkView::Uniform(true) => (u != 0).then_some(ChunkMaterials::Uniform(u)),
+                    // (A list chunk may, rarely, have no solid node of its own.)
+                    view => own_states(view, level)
+                        .iter()
+                        .any(|&r| r != 0)
+                        .then_some(ChunkMaterials::Uniform(u))
+                        .filter(|_| u != 0),
+                };
+                if next.as_ref() != old {
+                    updates.push((*key, next));
+                }
+                continue;
+            }
+            let after = own_states(self.view(*key), level);
             let next = if before_level == level {
                 let before = own_states(before_view, level);
                 let hint = if rule == MaterialRule::Nearest && old.is_none() { self.neighbour_hint(*key) } else { 0 };
