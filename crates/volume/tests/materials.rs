@@ -49,13 +49,12 @@ fn op() -> impl Strategy<Value = Op> {
         2.0..11.0f64,
         any::<bool>(),
         0u8..6,
+        any::<bool>(),
     )
-        .prop_map(|(op, c, size, cube, material)| Op {
-            op,
-            center: DVec3::new(c.0, c.1, c.2),
-            size,
-            cube,
-            material,
+        .prop_map(|(op, c, size, cube, material, on_grid)| {
+            // Half the shapes on the grid: centres on nodes, faces and poles exactly on nodes.
+            let snap = |v: f64| if on_grid { v.round() } else { v };
+            Op { op, center: DVec3::new(snap(c.0), snap(c.1), snap(c.2)), size: snap(size), cube, material }
         })
 }
 
