@@ -311,6 +311,30 @@ impl Volume {
         self.chunks.is_empty()
     }
 
+    /// Replaces chunk `key` and its materials (`None`: empty, material 0) and returns what was
+    /// there, for pagers and generators that move whole chunks in and out of memory. Nothing is
+    /// checked: the caller keeps neighbours consistent (a generator answering nodes by their
+    /// absolute position does); [`Volume::check_invariants`] says whether they are.
+    pub fn put_chunk(
+        &mut self,
+        key: ChunkKey,
+        chunk: Option<Chunk>,
+        materials: Option<crate::ChunkMaterials>,
+    ) -> (Option<Chunk>, Option<crate::ChunkMaterials>) {
+        let materials = if chunk.is_some() { materials } else { None };
+        let old = match chunk {
+            Some(c) => self.chunks.insert(key, c),
+            None => self.chunks.remove(&key),
+        };
+        let old_materials = self.store_materials(key, materials);
+        (old, old_materials)
+    }
+
+    /// Removes chunk `key` and its materials and returns them (see [`Volume::put_chunk`]).
+    pub fn take_chunk(&mut self, key: ChunkKey) -> (Option<Chunk>, Option<crate::ChunkMaterials>) {
+        self.put_chunk(key, None, None)
+    }
+
     pub(crate) fn view(&self, key: ChunkKey) -> ChunkView<'_> {
         ChunkView::of(self.chunks.get(&key))
     }

@@ -1,0 +1,184 @@
+//! Generated chunks against the recipe's density, node by node; invariants across borders;
+//! determinism over threads and order.
+
+use glam::{DVec3, I64Vec3, IVec3};
+use proptest::prelude::*;
+use strata_terrain::{Recipe, TerrainField};
+use strata_volume::coords::CHUNK_CELLS;
+use strata_volume::{ChunkKey, Level, Volume, generate_chunk};
+
+/// Generates `keys` into a volume.
+fn generate(field: &TerrainField, keys: &[ChunkKey], level: Level) -> Volume {
+    let mut v = Volume::with_level(level);
+    for &k in keys {
+        let g = generate_chunk(k, level, field);
+        v.put_chunk(k, g.chunk, g.materials);
+    }
+    v
+}
+
+/// Every node of `key` at `level` equals the density's sign there.
+fn check_nodes(field: &TerrainField, volume: &Volume, key: ChunkKey, level: Level) {
+    let n = level.cells() as i64;
+    let base = key.0.as_i64vec3() * n;
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let node = base + I64Vec3::new(x, y, z);
+                let p = node.as_dvec3() * level.spacing();
+                let stored = volume.is_inside(p);
+                assert_eq!(stored, field.is_solid(p), "node {node:?} of chunk {key:?}");
+            }
+        }
+    }
+}
+
+fn block(lo: IVec3, hi: IVec3) -> Vec<ChunkKey> {
+    let mut keys = Vec::new();
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                keys.push(ChunkKey::new(x, y, z));
+            }
+        }
+    }
+    keys
+}
+
+#[test]
+fn the_default_recipe_stores_the_density_sign_at_every_node_and_keeps_the_invariants() {
+    let field = TerrainField::new(&Recipe::with_seed(7)).unwrap();
+    let keys = block(IVec3::new(-1, -4, -1), IVec3::new(1, 3, 1));
+    let v = generate(&field, &keys, Level::BASE);
+    v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
+    for &k in &keys {
+        check_nodes(&field, &v, k, Level::BASE);
+    }
+    // The block holds both surface and caves: some chunks are mixed, some solid, some empty.
+    let lists = v.chunks().filter(|(_, c)| matches!(c, strata_volume::Chunk::Lists(_))).count();
+    assert!(lists > 9 && lists < keys.len(), "{lists} list chunks of {}", keys.len());
+    // Materials follow the layers: somewhere grass on top, rock deep down.
+    assert!(v.has_materials());
+    // The whole-volume check sees the unloaded chunks around the block as empty: only borders
+    // with them can fail.
+    if let Err(e) = v.check_invariants() {
+        assert!(e.what.contains("next chunk") || e.what.contains("after an empty"), "{e}");
+    }
+}
+
+#[test]
+fn chunks_far_above_and_below_are_decided_without_visiting_nodes() {
+    let field = TerrainField::new(&Recipe::with_seed(3)).unwrap();
+    let sky = generate_chunk(ChunkKey::new(5, 20, -3), Level::BASE, &field);
+    assert!(sky.decided && sky.chunk.is_none());
+    let deep = generate_chunk(ChunkKey::new(5, -40, -3), Level::BASE, &field);
+    assert!(deep.decided && deep.chunk == Some(strata_volume::Chunk::Solid));
+    assert_eq!(deep.materials, Some(strata_volume::ChunkMaterials::Uniform(field.recipe().materials.rock)));
+}
+
+#[test]
+fn finer_levels_store_the_density_sign_too() {
+    let field = TerrainField::new(&Recipe::with_seed(11)).unwrap();
+    let keys = block(IVec3::new(0, -1, 0), IVec3::new(1, 0, 0));
+    let level = Level::new(1).unwrap();
+    let v = generate(&field, &keys, level);
+    v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
+    for &k in &keys {
+        check_nodes(&field, &v, k, level);
+    }
+}
+
+#[test]
+fn generation_is_the_same_on_any_thread_count_and_in_any_order() {
+    let field = TerrainField::new(&Recipe::with_seed(5)).unwrap();
+    let keys = block(IVec3::new(-2, -2, -2), IVec3::new(2, 1, 1));
+    let bytes = |g: &strata_volume::GeneratedChunk| postcard::to_allocvec(&(&g.chunk, &g.materials)).unwrap();
+    let one: Vec<Vec<u8>> = keys.iter().map(|&k| bytes(&generate_chunk(k, Level::BASE, &field))).collect();
+    // Two threads, each taking every other key, the second in reverse order.
+    let two: Vec<(usize, Vec<u8>)> = std::thread::scope(|s| {
+        let a = s.spawn(|| {
+            keys.iter()
+                .enumerate()
+                .step_by(2)
+                .map(|(i, &k)| (i, bytes(&generate_chunk(k, Level::BASE, &field))))
+                .collect::<Vec<_>>()
+        });
+        let b = s.spawn(|| {
+            keys.iter()
+                .enumerate()
+                .skip(1)
+                .step_by(2)
+                .rev()
+                .map(|(i, &k)| (i, bytes(&generate_chunk(k, Level::BASE, &field))))
+                .collect::<Vec<_>>()
+        });
+        let mut all = a.join().unwrap();
+        all.extend(b.join().unwrap());
+        all
+    });
+    assert_eq!(two.len(), one.len());
+    for (i, b) in two {
+        assert_eq!(b, one[i], "chunk {:?}", keys[i]);
+    }
+    // A field built again from the same recipe gives the same bytes.
+    let again = TerrainField::new(&Recipe::with_seed(5)).unwrap();
+    assert_eq!(bytes(&generate_chunk(keys[7], Level::BASE, &again)), one[7]);
+}
+
+/// A recipe from random numbers within their ranges.
+fn any_recipe() -> impl Strategy<Value = Recipe> {
+    (
+        any::<u32>(),
+        (-20.0f64..20.0, 0.0f64..40.0, 16.0f64..200.0, 1u32..5, 0.0f64..1.0),
+        (0.0f64..20.0, 16.0f64..100.0),
+        (0.0f64..15.0, 8.0f64..60.0, 1u32..3),
+        (0.0f64..60.0, -0.5f64..0.8, 8.0f64..60.0, -60.0f64..0.0),
+    )
+        .prop_map(|(seed, h, w, o, c)| {
+            let mut r = Recipe::with_seed(seed);
+            (r.heights.base, r.heights.amplitude, r.heights.wavelength, r.heights.octaves, r.heights.ridged) = h;
+            (r.warp.amplitude, r.warp.wavelength) = w;
+            (r.overhangs.amplitude, r.overhangs.wavelength, r.overhangs.octaves) = o;
+            (r.caves.strength, r.caves.threshold, r.caves.wavelength, r.caves.floor) = c;
+            r
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+
+    /// Random recipes, random chunks near the surface: node states equal the density's sign;
+    /// the chunk and its +x, +y, +z neighbours agree on their borders.
+    #[test]
+    fn random_recipes_store_the_density_sign(recipe in any_recipe(), x in -50i32..50, y in -3i32..2, z in -50i32..50) {
+        let field = TerrainField::new(&recipe).unwrap();
+        let keys = vec![ChunkKey::new(x, y, z), ChunkKey::new(x + 1, y, z), ChunkKey::new(x, y + 1, z), ChunkKey::new(x, y, z + 1)];
+        let v = generate(&field, &keys, Level::BASE);
+        prop_assert!(v.check_invariants_within(&|k| keys.contains(&k)).is_ok());
+        check_nodes(&field, &v, keys[0], Level::BASE);
+        let _ = CHUNK_CELLS;
+    }
+}
+
+/// Surfaces placed exactly on grid planes: a flat recipe at an integer height (every node of a
+/// plane sits on the surface, a tie decided by `density ≤ 0`) and at a half-integer one.
+#[test]
+fn flat_surfaces_on_and_between_grid_planes() {
+    for base in [0.0, 5.0, 5.5, -16.0] {
+        let mut r = Recipe::with_seed(1);
+        r.heights.amplitude = 0.0;
+        r.warp.amplitude = 0.0;
+        r.overhangs.amplitude = 0.0;
+        r.caves.strength = 0.0;
+        r.heights.base = base;
+        let field = TerrainField::new(&r).unwrap();
+        let keys = block(IVec3::new(0, -2, 0), IVec3::new(1, 1, 1));
+        let v = generate(&field, &keys, Level::BASE);
+        v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
+        for &k in &keys {
+            check_nodes(&field, &v, k, Level::BASE);
+        }
+        assert!(v.is_inside(DVec3::new(3.0, base.floor(), 3.0)), "a node on or under the surface is inside");
+        assert!(!v.is_inside(DVec3::new(3.0, base.floor() + 1.0, 3.0)));
+    }
+}
