@@ -229,9 +229,7 @@ impl TerrainField {
         let h = at(x, z);
         let slope = (at(x + 1, z) - h).abs().max((at(x, z + 1) - h).abs()) / sp;
         let depth = h - y;
-        if depth > m.soil_depth {
-            m.rock
-        } else if slope > m.steep {
+        if depth > m.soil_depth || slope > m.steep {
             m.rock
         } else if depth > m.topsoil {
             m.soil

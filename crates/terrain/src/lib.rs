@@ -19,6 +19,10 @@
 
 mod field;
 mod recipe;
+mod store;
+mod world;
 
 pub use field::TerrainField;
 pub use recipe::{Caves, Heights, MaterialLayers, Overhangs, Recipe, RecipeError, Warp};
+pub use store::{StoreError, StoredChunk, WORLD_FORMAT, WorldStore, decode_record, encode_record};
+pub use world::{UpdateReport, World, WorldError, WorldSettings};

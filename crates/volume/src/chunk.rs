@@ -249,6 +249,16 @@ pub enum Chunk {
     Lists(ChunkLists),
 }
 
+impl Chunk {
+    /// Heap bytes the chunk holds (0 for a solid chunk), as [`crate::Volume::memory`] counts them.
+    pub fn heap_bytes(&self) -> usize {
+        match self {
+            Chunk::Solid => 0,
+            Chunk::Lists(l) => l.heap_bytes(),
+        }
+    }
+}
+
 /// One line of a chunk: its first node's state and its crossings in increasing order.
 #[derive(Clone, Copy, Debug)]
 pub struct LineRef<'a> {

@@ -1,0 +1,673 @@
+//! A streamed, editable world: a [`Volume`] holding the chunks around the viewers.
+//!
+//! Each [`World::update`] (once a frame):
+//! 1. works out the chunks within the view distance of any viewer (a horizontal radius and a
+//!    vertical half-height, both in grid units), when a viewer has entered another chunk;
+//! 2. evicts loaded chunks outside it (an edited one is kept for the next flush);
+//! 3. queues the missing ones for the worker threads, nearest first (a worker reads a chunk's
+//!    edited version from the database, else generates it from the recipe);
+//! 4. integrates finished chunks until the frame's time budget is spent, nearest first, and never
+//!    beyond the memory budget;
+//! 5. flushes edited chunks to the database when the flush interval has passed.
+//!
+//! Edits ([`World::edit`]) first load, synchronously, every chunk within one chunk of the edit's
+//! box, so an edit never writes into a chunk whose contents are not in memory; the chunks it
+//! changed are marked edited. Undo and redo load the chunks they restore the same way, so they
+//! work across eviction and reload. A crash loses at most the edits of the last flush interval
+//! ([`WorldSettings::flush_interval`]); a flush is one transaction.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use glam::{DVec3, IVec3};
+use strata_volume::brush::Aabb;
+use strata_volume::coords::CHUNK_CELLS;
+use strata_volume::{ChunkKey, EditReport, Level, UndoRecord, Volume, generate_chunk};
+use thiserror::Error;
+
+use crate::field::TerrainField;
+use crate::recipe::{Recipe, RecipeError};
+use crate::store::{StoreError, StoredChunk, WorldStore};
+
+/// How a world streams and pages.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldSettings {
+    /// Horizontal view distance (grid units): chunks whose nearest point is within it of a
+    /// viewer (in x and z) are loaded.
+    pub view_distance: f64,
+    /// Vertical view distance as a fraction of the horizontal one.
+    pub vertical_ratio: f64,
+    /// Worker threads generating and paging in (at least 1).
+    pub threads: usize,
+    /// Main-thread time per [`World::update`] spent integrating finished chunks.
+    pub frame_budget: Duration,
+    /// Edited chunks are written at least this often (and when they leave memory).
+    pub flush_interval: Duration,
+    /// Heap bytes of loaded chunks the world may hold; chunks beyond it wait.
+    pub memory_budget: usize,
+}
+
+impl Default for WorldSettings {
+    fn default() -> Self {
+        WorldSettings {
+            view_distance: 256.0,
+            vertical_ratio: 0.5,
+            threads: std::thread::available_parallelism().map_or(2, |n| n.get()).saturating_sub(1).max(1),
+            frame_budget: Duration::from_millis(4),
+            flush_interval: Duration::from_secs(2),
+            memory_budget: 512 << 20,
+        }
+    }
+}
+
+/// Why a world operation failed.
+#[derive(Debug, Error)]
+pub enum WorldError {
+    /// The recipe is invalid.
+    #[error(transparent)]
+    Recipe(#[from] RecipeError),
+    /// The database failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A setting is out of range.
+    #[error("world setting `{0}` is out of range")]
+    Setting(&'static str),
+    /// An edit reaches chunks that could not be read.
+    #[error("chunk {0:?} could not be read, so it cannot be edited: {1}")]
+    Unreadable([i32; 3], String),
+    /// The edit itself failed.
+    #[error("{0}")]
+    Edit(String),
+}
+
+/// What one [`World::update`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct UpdateReport {
+    /// Chunks integrated this update.
+    pub integrated: usize,
+    /// Chunks evicted.
+    pub evicted: usize,
+    /// Chunks waiting for a worker or for integration.
+    pub pending: usize,
+    /// Whether edited chunks were flushed.
+    pub flushed: bool,
+    /// Whether the memory budget held chunks back.
+    pub over_budget: bool,
+}
+
+/// One request to a worker.
+struct Job {
+    key: ChunkKey,
+    ticket: u64,
+    distance: f64,
+}
+
+/// The workers' queue.
+#[derive(Default)]
+struct Queue {
+    /// Sorted by distance, farthest first (workers pop the nearest from the end).
+    jobs: Vec<Job>,
+    shutdown: bool,
+}
+
+/// A finished request.
+struct Done {
+    key: ChunkKey,
+    ticket: u64,
+    result: Result<StoredChunk, String>,
+}
+
+/// Shared with the workers.
+struct Shared {
+    queue: Mutex<Queue>,
+    wake: Condvar,
+    stop: AtomicBool,
+}
+
+/// A streamed, editable world (see the module docs).
+pub struct World {
+    field: Arc<TerrainField>,
+    store: Option<Arc<WorldStore>>,
+    settings: WorldSettings,
+    level: Level,
+    volume: Volume,
+    /// Chunks whose contents are in `volume` (even when empty).
+    loaded: HashSet<ChunkKey>,
+    /// Heap bytes of the loaded chunks.
+    loaded_bytes: usize,
+    /// Loaded chunks edited since the last flush.
+    dirty: HashSet<ChunkKey>,
+    /// Edited chunks that left memory before they were flushed.
+    evicted_dirty: HashMap<ChunkKey, StoredChunk>,
+    /// Requests sent to workers: key → ticket.
+    pending: HashMap<ChunkKey, u64>,
+    next_ticket: u64,
+    /// Finished requests not yet integrated (the frame budget ran out).
+    ready: Vec<Done>,
+    /// Chunks that could not be read (they are neither loaded nor editable).
+    failed: HashMap<ChunkKey, String>,
+    desired: HashSet<ChunkKey>,
+    /// The viewers' chunks when `desired` was computed.
+    desired_for: Vec<IVec3>,
+    /// Chunks whose contents changed since [`World::take_changed`] (for meshers).
+    changed: Vec<ChunkKey>,
+    /// Notes written with the next flush.
+    notes: Vec<(String, Vec<u8>)>,
+    undo: Vec<UndoRecord>,
+    redo: Vec<UndoRecord>,
+    last_flush: Instant,
+    shared: Arc<Shared>,
+    results: Receiver<Done>,
+    workers: Vec<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("loaded", &self.loaded.len())
+            .field("pending", &self.pending.len())
+            .field("dirty", &self.dirty.len())
+            .field("store", &self.store.as_ref().map(|s| s.path().to_path_buf()))
+            .finish()
+    }
+}
+
+fn chunk_of(p: DVec3) -> IVec3 {
+    (p / CHUNK_CELLS as f64).floor().as_ivec3()
+}
+
+impl World {
+    /// A world of `recipe` kept in memory only (nothing is paged).
+    pub fn in_memory(recipe: &Recipe, settings: WorldSettings) -> Result<Self, WorldError> {
+        Self::start(TerrainField::new(recipe)?, None, settings)
+    }
+
+    /// A new world file at `path`.
+    pub fn create(path: &std::path::Path, recipe: &Recipe, settings: WorldSettings) -> Result<Self, WorldError> {
+        let store = WorldStore::create(path, recipe)?;
+        Self::start(TerrainField::new(recipe)?, Some(store), settings)
+    }
+
+    /// Opens the world file at `path`.
+    pub fn open(path: &std::path::Path, settings: WorldSettings) -> Result<Self, WorldError> {
+        let store = WorldStore::open(path)?;
+        let field = TerrainField::new(store.recipe())?;
+        Self::start(field, Some(store), settings)
+    }
+
+    fn start(field: TerrainField, store: Option<WorldStore>, settings: WorldSettings) -> Result<Self, WorldError> {
+        if !(settings.view_distance.is_finite() && settings.view_distance >= 0.0 && settings.view_distance <= 1e6) {
+            return Err(WorldError::Setting("view_distance"));
+        }
+        if !(settings.vertical_ratio.is_finite() && (0.0..=4.0).contains(&settings.vertical_ratio)) {
+            return Err(WorldError::Setting("vertical_ratio"));
+        }
+        if settings.threads == 0 || settings.threads > 256 {
+            return Err(WorldError::Setting("threads"));
+        }
+        let field = Arc::new(field);
+        let store = store.map(Arc::new);
+        let shared = Arc::new(Shared {
+            queue: Mutex::new(Queue::default()),
+            wake: Condvar::new(),
+            stop: AtomicBool::new(false),
+        });
+        let (tx, rx) = channel();
+        let level = Level::BASE;
+        let workers = (0..settings.threads)
+            .map(|i| {
+                let (field, store, shared, tx) = (field.clone(), store.clone(), shared.clone(), tx.clone());
+                std::thread::Builder::new()
+                    .name(format!("terrain-{i}"))
+                    .spawn(move || work(&field, store.as_deref(), level, &shared, &tx))
+                    .expect("a worker thread starts")
+            })
+            .collect();
+        Ok(World {
+            field,
+            store,
+            settings,
+            level,
+            volume: Volume::with_level(level),
+            loaded: HashSet::new(),
+            loaded_bytes: 0,
+            dirty: HashSet::new(),
+            evicted_dirty: HashMap::new(),
+            pending: HashMap::new(),
+            next_ticket: 0,
+            ready: Vec::new(),
+            failed: HashMap::new(),
+            desired: HashSet::new(),
+            desired_for: Vec::new(),
+            changed: Vec::new(),
+            notes: Vec::new(),
+            undo: Vec::new(),
+            redo: Vec::new(),
+            last_flush: Instant::now(),
+            shared,
+            results: rx,
+            workers,
+        })
+    }
+
+    /// The loaded part of the world.
+    pub fn volume(&self) -> &Volume {
+        &self.volume
+    }
+
+    /// The recipe.
+    pub fn recipe(&self) -> &Recipe {
+        self.field.recipe()
+    }
+
+    /// The terrain field.
+    pub fn field(&self) -> &TerrainField {
+        &self.field
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &WorldSettings {
+        &self.settings
+    }
+
+    /// The world file, if paged.
+    pub fn store(&self) -> Option<&WorldStore> {
+        self.store.as_deref()
+    }
+
+    /// Whether chunk `key`'s contents are in memory.
+    pub fn is_loaded(&self, key: ChunkKey) -> bool {
+        self.loaded.contains(&key)
+    }
+
+    /// The loaded chunks.
+    pub fn loaded(&self) -> impl Iterator<Item = ChunkKey> + '_ {
+        self.loaded.iter().copied()
+    }
+
+    /// Number of loaded chunks.
+    pub fn loaded_count(&self) -> usize {
+        self.loaded.len()
+    }
+
+    /// Heap bytes of the loaded chunks (what the memory budget bounds).
+    pub fn loaded_bytes(&self) -> usize {
+        self.loaded_bytes
+    }
+
+    /// Chunks that could not be read, with why.
+    pub fn failed(&self) -> impl Iterator<Item = (ChunkKey, &str)> {
+        self.failed.iter().map(|(k, w)| (*k, w.as_str()))
+    }
+
+    /// Edited chunks not yet written.
+    pub fn unflushed(&self) -> usize {
+        self.dirty.len() + self.evicted_dirty.len()
+    }
+
+    /// Chunks whose contents changed (loaded, evicted, edited) since the last call.
+    pub fn take_changed(&mut self) -> Vec<ChunkKey> {
+        std::mem::take(&mut self.changed)
+    }
+
+    /// The chunks within the view distance of `viewers` (see [`WorldSettings`]).
+    pub fn chunks_in_view(&self, viewers: &[DVec3]) -> HashSet<ChunkKey> {
+        let c = CHUNK_CELLS as f64;
+        let r = self.settings.view_distance;
+        let rv = r * self.settings.vertical_ratio;
+        let mut out = HashSet::new();
+        for v in viewers.iter().filter(|v| v.is_finite()) {
+            let lo = ((*v - DVec3::new(r, rv, r)) / c).floor().as_ivec3();
+            let hi = ((*v + DVec3::new(r, rv, r)) / c).floor().as_ivec3();
+            for z in lo.z..=hi.z {
+                for x in lo.x..=hi.x {
+                    // Horizontal distance from the viewer to the chunk column's nearest point.
+                    let nx = v.x.clamp(x as f64 * c, (x + 1) as f64 * c) - v.x;
+                    let nz = v.z.clamp(z as f64 * c, (z + 1) as f64 * c) - v.z;
+                    if nx * nx + nz * nz > r * r {
+                        continue;
+                    }
+                    for y in lo.y..=hi.y {
+                        out.insert(ChunkKey::new(x, y, z));
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    fn distance(viewers: &[DVec3], key: ChunkKey) -> f64 {
+        let c = CHUNK_CELLS as f64;
+        let centre = (key.0.as_dvec3() + DVec3::splat(0.5)) * c;
+        viewers.iter().map(|v| v.distance_squared(centre)).fold(f64::INFINITY, f64::min)
+    }
+
+    /// One frame of streaming (see the module docs).
+    pub fn update(&mut self, viewers: &[DVec3]) -> UpdateReport {
+        let start = Instant::now();
+        let mut report = UpdateReport::default();
+        let at: Vec<IVec3> = viewers.iter().map(|&v| chunk_of(v)).collect();
+        if at != self.desired_for {
+            self.desired = self.chunks_in_view(viewers);
+            self.desired_for = at;
+            // Evict what left the view.
+            let leaving: Vec<ChunkKey> = self.loaded.iter().copied().filter(|k| !self.desired.contains(k)).collect();
+            for key in leaving {
+                self.evict(key);
+                report.evicted += 1;
+            }
+            self.ready.retain(|d| self.desired.contains(&d.key));
+            // Requests for chunks no longer wanted are dropped; new ones queued, nearest first.
+            self.pending.retain(|k, _| self.desired.contains(k));
+            let mut wanted: Vec<ChunkKey> = self
+                .desired
+                .iter()
+                .copied()
+                .filter(|k| !self.loaded.contains(k) && !self.pending.contains_key(k) && !self.failed.contains_key(k))
+                .collect();
+            // Edited chunks evicted before a flush come back from memory, not from a worker.
+            wanted.retain(|k| {
+                if let Some(stored) = self.evicted_dirty.remove(k) {
+                    self.integrate(*k, stored);
+                    self.dirty.insert(*k);
+                    report.integrated += 1;
+                    false
+                } else {
+                    true
+                }
+            });
+            let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
+            q.jobs.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
+            for key in wanted {
+                self.next_ticket += 1;
+                self.pending.insert(key, self.next_ticket);
+                q.jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0 });
+            }
+            for j in q.jobs.iter_mut() {
+                j.distance = Self::distance(viewers, j.key);
+            }
+            q.jobs.sort_by(|a, b| b.distance.total_cmp(&a.distance).then(b.key.cmp(&a.key)));
+            drop(q);
+            self.shared.wake.notify_all();
+        }
+        // Integrate finished chunks, nearest first, within the frame budget and memory budget.
+        while let Ok(done) = self.results.try_recv() {
+            if self.pending.get(&done.key) == Some(&done.ticket) {
+                self.ready.push(done);
+            }
+        }
+        if !self.ready.is_empty() {
+            self.ready.sort_by(|a, b| {
+                Self::distance(viewers, b.key).total_cmp(&Self::distance(viewers, a.key)).then(b.key.cmp(&a.key))
+            });
+        }
+        while let Some(done) = self.ready.pop() {
+            let bytes = done.result.as_ref().map_or(0, |s| s.chunk.as_ref().map_or(0, |c| c.heap_bytes()));
+            if self.loaded_bytes + bytes > self.settings.memory_budget {
+                report.over_budget = true;
+                self.ready.push(done);
+                break;
+            }
+            self.pending.remove(&done.key);
+            match done.result {
+                Ok(stored) => {
+                    self.integrate(done.key, stored);
+                    report.integrated += 1;
+                }
+                Err(why) => {
+                    self.failed.insert(done.key, why);
+                }
+            }
+            if start.elapsed() >= self.settings.frame_budget {
+                break;
+            }
+        }
+        report.pending = self.pending.len();
+        if self.last_flush.elapsed() >= self.settings.flush_interval && (self.unflushed() > 0 || !self.notes.is_empty())
+        {
+            report.flushed = self.flush().is_ok();
+        }
+        report
+    }
+
+    fn integrate(&mut self, key: ChunkKey, stored: StoredChunk) {
+        self.loaded_bytes += stored.chunk.as_ref().map_or(0, |c| c.heap_bytes());
+        self.volume.put_chunk(key, stored.chunk, stored.materials);
+        self.loaded.insert(key);
+        self.changed.push(key);
+    }
+
+    fn evict(&mut self, key: ChunkKey) {
+        let (chunk, materials) = self.volume.take_chunk(key);
+        self.loaded_bytes -= chunk.as_ref().map_or(0, |c| c.heap_bytes());
+        self.loaded.remove(&key);
+        if self.dirty.remove(&key) {
+            self.evicted_dirty.insert(key, StoredChunk { chunk, materials });
+        }
+        self.changed.push(key);
+    }
+
+    /// Loads, now, every chunk in `keys` that is not in memory (edited versions first from the
+    /// evicted-but-unflushed ones, then the database, else generated).
+    pub fn load_now(&mut self, keys: &[ChunkKey]) -> Result<(), WorldError> {
+        for &key in keys {
+            if self.loaded.contains(&key) {
+                continue;
+            }
+            self.pending.remove(&key);
+            self.ready.retain(|d| d.key != key);
+            if let Some(stored) = self.evicted_dirty.remove(&key) {
+                self.integrate(key, stored);
+                self.dirty.insert(key);
+                continue;
+            }
+            let stored = produce(&self.field, self.store.as_deref(), self.level, key)
+                .map_err(|why| WorldError::Unreadable(key.0.to_array(), why))?;
+            self.failed.remove(&key);
+            self.integrate(key, stored);
+        }
+        Ok(())
+    }
+
+    /// The chunks an edit within `bounds` may read or write: those touching the box grown by one
+    /// chunk.
+    pub fn chunks_near(bounds: &Aabb) -> Vec<ChunkKey> {
+        let c = CHUNK_CELLS as f64;
+        let lo = (bounds.min / c).floor().as_ivec3() - IVec3::ONE;
+        let hi = (bounds.max / c).floor().as_ivec3() + IVec3::ONE;
+        let mut keys = Vec::new();
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    keys.push(ChunkKey::new(x, y, z));
+                }
+            }
+        }
+        keys
+    }
+
+    /// Runs an edit on the loaded volume after loading every chunk near `bounds`; the chunks it
+    /// changed are marked edited and it joins the undo history.
+    pub fn edit<E: std::fmt::Display>(
+        &mut self,
+        bounds: Aabb,
+        edit: impl FnOnce(&mut Volume) -> Result<EditReport, E>,
+    ) -> Result<EditReport, WorldError> {
+        if !bounds.is_valid() {
+            return Err(WorldError::Edit("the edit's box is not finite".into()));
+        }
+        let near = Self::chunks_near(&bounds);
+        if near.len() > 1 << 16 {
+            return Err(WorldError::Edit(format!("an edit reaching {} chunks is too large for a world", near.len())));
+        }
+        self.load_now(&near)?;
+        let report = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()))?;
+        self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice());
+        self.undo.push(report.undo.clone());
+        self.redo.clear();
+        Ok(report)
+    }
+
+    /// Marks `keys` edited: dirty, changed, and their byte counts refreshed.
+    fn after_change(&mut self, keys: &[ChunkKey]) {
+        for &k in keys {
+            self.dirty.insert(k);
+            self.loaded.insert(k);
+            self.changed.push(k);
+        }
+        self.loaded_bytes = self.loaded.iter().filter_map(|k| self.volume.chunk(*k)).map(|c| c.heap_bytes()).sum();
+    }
+
+    fn restore(&mut self, record: UndoRecord) -> Result<UndoRecord, WorldError> {
+        let keys: Vec<ChunkKey> = record.keys().collect();
+        self.load_now(&keys)?;
+        let back = self.volume.restore(record);
+        self.after_change(&keys);
+        Ok(back)
+    }
+
+    /// Undoes the last edit; `false` when there is none.
+    pub fn undo(&mut self) -> Result<bool, WorldError> {
+        let Some(record) = self.undo.pop() else { return Ok(false) };
+        let redo = self.restore(record)?;
+        self.redo.push(redo);
+        Ok(true)
+    }
+
+    /// Redoes the last undone edit; `false` when there is none.
+    pub fn redo(&mut self) -> Result<bool, WorldError> {
+        let Some(record) = self.redo.pop() else { return Ok(false) };
+        let undo = self.restore(record)?;
+        self.undo.push(undo);
+        Ok(true)
+    }
+
+    /// Writes every edited chunk not yet written, in one transaction. A chunk edited back to what
+    /// the recipe generates loses its record. Without a database nothing is written: edited
+    /// chunks that leave memory are then kept aside in memory.
+    pub fn flush(&mut self) -> Result<usize, WorldError> {
+        if self.store.is_none() {
+            self.notes.clear();
+            self.last_flush = Instant::now();
+            return Ok(0);
+        }
+        let mut writes: Vec<(ChunkKey, Option<StoredChunk>)> = Vec::with_capacity(self.unflushed());
+        let count = self.unflushed();
+        for &k in &self.dirty {
+            let stored = StoredChunk {
+                chunk: self.volume.chunk(k).cloned(),
+                materials: self.volume.chunk_materials(k).cloned(),
+            };
+            writes.push((k, Some(stored)));
+        }
+        for (k, s) in &self.evicted_dirty {
+            writes.push((*k, Some(s.clone())));
+        }
+        writes.sort_by_key(|w| w.0);
+        // A chunk that is what the recipe makes is not stored.
+        for (k, s) in writes.iter_mut() {
+            let g = generate_chunk(*k, self.level, &*self.field);
+            if s.as_ref().is_some_and(|s| s.chunk == g.chunk && s.materials == g.materials) {
+                *s = None;
+            }
+        }
+        if let Some(store) = &self.store {
+            store.write_with_notes(&writes, &self.notes)?;
+        }
+        self.notes.clear();
+        self.dirty.clear();
+        self.evicted_dirty.clear();
+        self.last_flush = Instant::now();
+        Ok(count)
+    }
+
+    /// Sets a named note (a camera position, a counter) written in the same transaction as the
+    /// next flush's chunks; read back with [`WorldStore::note`].
+    pub fn set_note(&mut self, name: &str, value: Vec<u8>) {
+        self.notes.retain(|(n, _)| n != name);
+        self.notes.push((name.to_string(), value));
+    }
+
+    /// Whether an undo is available.
+    pub fn can_undo(&self) -> bool {
+        !self.undo.is_empty()
+    }
+
+    /// Whether a redo is available.
+    pub fn can_redo(&self) -> bool {
+        !self.redo.is_empty()
+    }
+
+    /// Blocks until every requested chunk is integrated or `timeout` passes (tests, tools);
+    /// returns whether nothing is pending.
+    pub fn settle(&mut self, viewers: &[DVec3], timeout: Duration) -> bool {
+        let start = Instant::now();
+        loop {
+            self.update(viewers);
+            if self.pending.is_empty() && self.ready.is_empty() {
+                return true;
+            }
+            if start.elapsed() > timeout {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+}
+
+impl Drop for World {
+    fn drop(&mut self) {
+        // Nothing edited is left behind: a last flush (errors cannot be returned from a drop;
+        // callers that care call `flush` first).
+        let _ = self.flush();
+        self.shared.stop.store(true, Ordering::SeqCst);
+        if let Ok(mut q) = self.shared.queue.lock() {
+            q.shutdown = true;
+        }
+        self.shared.wake.notify_all();
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+/// A chunk's contents: its edited version from the database, else generated.
+fn produce(
+    field: &TerrainField,
+    store: Option<&WorldStore>,
+    level: Level,
+    key: ChunkKey,
+) -> Result<StoredChunk, String> {
+    if let Some(store) = store
+        && let Some(stored) = store.read(key).map_err(|e| e.to_string())?
+    {
+        return Ok(stored);
+    }
+    let g = generate_chunk(key, level, field);
+    Ok(StoredChunk { chunk: g.chunk, materials: g.materials })
+}
+
+fn work(field: &TerrainField, store: Option<&WorldStore>, level: Level, shared: &Shared, tx: &Sender<Done>) {
+    loop {
+        let job = {
+            let mut q = shared.queue.lock().expect("the queue lock is never poisoned");
+            loop {
+                if q.shutdown || shared.stop.load(Ordering::SeqCst) {
+                    return;
+                }
+                if let Some(j) = q.jobs.pop() {
+                    break j;
+                }
+                q = shared.wake.wait(q).expect("the queue lock is never poisoned");
+            }
+        };
+        let result = produce(field, store, level, job.key);
+        if tx.send(Done { key: job.key, ticket: job.ticket, result }).is_err() {
+            return;
+        }
+    }
+}

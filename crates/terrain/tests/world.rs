@@ -1,0 +1,220 @@
+//! Streaming around viewers, paging edits through eviction and reopening, and damaged files.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use glam::DVec3;
+use strata_terrain::{Recipe, StoredChunk, World, WorldError, WorldSettings, WorldStore};
+use strata_volume::brush::{Brush, Sphere};
+use strata_volume::{ChunkKey, CsgOp, EditSettings};
+
+/// A fresh directory for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("strata-terrain-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn settings(view: f64) -> WorldSettings {
+    WorldSettings {
+        view_distance: view,
+        vertical_ratio: 0.5,
+        threads: 2,
+        frame_budget: Duration::from_millis(20),
+        flush_interval: Duration::from_secs(3600),
+        memory_budget: usize::MAX,
+    }
+}
+
+const SETTLE: Duration = Duration::from_secs(120);
+
+/// Every loaded chunk's stored form, for comparing worlds bit for bit.
+fn snapshot(world: &World, keys: &[ChunkKey]) -> Vec<(ChunkKey, StoredChunk)> {
+    keys.iter()
+        .map(|&k| {
+            assert!(world.is_loaded(k), "{k:?} is loaded");
+            let v = world.volume();
+            (k, StoredChunk { chunk: v.chunk(k).cloned(), materials: v.chunk_materials(k).cloned() })
+        })
+        .collect()
+}
+
+#[test]
+fn a_viewer_on_a_path_loads_exactly_the_chunks_in_view_and_evicts_the_others() {
+    let mut world = World::in_memory(&Recipe::with_seed(2), settings(40.0)).unwrap();
+    let path = [
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(30.0, 5.0, 0.0),
+        DVec3::new(100.0, -10.0, 40.0),
+        DVec3::new(-60.0, 20.0, -60.0),
+    ];
+    for p in path {
+        assert!(world.settle(&[p], SETTLE), "streaming settles");
+        let want = world.chunks_in_view(&[p]);
+        let have: HashSet<ChunkKey> = world.loaded().collect();
+        assert_eq!(have, want, "loaded chunks at {p}");
+        assert!(!want.is_empty());
+        // Only loaded chunks are in the volume.
+        assert!(world.volume().chunks().all(|(k, _)| have.contains(&k)));
+        world.volume().check_invariants_within(&|k| have.contains(&k)).unwrap();
+    }
+    // Two viewers: the union of their views.
+    let two = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(200.0, 0.0, 0.0)];
+    assert!(world.settle(&two, SETTLE));
+    assert_eq!(world.loaded().collect::<HashSet<_>>(), world.chunks_in_view(&two));
+}
+
+#[test]
+fn memory_stays_under_the_budget_on_a_long_path() {
+    let budget = 40 << 10;
+    let mut s = settings(64.0);
+    s.memory_budget = budget;
+    let mut world = World::in_memory(&Recipe::with_seed(4), s).unwrap();
+    let mut over = false;
+    let mut most = 0;
+    for i in 0..400 {
+        let p = DVec3::new(i as f64 * 4.0, 0.0, (i as f64 * 0.05).sin() * 200.0);
+        let r = world.update(&[p]);
+        over |= r.over_budget;
+        most = most.max(world.loaded_bytes());
+        assert!(world.loaded_bytes() <= budget, "{} bytes loaded at step {i}", world.loaded_bytes());
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // The view of 64 cells holds more than the budget: it was the budget that held chunks back.
+    assert!(over, "the path reached the budget (at most {most} bytes were loaded)");
+}
+
+fn crater(
+    at: DVec3,
+    r: f64,
+) -> impl Fn(&mut strata_volume::Volume) -> Result<strata_volume::EditReport, strata_volume::EditError> {
+    move |v| v.apply(CsgOp::Subtract, &Sphere::new(at, r).unwrap(), &EditSettings::default())
+}
+
+fn bounds_of(at: DVec3, r: f64) -> strata_volume::brush::Aabb {
+    Sphere::new(at, r).unwrap().bounds()
+}
+
+#[test]
+fn edits_survive_eviction_reload_and_reopening_bit_for_bit() {
+    let dir = scratch("paging");
+    let file = dir.join("world.redb");
+    let home = DVec3::new(8.0, 0.0, 8.0);
+    let far = DVec3::new(2000.0, 0.0, 0.0);
+    let spot = DVec3::new(8.0, 0.0, 8.0);
+    let (before, keys) = {
+        let mut world = World::create(&file, &Recipe::with_seed(9), settings(32.0)).unwrap();
+        assert!(world.settle(&[home], SETTLE));
+        let surface = world.volume().raycast(spot + DVec3::Y * 200.0, -DVec3::Y, 400.0).expect("the ray meets ground");
+        world.edit(bounds_of(surface.point, 6.0), crater(surface.point, 6.0)).unwrap();
+        // A second edit, painted: materials page too.
+        let paint_at = surface.point + DVec3::new(3.0, -2.0, 0.0);
+        world.edit(bounds_of(paint_at, 4.0), |v| v.paint(&Sphere::new(paint_at, 4.0).unwrap(), 5)).unwrap();
+        // The edited chunks within the view (the edit also loaded a ring around itself, which
+        // leaves memory with the next view change).
+        let view = world.chunks_in_view(&[home]);
+        let keys: Vec<ChunkKey> =
+            world.take_changed().into_iter().collect::<HashSet<_>>().into_iter().filter(|k| view.contains(k)).collect();
+        assert!(!keys.is_empty());
+        let before = snapshot(&world, &keys);
+        // Away (evicted before any flush: kept for the next one), and back.
+        assert!(world.settle(&[far], SETTLE));
+        assert!(keys.iter().all(|k| !world.is_loaded(*k)));
+        assert!(world.unflushed() > 0);
+        assert!(world.settle(&[home], SETTLE));
+        assert_eq!(snapshot(&world, &keys), before, "after eviction before a flush");
+        // Flushed, away, back: read from the database.
+        world.flush().unwrap();
+        assert!(world.settle(&[far], SETTLE));
+        assert!(world.settle(&[home], SETTLE));
+        assert_eq!(snapshot(&world, &keys), before, "after a flush and eviction");
+        (before, keys)
+    };
+    // Reopened.
+    let mut world = World::open(&file, settings(32.0)).unwrap();
+    assert!(world.store().unwrap().verify().unwrap() > 0);
+    assert!(world.settle(&[home], SETTLE));
+    assert_eq!(snapshot(&world, &keys), before, "after reopening");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn undo_works_across_eviction_and_an_undone_chunk_loses_its_record() {
+    let dir = scratch("undo");
+    let file = dir.join("world.redb");
+    let home = DVec3::new(-20.0, 0.0, 30.0);
+    let mut world = World::create(&file, &Recipe::with_seed(12), settings(32.0)).unwrap();
+    assert!(world.settle(&[home], SETTLE));
+    let keys: Vec<ChunkKey> = world.loaded().collect();
+    let generated = snapshot(&world, &keys);
+    let hit = world.volume().raycast(home + DVec3::Y * 200.0, -DVec3::Y, 400.0).unwrap().point;
+    world.edit(bounds_of(hit, 5.0), crater(hit, 5.0)).unwrap();
+    assert_ne!(snapshot(&world, &keys), generated);
+    world.flush().unwrap();
+    assert!(!world.store().unwrap().edited_keys().unwrap().is_empty());
+    assert!(world.settle(&[DVec3::new(5000.0, 0.0, 0.0)], SETTLE));
+    // Undo with the edited chunks out of memory: they are loaded for it.
+    assert!(world.undo().unwrap());
+    assert!(world.settle(&[home], SETTLE));
+    assert_eq!(snapshot(&world, &keys), generated);
+    world.flush().unwrap();
+    assert!(world.store().unwrap().edited_keys().unwrap().is_empty(), "chunks back to the recipe are not stored");
+    assert!(world.redo().unwrap());
+    assert_ne!(snapshot(&world, &keys), generated);
+    drop(world);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn damaged_world_files_give_clear_errors() {
+    let dir = scratch("damaged");
+    // Not a database at all.
+    let junk = dir.join("junk.redb");
+    std::fs::write(&junk, b"this is not a world").unwrap();
+    let e = World::open(&junk, settings(16.0)).unwrap_err();
+    assert!(matches!(e, WorldError::Store(_)), "{e}");
+    assert!(!e.to_string().is_empty());
+    // Missing.
+    assert!(World::open(&dir.join("missing.redb"), settings(16.0)).is_err());
+    // A world with an edit, then every byte of a stretch overwritten: opening, verifying or
+    // reading fails with an error, never a panic.
+    let file = dir.join("world.redb");
+    {
+        let mut world = World::create(&file, &Recipe::with_seed(1), settings(16.0)).unwrap();
+        let at = DVec3::new(4.0, 0.0, 4.0);
+        world.edit(bounds_of(at, 20.0), crater(at, 20.0)).unwrap();
+        world.flush().unwrap();
+    }
+    let clean = std::fs::read(&file).unwrap();
+    let mut failures = 0;
+    for (i, start) in (0..clean.len()).step_by(clean.len() / 16 + 1).enumerate() {
+        let mut bytes = clean.clone();
+        for b in bytes.iter_mut().skip(start).take(512) {
+            *b = (i as u8).wrapping_mul(37) ^ 0x5a;
+        }
+        let damaged = dir.join(format!("damaged-{i}.redb"));
+        std::fs::write(&damaged, &bytes).unwrap();
+        let outcome = std::panic::catch_unwind(|| match WorldStore::open(&damaged) {
+            Err(e) => Err(e.to_string()),
+            Ok(store) => store.verify().map(|_| ()).map_err(|e| e.to_string()),
+        });
+        match outcome {
+            Ok(Err(msg)) => {
+                assert!(!msg.is_empty());
+                failures += 1;
+            }
+            Ok(Ok(())) => {}
+            Err(_) => panic!("a damaged world at byte {start} made the program panic"),
+        }
+    }
+    assert!(failures > 0, "some damage is detected");
+    // A record that is not a chunk.
+    let store = WorldStore::open(&file).unwrap();
+    let k = store.edited_keys().unwrap()[0];
+    assert!(strata_terrain::decode_record(&[1, 2, 3, 4, 5]).is_err());
+    assert!(store.read(k).unwrap().is_some());
+    drop(store);
+    let _ = std::fs::remove_dir_all(dir);
+}
