@@ -30,7 +30,7 @@ fn apply(world: &mut World, k: u64) {
     };
     let c = DVec3::new(next() * 48.0 - 24.0, next() * 24.0 - 12.0, next() * 48.0 - 24.0);
     let r = 2.0 + next() * 5.0;
-    let op = if k % 3 == 0 { CsgOp::Add } else { CsgOp::Subtract };
+    let op = if k.is_multiple_of(3) { CsgOp::Add } else { CsgOp::Subtract };
     let ball = Sphere::new(c, r).unwrap();
     world
         .edit(ball.bounds(), |v| {
