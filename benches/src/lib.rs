@@ -12,6 +12,7 @@ pub mod baselines;
 pub mod lod;
 pub mod materials;
 pub mod suite;
+pub mod terrain;
 pub mod tools;
 use strata_volume::brush::Sphere;
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Volume, VoxelBlock};

@@ -120,6 +120,13 @@ enum Command {
         #[arg(long, default_value_t = 100)]
         dabs: usize,
     },
+    /// Table 9 alone (terrain): generation against dense sampling, a streamed flight and paging,
+    /// printed (not written to the docs; `suite` writes them).
+    Terrain {
+        /// The CI sizes.
+        #[arg(long)]
+        quick: bool,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -137,6 +144,7 @@ fn main() -> Result<()> {
         Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
         Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
         Command::Materials { count, res, dabs } => return materials(count, res, dabs),
+        Command::Terrain { quick } => return terrain(quick),
         Command::Stroke { seconds } => stroke(seconds),
         Command::Convert { res, mesh } => return convert(res, mesh),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
@@ -441,5 +449,16 @@ fn convert(res: u32, mesh: Option<std::path::PathBuf>) -> Result<()> {
         mem.total() as f64 / (1024.0 * 1024.0),
         mem.bytes_per_crossing(true)
     );
+    Ok(())
+}
+
+fn terrain(quick: bool) -> Result<()> {
+    use strata_bench::terrain;
+    let config = if quick { terrain::TerrainConfig::quick() } else { terrain::TerrainConfig::full() };
+    let start = std::time::Instant::now();
+    let results = terrain::run(&config, &mut |step| eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64()))?;
+    let mut md = String::new();
+    terrain::markdown(&mut md, &results);
+    println!("{md}");
     Ok(())
 }

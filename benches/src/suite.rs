@@ -53,6 +53,8 @@ pub struct SuiteConfig {
     pub lod_resolution: u32,
     /// Frames of the Table 7 sculpting run.
     pub lod_frames: usize,
+    /// Table 9's sizes.
+    pub terrain: crate::terrain::TerrainConfig,
     /// Workload seed.
     pub seed: u64,
 }
@@ -75,6 +77,7 @@ impl SuiteConfig {
             quality: (60, 12),
             lod_resolution: 1024,
             lod_frames: 300,
+            terrain: crate::terrain::TerrainConfig::full(),
             seed: 2021,
         }
     }
@@ -96,6 +99,7 @@ impl SuiteConfig {
             quality: (4, 2),
             lod_resolution: 256,
             lod_frames: 10,
+            terrain: crate::terrain::TerrainConfig::quick(),
             seed: 2021,
         }
     }
@@ -213,6 +217,8 @@ pub struct SuiteResults {
     pub lod: Option<crate::lod::LodResults>,
     /// Table 8 (materials).
     pub materials: Option<crate::materials::MaterialsResults>,
+    /// Table 9 (terrain).
+    pub terrain: Option<crate::terrain::TerrainResults>,
 }
 
 /// Runs every table. `mesh` is the scanned mesh of Table 3 (PLY, OBJ or STL).
@@ -234,6 +240,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         tools: crate::tools::ToolsResults { dabs: 0, table6: Vec::new(), blur: Vec::new(), quality: Vec::new() },
         lod: None,
         materials: None,
+        terrain: None,
     };
     for &r in &config.radii {
         progress(&format!("table 1: radius {r}"));
@@ -306,6 +313,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         config.seed,
         progress,
     )?);
+    out.terrain = Some(crate::terrain::run(&config.terrain, progress)?);
     Ok(out)
 }
 
@@ -632,6 +640,9 @@ pub fn markdown(r: &SuiteResults) -> String {
     }
     if let Some(m) = &r.materials {
         crate::materials::markdown(&mut s, m);
+    }
+    if let Some(t) = &r.terrain {
+        crate::terrain::markdown(&mut s, t);
     }
     s
 }

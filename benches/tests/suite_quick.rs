@@ -56,8 +56,16 @@ fn the_quick_suite_measures_every_table() {
     let scan = mat.scan.as_ref().expect("the scan was painted");
     assert!(scan.material_bytes > 0 && scan.crossings > 0);
     assert!(mat.paint.len() == 1 && mat.paint[0].frame_ms >= mat.paint[0].dab_ms && mat.paint[0].dabs > 0);
+    let terrain = results.terrain.as_ref().expect("Table 9 ran");
+    let g = &terrain.generation;
+    assert!(g.decided > 0 && g.mixed > 0 && g.decided + g.mixed <= g.chunks, "{g:?}");
+    assert!(g.lists_ms > 0.0 && g.dense_ms > 0.0 && g.mesh_lists_ms > 0.0 && g.noise_ns > 0.0);
+    assert!(g.triangles.0 > 0 && g.triangles.1 > 0);
+    assert!(terrain.streaming.frames > 0 && terrain.streaming.generated_per_s > 0.0, "{:?}", terrain.streaming);
+    assert!(terrain.paging.iter().all(|p| p.write_batch_per_s > 0.0 && p.read_per_s > 0.0 && p.bytes_per_chunk > 0.0));
     let md = markdown(&results);
     for t in [
+        "Table 9 — terrain",
         "Table 7 — level of detail",
         "Table 8 — materials",
         "Table 1",

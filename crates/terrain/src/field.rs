@@ -153,9 +153,10 @@ impl TerrainField {
         if c.strength > 0.0 { c.strength * (1.0 - c.threshold) - self.fade(y) } else { f64::NEG_INFINITY }
     }
 
-    /// The density at `p` given its column height `h`: negative or zero inside.
+    /// The density at `p` given its column height `h` ([`TerrainField::height`] at `p.x, p.z`):
+    /// negative or zero inside. For samplers that compute a column's height once.
     #[inline]
-    fn density_h(&self, p: DVec3, h: f64) -> f64 {
+    pub fn density_h(&self, p: DVec3, h: f64) -> f64 {
         let s = self.surface(p, h);
         match self.cave(p) {
             Some(c) => s.max(c),

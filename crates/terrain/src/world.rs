@@ -17,6 +17,7 @@
 //! ([`WorldSettings::flush_interval`]); a flush is one transaction.
 
 use std::collections::{HashMap, HashSet};
+use std::hash::BuildHasherDefault;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Condvar, Mutex};
@@ -26,7 +27,7 @@ use std::time::{Duration, Instant};
 use glam::{DVec3, IVec3};
 use strata_volume::brush::Aabb;
 use strata_volume::coords::CHUNK_CELLS;
-use strata_volume::{ChunkKey, EditReport, Level, UndoRecord, Volume, generate_chunk};
+use strata_volume::{ChunkKey, EditReport, KeyHasher, Level, UndoRecord, Volume, generate_chunk};
 use thiserror::Error;
 
 use crate::field::TerrainField;
@@ -99,6 +100,10 @@ pub struct UpdateReport {
     pub over_budget: bool,
 }
 
+/// Sets and maps of chunk keys with the volume's fast key hasher.
+type KeySet = HashSet<ChunkKey, BuildHasherDefault<KeyHasher>>;
+type KeyMap<V> = HashMap<ChunkKey, V, BuildHasherDefault<KeyHasher>>;
+
 /// One request to a worker.
 struct Job {
     key: ChunkKey,
@@ -136,23 +141,25 @@ pub struct World {
     level: Level,
     volume: Volume,
     /// Chunks whose contents are in `volume` (even when empty).
-    loaded: HashSet<ChunkKey>,
+    loaded: KeySet,
     /// Heap bytes of the loaded chunks.
     loaded_bytes: usize,
     /// Loaded chunks edited since the last flush.
-    dirty: HashSet<ChunkKey>,
+    dirty: KeySet,
     /// Edited chunks that left memory before they were flushed.
-    evicted_dirty: HashMap<ChunkKey, StoredChunk>,
+    evicted_dirty: KeyMap<StoredChunk>,
     /// Requests sent to workers: key → ticket.
-    pending: HashMap<ChunkKey, u64>,
+    pending: KeyMap<u64>,
     next_ticket: u64,
     /// Finished requests not yet integrated (the frame budget ran out).
     ready: Vec<Done>,
     /// Chunks that could not be read (they are neither loaded nor editable).
-    failed: HashMap<ChunkKey, String>,
-    desired: HashSet<ChunkKey>,
+    failed: KeyMap<String>,
+    desired: KeySet,
     /// The viewers' chunks when `desired` was computed.
     desired_for: Vec<IVec3>,
+    /// The view stencil (offsets from a viewer's chunk), computed once.
+    stencil: Arc<[IVec3]>,
     /// Chunks whose contents changed since [`World::take_changed`] (for meshers).
     changed: Vec<ChunkKey>,
     /// Notes written with the next flush.
@@ -233,16 +240,17 @@ impl World {
             settings,
             level,
             volume: Volume::with_level(level),
-            loaded: HashSet::new(),
+            loaded: KeySet::default(),
             loaded_bytes: 0,
-            dirty: HashSet::new(),
-            evicted_dirty: HashMap::new(),
-            pending: HashMap::new(),
+            dirty: KeySet::default(),
+            evicted_dirty: KeyMap::default(),
+            pending: KeyMap::default(),
             next_ticket: 0,
             ready: Vec::new(),
-            failed: HashMap::new(),
-            desired: HashSet::new(),
+            failed: KeyMap::default(),
+            desired: KeySet::default(),
             desired_for: Vec::new(),
+            stencil: Arc::new([]),
             changed: Vec::new(),
             notes: Vec::new(),
             undo: Vec::new(),
@@ -314,30 +322,59 @@ impl World {
         std::mem::take(&mut self.changed)
     }
 
-    /// The chunks within the view distance of `viewers` (see [`WorldSettings`]).
-    pub fn chunks_in_view(&self, viewers: &[DVec3]) -> HashSet<ChunkKey> {
+    /// Whether a chunk at offset `o` from a viewer's chunk is in view: the chunk column's
+    /// nearest point is within the horizontal view distance of the viewer's chunk centre, and the
+    /// chunk's height range meets the vertical view distance around it.
+    fn in_stencil(&self, o: IVec3) -> bool {
         let c = CHUNK_CELLS as f64;
         let r = self.settings.view_distance;
         let rv = r * self.settings.vertical_ratio;
-        let mut out = HashSet::new();
-        for v in viewers.iter().filter(|v| v.is_finite()) {
-            let lo = ((*v - DVec3::new(r, rv, r)) / c).floor().as_ivec3();
-            let hi = ((*v + DVec3::new(r, rv, r)) / c).floor().as_ivec3();
-            for z in lo.z..=hi.z {
-                for x in lo.x..=hi.x {
-                    // Horizontal distance from the viewer to the chunk column's nearest point.
-                    let nx = v.x.clamp(x as f64 * c, (x + 1) as f64 * c) - v.x;
-                    let nz = v.z.clamp(z as f64 * c, (z + 1) as f64 * c) - v.z;
-                    if nx * nx + nz * nz > r * r {
-                        continue;
-                    }
-                    for y in lo.y..=hi.y {
-                        out.insert(ChunkKey::new(x, y, z));
+        let near = |d: i32| {
+            // Nearest point of [d c, d c + c] to the centre c / 2.
+            ((c / 2.0).clamp(d as f64 * c, (d + 1) as f64 * c) - c / 2.0).abs()
+        };
+        let (nx, nz) = (near(o.x), near(o.z));
+        let (y0, y1) = (((c / 2.0 - rv) / c).floor() as i32, ((c / 2.0 + rv) / c).floor() as i32);
+        nx * nx + nz * nz <= r * r && (y0..=y1).contains(&o.y)
+    }
+
+    /// The offsets [`World::in_stencil`] accepts.
+    fn stencil(&self) -> Vec<IVec3> {
+        let c = CHUNK_CELLS as f64;
+        let r = self.settings.view_distance;
+        let h = (r / c).ceil() as i32 + 1;
+        let v = (r * self.settings.vertical_ratio / c).ceil() as i32 + 1;
+        let mut out = Vec::new();
+        for z in -h..=h {
+            for x in -h..=h {
+                for y in -v..=v {
+                    let o = IVec3::new(x, y, z);
+                    if self.in_stencil(o) {
+                        out.push(o);
                     }
                 }
             }
         }
         out
+    }
+
+    /// The chunks within the view distance of `viewers` (see [`WorldSettings`] and
+    /// [`World::update`]: distances are measured from the centre of the chunk a viewer is in).
+    pub fn chunks_in_view(&self, viewers: &[DVec3]) -> HashSet<ChunkKey> {
+        let stencil = self.stencil();
+        let mut out = HashSet::new();
+        for v in viewers.iter().filter(|v| v.is_finite()) {
+            let at = chunk_of(*v);
+            out.extend(stencil.iter().map(|&o| ChunkKey(at + o)));
+        }
+        out
+    }
+
+    fn stencil_cached(&mut self) -> Arc<[IVec3]> {
+        if self.stencil.is_empty() {
+            self.stencil = self.stencil().into();
+        }
+        self.stencil.clone()
     }
 
     fn distance(viewers: &[DVec3], key: ChunkKey) -> f64 {
@@ -352,21 +389,45 @@ impl World {
         let mut report = UpdateReport::default();
         let at: Vec<IVec3> = viewers.iter().map(|&v| chunk_of(v)).collect();
         if at != self.desired_for {
-            self.desired = self.chunks_in_view(viewers);
+            // What enters and leaves the view: for one viewer that moved, the difference of the
+            // view stencil at the old and new chunk (no set of the whole view is rebuilt);
+            // otherwise the whole view again.
+            let stencil = self.stencil_cached();
+            let from = self.desired_for.clone();
+            let (entering, leaving): (Vec<ChunkKey>, Vec<ChunkKey>) = if let ([old], [new]) =
+                (from.as_slice(), at.as_slice())
+            {
+                let (old, new) = (*old, *new);
+                let entering =
+                    stencil.iter().filter(|&&o| !self.in_stencil(new + o - old)).map(|&o| ChunkKey(new + o)).collect();
+                let leaving =
+                    stencil.iter().filter(|&&o| !self.in_stencil(old + o - new)).map(|&o| ChunkKey(old + o)).collect();
+                (entering, leaving)
+            } else {
+                let mut all = KeySet::default();
+                for &c in &at {
+                    all.extend(stencil.iter().map(|&o| ChunkKey(c + o)));
+                }
+                let leaving = self.desired.iter().copied().filter(|k| !all.contains(k)).collect();
+                let entering = all.iter().copied().filter(|k| !self.desired.contains(k)).collect();
+                (entering, leaving)
+            };
             self.desired_for = at;
-            // Evict what left the view.
-            let leaving: Vec<ChunkKey> = self.loaded.iter().copied().filter(|k| !self.desired.contains(k)).collect();
+            for k in &leaving {
+                self.desired.remove(k);
+            }
+            self.desired.extend(entering.iter().copied());
+            // Evict what left the view; requests for it are dropped.
             for key in leaving {
-                self.evict(key);
-                report.evicted += 1;
+                if self.loaded.contains(&key) {
+                    self.evict(key);
+                    report.evicted += 1;
+                }
+                self.pending.remove(&key);
             }
             self.ready.retain(|d| self.desired.contains(&d.key));
-            // Requests for chunks no longer wanted are dropped; new ones queued, nearest first.
-            self.pending.retain(|k, _| self.desired.contains(k));
-            let mut wanted: Vec<ChunkKey> = self
-                .desired
-                .iter()
-                .copied()
+            let mut wanted: Vec<ChunkKey> = entering
+                .into_iter()
                 .filter(|k| !self.loaded.contains(k) && !self.pending.contains_key(k) && !self.failed.contains_key(k))
                 .collect();
             // Edited chunks evicted before a flush come back from memory, not from a worker.
@@ -380,18 +441,27 @@ impl World {
                     true
                 }
             });
-            let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
-            q.jobs.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
+            let mut jobs = {
+                let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
+                std::mem::take(&mut q.jobs)
+            };
+            // Outside the lock (workers go on with what they hold): drop stale requests, add the
+            // new ones, order by distance (the old order is nearly right: the sort is cheap).
+            jobs.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
             for key in wanted {
                 self.next_ticket += 1;
                 self.pending.insert(key, self.next_ticket);
-                q.jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0 });
+                jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0 });
             }
-            for j in q.jobs.iter_mut() {
+            for j in jobs.iter_mut() {
                 j.distance = Self::distance(viewers, j.key);
             }
-            q.jobs.sort_by(|a, b| b.distance.total_cmp(&a.distance).then(b.key.cmp(&a.key)));
-            drop(q);
+            jobs.sort_unstable_by(|a, b| b.distance.total_cmp(&a.distance).then(b.key.cmp(&a.key)));
+            {
+                let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
+                // Workers found the queue empty meanwhile; nothing else adds to it.
+                q.jobs = jobs;
+            }
             self.shared.wake.notify_all();
         }
         // Integrate finished chunks, nearest first, within the frame budget and memory budget.
