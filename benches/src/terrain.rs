@@ -98,6 +98,8 @@ pub struct PagingRow {
     pub read_per_s: f64,
     /// Database bytes per edited chunk (after the batch write).
     pub bytes_per_chunk: f64,
+    /// The same after compaction (redb's `compact`, SQLite's `VACUUM`).
+    pub compacted_bytes_per_chunk: f64,
     /// Mean record bytes (the chunk's own encoding).
     pub record_bytes: f64,
 }
@@ -407,12 +409,14 @@ fn scratch_dir(name: &str) -> std::path::PathBuf {
 fn paging_redb(field: &TerrainField, count: usize) -> anyhow::Result<PagingRow> {
     let chunks = edited_chunks(field, count);
     let dir = scratch_dir("redb");
-    let store = WorldStore::create(&dir.join("batch.redb"), field.recipe())?;
+    let mut store = WorldStore::create(&dir.join("batch.redb"), field.recipe())?;
     let writes: Vec<(ChunkKey, Option<StoredChunk>)> = chunks.iter().map(|(k, s)| (*k, Some(s.clone()))).collect();
     let t = Instant::now();
     store.write(&writes)?;
     let write_batch_per_s = count as f64 / t.elapsed().as_secs_f64();
     let bytes_per_chunk = store.file_bytes() as f64 / count as f64;
+    store.compact()?;
+    let compacted_bytes_per_chunk = store.file_bytes() as f64 / count as f64;
     let order = shuffled(&chunks);
     let t = Instant::now();
     for (k, s) in &order {
@@ -436,6 +440,7 @@ fn paging_redb(field: &TerrainField, count: usize) -> anyhow::Result<PagingRow> 
         write_each_per_s,
         read_per_s,
         bytes_per_chunk,
+        compacted_bytes_per_chunk,
         record_bytes,
     })
 }
@@ -476,6 +481,8 @@ mod sqlite {
         let write_batch_per_s = count as f64 / t.elapsed().as_secs_f64();
         batch.execute_batch("PRAGMA wal_checkpoint(TRUNCATE)")?;
         let bytes = std::fs::metadata(dir.join("batch.sqlite"))?.len();
+        batch.execute_batch("VACUUM")?;
+        let compacted = std::fs::metadata(dir.join("batch.sqlite"))?.len();
         let order = shuffled(&records);
         let t = Instant::now();
         for (k, r) in &order {
@@ -503,6 +510,7 @@ mod sqlite {
             write_each_per_s,
             read_per_s,
             bytes_per_chunk: bytes as f64 / count as f64,
+            compacted_bytes_per_chunk: compacted as f64 / count as f64,
             record_bytes: records.iter().map(|(_, r)| r.len()).sum::<usize>() as f64 / count as f64,
         })
     }
@@ -586,8 +594,14 @@ pub fn markdown(s: &mut String, t: &TerrainResults) {
     for p in &t.paging {
         let _ = writeln!(
             s,
-            "| {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} |",
-            p.database, p.write_batch_per_s, p.write_each_per_s, p.read_per_s, p.bytes_per_chunk, p.record_bytes
+            "| {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} |",
+            p.database,
+            p.write_batch_per_s,
+            p.write_each_per_s,
+            p.read_per_s,
+            p.bytes_per_chunk,
+            p.compacted_bytes_per_chunk,
+            p.record_bytes
         );
     }
 }

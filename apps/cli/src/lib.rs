@@ -3,6 +3,7 @@
 
 pub mod commands;
 pub mod paths;
+pub mod terrain;
 
 use std::fmt::Write as _;
 use std::time::Instant;

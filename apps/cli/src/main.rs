@@ -17,6 +17,7 @@ use strata::commands::{self, Fill, Mesher, Resolution};
   strata export bunny.strata -o bunny.glb --mesher dc
   strata render bunny.strata -o bunny.png --size 1280x800
   strata demo --out demo.glb --scene demo.strata
+  strata terrain --seed 7 --size 256x192x256 -o valley.glb
 
 Every path and argument is checked before any work starts; errors are one line on standard
 error with a non-zero exit code, and nothing half-written is left behind."
@@ -95,6 +96,32 @@ enum Command {
         #[arg(long)]
         wireframe: bool,
     },
+    /// Procedural terrain from a recipe or a seed: a new endless world (.world, for the studio's
+    /// terrain mode), or a box of it as a scene (.strata) or a mesh (.glb, .obj, .stl, .ply).
+    #[command(after_help = "Examples:
+  strata terrain --seed 7 -o valley.world
+  strata terrain --seed 7 --size 256x192x256 -o valley.glb
+  strata terrain --recipe islands.json --size 512x256x512 -o islands.strata
+
+A recipe is JSON; every field is optional (the defaults are printed by --print-recipe):
+  {\"seed\": 7, \"heights\": {\"amplitude\": 60, \"ridged\": 0.5}, \"caves\": {\"strength\": 0}}")]
+    Terrain {
+        /// A JSON recipe file.
+        #[arg(long, conflicts_with = "seed")]
+        recipe: Option<PathBuf>,
+        /// The default recipe with this seed.
+        #[arg(long)]
+        seed: Option<u32>,
+        /// The box of a scene or mesh, XxYxZ cells (centred on the origin).
+        #[arg(long, default_value = "256x192x256", value_parser = strata::terrain::parse_box)]
+        size: [u32; 3],
+        /// The world, scene or mesh to write.
+        #[arg(short, long, required_unless_present = "print_recipe")]
+        output: Option<PathBuf>,
+        /// Print the recipe (the default one, or the seed's or file's) as JSON and stop.
+        #[arg(long)]
+        print_recipe: bool,
+    },
     /// Sculpt a small scene from analytic brushes and print its statistics.
     #[command(after_help = "Example:\n  strata demo --out demo.glb --out demo.stl --scene demo.strata")]
     Demo {
@@ -124,6 +151,18 @@ fn run(command: Command) -> Result<String> {
         Command::Info { scene } => commands::info(&scene),
         Command::Render { scene, output, size, wireframe } => commands::render(&scene, &output, size, wireframe),
         Command::Demo { scale, outputs, scene } => strata::demo(scale, &outputs, scene.as_deref()),
+        Command::Terrain { recipe, seed, size, output, print_recipe } => {
+            use strata::terrain::RecipeSource;
+            let source = match &recipe {
+                Some(p) => RecipeSource::File(p),
+                None => RecipeSource::Seed(seed.unwrap_or(1)),
+            };
+            if print_recipe {
+                return Ok(strata::terrain::recipe(&source)?.to_json() + "\n");
+            }
+            let output = output.expect("clap requires --output without --print-recipe");
+            strata::terrain::terrain(&source, size, &output)
+        }
     }
 }
 

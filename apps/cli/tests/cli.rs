@@ -183,3 +183,43 @@ fn render_writes_a_png_where_a_gpu_or_software_driver_exists() {
     assert_eq!(&bytes[1..4], b"PNG");
     refused(strata(&["render", s(&scene), "-o", s(&png), "--size", "0x10"]), "--size");
 }
+
+#[test]
+fn terrain_writes_worlds_scenes_and_meshes_and_refuses_bad_recipes() {
+    let dir = temp("terrain");
+    let world = dir.join("valley.world");
+    let report = ok(strata(&["terrain", "--seed", "7", "-o", s(&world)]));
+    assert!(report.contains("endless world"), "{report}");
+    let store = strata_terrain::WorldStore::open(&world).unwrap();
+    assert_eq!(store.recipe(), &strata_terrain::Recipe::with_seed(7));
+    drop(store);
+    // A world is never overwritten.
+    refused(strata(&["terrain", "--seed", "8", "-o", s(&world)]), "already exists");
+    // A box of it as a scene, which opens and describes itself.
+    let scene = dir.join("valley.strata");
+    ok(strata(&["terrain", "--seed", "7", "--size", "64x96x48", "-o", s(&scene)]));
+    let info = ok(strata(&["info", s(&scene)]));
+    assert!(info.contains("terrain") && info.contains("Rock"), "{info}");
+    let loaded = strata_editor::file::load(&scene).unwrap();
+    assert!(loaded.report.is_clean());
+    loaded.scene.layers[0].volume.check_invariants().unwrap();
+    // And as a coloured mesh.
+    let glb = dir.join("valley.glb");
+    let report = ok(strata(&["terrain", "--seed", "7", "--size", "64x96x48", "-o", s(&glb)]));
+    assert!(report.contains("triangles"), "{report}");
+    assert!(gltf::Gltf::open(&glb).is_ok());
+    // A recipe file, printed and read back.
+    let printed = ok(strata(&["terrain", "--seed", "5", "--print-recipe"]));
+    let recipe = dir.join("r.json");
+    std::fs::write(&recipe, printed.replace("\"amplitude\": 48.0", "\"amplitude\": 20.0")).unwrap();
+    ok(strata(&["terrain", "--recipe", s(&recipe), "--size", "32x32x32", "-o", s(&dir.join("r.ply"))]));
+    // Bad input: one line each, nothing written.
+    std::fs::write(&recipe, r#"{"heights": {"gain": 7}}"#).unwrap();
+    refused(strata(&["terrain", "--recipe", s(&recipe), "-o", s(&dir.join("x.glb"))]), "heights.gain");
+    std::fs::write(&recipe, "not json").unwrap();
+    refused(strata(&["terrain", "--recipe", s(&recipe), "-o", s(&dir.join("x.glb"))]), "recipe");
+    refused(strata(&["terrain", "--seed", "1", "--size", "0x4x4", "-o", s(&dir.join("x.glb"))]), "size");
+    refused(strata(&["terrain", "--seed", "1", "-o", s(&dir.join("x.txt"))]), "x.txt");
+    assert!(!dir.join("x.glb").exists());
+    let _ = std::fs::remove_dir_all(dir);
+}

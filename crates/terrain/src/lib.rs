@@ -19,10 +19,12 @@
 
 mod field;
 mod recipe;
+mod region;
 mod store;
 mod world;
 
 pub use field::TerrainField;
 pub use recipe::{Caves, Heights, MaterialLayers, Overhangs, Recipe, RecipeError, Warp};
+pub use region::{Clipped, generate_region};
 pub use store::{StoreError, StoredChunk, WORLD_FORMAT, WorldStore, decode_record, encode_record};
 pub use world::{UpdateReport, World, WorldError, WorldSettings};

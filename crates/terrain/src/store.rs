@@ -285,6 +285,12 @@ impl WorldStore {
         Ok(count)
     }
 
+    /// Compacts the database file (gives back the space of pages freed by rewritten chunks);
+    /// `false` when there was nothing to compact.
+    pub fn compact(&mut self) -> Result<bool, StoreError> {
+        self.db.compact().map_err(|e| Self::db_error(&self.path, e))
+    }
+
     /// Bytes of the database file.
     pub fn file_bytes(&self) -> u64 {
         std::fs::metadata(&self.path).map(|m| m.len()).unwrap_or(0)

@@ -702,6 +702,11 @@ impl Drop for World {
         for w in self.workers.drain(..) {
             let _ = w.join();
         }
+        // The workers are gone: the store is this world's alone. Give back the space of pages
+        // freed by rewritten chunks (redb grows its file in regions).
+        if let Some(store) = self.store.as_mut().and_then(Arc::get_mut) {
+            let _ = store.compact();
+        }
     }
 }
 

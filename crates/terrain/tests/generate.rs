@@ -182,3 +182,28 @@ fn flat_surfaces_on_and_between_grid_planes() {
         assert!(!v.is_inside(DVec3::new(3.0, base.floor() + 1.0, 3.0)));
     }
 }
+
+/// A box of the world as a closed solid: every invariant holds with nothing outside it loaded
+/// (the chunks around are empty, and the box's faces close the terrain), node states equal the
+/// density inside the box and are empty outside, and the bytes do not depend on the threads.
+#[test]
+fn a_region_is_a_closed_solid_inside_its_box() {
+    let field = TerrainField::new(&Recipe::with_seed(31)).unwrap();
+    let (lo, hi) = (I64Vec3::new(-5, -40, 3), I64Vec3::new(37, 30, 20));
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let v = strata_terrain::generate_region(&field, lo, hi, &done).unwrap();
+    v.check_invariants().unwrap();
+    assert!(done.load(std::sync::atomic::Ordering::Relaxed) > 0);
+    for z in lo.z - 2..=hi.z + 2 {
+        for y in (lo.y - 2..=hi.y + 2).step_by(3) {
+            for x in lo.x - 2..=hi.x + 2 {
+                let p = DVec3::new(x as f64, y as f64, z as f64);
+                let in_box = (lo.x..=hi.x).contains(&x) && (lo.y..=hi.y).contains(&y) && (lo.z..=hi.z).contains(&z);
+                assert_eq!(v.is_inside(p), in_box && field.is_solid(p), "node {p}");
+            }
+        }
+    }
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let again = one.install(|| strata_terrain::generate_region(&field, lo, hi, &done).unwrap());
+    assert_eq!(postcard::to_allocvec(&again).unwrap(), postcard::to_allocvec(&v).unwrap());
+}
