@@ -24,7 +24,13 @@ struct Viewport {
     size: (u32, u32),
     color: Option<(wgpu::Texture, wgpu::TextureView, wgpu::TextureView)>,
     texture_id: Option<egui::TextureId>,
+    /// The renderer holds terrain mode's meshes (not the scene's).
+    terrain_shown: bool,
 }
+
+/// Renderer layer ids of terrain mode's chunk meshes and its debris (scene layers count from 0).
+const TERRAIN_LAYER: u32 = 1 << 20;
+const DEBRIS_LAYER: u32 = (1 << 20) + 1;
 
 /// What a path is asked for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,6 +39,8 @@ enum Prompt {
     SaveAs,
     Export,
     Import,
+    NewWorld,
+    OpenWorld,
 }
 
 impl Prompt {
@@ -42,6 +50,8 @@ impl Prompt {
             Prompt::SaveAs => "Save scene as",
             Prompt::Export => "Export mesh",
             Prompt::Import => "Import mesh as a new layer",
+            Prompt::NewWorld => "New world",
+            Prompt::OpenWorld => "Open world",
         }
     }
 
@@ -50,6 +60,7 @@ impl Prompt {
             Prompt::Open | Prompt::SaveAs => "scene.strata",
             Prompt::Export => "sculpt.glb",
             Prompt::Import => "mesh.ply",
+            Prompt::NewWorld | Prompt::OpenWorld => "terrain.world",
         }
     }
 }
@@ -118,6 +129,12 @@ pub struct StudioApp {
     pub recent: crate::recent::Recent,
     /// The keyboard help overlay (F1) is showing.
     pub help_open: bool,
+    /// The seed of the next new world.
+    pub world_seed: u32,
+    /// When terrain mode last sculpted (dig and raise repeat at a fixed rate while held).
+    last_dig: Option<Instant>,
+    /// When the last terrain frame ran.
+    last_frame: Option<Instant>,
 }
 
 impl std::fmt::Debug for StudioApp {
@@ -142,6 +159,7 @@ impl StudioApp {
             size: (0, 0),
             color: None,
             texture_id: None,
+            terrain_shown: false,
         });
         let mut app = StudioApp::headless(studio, dialogs, recovery_dir);
         app.viewport = viewport;
@@ -154,6 +172,9 @@ impl StudioApp {
         let recovery = crate::recovery::find(&recovery_dir);
         let recent = crate::recent::Recent::load(recovery_dir.join(crate::recent::FILE_NAME));
         StudioApp {
+            world_seed: 1,
+            last_dig: None,
+            last_frame: None,
             open_next: None,
             recent,
             help_open: false,
@@ -241,9 +262,10 @@ impl StudioApp {
                     Prompt::Open | Prompt::SaveAs => d.add_filter("Strata scene", &["strata"]),
                     Prompt::Export => d.add_filter("Mesh", &["glb", "obj", "stl", "ply"]),
                     Prompt::Import => d.add_filter("Mesh", &strata_mesh::import::MESH_EXTENSIONS),
+                    Prompt::NewWorld | Prompt::OpenWorld => d.add_filter("Strata world", &["world"]),
                 };
                 let answer = match kind {
-                    Prompt::Open | Prompt::Import => d.pick_file(),
+                    Prompt::Open | Prompt::Import | Prompt::OpenWorld => d.pick_file(),
                     _ => d.set_file_name(kind.suggestion()).save_file(),
                 };
                 let _ = tx.send(answer);
@@ -286,6 +308,8 @@ impl StudioApp {
             }
             Prompt::Export => self.studio.act(Action::Export(path)).is_ok(),
             Prompt::Import => self.import_path(path),
+            Prompt::NewWorld => self.studio.act(Action::NewWorld(path, self.world_seed)).is_ok(),
+            Prompt::OpenWorld => self.studio.act(Action::OpenWorld(path)).is_ok(),
         };
         if done && let Some(then) = then {
             self.proceed(ctx, then);
@@ -369,6 +393,23 @@ impl StudioApp {
             self.guard(ctx, Then::New);
         }
         if typing || self.modal_open() {
+            return;
+        }
+        if self.studio.terrain.is_some() {
+            // Terrain mode's keys: WASD, Q and E fly (read as held keys in the viewport).
+            if pressed(Modifiers::NONE, Key::B) {
+                let _ = self.studio.act(Action::Bomb);
+            }
+            if pressed(Modifiers::NONE, Key::OpenBracket)
+                && let Some(t) = self.studio.terrain.as_mut()
+            {
+                t.brush_radius = (t.brush_radius / 1.25).max(1.0);
+            }
+            if pressed(Modifiers::NONE, Key::CloseBracket)
+                && let Some(t) = self.studio.terrain.as_mut()
+            {
+                t.brush_radius = (t.brush_radius * 1.25).min(40.0);
+            }
             return;
         }
         if pressed(Modifiers::NONE, Key::OpenBracket) {
@@ -538,6 +579,30 @@ impl StudioApp {
                     .on_hover_text("Mesh far chunks that were given more detail at a coarser level");
                 ui.add(egui::Slider::new(&mut self.studio.lod_pixels, 0.5..=8.0).text("largest cell (px)"))
                     .on_hover_text("How large a cell level of detail may show on screen");
+            });
+            ui.menu_button("Terrain", |ui| {
+                ui.horizontal(|ui| {
+                    let label = ui.label("Seed");
+                    ui.add(egui::DragValue::new(&mut self.world_seed)).labelled_by(label.id);
+                });
+                if ui.button("New world…").on_hover_text("Create a world file from the seed and fly in it").clicked()
+                {
+                    self.ask_path(&ctx, Prompt::NewWorld, None);
+                    ui.close();
+                }
+                if ui.button("Open world…").clicked() {
+                    self.ask_path(&ctx, Prompt::OpenWorld, None);
+                    ui.close();
+                }
+                let open = self.studio.terrain.is_some();
+                if ui.add_enabled(open, egui::Button::new("Bomb (B)")).clicked() {
+                    let _ = self.studio.act(Action::Bomb);
+                    ui.close();
+                }
+                if ui.add_enabled(open, egui::Button::new("Close world")).clicked() {
+                    let _ = self.studio.act(Action::CloseWorld);
+                    ui.close();
+                }
             });
             ui.menu_button("Help", |ui| {
                 if ui.button("Keyboard shortcuts (F1)").clicked() {
@@ -1095,6 +1160,60 @@ impl StudioApp {
     fn viewport(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
         let (rect, response) = ui.allocate_exact_size(ui.available_size(), egui::Sense::click_and_drag());
         let aspect = rect.width() / rect.height().max(1.0);
+        if self.studio.terrain.is_some() {
+            self.terrain_input(ui, &response, rect, aspect);
+        } else {
+            self.scene_input(ui, &response, rect, aspect);
+        }
+        self.draw(ui, frame, rect);
+    }
+
+    /// Terrain mode: WASD, Q and E fly (Shift faster), right drag looks, left click digs and
+    /// Shift + left click raises (repeating while held), then one frame of streaming.
+    fn terrain_input(&mut self, ui: &mut egui::Ui, response: &egui::Response, rect: egui::Rect, aspect: f32) {
+        use egui::Key;
+        let typing = ui.ctx().egui_wants_keyboard_input() || self.modal_open();
+        let held = |k: Key| !typing && ui.input(|i| i.key_down(k));
+        let axis = |plus: Key, minus: Key| held(plus) as i32 as f64 - held(minus) as i32 as f64;
+        let delta = ui.input(|i| i.pointer.delta());
+        let look = if response.dragged_by(egui::PointerButton::Secondary) {
+            (-delta.x as f64 * 0.005, delta.y as f64 * 0.005)
+        } else {
+            (0.0, 0.0)
+        };
+        let input = crate::terrain::FlyInput {
+            forward: axis(Key::W, Key::S),
+            right: axis(Key::D, Key::A),
+            up: axis(Key::E, Key::Q),
+            look,
+            fast: ui.input(|i| i.modifiers.shift),
+        };
+        let now = Instant::now();
+        let dt = self.last_frame.map_or(1.0 / 60.0, |t| now.duration_since(t).as_secs_f64());
+        self.last_frame = Some(now);
+        let raise = ui.input(|i| i.modifiers.shift);
+        let dig = response.is_pointer_button_down_on() && ui.input(|i| i.pointer.primary_down());
+        let pointer = response.hover_pos();
+        let Some(t) = self.studio.terrain.as_mut() else { return };
+        t.fly(input, dt);
+        if dig
+            && let Some(p) = pointer
+            && self.last_dig.is_none_or(|d| now.duration_since(d) > Duration::from_millis(90))
+        {
+            self.last_dig = Some(now);
+            let x = (p.x - rect.left()) / rect.width() * 2.0 - 1.0;
+            let y = 1.0 - (p.y - rect.top()) / rect.height() * 2.0;
+            let (o, d) = t.camera().ray(x, y, aspect);
+            if let Err(e) = t.sculpt(o.as_dvec3(), d.as_dvec3(), raise) {
+                self.studio.message = e;
+            }
+        }
+        t.tick(dt, Duration::from_millis(6));
+        // The world streams, bombs fly and debris falls: draw every frame.
+        ui.ctx().request_repaint();
+    }
+
+    fn scene_input(&mut self, ui: &mut egui::Ui, response: &egui::Response, rect: egui::Rect, aspect: f32) {
         // Camera: right drag orbits, middle drag pans, the wheel zooms.
         let typing = ui.ctx().egui_wants_keyboard_input();
         self.studio.smooth_held = ui.input(|i| i.modifiers.shift) && !typing;
@@ -1134,7 +1253,9 @@ impl StudioApp {
             secondary: secondary && secondary_drag,
         };
         self.studio.pointer(ndc, buttons, 1.0, aspect, Duration::from_millis(6));
+    }
 
+    fn draw(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>, rect: egui::Rect) {
         let Some(rs) = frame.and_then(|f| f.wgpu_render_state()) else {
             ui.painter().text(
                 rect.center(),
@@ -1191,6 +1312,53 @@ impl StudioApp {
             }
             vp.color = Some((color, cv, dv));
             vp.size = size;
+        }
+        if let Some(t) = self.studio.terrain.as_mut() {
+            // Terrain mode draws the world's chunk meshes and the debris instead of the scene.
+            if !vp.terrain_shown {
+                vp.renderer.clear();
+                vp.renderer.set_palette(&rs.queue, &crate::headless::palette(&self.studio.editor.scene));
+                vp.terrain_shown = true;
+                t.uploads.extend(t.meshes().map(|(k, _)| k).collect::<Vec<_>>());
+            }
+            for key in std::mem::take(&mut t.uploads) {
+                match t.mesh(key) {
+                    Some(mesh) => vp.renderer.upload_chunk(
+                        &rs.device,
+                        &rs.queue,
+                        TERRAIN_LAYER,
+                        key,
+                        mesh,
+                        Mat4::IDENTITY,
+                        [1.0; 3],
+                    ),
+                    None => vp.renderer.remove_chunk(TERRAIN_LAYER, key),
+                }
+            }
+            let debris = t.particle_mesh();
+            let key = strata_volume::ChunkKey::new(0, 0, 0);
+            if debris.indices.is_empty() {
+                vp.renderer.remove_chunk(DEBRIS_LAYER, key);
+            } else {
+                vp.renderer.upload_chunk(&rs.device, &rs.queue, DEBRIS_LAYER, key, &debris, Mat4::IDENTITY, [1.0; 3]);
+            }
+            let settings = FrameSettings { camera: t.camera(), wireframe: self.studio.wireframe, ..Default::default() };
+            let (_, cv, dv) = vp.color.as_ref().expect("created above");
+            vp.renderer.render(&rs.device, &rs.queue, cv, dv, size, &settings);
+            if let Some(id) = vp.texture_id {
+                ui.painter().image(
+                    id,
+                    rect,
+                    egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                    egui::Color32::WHITE,
+                );
+            }
+            return;
+        }
+        if vp.terrain_shown {
+            vp.terrain_shown = false;
+            vp.renderer.clear();
+            self.studio.full_upload = true;
         }
         // Upload what the editor remeshed.
         if self.studio.full_upload {

@@ -12,6 +12,7 @@ mod headless;
 pub mod recent;
 pub mod recovery;
 mod studio;
+pub mod terrain;
 
 pub use app::{Dialogs, StudioApp, run_window};
 pub use headless::screenshot;
@@ -41,4 +42,9 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Drop a file on the window", "a scene opens, a mesh is imported as a layer"),
     ("Escape", "close a prompt or question; cancel a long job"),
     ("F1", "this help"),
+    ("Terrain mode: W A S D, Q E (Shift faster)", "fly forward, left, back, right, down, up"),
+    ("Terrain mode: right drag", "look around"),
+    ("Terrain mode: left click / Shift + left click", "dig / raise the ground (hold to repeat)"),
+    ("Terrain mode: B", "launch a bomb along the view: it blasts a crater"),
+    ("Terrain mode: [  ]  Ctrl+Z  Ctrl+Y", "dig radius down, up; undo, redo"),
 ];

@@ -48,6 +48,14 @@ pub enum Action {
     AxisView(strata_render::AxisView, bool),
     /// Switch between perspective and orthographic projection (numpad 5).
     ToggleOrthographic,
+    /// Create a world file from a seed and fly in it (terrain mode).
+    NewWorld(PathBuf, u32),
+    /// Open a world file in terrain mode.
+    OpenWorld(PathBuf),
+    /// Write the world and go back to the scene.
+    CloseWorld,
+    /// Launch a bomb along the view (terrain mode).
+    Bomb,
 }
 
 /// A mesh chosen for import, waiting for the user to pick its resolution.
@@ -111,6 +119,10 @@ pub fn default_scene() -> Scene {
 pub struct Studio {
     /// The editor core.
     pub editor: Editor,
+    /// Terrain mode's world, when one is open (the scene waits meanwhile).
+    pub terrain: Option<crate::terrain::TerrainMode>,
+    /// How worlds opened by the studio stream.
+    pub world_settings: strata_terrain::WorldSettings,
     /// The viewport camera.
     pub camera: Camera,
     /// Where the scene was loaded from or last saved to.
@@ -186,6 +198,11 @@ impl Studio {
         let camera = camera_of(&scene.view);
         let mut s = Studio {
             editor: Editor::new(scene),
+            terrain: None,
+            world_settings: strata_terrain::WorldSettings {
+                view_distance: 192.0,
+                ..strata_terrain::WorldSettings::default()
+            },
             camera,
             path: None,
             wireframe: false,
@@ -244,7 +261,50 @@ impl Studio {
     }
 
     fn try_act(&mut self, action: Action) -> Result<(), String> {
+        if let Some(t) = self.terrain.as_mut() {
+            // Terrain mode: undo and redo act on the world.
+            match action {
+                Action::Undo => {
+                    t.world.undo().map_err(|e| e.to_string())?;
+                    return Ok(());
+                }
+                Action::Redo => {
+                    t.world.redo().map_err(|e| e.to_string())?;
+                    return Ok(());
+                }
+                _ => {}
+            }
+        }
         match action {
+            Action::NewWorld(path, seed) => {
+                let recipe = strata_terrain::Recipe::with_seed(seed);
+                let mode = crate::terrain::TerrainMode::create(&path, &recipe, self.world_settings.clone())
+                    .map_err(|e| format!("Could not create the world {}: {e}", path.display()))?;
+                self.terrain = Some(mode);
+                self.message = format!("New world {} from seed {seed}", path.display());
+                return Ok(());
+            }
+            Action::OpenWorld(path) => {
+                let mode = crate::terrain::TerrainMode::open(&path, self.world_settings.clone())
+                    .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
+                self.terrain = Some(mode);
+                self.message = format!("Opened the world {}", path.display());
+                return Ok(());
+            }
+            Action::CloseWorld => {
+                if let Some(mut t) = self.terrain.take() {
+                    let written = t.save().map_err(|e| format!("Could not write the world: {e}"))?;
+                    self.message = format!("World written ({written} chunks); back to the scene");
+                }
+                self.full_upload = true;
+                self.palette_changed = true;
+                return Ok(());
+            }
+            Action::Bomb => {
+                let t = self.terrain.as_mut().ok_or("Bombs need a world: Terrain > New world")?;
+                t.bomb();
+                return Ok(());
+            }
             Action::New => {
                 self.replace_scene(default_scene());
                 self.path = None;
@@ -769,6 +829,9 @@ impl Studio {
 
     /// The status bar's live figures.
     pub fn status(&self) -> String {
+        if let Some(t) = &self.terrain {
+            return format!("{} · {}", self.message, t.status());
+        }
         let scene = &self.editor.scene;
         let levels = scene
             .layers

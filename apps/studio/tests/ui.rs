@@ -541,3 +541,97 @@ fn paint_an_eyedropper_and_a_new_material_from_the_palette() {
     h.run();
     assert!(!h.state().studio.editor.scene.layers[0].volume.has_materials(), "Ctrl+Z undid the paint");
 }
+
+/// Terrain mode as a user meets it: Terrain > New world with a typed path, WASD flies, B
+/// launches a bomb that blasts a crater with debris, Ctrl+Z takes the crater back and Ctrl+Y
+/// brings it again, Close world writes it, and Open world finds the crater and the viewer where
+/// they were.
+#[test]
+fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
+    let dir = temp("terrain");
+    let mut h = harness(&dir);
+    h.state_mut().studio.world_settings.view_distance = 40.0;
+    h.state_mut().studio.world_settings.threads = 2;
+    h.state_mut().studio.world_settings.vertical_ratio = 1.5;
+    h.run();
+    h.get_by_label("Terrain").click();
+    h.run();
+    h.get_by_label("New world…").click();
+    h.run();
+    let path = dir.join("valley.world");
+    type_keys(&mut h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run_steps(3);
+    assert!(h.state().studio.terrain.is_some(), "{}", h.state().studio.message);
+    let start = h.state().studio.terrain.as_ref().unwrap().eye;
+    // Fly forward for a moment, W held.
+    h.key_down(egui::Key::W);
+    for _ in 0..5 {
+        std::thread::sleep(Duration::from_millis(10));
+        h.step();
+    }
+    h.key_up(egui::Key::W);
+    h.step();
+    let eye = h.state().studio.terrain.as_ref().unwrap().eye;
+    assert!(eye.distance(start) > 0.5, "W flew from {start} to {eye}");
+    // Let the ground stream in, then look down at it and bomb.
+    let settle = std::time::Instant::now();
+    while h.state().studio.terrain.as_ref().unwrap().world.loaded_count() < 50
+        && settle.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(10));
+        h.step();
+    }
+    h.state_mut().studio.terrain.as_mut().unwrap().pitch = 1.2;
+    for _ in 0..200 {
+        std::thread::sleep(Duration::from_millis(5));
+        h.step();
+        if h.state().studio.terrain.as_ref().unwrap().world.pending_count() == 0 {
+            break;
+        }
+    }
+    h.key_press(egui::Key::B);
+    h.step();
+    assert_eq!(h.state().studio.terrain.as_ref().unwrap().projectiles.len(), 1, "B launched a bomb");
+    let flight = std::time::Instant::now();
+    while h.state().studio.terrain.as_ref().unwrap().craters == 0 && flight.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_millis(10));
+        h.step();
+    }
+    let t = h.state().studio.terrain.as_ref().unwrap();
+    assert_eq!(t.craters, 1, "the bomb hit the ground");
+    assert!(!t.particles.is_empty(), "debris flies");
+    assert!(!t.particle_mesh().indices.is_empty(), "debris is drawn");
+    assert!(t.world.can_undo());
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert!(h.state().studio.terrain.as_ref().unwrap().world.can_redo(), "Ctrl+Z undid the crater");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
+    h.step();
+    let eye = h.state().studio.terrain.as_ref().unwrap().eye;
+    h.get_by_label("Terrain").click();
+    h.run_steps(3);
+    h.get_by_label("Close world").click();
+    h.run_steps(3);
+    assert!(h.state().studio.terrain.is_none(), "{}", h.state().studio.message);
+    // Reopened: the crater is in the file, the viewer where it was.
+    h.get_by_label("Terrain").click();
+    h.run_steps(3);
+    h.get_by_label("Open world…").click();
+    h.run_steps(3);
+    let field = h.get_by_label("Path:");
+    field.focus();
+    h.run_steps(3);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    type_keys(&mut h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run_steps(3);
+    let t = h.state().studio.terrain.as_ref().expect("the world opened");
+    assert!(t.eye.distance(eye) < 1e-9, "the viewer is back at {eye}, not {}", t.eye);
+    assert!(!t.world.store().unwrap().edited_keys().unwrap().is_empty(), "the crater was written");
+    h.get_by_label("Terrain").click();
+    h.run_steps(3);
+    h.get_by_label("Close world").click();
+    h.run_steps(3);
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -312,6 +312,11 @@ impl World {
         self.failed.iter().map(|(k, w)| (*k, w.as_str()))
     }
 
+    /// Chunks requested from the workers or waiting to be integrated.
+    pub fn pending_count(&self) -> usize {
+        self.pending.len()
+    }
+
     /// Edited chunks not yet written.
     pub fn unflushed(&self) -> usize {
         self.dirty.len() + self.evicted_dirty.len()
