@@ -33,6 +33,28 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
     Ok(gpu.info.name.clone())
 }
 
+/// Renders terrain of the default recipe with `seed`, seen from where terrain mode starts, at
+/// `size` into the PNG at `out`, after streaming and meshing everything in view. Returns the
+/// adapter's name.
+pub fn terrain_screenshot(seed: u32, out: &Path, size: (u32, u32)) -> anyhow::Result<String> {
+    let settings = strata_terrain::WorldSettings { view_distance: 128.0, ..Default::default() };
+    let mut mode = crate::terrain::TerrainMode::in_memory(&strata_terrain::Recipe::with_seed(seed), settings)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    if !mode.settle(std::time::Duration::from_secs(600)) {
+        anyhow::bail!("the terrain did not finish streaming in ten minutes");
+    }
+    let gpu = Gpu::headless()?;
+    let mut renderer = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    renderer.set_palette(&gpu.queue, &palette(&strata_editor::Scene::default()));
+    for (key, mesh) in mode.meshes() {
+        renderer.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [1.0; 3]);
+    }
+    let settings = FrameSettings { camera: mode.camera(), ..Default::default() };
+    let image = render_offscreen(&gpu, &mut renderer, size.0, size.1, &settings)?;
+    image.save_png(out)?;
+    Ok(gpu.info.name.clone())
+}
+
 /// Uploads every chunk mesh of every visible layer.
 pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, queue: &wgpu::Queue, renderer: &mut Renderer) {
     renderer.clear();

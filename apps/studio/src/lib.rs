@@ -15,7 +15,7 @@ mod studio;
 pub mod terrain;
 
 pub use app::{Dialogs, StudioApp, run_window};
-pub use headless::screenshot;
+pub use headless::{screenshot, terrain_screenshot};
 pub use studio::{Action, ImportJob, PendingImport, Studio, default_scene};
 
 /// Every keyboard and mouse binding, as the help overlay (F1) lists them.

@@ -20,6 +20,9 @@ struct Cli {
     /// Draw the wireframe in the screenshot.
     #[arg(long)]
     wireframe: bool,
+    /// With --screenshot: render terrain of the default recipe with this seed instead of a scene.
+    #[arg(long)]
+    terrain: Option<u32>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -30,7 +33,10 @@ fn main() -> anyhow::Result<()> {
             .split_once('x')
             .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
             .ok_or_else(|| anyhow::anyhow!("--size must look like 1280x800"))?;
-        let adapter = screenshot(cli.scene.as_deref(), &out, (w, h), cli.wireframe)?;
+        let adapter = match cli.terrain {
+            Some(seed) => strata_studio::terrain_screenshot(seed, &out, (w, h))?,
+            None => screenshot(cli.scene.as_deref(), &out, (w, h), cli.wireframe)?,
+        };
         eprintln!("wrote {} ({w}×{h}, {adapter})", out.display());
         return Ok(());
     }

@@ -101,6 +101,27 @@ impl TerrainMode {
         Ok(Self::around(world, None))
     }
 
+    /// A world of `recipe` in memory only (previews, screenshots).
+    pub fn in_memory(recipe: &Recipe, settings: WorldSettings) -> Result<Self, String> {
+        let world = World::in_memory(recipe, settings).map_err(|e| e.to_string())?;
+        Ok(Self::around(world, None))
+    }
+
+    /// Streams and meshes until everything in view is loaded and meshed, or `timeout` passes;
+    /// returns whether it all was.
+    pub fn settle(&mut self, timeout: Duration) -> bool {
+        let start = Instant::now();
+        let eye = self.eye;
+        let streamed = self.world.settle(&[eye], timeout);
+        loop {
+            self.tick(0.0, Duration::from_millis(50));
+            if self.remesh_pending() == 0 || start.elapsed() > timeout {
+                break;
+            }
+        }
+        streamed && self.remesh_pending() == 0
+    }
+
     /// Opens the world file at `path`, where its viewer last was.
     pub fn open(path: &Path, settings: WorldSettings) -> Result<Self, String> {
         let world = World::open(path, settings).map_err(|e| e.to_string())?;
