@@ -10,8 +10,8 @@ cargo fmt --all -- --check
 echo "== clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 
-echo "== layering: the volume core and the editor core depend on no GPU, UI or windowing crate"
-for core in strata-volume strata-editor; do
+echo "== layering: the volume core, the editor core and the terrain crate depend on no GPU, UI or windowing crate"
+for core in strata-volume strata-editor strata-terrain; do
   if cargo tree -p "$core" -e normal | grep -E '(wgpu|egui|eframe|winit) v'; then
     echo "$core must not depend on the crates above" >&2
     exit 1

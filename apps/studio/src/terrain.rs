@@ -9,11 +9,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
-use strata_mesh::{Mesh, MeshCache, mesh_block};
+use strata_mesh::{Mesh, MeshCache, MeshWorkers};
 use strata_render::Camera;
 use strata_terrain::{Recipe, World, WorldSettings};
 use strata_volume::brush::{Aabb, Brush, SdfBrush, Sphere};
-use strata_volume::{ChunkKey, CsgOp, EditSettings, VoxelBlock};
+use strata_volume::{ChunkKey, CsgOp, EditSettings};
 
 /// A bomb in flight.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,6 +86,7 @@ pub struct TerrainMode {
     pub craters: usize,
     meshes: HashMap<ChunkKey, Mesh>,
     to_mesh: HashSet<ChunkKey>,
+    mesher: MeshWorkers,
     /// Chunks whose mesh changed since the window last uploaded (`None` in [`Self::mesh`]: remove).
     pub uploads: Vec<ChunkKey>,
     seed: u64,
@@ -118,6 +119,7 @@ impl TerrainMode {
             if self.remesh_pending() == 0 || start.elapsed() > timeout {
                 break;
             }
+            std::thread::sleep(Duration::from_millis(1));
         }
         streamed && self.remesh_pending() == 0
     }
@@ -155,6 +157,7 @@ impl TerrainMode {
             craters: 0,
             meshes: HashMap::new(),
             to_mesh: HashSet::new(),
+            mesher: MeshWorkers::new(1),
             uploads: Vec::new(),
             seed: 0x9E37_79B9_7F4A_7C15,
         }
@@ -208,8 +211,9 @@ impl TerrainMode {
         }
     }
 
-    /// One frame: stream around the eye, remesh changed chunks nearest first until `budget` has
-    /// passed, fly the bombs (blasting a crater where one hits) and the debris.
+    /// One frame: stream around the eye, hand changed chunks to the mesher thread nearest first
+    /// (snapshots of their neighbourhoods, until `budget` has passed), take the meshes it
+    /// finished, fly the bombs (blasting a crater where one hits) and the debris.
     pub fn tick(&mut self, dt: f64, budget: Duration) {
         let start = Instant::now();
         let dt = if dt.is_finite() { dt.clamp(0.0, 0.25) } else { 0.0 };
@@ -218,8 +222,12 @@ impl TerrainMode {
             for d in MeshCache::dependents(&[k]) {
                 if self.world.is_loaded(d) {
                     self.to_mesh.insert(d);
-                } else if self.meshes.remove(&d).is_some() {
-                    self.uploads.push(d);
+                } else {
+                    self.to_mesh.remove(&d);
+                    self.mesher.cancel(d);
+                    if self.meshes.remove(&d).is_some() {
+                        self.uploads.push(d);
+                    }
                 }
             }
         }
@@ -227,15 +235,17 @@ impl TerrainMode {
         let dist = |k: &ChunkKey| (k.origin_grid().as_dvec3() + DVec3::splat(8.0)).distance_squared(eye);
         let mut order: Vec<(f64, ChunkKey)> = self.to_mesh.iter().map(|k| (dist(k), *k)).collect();
         order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let mut block = VoxelBlock::default();
         for (_, k) in order {
             if start.elapsed() >= budget {
                 break;
             }
             self.to_mesh.remove(&k);
-            self.world.volume().extract_block_into(k, &mut block);
-            let mut mesh = Mesh::default();
-            mesh_block(&block, &mut mesh);
+            self.mesher.submit(self.world.volume(), k);
+        }
+        for (k, mesh) in self.mesher.finished() {
+            if !self.world.is_loaded(k) {
+                continue;
+            }
             if mesh.indices.is_empty() {
                 if self.meshes.remove(&k).is_some() {
                     self.uploads.push(k);
@@ -343,9 +353,9 @@ impl TerrainMode {
         self.meshes.iter().map(|(k, m)| (*k, m))
     }
 
-    /// Chunks waiting for a remesh.
+    /// Chunks waiting for a remesh (not yet handed to the mesher, or not back from it).
     pub fn remesh_pending(&self) -> usize {
-        self.to_mesh.len()
+        self.to_mesh.len() + self.mesher.pending()
     }
 
     /// The debris (and the bombs in flight) as one mesh of small cubes, in their materials.
@@ -400,7 +410,7 @@ impl TerrainMode {
             self.eye.z,
             self.world.loaded_count(),
             self.meshes.len(),
-            self.to_mesh.len(),
+            self.remesh_pending(),
             self.craters,
             self.world.unflushed()
         )

@@ -33,8 +33,10 @@ mod marching;
 mod mesh;
 pub mod normals;
 pub mod qef;
+mod workers;
 
 pub use cache::{LevelCap, MeshCache};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks};
 pub use mesh::{Mesh, VertexMaterial};
+pub use workers::MeshWorkers;

@@ -1,0 +1,175 @@
+//! Marching cubes on worker threads, for streamed worlds whose main thread must stay within a
+//! frame budget.
+//!
+//! A chunk's mesh reads the chunk and the neighbours its voxel block's apron reaches (the chunks
+//! at offsets `{0, 1}³` in a volume of one level, all 26 around it otherwise). [`MeshWorkers::submit`]
+//! copies exactly those into a small snapshot volume (a few kilobytes; the main thread's only
+//! cost) and a worker meshes the snapshot, so the main thread never waits for a mesh and the
+//! world may change meanwhile: a result is kept only if no newer request for its chunk was made.
+
+use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+use glam::IVec3;
+use strata_volume::{ChunkKey, KeyHasher, Volume, VoxelBlock};
+
+use crate::{Mesh, mesh_block};
+
+struct Job {
+    key: ChunkKey,
+    ticket: u64,
+    snapshot: Volume,
+}
+
+/// Meshes chunks on worker threads (see the module docs).
+pub struct MeshWorkers {
+    jobs: Option<Sender<Job>>,
+    done: Receiver<(ChunkKey, u64, Mesh)>,
+    latest: HashMap<ChunkKey, u64, BuildHasherDefault<KeyHasher>>,
+    next: u64,
+    workers: Vec<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for MeshWorkers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeshWorkers")
+            .field("pending", &self.latest.len())
+            .field("threads", &self.workers.len())
+            .finish()
+    }
+}
+
+impl MeshWorkers {
+    /// `threads` workers (at least one).
+    pub fn new(threads: usize) -> Self {
+        let (tx, rx) = channel::<Job>();
+        let rx = Arc::new(Mutex::new(rx));
+        let (done_tx, done) = channel();
+        let workers = (0..threads.max(1))
+            .map(|i| {
+                let (rx, done_tx) = (rx.clone(), done_tx.clone());
+                std::thread::Builder::new()
+                    .name(format!("mesher-{i}"))
+                    .spawn(move || {
+                        let mut block = VoxelBlock::default();
+                        loop {
+                            let job = match rx.lock() {
+                                Ok(r) => r.recv(),
+                                Err(_) => return,
+                            };
+                            let Ok(job) = job else { return };
+                            job.snapshot.extract_block_into(job.key, &mut block);
+                            let mut mesh = Mesh::default();
+                            mesh_block(&block, &mut mesh);
+                            if done_tx.send((job.key, job.ticket, mesh)).is_err() {
+                                return;
+                            }
+                        }
+                    })
+                    .expect("a mesher thread starts")
+            })
+            .collect();
+        MeshWorkers { jobs: Some(tx), done, latest: HashMap::default(), next: 0, workers }
+    }
+
+    /// The chunks the mesh of `key` reads in `volume`.
+    pub fn reads(volume: &Volume, key: ChunkKey) -> Vec<ChunkKey> {
+        if volume.single_level() {
+            (0..8).map(|d| key.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))).collect()
+        } else {
+            key.around().collect()
+        }
+    }
+
+    /// Asks for a new mesh of `key` as `volume` is now (replacing any request not yet done).
+    pub fn submit(&mut self, volume: &Volume, key: ChunkKey) {
+        let mut snapshot = Volume::with_level(volume.level());
+        for k in Self::reads(volume, key) {
+            if let Some(c) = volume.chunk(k) {
+                snapshot.put_chunk(k, Some(c.clone()), volume.chunk_materials(k).cloned());
+            }
+        }
+        self.next += 1;
+        self.latest.insert(key, self.next);
+        if let Some(tx) = &self.jobs {
+            let _ = tx.send(Job { key, ticket: self.next, snapshot });
+        }
+    }
+
+    /// Forgets a request (its chunk left memory): its result will be dropped.
+    pub fn cancel(&mut self, key: ChunkKey) {
+        self.latest.remove(&key);
+    }
+
+    /// Meshes finished since the last call, of the latest request for their chunk.
+    pub fn finished(&mut self) -> Vec<(ChunkKey, Mesh)> {
+        let mut out = Vec::new();
+        while let Ok((key, ticket, mesh)) = self.done.try_recv() {
+            if self.latest.get(&key) == Some(&ticket) {
+                self.latest.remove(&key);
+                out.push((key, mesh));
+            }
+        }
+        out
+    }
+
+    /// Requests not finished yet.
+    pub fn pending(&self) -> usize {
+        self.latest.len()
+    }
+}
+
+impl Drop for MeshWorkers {
+    fn drop(&mut self) {
+        // Closing the channel ends every worker once the queue is drained.
+        self.jobs = None;
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+    use strata_volume::brush::Sphere;
+
+    fn mesh_of(v: &Volume, k: ChunkKey) -> Mesh {
+        let (mut b, mut m) = (VoxelBlock::default(), Mesh::default());
+        v.extract_block_into(k, &mut b);
+        mesh_block(&b, &mut m);
+        m
+    }
+
+    #[test]
+    fn worker_meshes_equal_direct_meshing_and_stale_requests_are_dropped() {
+        let mut v = Volume::new();
+        v.add(&Sphere::new(DVec3::new(20.0, 18.0, 15.0), 11.0).unwrap()).unwrap();
+        let before = v.clone();
+        let keys = crate::surface_chunks(&v);
+        let mut workers = MeshWorkers::new(2);
+        for &k in &keys {
+            workers.submit(&v, k);
+        }
+        // A second request for the first chunk after an edit: only its result counts.
+        v.subtract(&Sphere::new(DVec3::new(20.0, 18.0, 4.0), 5.0).unwrap()).unwrap();
+        workers.submit(&v, keys[0]);
+        let mut got = HashMap::new();
+        let start = std::time::Instant::now();
+        while workers.pending() > 0 && start.elapsed() < std::time::Duration::from_secs(60) {
+            got.extend(workers.finished());
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        assert_eq!(workers.pending(), 0);
+        assert_eq!(got.len(), keys.len());
+        for &k in &keys {
+            let want = if k == keys[0] { mesh_of(&v, k) } else { mesh_of(&before, k) };
+            let m = &got[&k];
+            assert_eq!((&m.positions, &m.indices), (&want.positions, &want.indices), "{k:?}");
+        }
+    }
+}
