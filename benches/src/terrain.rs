@@ -292,6 +292,7 @@ fn streaming(recipe: &Recipe, (view, speed, seconds): (f64, f64, f64)) -> anyhow
         frame_budget: Duration::from_millis(2),
         flush_interval: Duration::from_secs(2),
         memory_budget: usize::MAX,
+        ..WorldSettings::default()
     };
     let mut world = World::in_memory(recipe, settings)?;
     let frame = Duration::from_secs_f64(1.0 / 60.0);

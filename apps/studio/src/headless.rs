@@ -37,7 +37,7 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
 /// `size` into the PNG at `out`, after streaming and meshing everything in view. Returns the
 /// adapter's name.
 pub fn terrain_screenshot(seed: u32, out: &Path, size: (u32, u32)) -> anyhow::Result<String> {
-    let settings = strata_terrain::WorldSettings { view_distance: 128.0, ..Default::default() };
+    let settings = strata_terrain::WorldSettings { view_distance: 128.0, detail_distance: 40.0, ..Default::default() };
     let mut mode = crate::terrain::TerrainMode::in_memory(&strata_terrain::Recipe::with_seed(seed), settings)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     if !mode.settle(std::time::Duration::from_secs(600)) {

@@ -201,6 +201,7 @@ impl Studio {
             terrain: None,
             world_settings: strata_terrain::WorldSettings {
                 view_distance: 192.0,
+                detail_distance: 40.0,
                 ..strata_terrain::WorldSettings::default()
             },
             camera,

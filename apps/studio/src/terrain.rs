@@ -218,8 +218,11 @@ impl TerrainMode {
         let start = Instant::now();
         let dt = if dt.is_finite() { dt.clamp(0.0, 0.25) } else { 0.0 };
         self.world.update(&[self.eye]);
+        let mixed = !self.world.volume().single_level();
         for k in self.world.take_changed() {
-            for d in MeshCache::dependents(&[k]) {
+            // Between levels a chunk's block reads all its neighbours (seams are patched).
+            let dependents = if mixed { k.around().collect() } else { MeshCache::dependents(&[k]) };
+            for d in dependents {
                 if self.world.is_loaded(d) {
                     self.to_mesh.insert(d);
                 } else {

@@ -553,6 +553,7 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     h.state_mut().studio.world_settings.view_distance = 40.0;
     h.state_mut().studio.world_settings.threads = 2;
     h.state_mut().studio.world_settings.vertical_ratio = 1.5;
+    h.state_mut().studio.world_settings.detail_distance = 16.0;
     h.run();
     h.get_by_label("Terrain").click();
     h.run();

@@ -180,7 +180,14 @@ pub(crate) fn block_vertex_keys(block: &VoxelBlock) -> Vec<EdgeKey> {
         .iter()
         .flat_map(|&a| block.crossings(a).iter().map(move |c| vertex_key(key, level, a, c.lower.map(u32::from), c.t)))
         .collect();
+    let found =
+        |(axis, l): (Axis, [u16; 3])| block.crossing_index(axis, l[0] as usize, l[1] as usize, l[2] as usize).is_some();
     for seam in block.seams() {
+        // As in `split_seams`: a seam whose ends are not both crossings of this block adds no
+        // vertices.
+        if !(found(seam.a) && found(seam.b)) {
+            continue;
+        }
         for p in &seam.points {
             ids.push(vertex_key(key, p.level, p.axis, p.lower.map(u32::from), p.t));
         }

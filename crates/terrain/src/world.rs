@@ -50,6 +50,12 @@ pub struct WorldSettings {
     pub flush_interval: Duration,
     /// Heap bytes of loaded chunks the world may hold; chunks beyond it wait.
     pub memory_budget: usize,
+    /// Chunks within this horizontal distance of a viewer (and the vertical ratio of it) are
+    /// generated at [`WorldSettings::detail_level`], the others at the base level (16³ cells):
+    /// near terrain fine, far terrain coarse. 0 turns it off.
+    pub detail_distance: f64,
+    /// The level of the chunks near the viewers (1: 32³ cells a chunk, 2: 64³).
+    pub detail_level: Level,
 }
 
 impl Default for WorldSettings {
@@ -61,6 +67,8 @@ impl Default for WorldSettings {
             frame_budget: Duration::from_millis(4),
             flush_interval: Duration::from_secs(2),
             memory_budget: 512 << 20,
+            detail_distance: 0.0,
+            detail_level: Level::new(1).expect("level 1 exists"),
         }
     }
 }
@@ -109,6 +117,7 @@ struct Job {
     key: ChunkKey,
     ticket: u64,
     distance: f64,
+    level: Level,
 }
 
 /// The workers' queue.
@@ -123,7 +132,8 @@ struct Queue {
 struct Done {
     key: ChunkKey,
     ticket: u64,
-    result: Result<StoredChunk, String>,
+    /// The contents, and whether they came from the database (an edited chunk).
+    result: Result<(StoredChunk, bool), String>,
 }
 
 /// Shared with the workers.
@@ -146,6 +156,9 @@ pub struct World {
     loaded_bytes: usize,
     /// Loaded chunks edited since the last flush.
     dirty: KeySet,
+    /// Loaded chunks that differ from the recipe (edited here or read from the database): their
+    /// level stays what it is when the viewer moves.
+    edited: KeySet,
     /// Edited chunks that left memory before they were flushed.
     evicted_dirty: KeyMap<StoredChunk>,
     /// Requests sent to workers: key → ticket.
@@ -216,6 +229,9 @@ impl World {
         if settings.threads == 0 || settings.threads > 256 {
             return Err(WorldError::Setting("threads"));
         }
+        if !(settings.detail_distance.is_finite() && (0.0..=1e6).contains(&settings.detail_distance)) {
+            return Err(WorldError::Setting("detail_distance"));
+        }
         let field = Arc::new(field);
         let store = store.map(Arc::new);
         let shared = Arc::new(Shared {
@@ -230,7 +246,7 @@ impl World {
                 let (field, store, shared, tx) = (field.clone(), store.clone(), shared.clone(), tx.clone());
                 std::thread::Builder::new()
                     .name(format!("terrain-{i}"))
-                    .spawn(move || work(&field, store.as_deref(), level, &shared, &tx))
+                    .spawn(move || work(&field, store.as_deref(), &shared, &tx))
                     .expect("a worker thread starts")
             })
             .collect();
@@ -243,6 +259,7 @@ impl World {
             loaded: KeySet::default(),
             loaded_bytes: 0,
             dirty: KeySet::default(),
+            edited: KeySet::default(),
             evicted_dirty: KeyMap::default(),
             pending: KeyMap::default(),
             next_ticket: 0,
@@ -331,8 +348,12 @@ impl World {
     /// nearest point is within the horizontal view distance of the viewer's chunk centre, and the
     /// chunk's height range meets the vertical view distance around it.
     fn in_stencil(&self, o: IVec3) -> bool {
+        self.within(o, self.settings.view_distance)
+    }
+
+    /// [`World::in_stencil`] for a horizontal distance `r`.
+    fn within(&self, o: IVec3, r: f64) -> bool {
         let c = CHUNK_CELLS as f64;
-        let r = self.settings.view_distance;
         let rv = r * self.settings.vertical_ratio;
         let near = |d: i32| {
             // Nearest point of [d c, d c + c] to the centre c / 2.
@@ -373,6 +394,17 @@ impl World {
             out.extend(stencil.iter().map(|&o| ChunkKey(at + o)));
         }
         out
+    }
+
+    /// The level chunk `key` is generated at for viewers in the chunks `at`.
+    fn level_for(&self, key: ChunkKey, at: &[IVec3]) -> Level {
+        let d = self.settings.detail_distance;
+        if d > 0.0 && at.iter().any(|&c| self.within(key.0 - c, d)) { self.settings.detail_level } else { self.level }
+    }
+
+    /// The level chunk `key` is generated at for the current viewers.
+    pub fn generated_level(&self, key: ChunkKey) -> Level {
+        self.level_for(key, &self.desired_for)
     }
 
     fn stencil_cached(&mut self) -> Arc<[IVec3]> {
@@ -453,13 +485,43 @@ impl World {
             // Outside the lock (workers go on with what they hold): drop stale requests, add the
             // new ones, order by distance (the old order is nearly right: the sort is cheap).
             jobs.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
+            // Chunks that crossed the detail distance are generated again at their new level
+            // (the old version stays until the new one is integrated); edited ones keep theirs.
+            if self.settings.detail_distance > 0.0 {
+                let r = (self.settings.detail_distance / CHUNK_CELLS as f64).ceil() as i32 + 2;
+                let rv = (self.settings.detail_distance * self.settings.vertical_ratio / CHUNK_CELLS as f64).ceil()
+                    as i32
+                    + 2;
+                let mut near = KeySet::default();
+                for c in from.iter().chain(self.desired_for.iter()) {
+                    for z in -r..=r {
+                        for y in -rv..=rv {
+                            for x in -r..=r {
+                                near.insert(ChunkKey(*c + IVec3::new(x, y, z)));
+                            }
+                        }
+                    }
+                }
+                for key in near {
+                    let Some(now) = self.volume.stored_level(key) else { continue };
+                    if !self.loaded.contains(&key) || self.dirty.contains(&key) || self.edited.contains(&key) {
+                        continue;
+                    }
+                    let want = self.level_for(key, &self.desired_for);
+                    if want != now {
+                        wanted.push(key);
+                    }
+                }
+            }
             for key in wanted {
                 self.next_ticket += 1;
                 self.pending.insert(key, self.next_ticket);
-                jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0 });
+                let level = self.level_for(key, &self.desired_for);
+                jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0, level });
             }
             for j in jobs.iter_mut() {
                 j.distance = Self::distance(viewers, j.key);
+                j.level = self.level_for(j.key, &self.desired_for);
             }
             jobs.sort_unstable_by(|a, b| b.distance.total_cmp(&a.distance).then(b.key.cmp(&a.key)));
             {
@@ -481,7 +543,7 @@ impl World {
             });
         }
         while let Some(done) = self.ready.pop() {
-            let bytes = done.result.as_ref().map_or(0, |s| s.chunk.as_ref().map_or(0, |c| c.heap_bytes()));
+            let bytes = done.result.as_ref().map_or(0, |s| s.0.chunk.as_ref().map_or(0, |c| c.heap_bytes()));
             if self.loaded_bytes + bytes > self.settings.memory_budget {
                 report.over_budget = true;
                 self.ready.push(done);
@@ -489,7 +551,14 @@ impl World {
             }
             self.pending.remove(&done.key);
             match done.result {
-                Ok(stored) => {
+                Ok((stored, edited)) => {
+                    if self.dirty.contains(&done.key) {
+                        // Edited since it was asked for: the edit wins.
+                        continue;
+                    }
+                    if edited {
+                        self.edited.insert(done.key);
+                    }
                     self.integrate(done.key, stored);
                     report.integrated += 1;
                 }
@@ -511,7 +580,8 @@ impl World {
 
     fn integrate(&mut self, key: ChunkKey, stored: StoredChunk) {
         self.loaded_bytes += stored.chunk.as_ref().map_or(0, |c| c.heap_bytes());
-        self.volume.put_chunk(key, stored.chunk, stored.materials);
+        let (old, _) = self.volume.put_chunk(key, stored.chunk, stored.materials);
+        self.loaded_bytes -= old.as_ref().map_or(0, |c| c.heap_bytes());
         self.loaded.insert(key);
         self.changed.push(key);
     }
@@ -520,6 +590,7 @@ impl World {
         let (chunk, materials) = self.volume.take_chunk(key);
         self.loaded_bytes -= chunk.as_ref().map_or(0, |c| c.heap_bytes());
         self.loaded.remove(&key);
+        self.edited.remove(&key);
         if self.dirty.remove(&key) {
             self.evicted_dirty.insert(key, StoredChunk { chunk, materials });
         }
@@ -530,19 +601,26 @@ impl World {
     /// evicted-but-unflushed ones, then the database, else generated).
     pub fn load_now(&mut self, keys: &[ChunkKey]) -> Result<(), WorldError> {
         for &key in keys {
+            // A request in flight (a regeneration at another level) must not replace what an
+            // edit is about to change.
+            if self.pending.remove(&key).is_some() {
+                self.ready.retain(|d| d.key != key);
+            }
             if self.loaded.contains(&key) {
                 continue;
             }
-            self.pending.remove(&key);
-            self.ready.retain(|d| d.key != key);
             if let Some(stored) = self.evicted_dirty.remove(&key) {
                 self.integrate(key, stored);
                 self.dirty.insert(key);
                 continue;
             }
-            let stored = produce(&self.field, self.store.as_deref(), self.level, key)
+            let level = self.level_for(key, &self.desired_for);
+            let (stored, edited) = produce(&self.field, self.store.as_deref(), level, key)
                 .map_err(|why| WorldError::Unreadable(key.0.to_array(), why))?;
             self.failed.remove(&key);
+            if edited {
+                self.edited.insert(key);
+            }
             self.integrate(key, stored);
         }
         Ok(())
@@ -591,6 +669,7 @@ impl World {
     fn after_change(&mut self, keys: &[ChunkKey]) {
         for &k in keys {
             self.dirty.insert(k);
+            self.edited.insert(k);
             self.loaded.insert(k);
             self.changed.push(k);
         }
@@ -715,23 +794,24 @@ impl Drop for World {
     }
 }
 
-/// A chunk's contents: its edited version from the database, else generated.
+/// A chunk's contents: its edited version from the database (`true`), else generated at
+/// `level`.
 fn produce(
     field: &TerrainField,
     store: Option<&WorldStore>,
     level: Level,
     key: ChunkKey,
-) -> Result<StoredChunk, String> {
+) -> Result<(StoredChunk, bool), String> {
     if let Some(store) = store
         && let Some(stored) = store.read(key).map_err(|e| e.to_string())?
     {
-        return Ok(stored);
+        return Ok((stored, true));
     }
     let g = generate_chunk(key, level, field);
-    Ok(StoredChunk { chunk: g.chunk, materials: g.materials })
+    Ok((StoredChunk { chunk: g.chunk, materials: g.materials }, false))
 }
 
-fn work(field: &TerrainField, store: Option<&WorldStore>, level: Level, shared: &Shared, tx: &Sender<Done>) {
+fn work(field: &TerrainField, store: Option<&WorldStore>, shared: &Shared, tx: &Sender<Done>) {
     loop {
         let job = {
             let mut q = shared.queue.lock().expect("the queue lock is never poisoned");
@@ -745,7 +825,7 @@ fn work(field: &TerrainField, store: Option<&WorldStore>, level: Level, shared: 
                 q = shared.wake.wait(q).expect("the queue lock is never poisoned");
             }
         };
-        let result = produce(field, store, level, job.key);
+        let result = produce(field, store, job.level, job.key);
         if tx.send(Done { key: job.key, ticket: job.ticket, result }).is_err() {
             return;
         }

@@ -17,6 +17,7 @@ fn settings() -> WorldSettings {
         frame_budget: Duration::from_millis(5),
         flush_interval: Duration::from_secs(3600),
         memory_budget: usize::MAX,
+        ..WorldSettings::default()
     }
 }
 

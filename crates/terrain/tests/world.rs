@@ -25,6 +25,7 @@ fn settings(view: f64) -> WorldSettings {
         frame_budget: Duration::from_millis(20),
         flush_interval: Duration::from_secs(3600),
         memory_budget: usize::MAX,
+        ..WorldSettings::default()
     }
 }
 
@@ -266,4 +267,84 @@ fn every_tool_and_brush_edits_a_streamed_world_and_undoes() {
     assert!(edits >= 10, "the edits changed the world ({edits})");
     while world.undo().unwrap() {}
     assert_eq!(snapshot(&world, &loaded), generated, "undoing everything gives the generated world back");
+}
+
+/// Detail near the viewer: chunks within the detail distance are generated at level 1, the
+/// others at the base level; moving away brings them back to the base level; the loaded
+/// volume keeps every invariant across the seams between levels, its welded marching-cubes mesh
+/// is closed, and an edit in a fine chunk keeps its level when the viewer leaves.
+#[test]
+fn chunks_near_the_viewer_are_finer_and_follow_it() {
+    let mut s = settings(48.0);
+    s.detail_distance = 20.0;
+    let mut world = World::in_memory(&Recipe::with_seed(8), s).unwrap();
+    let fine = strata_volume::Level::new(1).unwrap();
+    let check = |world: &World| {
+        let loaded: HashSet<ChunkKey> = world.loaded().collect();
+        let mut counts = [0usize; 2];
+        for &k in &loaded {
+            if let Some(l) = world.volume().stored_level(k) {
+                assert_eq!(l, world.generated_level(k), "{k:?} at the level its distance asks for");
+                counts[l.get() as usize] += 1;
+            }
+        }
+        world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
+        closed_inside(world, &loaded);
+        counts
+    };
+    let home = DVec3::new(8.0, 0.0, 8.0);
+    assert!(world.settle(&[home], SETTLE));
+    let counts = check(&world);
+    assert!(counts[0] > 0 && counts[1] > 0, "both levels in view: {counts:?}");
+    // An edit near the viewer, in fine chunks.
+    let hit = world.volume().raycast(home + DVec3::Y * 100.0, -DVec3::Y, 300.0).unwrap().point;
+    let report = world.edit(bounds_of(hit, 3.0), crater(hit, 3.0)).unwrap();
+    let edited: Vec<ChunkKey> =
+        report.changed.iter().copied().filter(|k| world.volume().stored_level(*k) == Some(fine)).collect();
+    assert!(!edited.is_empty());
+    let away = home + DVec3::new(40.0, 0.0, 0.0);
+    assert!(world.settle(&[away], SETTLE));
+    for &k in &edited {
+        if world.is_loaded(k) {
+            assert_eq!(world.volume().stored_level(k), Some(fine), "the edited chunk {k:?} keeps its level");
+        }
+    }
+    // Apart from the edited chunks, every level follows the viewer.
+    let loaded: HashSet<ChunkKey> = world.loaded().collect();
+    for &k in &loaded {
+        if let Some(l) = world.volume().stored_level(k)
+            && !edited.contains(&k)
+        {
+            assert_eq!(l, world.generated_level(k), "{k:?}");
+        }
+    }
+    world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
+    closed_inside(&world, &loaded);
+}
+
+/// The welded marching-cubes mesh of the loaded chunks has no open or non-manifold edge except
+/// at the border of what is loaded (where the lists continue in chunks not in memory), seams
+/// between levels included.
+fn closed_inside(world: &World, loaded: &HashSet<ChunkKey>) {
+    let mesh = strata_mesh::mesh_volume(world.volume());
+    let mut uses: std::collections::HashMap<(u32, u32), i32> = std::collections::HashMap::new();
+    for t in mesh.indices.chunks_exact(3) {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    for (&(a, b), &n) in &uses {
+        if n == 2 {
+            continue;
+        }
+        let (pa, pb) = (
+            DVec3::from(mesh.positions[a as usize].map(f64::from)),
+            DVec3::from(mesh.positions[b as usize].map(f64::from)),
+        );
+        let mid = (pa + pb) / 2.0;
+        let k = ChunkKey((mid / 16.0).floor().as_ivec3());
+        let at_border = k.around().chain([k]).any(|n| !loaded.contains(&n));
+        assert!(at_border, "edge {pa} – {pb} is used {n} times inside the loaded chunks");
+    }
+    assert!(mesh.indices.len() > 3000, "a mesh was made");
 }
