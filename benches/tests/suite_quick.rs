@@ -61,7 +61,8 @@ fn the_quick_suite_measures_every_table() {
     assert!(g.decided > 0 && g.mixed > 0 && g.decided + g.mixed <= g.chunks, "{g:?}");
     assert!(g.lists_ms > 0.0 && g.dense_ms > 0.0 && g.mesh_lists_ms > 0.0 && g.noise_ns > 0.0);
     assert!(g.triangles.0 > 0 && g.triangles.1 > 0);
-    assert!(terrain.streaming.frames > 0 && terrain.streaming.generated_per_s > 0.0, "{:?}", terrain.streaming);
+    assert_eq!(terrain.streaming.len(), 2, "without and with detail");
+    assert!(terrain.streaming.iter().all(|f| f.frames > 0 && f.generated_per_s > 0.0), "{:?}", terrain.streaming);
     assert!(terrain.paging.iter().all(|p| p.write_batch_per_s > 0.0 && p.read_per_s > 0.0 && p.bytes_per_chunk > 0.0));
     let md = markdown(&results);
     for t in [

@@ -1123,6 +1123,14 @@ impl StudioApp {
     /// drive.
     pub fn show(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
         let ctx = ui.ctx().clone();
+        if ctx.input(|i| i.viewport().close_requested())
+            && let Some(t) = self.studio.terrain.as_mut()
+        {
+            // The world is written as the window closes (its periodic flushes aside).
+            if let Err(e) = t.save() {
+                self.studio.message = format!("Could not write the world: {e}");
+            }
+        }
         if ctx.input(|i| i.viewport().close_requested()) && !self.allow_close {
             if self.studio.is_modified() {
                 ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
