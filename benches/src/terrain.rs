@@ -327,11 +327,8 @@ fn streaming(recipe: &Recipe, (view, speed, seconds, detail): (f64, f64, f64, f6
         let r = world.update(&[viewer]);
         updates.push(t.elapsed());
         integrated += r.integrated;
-        let mixed = !world.volume().single_level();
         for k in world.take_changed() {
-            // Between levels a chunk's block reads all its neighbours (seams are patched).
-            let dependents = if mixed { k.around().collect() } else { strata_mesh::MeshCache::dependents(&[k]) };
-            for d in dependents {
+            for d in strata_mesh::MeshWorkers::readers(world.volume(), k) {
                 if world.is_loaded(d) {
                     to_mesh.insert(d);
                 } else {

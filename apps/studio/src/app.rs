@@ -28,6 +28,29 @@ struct Viewport {
     terrain_shown: bool,
 }
 
+impl Viewport {
+    /// Renders a frame into the viewport's texture and shows it in `rect`.
+    fn present(
+        &mut self,
+        ui: &egui::Ui,
+        rs: &egui_wgpu::RenderState,
+        rect: egui::Rect,
+        size: (u32, u32),
+        settings: &FrameSettings<'_>,
+    ) {
+        let (_, cv, dv) = self.color.as_ref().expect("created before the first frame");
+        self.renderer.render(&rs.device, &rs.queue, cv, dv, size, settings);
+        if let Some(id) = self.texture_id {
+            ui.painter().image(
+                id,
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                egui::Color32::WHITE,
+            );
+        }
+    }
+}
+
 /// Renderer layer ids of terrain mode's chunk meshes and its debris (scene layers count from 0).
 const TERRAIN_LAYER: u32 = 1 << 20;
 const DEBRIS_LAYER: u32 = (1 << 20) + 1;
@@ -1351,16 +1374,7 @@ impl StudioApp {
                 vp.renderer.upload_chunk(&rs.device, &rs.queue, DEBRIS_LAYER, key, &debris, Mat4::IDENTITY, [1.0; 3]);
             }
             let settings = FrameSettings { camera: t.camera(), wireframe: self.studio.wireframe, ..Default::default() };
-            let (_, cv, dv) = vp.color.as_ref().expect("created above");
-            vp.renderer.render(&rs.device, &rs.queue, cv, dv, size, &settings);
-            if let Some(id) = vp.texture_id {
-                ui.painter().image(
-                    id,
-                    rect,
-                    egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                    egui::Color32::WHITE,
-                );
-            }
+            vp.present(ui, rs, rect, size, &settings);
             return;
         }
         if vp.terrain_shown {
@@ -1425,16 +1439,7 @@ impl StudioApp {
             }
         }
         let settings = FrameSettings { camera, wireframe, previews: &previews, ..Default::default() };
-        let (_, cv, dv) = vp.color.as_ref().expect("created above");
-        vp.renderer.render(&rs.device, &rs.queue, cv, dv, size, &settings);
-        if let Some(id) = vp.texture_id {
-            ui.painter().image(
-                id,
-                rect,
-                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                egui::Color32::WHITE,
-            );
-        }
+        vp.present(ui, rs, rect, size, &settings);
         // Repaint on our own only while meshing catches up or a stroke is in progress; pointer
         // and key events repaint anyway, so an idle editor uses no CPU.
         if self.studio.editor.pending() > 0 || self.studio.editor.stroking() {

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
-use strata_mesh::{Mesh, MeshCache, MeshWorkers};
+use strata_mesh::{Mesh, MeshWorkers};
 use strata_render::Camera;
 use strata_terrain::{Recipe, World, WorldSettings};
 use strata_volume::brush::{Aabb, Brush, SdfBrush, Sphere};
@@ -218,11 +218,8 @@ impl TerrainMode {
         let start = Instant::now();
         let dt = if dt.is_finite() { dt.clamp(0.0, 0.25) } else { 0.0 };
         self.world.update(&[self.eye]);
-        let mixed = !self.world.volume().single_level();
         for k in self.world.take_changed() {
-            // Between levels a chunk's block reads all its neighbours (seams are patched).
-            let dependents = if mixed { k.around().collect() } else { MeshCache::dependents(&[k]) };
-            for d in dependents {
+            for d in MeshWorkers::readers(self.world.volume(), k) {
                 if self.world.is_loaded(d) {
                     self.to_mesh.insert(d);
                 } else {

@@ -84,6 +84,12 @@ impl MeshWorkers {
         }
     }
 
+    /// The chunks whose meshes read chunk `key` (the inverse of [`MeshWorkers::reads`]): what
+    /// to remesh when `key` changes.
+    pub fn readers(volume: &Volume, key: ChunkKey) -> Vec<ChunkKey> {
+        if volume.single_level() { crate::MeshCache::dependents(&[key]) } else { key.around().collect() }
+    }
+
     /// Asks for a new mesh of `key` as `volume` is now (replacing any request not yet done).
     pub fn submit(&mut self, volume: &Volume, key: ChunkKey) {
         let mut snapshot = Volume::with_level(volume.level());
