@@ -504,7 +504,8 @@ impl World {
                 }
                 for key in near {
                     let Some(now) = self.volume.stored_level(key) else { continue };
-                    if !self.loaded.contains(&key) || self.dirty.contains(&key) || self.edited.contains(&key) {
+                    let busy = self.pending.contains_key(&key);
+                    if busy || !self.loaded.contains(&key) || self.dirty.contains(&key) || self.edited.contains(&key) {
                         continue;
                     }
                     let want = self.level_for(key, &self.desired_for);
