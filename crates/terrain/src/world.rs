@@ -572,6 +572,11 @@ impl World {
             }
         }
         report.pending = self.pending.len();
+        debug_assert_eq!(
+            self.loaded_bytes,
+            self.loaded.iter().filter_map(|k| self.volume.chunk(*k)).map(|c| c.heap_bytes()).sum::<usize>(),
+            "the running count of loaded bytes"
+        );
         if self.last_flush.elapsed() >= self.settings.flush_interval && (self.unflushed() > 0 || !self.notes.is_empty())
         {
             report.flushed = self.flush().is_ok();
@@ -659,29 +664,44 @@ impl World {
             return Err(WorldError::Edit(format!("an edit reaching {} chunks is too large for a world", near.len())));
         }
         self.load_now(&near)?;
+        let before = self.bytes_of(&near);
         let report = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()))?;
-        self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice());
+        self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
         self.undo.push(report.undo.clone());
         self.redo.clear();
         Ok(report)
     }
 
-    /// Marks `keys` edited: dirty, changed, and their byte counts refreshed.
-    fn after_change(&mut self, keys: &[ChunkKey]) {
+    /// Heap bytes of each of `keys`' chunks now.
+    fn bytes_of(&self, keys: &[ChunkKey]) -> KeyMap<usize> {
+        keys.iter().map(|&k| (k, self.volume.chunk(k).map_or(0, |c| c.heap_bytes()))).collect()
+    }
+
+    /// Marks `keys` edited: dirty, changed, and the loaded bytes moved by their change from
+    /// `before` (their bytes before the change; a key without one makes a full recount).
+    fn after_change(&mut self, keys: &[ChunkKey], before: &KeyMap<usize>) {
         for &k in keys {
             self.dirty.insert(k);
             self.edited.insert(k);
             self.loaded.insert(k);
             self.changed.push(k);
         }
-        self.loaded_bytes = self.loaded.iter().filter_map(|k| self.volume.chunk(*k)).map(|c| c.heap_bytes()).sum();
+        if keys.iter().all(|k| before.contains_key(k)) {
+            for k in keys {
+                let now = self.volume.chunk(*k).map_or(0, |c| c.heap_bytes());
+                self.loaded_bytes = self.loaded_bytes - before[k] + now;
+            }
+        } else {
+            self.loaded_bytes = self.loaded.iter().filter_map(|k| self.volume.chunk(*k)).map(|c| c.heap_bytes()).sum();
+        }
     }
 
     fn restore(&mut self, record: UndoRecord) -> Result<UndoRecord, WorldError> {
         let keys: Vec<ChunkKey> = record.keys().collect();
         self.load_now(&keys)?;
+        let before = self.bytes_of(&keys);
         let back = self.volume.restore(record);
-        self.after_change(&keys);
+        self.after_change(&keys, &before);
         Ok(back)
     }
 
