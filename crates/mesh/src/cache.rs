@@ -6,15 +6,52 @@ use glam::IVec3;
 use rayon::prelude::*;
 use strata_volume::{ChunkKey, Level, Volume, VoxelBlock};
 
-use crate::{Mesh, mesh_block};
+use crate::tetra::TetraScratch;
+use crate::{Mesh, mesh_block, mesh_block_tetra};
 
-/// Marching-cubes meshes by chunk. Positions are chunk-local (grid units from the chunk's
-/// origin), so far-away chunks keep full f32 precision; the renderer places each chunk.
+/// The meshers that mesh each chunk from its voxel block alone (so a chunk's mesh depends on the
+/// chunk and the seven after it, and can be kept up to date incrementally).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BlockMesher {
+    /// Marching cubes ([`crate::mesh_block`]).
+    #[default]
+    MarchingCubes,
+    /// Marching tetrahedra without clustering ([`crate::mesh_block_tetra`]).
+    Tetrahedra,
+    /// Regularised marching tetrahedra: with the integrated clustering.
+    ClusteredTetrahedra,
+}
+
+impl BlockMesher {
+    /// Meshes `block` into `out` (tetrahedra need `scratch`).
+    pub fn mesh(self, block: &VoxelBlock, scratch: &mut TetraScratch, out: &mut Mesh) {
+        match self {
+            BlockMesher::MarchingCubes => mesh_block(block, out),
+            BlockMesher::Tetrahedra => mesh_block_tetra(block, false, scratch, out),
+            BlockMesher::ClusteredTetrahedra => mesh_block_tetra(block, true, scratch, out),
+        }
+    }
+
+    /// Whether this mesher can mesh blocks of a volume whose chunks mix levels (or are capped
+    /// for level of detail): only marching cubes patches the seams between levels.
+    pub fn handles_levels(self) -> bool {
+        self == BlockMesher::MarchingCubes
+    }
+}
+
+/// Meshes by chunk, by marching cubes or (for volumes of one level) marching tetrahedra.
+/// Positions are chunk-local (grid units from the chunk's origin), so far-away chunks keep full
+/// f32 precision; the renderer places each chunk.
 #[derive(Debug, Default, Clone)]
 pub struct MeshCache {
     meshes: HashMap<ChunkKey, Mesh>,
     /// Whether a volume of mixed levels was meshed: seams then reach every neighbour.
     mixed: bool,
+    /// The mesher asked for.
+    mesher: BlockMesher,
+    /// The mesher the stored meshes were made with: marching cubes where tetrahedra were asked
+    /// for but the volume mixes levels (tetrahedra do not patch seams between levels).
+    used: BlockMesher,
 }
 
 /// A level-of-detail cap: chunk `k` is meshed at no finer than `cap(k)`.
@@ -26,9 +63,39 @@ impl MeshCache {
         Self::default()
     }
 
+    /// An empty cache that meshes with `mesher`.
+    pub fn with_mesher(mesher: BlockMesher) -> Self {
+        MeshCache { mesher, used: mesher, ..Self::default() }
+    }
+
+    /// The mesher asked for.
+    pub fn mesher(&self) -> BlockMesher {
+        self.mesher
+    }
+
+    /// The mesher the stored meshes were made with (marching cubes where the asked-for mesher
+    /// cannot mesh the volume's mixed levels).
+    pub fn mesher_used(&self) -> BlockMesher {
+        self.used
+    }
+
+    /// The mesher that meshes `volume` (with or without a level-of-detail cap) with this cache.
+    fn effective(&self, volume: &Volume, capped: bool) -> BlockMesher {
+        if self.mesher.handles_levels() || (volume.single_level() && !capped) {
+            self.mesher
+        } else {
+            BlockMesher::MarchingCubes
+        }
+    }
+
     /// Meshes every chunk of `volume` that can hold surface.
     pub fn build(volume: &Volume) -> Self {
-        let mut cache = Self::new();
+        Self::build_with(volume, BlockMesher::MarchingCubes)
+    }
+
+    /// Meshes every chunk of `volume` that can hold surface with `mesher`.
+    pub fn build_with(volume: &Volume, mesher: BlockMesher) -> Self {
+        let mut cache = Self::with_mesher(mesher);
         let keys = crate::surface_chunks(volume);
         cache.remesh(volume, &keys);
         cache
@@ -62,6 +129,16 @@ impl MeshCache {
     /// Remeshes what an edit that changed `changed` can have affected, in parallel. Returns the
     /// chunks whose mesh was rebuilt (upload those).
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        if self.effective(volume, false) != self.used {
+            // Tetrahedra asked for and the volume went from one level to several or back: every
+            // chunk changes mesher together, so borders never mix the two.
+            let mut keys: Vec<ChunkKey> = self.meshes.keys().copied().collect();
+            keys.extend(crate::surface_chunks(volume));
+            keys.sort();
+            keys.dedup();
+            self.remesh(volume, &keys);
+            return keys;
+        }
         let keys = self.affected(volume, changed);
         self.remesh(volume, &keys);
         keys
@@ -78,16 +155,21 @@ impl MeshCache {
     /// cap): [`MeshCache::commit`] them together, so neighbours swap in the same frame.
     pub fn compute(&mut self, volume: &Volume, keys: &[ChunkKey], cap: Option<LevelCap<'_>>) -> Vec<(ChunkKey, Mesh)> {
         self.mixed |= !volume.single_level() || cap.is_some();
+        let mesher = self.effective(volume, cap.is_some());
+        self.used = mesher;
         keys.par_iter()
-            .map_init(VoxelBlock::default, |block, &key| {
-                match cap {
-                    Some(c) => volume.extract_block_capped(key, c, block),
-                    None => volume.extract_block_into(key, block),
-                }
-                let mut mesh = Mesh::default();
-                mesh_block(block, &mut mesh);
-                (key, mesh)
-            })
+            .map_init(
+                || (VoxelBlock::default(), TetraScratch::default()),
+                |(block, scratch), &key| {
+                    match cap {
+                        Some(c) => volume.extract_block_capped(key, c, block),
+                        None => volume.extract_block_into(key, block),
+                    }
+                    let mut mesh = Mesh::default();
+                    mesher.mesh(block, scratch, &mut mesh);
+                    (key, mesh)
+                },
+            )
             .collect()
     }
 

@@ -148,3 +148,118 @@ pub fn manifold_report(mesh: &Mesh) -> ManifoldReport {
     }
     r
 }
+
+/// Distance from `p` to the triangle `abc`.
+pub fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    // Ericson, Real-Time Collision Detection, 5.1.5: the closest point by Voronoi regions.
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return p.distance(a);
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return p.distance(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return p.distance(a + ab * (d1 / (d1 - d3)));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return p.distance(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return p.distance(a + ac * (d2 / (d2 - d6)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return p.distance(b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < 1e-300 {
+        return p.distance(a).min(p.distance(b)).min(p.distance(c));
+    }
+    p.distance(a + ab * (vb / denom) + ac * (vc / denom))
+}
+
+/// Triangles of a mesh bucketed in a uniform grid, for nearest-surface queries.
+#[derive(Debug)]
+pub struct SurfaceIndex<'a> {
+    mesh: &'a Mesh,
+    cell: f64,
+    buckets: HashMap<(i64, i64, i64), Vec<u32>>,
+}
+
+impl<'a> SurfaceIndex<'a> {
+    /// Buckets of side `cell` (grid units; about the longest edge is a good choice).
+    pub fn new(mesh: &'a Mesh, cell: f64) -> Self {
+        let mut buckets: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
+        for (i, t) in mesh.triangles().enumerate() {
+            let [a, b, c] = corners(mesh, t);
+            let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+            let (l, h) = ((lo / cell).floor(), (hi / cell).floor());
+            for z in l.z as i64..=h.z as i64 {
+                for y in l.y as i64..=h.y as i64 {
+                    for x in l.x as i64..=h.x as i64 {
+                        buckets.entry((x, y, z)).or_default().push(i as u32);
+                    }
+                }
+            }
+        }
+        SurfaceIndex { mesh, cell, buckets }
+    }
+
+    /// Distance from `p` to the nearest triangle, searched out to `max` (returns `max` if none
+    /// is nearer).
+    pub fn distance(&self, p: DVec3, max: f64) -> f64 {
+        let c = (p / self.cell).floor();
+        let r = (max / self.cell).ceil() as i64;
+        let mut best = max;
+        for z in -r..=r {
+            for y in -r..=r {
+                for x in -r..=r {
+                    let Some(ts) = self.buckets.get(&(c.x as i64 + x, c.y as i64 + y, c.z as i64 + z)) else {
+                        continue;
+                    };
+                    for &t in ts {
+                        let [a, b, cc] = corners(
+                            self.mesh,
+                            [
+                                self.mesh.indices[3 * t as usize],
+                                self.mesh.indices[3 * t as usize + 1],
+                                self.mesh.indices[3 * t as usize + 2],
+                            ],
+                        );
+                        best = best.min(point_triangle_distance(p, a, b, cc));
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Points spread over a mesh's surface: its vertices, edge midpoints and triangle centroids.
+fn surface_samples(mesh: &Mesh) -> Vec<DVec3> {
+    let mut out: Vec<DVec3> =
+        mesh.positions.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
+    for t in mesh.triangles() {
+        let [a, b, c] = corners(mesh, t);
+        out.extend([(a + b + c) / 3.0, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5]);
+    }
+    out
+}
+
+/// The symmetric Hausdorff distance between two meshes, measured at the vertices, edge midpoints
+/// and centroids of each against the other's triangles, capped at `max` (grid units).
+pub fn hausdorff(a: &Mesh, b: &Mesh, max: f64) -> f64 {
+    let one_way = |from: &Mesh, to: &Mesh| {
+        let index = SurfaceIndex::new(to, max.max(1.0));
+        surface_samples(from).into_iter().map(|p| index.distance(p, max)).fold(0.0, f64::max)
+    };
+    one_way(a, b).max(one_way(b, a))
+}

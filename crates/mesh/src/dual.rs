@@ -16,6 +16,7 @@ use std::hash::BuildHasherDefault;
 
 use glam::{DVec3, I64Vec3, IVec3, Vec3};
 use rayon::prelude::*;
+use smallvec::SmallVec;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
 
@@ -34,11 +35,67 @@ type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<KeyHasher>>;
 struct ChunkDual {
     n: usize,
     /// Vertices of the chunk's mixed cells, sorted by local cell index `x + n (y + n z)`:
-    /// (cell index, position in grid units from the chunk origin, normal, the blend of the
-    /// materials of the cell's solid corners).
-    cells: Vec<(u32, Vec3, Vec3, VertexMaterial)>,
+    /// (cell index, the cell edges of the surface component the vertex stands for as bits of
+    /// [`local_edge`], position in grid units from the chunk origin, normal, the blend of the
+    /// materials of the cell's solid corners). Manifold dual contouring gives a cell one vertex
+    /// per component; the single-vertex variant one for all.
+    cells: Vec<CellVertex>,
     /// Owned sign-changing edges: axis, lower node, whether the lower node is inside.
     edges: Vec<(Axis, [u16; 3], bool)>,
+    /// The `+` faces (normal axis `fa`) of cells whose four edges all cross the surface and all
+    /// belong to one component of the cell: (cell index, `fa`, for each face corner
+    /// `cu + 2 cv` on the face's axes `fa + 1`, `fa + 2` the midpoint of the face segment that
+    /// cuts it off, chunk-local; meaningful at the inside corners). Where the cell across the
+    /// face has one component through both segments too, their two vertices would join by an
+    /// edge of four quads; the quads go through these midpoints instead.
+    faces: Vec<(u32, u8, [Vec3; 4])>,
+}
+
+/// One vertex of a cell: cell index, component edges, position, normal, material.
+type CellVertex = (u32, u16, Vec3, Vec3, VertexMaterial);
+
+/// The bits of the four edges of a cell's face with normal `fa` at `side` (0 or 1).
+fn face_edges(fa: usize, side: usize) -> u16 {
+    let mut bits = 0;
+    for axis in [(fa + 1) % 3, (fa + 2) % 3] {
+        let other = 3 - fa - axis;
+        for o in 0..2 {
+            let mut off = [0; 3];
+            off[fa] = side;
+            off[other] = o;
+            bits |= 1 << local_edge(axis, off);
+        }
+    }
+    bits
+}
+
+/// For the `+` face along `fa` of `cell` (all four edges crossed), the midpoint of the segment
+/// cutting off each face corner `cu + 2 cv` (axes `fa + 1`, `fa + 2`), chunk-local grid units.
+fn face_midpoints(block: &VoxelBlock, cell: [usize; 3], fa: usize, sp: f64) -> [Vec3; 4] {
+    let (u, v) = ((fa + 1) % 3, (fa + 2) % 3);
+    let point = |axis: usize, at: [usize; 3]| {
+        let c = block.crossing(Axis::from_index(axis), at[0], at[1], at[2]).expect("every face edge crosses");
+        let mut p = Vec3::new(at[0] as f32, at[1] as f32, at[2] as f32);
+        p[axis] += c.t;
+        p * sp as f32
+    };
+    std::array::from_fn(|k| {
+        let (cu, cv) = (k & 1, k >> 1);
+        let mut base = cell;
+        base[fa] += 1;
+        // The edge along u at v-offset cv, and the edge along v at u-offset cu.
+        let mut eu = base;
+        eu[v] += cv;
+        let mut ev = base;
+        ev[u] += cu;
+        (point(u, eu) + point(v, ev)) * 0.5
+    })
+}
+
+/// The bit of a cell's edge along `axis` whose lower corner is at `offset` (0 or 1 on the two
+/// other axes) from the cell's minimum corner.
+fn local_edge(axis: usize, offset: [usize; 3]) -> usize {
+    4 * axis + offset[(axis + 1) % 3] + 2 * offset[(axis + 2) % 3]
 }
 
 impl ChunkDual {
@@ -47,8 +104,9 @@ impl ChunkDual {
         block: &VoxelBlock,
         cell_ok: &dyn Fn([usize; 3]) -> bool,
         edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
+        manifold: bool,
     ) -> ChunkDual {
-        Self::of_with(block, cell_ok, edge_ok, false)
+        Self::of_with(block, cell_ok, edge_ok, false, manifold)
     }
 
     /// [`ChunkDual::of`], keeping the edges on the `+` faces too when `apron_edges` (between
@@ -59,10 +117,12 @@ impl ChunkDual {
         cell_ok: &dyn Fn([usize; 3]) -> bool,
         edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
         apron_edges: bool,
+        manifold: bool,
     ) -> ChunkDual {
         let n = block.cells();
         let sp = block.level().spacing();
         let mut d = ChunkDual { n, ..Default::default() };
+        let table = crate::cases::cases();
         let normals: [Vec<DVec3>; 3] =
             Axis::ALL.map(|a| block.crossings(a).iter().map(|c| unpack_normal(c.normal)).collect());
         for z in 0..n {
@@ -74,33 +134,20 @@ impl ChunkDual {
                     if !cell_ok([x, y, z]) {
                         continue;
                     }
-                    let mut qef = Qef::default();
-                    let mut normal = DVec3::ZERO;
-                    for axis in Axis::ALL {
-                        let (ua, va) = axis.across();
-                        for k in 0..4 {
-                            let mut lower = [x, y, z];
-                            lower[ua.index()] += k & 1;
-                            lower[va.index()] += k >> 1;
-                            let Some(i) = block.crossing_index(axis, lower[0], lower[1], lower[2]) else { continue };
-                            let c = &block.crossings(axis)[i as usize];
-                            let mut p = DVec3::new(
-                                lower[0] as f64 - x as f64,
-                                lower[1] as f64 - y as f64,
-                                lower[2] as f64 - z as f64,
-                            );
-                            p[axis.index()] += c.t as f64;
-                            // Each crossing serves four cells: unpack its normal once.
-                            let nrm = normals[axis.index()][i as usize];
-                            qef.add(p, nrm);
-                            normal += nrm;
+                    let mut case = 0usize;
+                    for c in 0..8 {
+                        case |= (block.inside(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2)) as usize) << c;
+                    }
+                    // The components: one per marching-cubes loop of the case (manifold), or one
+                    // for every crossed edge of the cell.
+                    let loops = &table[case];
+                    let mut masks: [u16; 4] = [0; 4];
+                    let count = if manifold { loops.len() } else { 1 };
+                    for (k, lp) in loops.iter().enumerate() {
+                        for e in &lp.edges {
+                            masks[if manifold { k } else { 0 }] |= 1 << local_edge(e.axis, e.lower);
                         }
                     }
-                    // Clamp to the cell grown by CELL_MARGIN: a corner whose tip holds no node
-                    // lies in a cell without a sign change, and the neighbouring cell's vertex
-                    // must be free to reach it; the margin keeps vertices near their cell.
-                    let local = qef.solve().clamp(DVec3::splat(-CELL_MARGIN), DVec3::splat(1.0 + CELL_MARGIN));
-                    let pos = (DVec3::new(x as f64, y as f64, z as f64) + local) * sp;
                     let index = (x + n * (y + n * z)) as u32;
                     let material = if block.has_materials() {
                         let mut ids = [0u8; 8];
@@ -116,7 +163,46 @@ impl ChunkDual {
                     } else {
                         VertexMaterial::single(0)
                     };
-                    d.cells.push((index, pos.as_vec3(), normal.normalize_or(DVec3::Z).as_vec3(), material));
+                    for &mask in &masks[..count] {
+                        let mut qef = Qef::default();
+                        let mut normal = DVec3::ZERO;
+                        for axis in Axis::ALL {
+                            let (ua, va) = axis.across();
+                            for k in 0..4 {
+                                let mut off = [0; 3];
+                                off[ua.index()] = k & 1;
+                                off[va.index()] = k >> 1;
+                                if mask >> local_edge(axis.index(), off) & 1 == 0 {
+                                    continue;
+                                }
+                                let lower = [x + off[0], y + off[1], z + off[2]];
+                                let Some(i) = block.crossing_index(axis, lower[0], lower[1], lower[2]) else {
+                                    continue;
+                                };
+                                let c = &block.crossings(axis)[i as usize];
+                                let mut p = DVec3::new(off[0] as f64, off[1] as f64, off[2] as f64);
+                                p[axis.index()] += c.t as f64;
+                                // Each crossing serves four cells: unpack its normal once.
+                                let nrm = normals[axis.index()][i as usize];
+                                qef.add(p, nrm);
+                                normal += nrm;
+                            }
+                        }
+                        // Clamp to the cell grown by CELL_MARGIN: a corner whose tip holds no
+                        // node lies in a cell without a sign change, and the neighbouring cell's
+                        // vertex must be free to reach it; the margin keeps vertices near their
+                        // cell.
+                        let local = qef.solve().clamp(DVec3::splat(-CELL_MARGIN), DVec3::splat(1.0 + CELL_MARGIN));
+                        let pos = (DVec3::new(x as f64, y as f64, z as f64) + local) * sp;
+                        d.cells.push((index, mask, pos.as_vec3(), normal.normalize_or(DVec3::Z).as_vec3(), material));
+                        if manifold {
+                            for fa in 0..3 {
+                                if mask & face_edges(fa, 1) == face_edges(fa, 1) {
+                                    d.faces.push((index, fa as u8, face_midpoints(block, [x, y, z], fa, sp)));
+                                }
+                            }
+                        }
+                    }
                 }
             }
         }
@@ -154,15 +240,39 @@ impl ChunkDual {
         };
         self.cells.retain(|c| !cell_ok(cell_of(c.0)));
         self.cells.extend(part.cells);
-        self.cells.sort_unstable_by_key(|c| c.0);
+        // Stable: the components of one cell keep their order.
+        self.cells.sort_by_key(|c| c.0);
+        self.faces.retain(|f| !cell_ok(cell_of(f.0)));
+        self.faces.extend(part.faces);
+        self.faces.sort_by_key(|f| (f.0, f.1));
         self.edges.retain(|&(a, l, _)| !edge_ok(a, l.map(usize::from)));
         self.edges.extend(part.edges);
         self.sort_edges();
     }
 
-    fn vertex(&self, cell: [usize; 3]) -> Option<(u32, Vec3, Vec3, VertexMaterial)> {
+    /// The segment midpoints of the `+` face along `fa` of `cell`, if it is doubled on this side.
+    fn face(&self, cell: [usize; 3], fa: usize) -> Option<&[Vec3; 4]> {
         let index = (cell[0] + self.n * (cell[1] + self.n * cell[2])) as u32;
-        self.cells.binary_search_by_key(&index, |c| c.0).ok().map(|i| self.cells[i])
+        self.faces.binary_search_by_key(&(index, fa as u8), |f| (f.0, f.1)).ok().map(|i| &self.faces[i].2)
+    }
+
+    /// The vertex of `cell` whose component holds the cell edge `edge` (a [`local_edge`] bit;
+    /// `None`: the cell's first), and its component's number within the cell.
+    fn vertex(&self, cell: [usize; 3], edge: Option<usize>) -> Option<(usize, CellVertex)> {
+        let index = (cell[0] + self.n * (cell[1] + self.n * cell[2])) as u32;
+        let first = self.cells.partition_point(|c| c.0 < index);
+        let of_cell = self.cells[first..].iter().take_while(|c| c.0 == index);
+        let mut found = None;
+        for (k, c) in of_cell.enumerate() {
+            match edge {
+                Some(e) if c.1 >> e & 1 == 0 => {}
+                _ => {
+                    found = Some((k, *c));
+                    break;
+                }
+            }
+        }
+        found
     }
 }
 
@@ -208,20 +318,38 @@ pub struct DualCache {
     meshes: FastMap<ChunkKey, DualChunkMesh>,
     /// Levels of the chunks the duals were computed at, when the volume mixes levels.
     levels: Option<FastMap<ChunkKey, Level>>,
+    /// One vertex per cell for all its surface components (the first wave's dual contouring,
+    /// kept for comparison) instead of one per component.
+    single_vertex: bool,
 }
 
 impl DualCache {
-    /// An empty cache.
+    /// An empty cache (manifold dual contouring: one vertex per surface component of a cell).
     pub fn new() -> Self {
         Self::default()
     }
 
+    /// An empty cache that gives each cell one vertex for all its surface components, as the
+    /// first wave's dual contouring did (two sheets in one cell then share a vertex, which can
+    /// make edges non-manifold); for comparison.
+    pub fn single_vertex() -> Self {
+        DualCache { single_vertex: true, ..Self::default() }
+    }
+
     /// Meshes every chunk of `volume`.
     pub fn build(volume: &Volume) -> Self {
-        let mut cache = Self::new();
+        Self::new().built(volume)
+    }
+
+    /// [`DualCache::build`] with one vertex per cell ([`DualCache::single_vertex`]).
+    pub fn build_single_vertex(volume: &Volume) -> Self {
+        Self::single_vertex().built(volume)
+    }
+
+    fn built(mut self, volume: &Volume) -> Self {
         let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
-        cache.update(volume, &stored);
-        cache
+        self.update(volume, &stored);
+        self
     }
 
     /// Recomputes what an edit that changed `changed` can have affected, in parallel: cell
@@ -251,7 +379,7 @@ impl DualCache {
                 };
                 let n = block.cells();
                 let (cell_ok, edge_ok) = border_filters(&ds, n);
-                (key, ChunkDual::of(block, &cell_ok, &edge_ok), ds)
+                (key, ChunkDual::of(block, &cell_ok, &edge_ok, !self.single_vertex), ds)
             })
             .collect();
         for (key, part, ds) in fresh {
@@ -319,7 +447,7 @@ impl DualCache {
             .par_iter()
             .map_init(VoxelBlock::default, |block, &key| {
                 volume.extract_block_into(key, block);
-                let d = ChunkDual::of_with(block, &|_| true, &|_, _| true, true);
+                let d = ChunkDual::of_with(block, &|_| true, &|_, _| true, true, !self.single_vertex);
                 (key, d, block.level())
             })
             .collect();
@@ -385,18 +513,29 @@ impl DualCache {
             let mut q: Vec<u32> = Vec::with_capacity(4);
             let mut complete = true;
             for &(k, l, local) in &cells {
+                // The component of the cell that holds the edge, where the edge lies on one of
+                // the cell's edges (a finer edge inside a coarser cell's face takes its first).
+                let to_cell = |v: DVec3| (v - k.origin_grid().as_dvec3()) * l.nodes_per_unit();
+                let (e0, e1) = (to_cell(mid - axis.unit() * (0.5 * sp)), to_cell(mid + axis.unit() * (0.5 * sp)));
+                let corner = DVec3::new(local[0] as f64, local[1] as f64, local[2] as f64);
+                let (r0, r1) = (e0 - corner, e1 - corner);
+                let on_edge = (0..3).all(|i| i == axis.index() || (r0[i] == r1[i] && (r0[i] == 0.0 || r0[i] == 1.0)));
+                let edge = on_edge.then(|| {
+                    local_edge(axis.index(), [0, 1, 2].map(|i| if i == axis.index() { 0 } else { r0[i] as usize }))
+                });
+                let found = self.duals.get(&k).and_then(|d| d.vertex(local, edge));
+                let Some((component, (_, _, pos, normal, material))) = found else {
+                    complete = false;
+                    break;
+                };
                 let id = cell_id(k, l, local);
+                let id = I64Vec3::new(id.x * 32 + component as i64, id.y, id.z);
                 if let Some(&i) = ids.get(&id) {
                     if q.last() != Some(&i) {
                         q.push(i);
                     }
                     continue;
                 }
-                let found = self.duals.get(&k).and_then(|d| d.vertex(local));
-                let Some((_, pos, normal, material)) = found else {
-                    complete = false;
-                    break;
-                };
                 let i = out.mesh.positions.len() as u32;
                 let shift = (k.origin_grid() - key.origin_grid()).as_vec3();
                 out.mesh.push_vertex((pos + shift).to_array(), normal.to_array(), material, false);
@@ -429,7 +568,8 @@ impl DualCache {
         let n = own.n as i64;
         let cell0 = key.0.as_i64vec3() * n;
         // Mesh vertex of each of the chunk's own cells (dense), and of borrowed cells (sparse).
-        let mut own_ids = vec![u32::MAX; own.n * own.n * own.n];
+        // (Four slots a cell: a marching-cubes case has at most four loops.)
+        let mut own_ids = vec![u32::MAX; 4 * own.n * own.n * own.n];
         let mut ids: FastMap<I64Vec3, u32> = FastMap::default();
         for &(axis, lower, lower_inside) in &own.edges {
             let (ua, va) = axis.across();
@@ -438,45 +578,115 @@ impl DualCache {
             // Counter-clockwise around +axis: the quad faces +axis.
             let ring = [l - eu - ev, l - ev, l, l - eu];
             let mut q = [0u32; 4];
+            // The dual of each ring cell: its chunk offset, local cell and vertex mask.
+            let mut seen: [(IVec3, [usize; 3], u16); 4] = [(IVec3::ZERO, [0; 3], 0); 4];
             let mut complete = true;
-            for (slot, &cell) in q.iter_mut().zip(&ring) {
-                let global = cell0 + cell;
+            for (k, &cell) in ring.iter().enumerate() {
                 let inside_chunk = cell.cmpge(I64Vec3::ZERO).all();
-                let local_slot = (cell.x + n * (cell.y + n * cell.z)) as usize;
-                let known = if inside_chunk {
-                    Some(own_ids[local_slot]).filter(|&i| i != u32::MAX)
-                } else {
-                    ids.get(&global).copied()
-                };
-                if let Some(i) = known {
-                    *slot = i;
-                    continue;
-                }
                 // Cells at -1 on an across axis belong to the chunk before.
                 let chunk = IVec3::new(-((cell.x < 0) as i32), -((cell.y < 0) as i32), -((cell.z < 0) as i32));
                 let local = cell - chunk.as_i64vec3() * n;
+                let local = [local.x as usize, local.y as usize, local.z as usize];
                 let source = if inside_chunk { Some(own) } else { self.duals.get(&key.offset(chunk)) };
-                let found = source.and_then(|d| d.vertex([local.x as usize, local.y as usize, local.z as usize]));
-                let Some((_, pos, normal, material)) = found else {
+                // The edge seen from this cell picks the component it belongs to.
+                let offset = (l - cell).to_array().map(|c| c as usize);
+                let edge = local_edge(axis.index(), offset);
+                let found = source.and_then(|d| d.vertex(local, Some(edge)));
+                let Some((component, (_, mask, pos, normal, material))) = found else {
                     complete = false;
                     break;
                 };
+                seen[k] = (chunk, local, mask);
+                let global = cell0 + cell;
+                let id = I64Vec3::new(global.x * 32 + component as i64, global.y, global.z);
+                let local_slot =
+                    if inside_chunk { 4 * (cell.x + n * (cell.y + n * cell.z)) as usize + component } else { 0 };
+                let known = if inside_chunk {
+                    Some(own_ids[local_slot]).filter(|&i| i != u32::MAX)
+                } else {
+                    ids.get(&id).copied()
+                };
+                if let Some(i) = known {
+                    q[k] = i;
+                    continue;
+                }
                 let i = out.mesh.positions.len() as u32;
                 out.mesh.push_vertex((pos + chunk.as_vec3() * 16.0).to_array(), normal.to_array(), material, false);
-                out.cells.push(global);
+                out.cells.push(id);
                 if inside_chunk {
                     own_ids[local_slot] = i;
                 } else {
-                    ids.insert(global, i);
+                    ids.insert(id, i);
                 }
-                *slot = i;
+                q[k] = i;
             }
             if !complete {
                 continue; // unreachable for volumes built by edits: every such cell is meshed
             }
+            // A face between two ring cells whose components both run through both of its
+            // segments: the two vertices would share an edge with the quads of the face's other
+            // segment. Pass through the segment's midpoint instead.
+            let mut polygon: SmallVec<[u32; 8]> = SmallVec::new();
+            for k in 0..4 {
+                polygon.push(q[k]);
+                let j = (k + 1) % 4;
+                let (ck, cj) = (ring[k], ring[j]);
+                let fa = (0..3).find(|&i| ck[i] != cj[i]).expect("ring neighbours share a face");
+                let (lo, hi) = if ck[fa] < cj[fa] { (k, j) } else { (j, k) };
+                if seen[lo].2 & face_edges(fa, 1) != face_edges(fa, 1)
+                    || seen[hi].2 & face_edges(fa, 0) != face_edges(fa, 0)
+                {
+                    continue;
+                }
+                let (chunk, local, _) = seen[lo];
+                let source = if chunk == IVec3::ZERO { Some(own) } else { self.duals.get(&key.offset(chunk)) };
+                let Some(mids) = source.and_then(|d| d.face(local, fa)) else { continue };
+                // The segment of this edge cuts off the edge's inside end.
+                let inside_end = if lower_inside { l } else { l + axis.unit_i64() };
+                let corner_at = |i: usize| (inside_end[i] - ring[lo][i]) as usize;
+                let corner = corner_at((fa + 1) % 3) + 2 * corner_at((fa + 2) % 3);
+                let global = cell0 + ring[lo];
+                let id = I64Vec3::new(global.x * 32 + 4 + 4 * fa as i64 + corner as i64, global.y, global.z);
+                let i = match ids.get(&id) {
+                    Some(&i) => i,
+                    None => {
+                        let i = out.mesh.positions.len() as u32;
+                        let (a, b) = (q[k] as usize, q[j] as usize);
+                        let normal =
+                            (Vec3::from(out.mesh.normals[a]) + Vec3::from(out.mesh.normals[b])).normalize_or(Vec3::Z);
+                        let material = out.mesh.material(a);
+                        out.mesh.push_vertex(
+                            (mids[corner] + chunk.as_vec3() * 16.0).to_array(),
+                            normal.to_array(),
+                            material,
+                            false,
+                        );
+                        out.cells.push(id);
+                        ids.insert(id, i);
+                        i
+                    }
+                };
+                polygon.push(i);
+            }
             // Outward is +axis when the lower node is inside.
             if !lower_inside {
                 q.reverse();
+                polygon.reverse();
+            }
+            if polygon.len() > 4 {
+                // A fan from the polygon's centre, a vertex of this quad alone.
+                let centre = polygon.iter().map(|&i| Vec3::from(out.mesh.positions[i as usize])).sum::<Vec3>()
+                    / polygon.len() as f32;
+                let normal = polygon.iter().map(|&i| Vec3::from(out.mesh.normals[i as usize])).sum::<Vec3>();
+                let material = out.mesh.material(q[0] as usize);
+                let c = out.mesh.positions.len() as u32;
+                out.mesh.push_vertex(centre.to_array(), normal.normalize_or(Vec3::Z).to_array(), material, false);
+                let global = cell0 + l;
+                out.cells.push(I64Vec3::new(global.x * 32 + 16 + axis.index() as i64, global.y, global.z));
+                for k in 0..polygon.len() {
+                    out.mesh.indices.extend_from_slice(&[c, polygon[k], polygon[(k + 1) % polygon.len()]]);
+                }
+                continue;
             }
             push_quad(&mut out.mesh, q);
         }

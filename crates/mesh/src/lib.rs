@@ -33,10 +33,12 @@ mod marching;
 mod mesh;
 pub mod normals;
 pub mod qef;
+pub mod tetra;
 mod workers;
 
-pub use cache::{LevelCap, MeshCache};
+pub use cache::{BlockMesher, LevelCap, MeshCache};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
-pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks};
+pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks, tetra_volume};
 pub use mesh::{Mesh, VertexMaterial};
+pub use tetra::{TetraScratch, mesh_block_tetra};
 pub use workers::MeshWorkers;

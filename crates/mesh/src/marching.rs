@@ -233,6 +233,12 @@ fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + S
             (key, m, ids)
         })
         .collect();
+    weld(parts)
+}
+
+/// One mesh of chunk meshes (chunk-local positions), welding vertices with equal identities
+/// (`ids[i]` for vertex `i`; vertices after the ids belong to their chunk alone).
+pub(crate) fn weld(parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)>) -> Mesh {
     let mut out = Mesh::default();
     let mut welded: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
     for (key, m, ids) in parts {
@@ -257,4 +263,14 @@ fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + S
         out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
     }
     out
+}
+
+/// One welded marching-tetrahedra mesh of the whole volume (grid units, absolute), with the
+/// integrated clustering when `cluster`. `None` for a volume whose chunks mix levels: tetrahedra
+/// do not patch the seams between levels (marching cubes does).
+pub fn tetra_volume(volume: &Volume, cluster: bool) -> Option<Mesh> {
+    if !volume.single_level() {
+        return None;
+    }
+    Some(crate::tetra::tetra_volume_impl(volume, cluster))
 }
