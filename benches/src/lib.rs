@@ -11,6 +11,7 @@ use rayon::prelude::*;
 pub mod baselines;
 pub mod lod;
 pub mod materials;
+pub mod quality;
 pub mod suite;
 pub mod terrain;
 pub mod tools;

@@ -107,6 +107,16 @@ enum Command {
         #[arg(long)]
         mesh: Option<std::path::PathBuf>,
     },
+    /// Table 10 alone (mesh quality): every mesher on a sphere, the bunny, a noise asteroid and
+    /// the Table 1 canvas, printed (not written to the docs; `suite` writes them).
+    Quality {
+        /// The reduced sizes of `suite --quick`.
+        #[arg(long)]
+        quick: bool,
+        /// Sphere diameter and bunny and asteroid size in cells (overrides the default).
+        #[arg(long)]
+        res: Option<u32>,
+    },
     /// Table 8 alone (materials): the workload with and without materials, the painted scan
     /// and paint dabs, printed (not written to the docs; `suite` writes them).
     Materials {
@@ -144,11 +154,26 @@ fn main() -> Result<()> {
         Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
         Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
         Command::Materials { count, res, dabs } => return materials(count, res, dabs),
+        Command::Quality { quick, res } => return quality(quick, res),
         Command::Terrain { quick } => return terrain(quick),
         Command::Stroke { seconds } => stroke(seconds),
         Command::Convert { res, mesh } => return convert(res, mesh),
         Command::Suite { quick, mesh, json, docs } => return suite(quick, mesh, json, docs),
     }
+    Ok(())
+}
+
+fn quality(quick: bool, res: Option<u32>) -> Result<()> {
+    use strata_bench::quality;
+    let mut config = if quick { quality::QualityConfig::quick() } else { quality::QualityConfig::full() };
+    if let Some(r) = res {
+        config.res = r;
+    }
+    let bunny = strata_mesh::import::load_mesh(&strata_bench::suite::repo_root().join("tests/data/bunny.ply"))?;
+    let rows = quality::run(&config, (&bunny.vertices, &bunny.triangles), &mut |p| eprintln!("{p}"))?;
+    let mut s = String::new();
+    quality::markdown(&rows, &mut s);
+    println!("{s}");
     Ok(())
 }
 

@@ -92,28 +92,39 @@ pub struct AspectStats {
     pub degenerate: usize,
     /// Share of triangles with aspect ratio above 4.
     pub above_4: f64,
+    /// Standard deviation of the aspect ratio over non-degenerate triangles.
+    pub sd: f64,
+    /// The smallest interior angle of any triangle, in degrees (0 with a degenerate one).
+    pub min_angle_deg: f64,
 }
 
 /// Aspect-ratio statistics of all triangles.
 pub fn aspect_stats(mesh: &Mesh) -> AspectStats {
     let mut s = AspectStats { triangles: mesh.triangle_count(), ..Default::default() };
-    let (mut sum, mut finite, mut bad) = (0.0, 0usize, 0usize);
+    let (mut sum, mut sum2, mut finite, mut bad) = (0.0, 0.0, 0usize, 0usize);
+    s.min_angle_deg = if mesh.indices.is_empty() { 0.0 } else { 180.0 };
     for t in mesh.triangles() {
         let [a, b, c] = corners(mesh, t);
         let area2 = (b - a).cross(c - a).length();
         let longest = (b - a).length().max((c - b).length()).max((a - c).length());
         if area2 <= 0.0 {
             s.degenerate += 1;
+            s.min_angle_deg = 0.0;
             continue;
+        }
+        for (p, q, r) in [(a, b, c), (b, c, a), (c, a, b)] {
+            s.min_angle_deg = s.min_angle_deg.min((q - p).angle_between(r - p).to_degrees());
         }
         let altitude = area2 / longest;
         let r = longest / altitude * (3f64.sqrt() / 2.0);
         sum += r;
+        sum2 += r * r;
         finite += 1;
         s.max = s.max.max(r);
         bad += (r > 4.0) as usize;
     }
     s.mean = if finite > 0 { sum / finite as f64 } else { 0.0 };
+    s.sd = if finite > 0 { (sum2 / finite as f64 - s.mean * s.mean).max(0.0).sqrt() } else { 0.0 };
     s.above_4 = if s.triangles > 0 { bad as f64 / s.triangles as f64 } else { 0.0 };
     s
 }
@@ -214,29 +225,33 @@ impl<'a> SurfaceIndex<'a> {
     }
 
     /// Distance from `p` to the nearest triangle, searched out to `max` (returns `max` if none
-    /// is nearer).
+    /// is nearer). Searches shells of buckets outwards and stops once the nearest triangle is
+    /// nearer than any unsearched bucket.
     pub fn distance(&self, p: DVec3, max: f64) -> f64 {
         let c = (p / self.cell).floor();
-        let r = (max / self.cell).ceil() as i64;
+        let (cx, cy, cz) = (c.x as i64, c.y as i64, c.z as i64);
+        let reach = (max / self.cell).ceil() as i64;
         let mut best = max;
-        for z in -r..=r {
-            for y in -r..=r {
-                for x in -r..=r {
-                    let Some(ts) = self.buckets.get(&(c.x as i64 + x, c.y as i64 + y, c.z as i64 + z)) else {
-                        continue;
-                    };
-                    for &t in ts {
-                        let [a, b, cc] = corners(
-                            self.mesh,
-                            [
-                                self.mesh.indices[3 * t as usize],
-                                self.mesh.indices[3 * t as usize + 1],
-                                self.mesh.indices[3 * t as usize + 2],
-                            ],
-                        );
-                        best = best.min(point_triangle_distance(p, a, b, cc));
+        for r in 0..=reach {
+            for z in -r..=r {
+                for y in -r..=r {
+                    for x in -r..=r {
+                        if x.abs().max(y.abs()).max(z.abs()) != r {
+                            continue; // searched in an earlier shell
+                        }
+                        let Some(ts) = self.buckets.get(&(cx + x, cy + y, cz + z)) else { continue };
+                        for &t in ts {
+                            let i = 3 * t as usize;
+                            let tri = [self.mesh.indices[i], self.mesh.indices[i + 1], self.mesh.indices[i + 2]];
+                            let [a, b, cc] = corners(self.mesh, tri);
+                            best = best.min(point_triangle_distance(p, a, b, cc));
+                        }
                     }
                 }
+            }
+            // Every point of an unsearched bucket is at least `r` buckets away.
+            if best <= r as f64 * self.cell {
+                break;
             }
         }
         best
@@ -258,7 +273,7 @@ fn surface_samples(mesh: &Mesh) -> Vec<DVec3> {
 /// and centroids of each against the other's triangles, capped at `max` (grid units).
 pub fn hausdorff(a: &Mesh, b: &Mesh, max: f64) -> f64 {
     let one_way = |from: &Mesh, to: &Mesh| {
-        let index = SurfaceIndex::new(to, max.max(1.0));
+        let index = SurfaceIndex::new(to, 0.5);
         surface_samples(from).into_iter().map(|p| index.distance(p, max)).fold(0.0, f64::max)
     };
     one_way(a, b).max(one_way(b, a))

@@ -31,8 +31,10 @@ pub mod export;
 pub mod import;
 mod marching;
 mod mesh;
+mod mesher;
 pub mod normals;
 pub mod qef;
+pub mod simplify;
 pub mod tetra;
 mod workers;
 
@@ -40,5 +42,6 @@ pub use cache::{BlockMesher, LevelCap, MeshCache};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks, tetra_volume};
 pub use mesh::{Mesh, VertexMaterial};
+pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_with};
 pub use tetra::{TetraScratch, mesh_block_tetra};
 pub use workers::MeshWorkers;

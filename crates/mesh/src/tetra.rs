@@ -118,8 +118,6 @@ const NONE: u32 = u32::MAX;
 struct Site {
     dir: u8,
     lower: [u8; 3],
-    /// Whether the lower node is inside.
-    lower_inside: bool,
 }
 
 /// Reusable buffers of the tetrahedra mesher.
@@ -214,7 +212,7 @@ pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraSc
         }
     }
     if cluster {
-        Clusterer::run(n, s, out);
+        Clusterer::run(n, sp, s, out);
     } else {
         out.indices.extend(s.tris.iter().flatten());
     }
@@ -273,11 +271,7 @@ fn vertex(
         };
         out.materials.push(VertexMaterial::single(material));
     }
-    s.sites.push(Site {
-        dir: dir as u8,
-        lower: lower.map(|c| c as u8),
-        lower_inside: block.inside(lower[0], lower[1], lower[2]),
-    });
+    s.sites.push(Site { dir: dir as u8, lower: lower.map(|c| c as u8) });
     s.ts.push(t);
     id
 }
@@ -419,7 +413,7 @@ impl Clusterer {
 
     /// Clusters the candidate mesh of one block: the private vertices by their nearest node
     /// (vertices on edges in a chunk face are shared with a neighbour and stay).
-    fn run(n: usize, s: &mut TetraScratch, out: &mut Mesh) {
+    fn run(n: usize, sp: f32, s: &mut TetraScratch, out: &mut Mesh) {
         let mut c = Clusterer::new(out, std::mem::take(&mut s.tris));
         let m = n + 1;
         let mut owned: Vec<(u32, u32)> = Vec::with_capacity(out.positions.len());
@@ -434,7 +428,7 @@ impl Clusterer {
             owned.push(((near[0] + m * (near[1] + m * near[2])) as u32, v as u32));
         }
         c.cluster_groups(&mut owned);
-        c.collapse_short(short_len());
+        c.collapse_short(SHORT_EDGE_CELLS * sp);
         let kept = c.finish(out);
         s.sites = kept.iter().map(|&v| s.sites[v as usize]).collect();
         s.ts = kept.iter().map(|&v| s.ts[v as usize]).collect();
@@ -483,7 +477,7 @@ impl Clusterer {
             loop {
                 let mut progress = false;
                 for (mi, &v) in members.iter().enumerate() {
-                    if done[mi] || !self.adjacent(v, seed) {
+                    if done[mi] {
                         continue;
                     }
                     if self.collapse(v, seed) {
@@ -498,19 +492,17 @@ impl Clusterer {
         }
     }
 
+    /// The triangles around `v` (the lists are kept exact: every collapse updates them).
     fn live(&self, v: u32) -> impl Iterator<Item = (u32, [u32; 3])> + '_ {
-        self.around[v as usize].iter().filter_map(move |&t| {
-            let tri = self.tris[t as usize];
-            tri.contains(&v).then_some((t, tri))
-        })
+        self.around[v as usize].iter().map(move |&t| (t, self.tris[t as usize]))
     }
 
     fn adjacent(&self, a: u32, b: u32) -> bool {
         self.live(a).any(|(_, t)| t.contains(&b))
     }
 
-    fn neighbours(&self, v: u32) -> SmallVec<[u32; 24]> {
-        let mut out: SmallVec<[u32; 24]> = SmallVec::new();
+    fn neighbours(&self, v: u32) -> SmallVec<[u32; 16]> {
+        let mut out: SmallVec<[u32; 16]> = SmallVec::new();
         for (_, t) in self.live(v) {
             for w in t {
                 if w != v && !out.contains(&w) {
@@ -531,16 +523,18 @@ impl Clusterer {
                 shared.push((t, apex));
             }
         }
-        if shared.len() != 2 || shared[0].1 == shared[1].1 {
+        // An edge of exactly two triangles with two different apexes, each of which keeps at
+        // least three neighbours (a vertex's triangles are at least its neighbours minus one).
+        if shared.len() != 2
+            || shared[0].1 == shared[1].1
+            || shared.iter().any(|&(_, apex)| self.around[apex as usize].len() < 4)
+            || self.around[a as usize].len() + self.around[b as usize].len() < 7
+        {
             return false;
         }
         let (na, nb) = (self.neighbours(a), self.neighbours(b));
-        let common = na.iter().filter(|w| nb.contains(w)).count();
         // The link condition: the only common neighbours are the two apexes.
-        if common != 2 || !na.contains(&shared[0].1) || !nb.contains(&shared[1].1) {
-            return false;
-        }
-        if na.len() + nb.len() - common - 2 < 3 || shared.iter().any(|&(_, apex)| self.neighbours(apex).len() < 4) {
+        if na.iter().filter(|w| nb.contains(w)).count() != 2 {
             return false;
         }
         let (sa, sb) = (self.sum[a as usize], self.sum[b as usize]);
@@ -561,18 +555,22 @@ impl Clusterer {
                 }
             }
         }
-        for &(t, _) in &shared {
+        for &(t, apex) in &shared {
             self.tris[t as usize] = [NONE; 3];
+            self.around[apex as usize].retain(|x| *x != t);
         }
-        let moved: SmallVec<[u32; 10]> = self.around[a as usize].clone();
-        for t in moved {
-            let tri = &mut self.tris[t as usize];
-            if let Some(k) = tri.iter().position(|&w| w == a) {
-                tri[k] = b;
-                self.around[b as usize].push(t);
+        let from_a = std::mem::take(&mut self.around[a as usize]);
+        let tris = &mut self.tris;
+        self.around[b as usize].retain(|t| tris[*t as usize][0] != NONE);
+        for t in from_a {
+            let tri = &mut tris[t as usize];
+            if tri[0] == NONE {
+                continue;
             }
+            let k = tri.iter().position(|&w| w == a).expect("a's triangles hold a");
+            tri[k] = b;
+            self.around[b as usize].push(t);
         }
-        self.around[a as usize].clear();
         self.pos[b as usize] = p;
         self.sum[b as usize] = merged;
         self.rep[a as usize] = b;
@@ -611,29 +609,46 @@ impl Clusterer {
     }
 }
 
-fn short_len() -> f32 {
-    std::env::var("STRATA_SHORT").map(|s| s.parse::<f32>().unwrap()).unwrap_or(0.0)
-}
+/// The second pass collapses edges shorter than this many cells (see [`Clusterer::collapse_short`]).
+pub const SHORT_EDGE_CELLS: f32 = 0.9;
 
 /// The node a vertex at `t` along its edge is nearest to (block-local).
 fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
     let d = offset(DIRS[site.dir as usize]);
     let l = site.lower.map(usize::from);
-    let rule = std::env::var("STRATA_RULE").map(|s| s.parse::<f32>().unwrap()).unwrap_or(0.5);
-    let lower = if rule < 0.0 {
-        site.lower_inside
-    } else if rule > 1.0 {
-        !site.lower_inside
-    } else {
-        t <= rule
-    };
-    if lower { l } else { [l[0] + d[0], l[1] + d[1], l[2] + d[2]] }
+    if t <= 0.5 { l } else { [l[0] + d[0], l[1] + d[1], l[2] + d[2]] }
+}
+
+/// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
+/// viewport (vertices on chunk faces never merged), welded into one mesh (grid units,
+/// absolute). `None` for a volume whose chunks mix levels.
+pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
+    use rayon::prelude::*;
+    if !volume.single_level() {
+        return None;
+    }
+    let keys = crate::surface_chunks(volume);
+    let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)> = keys
+        .par_iter()
+        .map_init(
+            || (VoxelBlock::default(), TetraScratch::default()),
+            |(block, scratch), &key| {
+                volume.extract_block_into(key, block);
+                let mut m = Mesh::default();
+                let ids = mesh_block_tetra_keyed(block, true, scratch, &mut m);
+                (key, m, ids)
+            },
+        )
+        .collect();
+    Some(crate::marching::weld(parts))
 }
 
 /// One welded marching-tetrahedra mesh of the whole volume, clustered over the whole mesh when
 /// `cluster` (no chunk face is locked: the export path, where no chunk is meshed alone).
 pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -> Mesh {
     use rayon::prelude::*;
+    // One level throughout (checked by the callers): its spacing scales the short edges.
+    let spacing = volume.chunks().next().map_or(1.0, |(k, _)| volume.mesh_level(k).spacing() as f32);
     let keys = crate::surface_chunks(volume);
     let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>, Vec<glam::I64Vec3>)> = keys
         .par_iter()
@@ -682,7 +697,7 @@ pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -
         let mut groups: Vec<((i64, i64, i64), u32)> =
             nodes.iter().enumerate().map(|(v, p)| ((p.z, p.y, p.x), v as u32)).collect();
         c.cluster_groups(&mut groups);
-        c.collapse_short(short_len());
+        c.collapse_short(SHORT_EDGE_CELLS * spacing);
         let distinct = groups.chunk_by(|a, b| a.0 == b.0).count();
         c.finish(&mut out);
         if std::env::var("STRATA_DEBUG").is_ok() {

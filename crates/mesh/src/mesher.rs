@@ -1,0 +1,148 @@
+//! The choice of mesher, one name for it everywhere (viewport, export, CLI, bench).
+
+use std::fmt;
+use std::str::FromStr;
+
+use strata_volume::Volume;
+use thiserror::Error;
+
+use crate::simplify::{Simplify, SimplifyError, simplify};
+use crate::{BlockMesher, DualCache, Mesh};
+
+/// A surface extractor.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Mesher {
+    /// Marching cubes: vertices on the stored crossings, closed and edge-manifold, many slivers.
+    #[default]
+    MarchingCubes,
+    /// Manifold dual contouring: one QEF vertex per surface component of a cell, sharp features,
+    /// closed and edge-manifold.
+    DualContouring,
+    /// The first wave's dual contouring: one vertex per cell, whatever its components (two
+    /// sheets in a cell share a vertex; a few edges are non-manifold). For comparison.
+    SingleVertexDualContouring,
+    /// Marching tetrahedra on the simple-cubic lattice, without clustering.
+    Tetrahedra,
+    /// Regularised marching tetrahedra: with the integrated vertex clustering.
+    ClusteredTetrahedra,
+}
+
+impl Mesher {
+    /// Every mesher, in the order menus list them.
+    pub const ALL: [Mesher; 5] = [
+        Mesher::MarchingCubes,
+        Mesher::DualContouring,
+        Mesher::ClusteredTetrahedra,
+        Mesher::Tetrahedra,
+        Mesher::SingleVertexDualContouring,
+    ];
+
+    /// A name for people.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mesher::MarchingCubes => "marching cubes",
+            Mesher::DualContouring => "dual contouring",
+            Mesher::SingleVertexDualContouring => "dual contouring, one vertex a cell",
+            Mesher::Tetrahedra => "marching tetrahedra",
+            Mesher::ClusteredTetrahedra => "regularised tetrahedra",
+        }
+    }
+
+    /// The short name the CLI and the bench take (`mc`, `dc`, `dc1`, `mt`, `rmt`).
+    pub fn key(self) -> &'static str {
+        match self {
+            Mesher::MarchingCubes => "mc",
+            Mesher::DualContouring => "dc",
+            Mesher::SingleVertexDualContouring => "dc1",
+            Mesher::Tetrahedra => "mt",
+            Mesher::ClusteredTetrahedra => "rmt",
+        }
+    }
+
+    /// The per-block mesher, for meshers that mesh each chunk from its voxel block alone.
+    pub fn block(self) -> Option<BlockMesher> {
+        match self {
+            Mesher::MarchingCubes => Some(BlockMesher::MarchingCubes),
+            Mesher::Tetrahedra => Some(BlockMesher::Tetrahedra),
+            Mesher::ClusteredTetrahedra => Some(BlockMesher::ClusteredTetrahedra),
+            Mesher::DualContouring | Mesher::SingleVertexDualContouring => None,
+        }
+    }
+}
+
+impl fmt::Display for Mesher {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A mesher name that is none of [`Mesher::key`]'s.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[error("unknown mesher {0:?} (mc, dc, dc1, mt or rmt)")]
+pub struct UnknownMesher(pub String);
+
+impl FromStr for Mesher {
+    type Err = UnknownMesher;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Mesher::ALL.into_iter().find(|m| m.key() == s).ok_or_else(|| UnknownMesher(s.to_string()))
+    }
+}
+
+/// Why a volume was not meshed as asked.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum MesherError {
+    /// Tetrahedra do not patch the seams between chunks of different levels.
+    #[error(
+        "{0} needs every chunk at one resolution level; this volume mixes levels (use marching cubes or dual contouring, or bring the detail back to the base level)"
+    )]
+    MixedLevels(Mesher),
+    /// Simplification refused its input.
+    #[error(transparent)]
+    Simplify(#[from] SimplifyError),
+}
+
+/// A mesher and an optional simplification: what an export asks for.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MeshOptions {
+    /// The mesher.
+    pub mesher: Mesher,
+    /// Simplify the welded mesh with this error (grid units), or not at all.
+    pub simplify: Option<f32>,
+}
+
+impl MeshOptions {
+    /// `mesher`, without simplification.
+    pub const fn new(mesher: Mesher) -> Self {
+        MeshOptions { mesher, simplify: None }
+    }
+}
+
+/// One welded mesh of the whole volume (grid units, absolute) by `options`.
+pub fn mesh_volume_with(volume: &Volume, options: MeshOptions) -> Result<Mesh, MesherError> {
+    let mesh = match options.mesher {
+        Mesher::MarchingCubes => crate::mesh_volume(volume),
+        Mesher::DualContouring => DualCache::build(volume).welded(),
+        Mesher::SingleVertexDualContouring => DualCache::build_single_vertex(volume).welded(),
+        m @ (Mesher::Tetrahedra | Mesher::ClusteredTetrahedra) => {
+            crate::tetra_volume(volume, m == Mesher::ClusteredTetrahedra).ok_or(MesherError::MixedLevels(m))?
+        }
+    };
+    match options.simplify {
+        Some(e) => Ok(simplify(&mesh, Simplify::export(e))?),
+        None => Ok(mesh),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_unknown_ones_are_refused() {
+        for m in Mesher::ALL {
+            assert_eq!(m.key().parse::<Mesher>(), Ok(m));
+        }
+        assert_eq!("marching".parse::<Mesher>(), Err(UnknownMesher("marching".into())));
+    }
+}
