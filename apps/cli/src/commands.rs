@@ -42,8 +42,29 @@ pub enum Fill {
 pub enum Mesher {
     /// Marching cubes: smooth shapes, vertices on the stored crossings.
     Mc,
-    /// Dual contouring: keeps sharp edges and corners.
+    /// Dual contouring (manifold: one vertex per surface component of a cell): keeps sharp
+    /// edges and corners.
     Dc,
+    /// Regularised marching tetrahedra: clustered, regular triangles, several times fewer
+    /// (needs every chunk at one resolution level).
+    Rmt,
+    /// Marching tetrahedra without clustering.
+    Mt,
+    /// The first wave's dual contouring, one vertex a cell (for comparison).
+    Dc1,
+}
+
+impl Mesher {
+    /// The mesher it names.
+    pub fn mesher(self) -> strata_mesh::Mesher {
+        match self {
+            Mesher::Mc => strata_mesh::Mesher::MarchingCubes,
+            Mesher::Dc => strata_mesh::Mesher::DualContouring,
+            Mesher::Rmt => strata_mesh::Mesher::ClusteredTetrahedra,
+            Mesher::Mt => strata_mesh::Mesher::Tetrahedra,
+            Mesher::Dc1 => strata_mesh::Mesher::SingleVertexDualContouring,
+        }
+    }
 }
 
 /// A progress bar on standard error, hidden when that is not a terminal.
@@ -201,7 +222,8 @@ fn load_scene(path: &Path) -> Result<file::Loaded> {
 }
 
 /// Exports the chosen layers of the scene at `scene` as one mesh at `out`. Returns a report.
-pub fn export(scene: &Path, out: &Path, mesher: Mesher, layers: &[String]) -> Result<String> {
+/// With `simplify`, the welded mesh is simplified by meshoptimizer within that many cells.
+pub fn export(scene: &Path, out: &Path, mesher: Mesher, simplify: Option<f32>, layers: &[String]) -> Result<String> {
     check_input(scene, &SCENE_EXTENSIONS, "scene file")?;
     check_output(out, &EXPORT_EXTENSIONS, "mesh file")?;
     let mut s = load_scene(scene)?.scene;
@@ -209,23 +231,28 @@ pub fn export(scene: &Path, out: &Path, mesher: Mesher, layers: &[String]) -> Re
     for (i, l) in s.layers.iter_mut().enumerate() {
         l.visible = chosen.contains(&i);
     }
-    let meshing = spinner(&format!("meshing {} layer(s) with {mesher:?}", chosen.len()));
+    let options = strata_mesh::MeshOptions { mesher: mesher.mesher(), simplify };
+    let meshing = spinner(&format!("meshing {} layer(s) with {}", chosen.len(), options.mesher));
     let t = Instant::now();
     let palette = s.export_palette();
-    let mesh = Editor::new(s).export_mesh(mesher == Mesher::Dc);
+    let mesh = Editor::new(s).export_mesh(options).map_err(|e| anyhow::anyhow!("{}: {e}", scene.display()))?;
     let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
-    let mesh = if mesher == Mesher::Mc { crease_normals(&mesh, DEFAULT_CREASE_DEGREES) } else { mesh };
+    // Dual contouring places its own normals at sharp features; the others get creased ones.
+    let dual = matches!(mesher, Mesher::Dc | Mesher::Dc1);
+    let mesh = if dual { mesh } else { crease_normals(&mesh, DEFAULT_CREASE_DEGREES) };
     meshing.finish_and_clear();
     if mesh.indices.is_empty() {
         bail!("{}: the chosen layers hold no surface to export", scene.display());
     }
     save_mesh_with(&mesh, out, &palette).map_err(|e| anyhow::anyhow!("{}: {e}", out.display()))?;
     Ok(format!(
-        "{}: {} layer(s), {} triangles, {} vertices ({mesher:?}, {mesh_ms:.0} ms)\n  wrote {}\n",
+        "{}: {} layer(s), {} triangles, {} vertices ({}{}, {mesh_ms:.0} ms)\n  wrote {}\n",
         scene.display(),
         chosen.len(),
         mesh.triangle_count(),
         mesh.vertex_count(),
+        options.mesher,
+        simplify.map_or(String::new(), |e| format!(", simplified within {e} cells")),
         out.display()
     ))
 }

@@ -60,16 +60,23 @@ enum Command {
     /// Export a scene's layers as one mesh (.glb, .obj, .stl, .ply).
     #[command(after_help = "Examples:
   strata export scene.strata -o scene.glb
-  strata export scene.strata -o body.stl --mesher dc --layers Body,2")]
+  strata export scene.strata -o body.stl --mesher dc --layers Body,2
+  strata export scene.strata -o game.glb --mesher rmt
+  strata export scene.strata -o small.glb --simplify 0.2")]
     Export {
         /// The scene file.
         scene: PathBuf,
         /// The mesh file to write.
         #[arg(short, long)]
         output: PathBuf,
-        /// Marching cubes (smooth) or dual contouring (sharp edges).
+        /// Marching cubes (smooth), dual contouring (sharp edges) or regularised tetrahedra
+        /// (fewer, regular triangles).
         #[arg(long, value_enum, default_value_t = Mesher::Mc)]
         mesher: Mesher,
+        /// Simplify the mesh (meshoptimizer) as far as it stays within this many cells of the
+        /// surface.
+        #[arg(long, value_name = "CELLS")]
+        simplify: Option<f32>,
         /// Layers to export, by index or name, comma-separated (default: the visible ones).
         #[arg(long, value_delimiter = ',')]
         layers: Vec<String>,
@@ -147,7 +154,9 @@ fn run(command: Command) -> Result<String> {
             };
             commands::convert(&mesh, resolution, fill, &output)
         }
-        Command::Export { scene, output, mesher, layers } => commands::export(&scene, &output, mesher, &layers),
+        Command::Export { scene, output, mesher, simplify, layers } => {
+            commands::export(&scene, &output, mesher, simplify, &layers)
+        }
         Command::Info { scene } => commands::info(&scene),
         Command::Render { scene, output, size, wireframe } => commands::render(&scene, &output, size, wireframe),
         Command::Demo { scale, outputs, scene } => strata::demo(scale, &outputs, scene.as_deref()),

@@ -115,7 +115,7 @@ pub fn terrain(source: &RecipeSource<'_>, size: [u32; 3], out: &Path) -> Result<
     } else {
         let palette = scene.export_palette();
         let t = Instant::now();
-        let mesh = Editor::new(scene).export_mesh(false);
+        let mesh = Editor::new(scene).export_mesh(strata_mesh::MeshOptions::default())?;
         let mesh = crease_normals(&mesh, DEFAULT_CREASE_DEGREES);
         if mesh.indices.is_empty() {
             bail!("the box holds no terrain surface: move it or make it taller");

@@ -559,8 +559,7 @@ impl StudioApp {
                 if ui.button("Export mesh… (glb, obj, stl, ply)").clicked() {
                     self.ask_path(&ctx, Prompt::Export, None);
                 }
-                ui.checkbox(&mut self.studio.export_dual, "Export with dual contouring")
-                    .on_hover_text("Keep sharp edges and corners in the exported mesh");
+                mesher_choice(ui, "export_mesher", "Export with", &mut self.studio.export);
                 ui.separator();
                 if ui.button("Quit").clicked() {
                     self.guard(&ctx, Then::Quit);
@@ -598,8 +597,12 @@ impl StudioApp {
                     let _ = self.studio.act(Action::ToggleOrthographic);
                     ui.close();
                 }
+                let settled = mesher_choice(ui, "view_mesher", "Viewport mesher", &mut self.studio.view_draft);
+                if settled && self.studio.view_draft != self.studio.editor.view_mesher() {
+                    let _ = self.studio.act(Action::ViewMesher(self.studio.view_draft));
+                }
                 ui.checkbox(&mut self.studio.lod, "Level of detail")
-                    .on_hover_text("Mesh far chunks that were given more detail at a coarser level");
+                    .on_hover_text("Mesh far chunks that were given more detail at a coarser level (marching cubes)");
                 ui.add(egui::Slider::new(&mut self.studio.lod_pixels, 0.5..=8.0).text("largest cell (px)"))
                     .on_hover_text("How large a cell level of detail may show on screen");
             });
@@ -1396,7 +1399,7 @@ impl StudioApp {
             for (layer, key) in std::mem::take(&mut self.studio.uploads) {
                 let scene = &self.studio.editor.scene;
                 let Some(l) = scene.layers.get(layer) else { continue };
-                let mesh = self.studio.editor.mesh_cache(layer).and_then(|c| c.mesh(key));
+                let mesh = self.studio.editor.chunk_mesh(layer, key);
                 match mesh.filter(|_| l.visible) {
                     Some(mesh) => {
                         vp.renderer.upload_chunk(
@@ -1462,4 +1465,33 @@ pub fn run_window(studio: Studio) -> anyhow::Result<()> {
     };
     eframe::run_native("Strata Studio", options, Box::new(|cc| Ok(Box::new(StudioApp::new(cc, studio)))))
         .map_err(|e| anyhow::anyhow!("the window could not start: {e}"))
+}
+
+/// A mesher picker with a simplification toggle and error, under `label`; false while the error
+/// slider is being dragged. Dual contouring is simplified on export only, so the viewport's
+/// picker offers it without.
+fn mesher_choice(ui: &mut egui::Ui, id: &str, label: &str, options: &mut strata_mesh::MeshOptions) -> bool {
+    let viewport = id == "view_mesher";
+    ui.label(label);
+    egui::ComboBox::from_id_salt(id).selected_text(options.mesher.name()).show_ui(ui, |ui| {
+        for m in strata_mesh::Mesher::ALL {
+            ui.selectable_value(&mut options.mesher, m, m.name());
+        }
+    });
+    let can_simplify = !viewport || options.mesher.block().is_some();
+    if !can_simplify {
+        options.simplify = None;
+    }
+    let mut on = options.simplify.is_some();
+    let text = if viewport { "Simplify chunks (borders kept)" } else { "Simplify (meshoptimizer)" };
+    if ui.add_enabled(can_simplify, egui::Checkbox::new(&mut on, text)).changed() {
+        options.simplify = on.then_some(0.1);
+    }
+    let mut settled = true;
+    if let Some(e) = options.simplify.as_mut() {
+        let r = ui.add(egui::Slider::new(e, 0.01..=1.0).logarithmic(true).text("error (cells)"));
+        // While the slider is dragged nothing is remeshed; its last value counts.
+        settled = !r.dragged() || r.drag_stopped();
+    }
+    settled
 }

@@ -64,9 +64,8 @@ pub(crate) fn upload_all(studio: &Studio, device: &wgpu::Device, queue: &wgpu::Q
         if !layer.visible {
             continue;
         }
-        let Some(cache) = studio.editor.mesh_cache(i) else { continue };
         let model = layer_model(layer);
-        for (key, mesh) in cache.iter() {
+        for (key, mesh) in studio.editor.chunk_meshes(i) {
             renderer.upload_chunk(device, queue, i as u32, key, mesh, model, [1.0; 3]);
         }
     }

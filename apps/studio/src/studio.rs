@@ -56,6 +56,8 @@ pub enum Action {
     CloseWorld,
     /// Launch a bomb along the view (terrain mode).
     Bomb,
+    /// Mesh the viewport with this mesher and per-chunk simplification.
+    ViewMesher(strata_mesh::MeshOptions),
 }
 
 /// A mesh chosen for import, waiting for the user to pick its resolution.
@@ -129,8 +131,10 @@ pub struct Studio {
     pub path: Option<PathBuf>,
     /// Wireframe overlay on.
     pub wireframe: bool,
-    /// Export with dual contouring instead of marching cubes.
-    pub export_dual: bool,
+    /// The mesher and simplification of exports.
+    pub export: strata_mesh::MeshOptions,
+    /// The viewport mesher as the View menu shows it (applied once its error slider settles).
+    pub view_draft: strata_mesh::MeshOptions,
     /// The last message for the status bar (errors included).
     pub message: String,
     /// Last frame's edit time (ms).
@@ -207,7 +211,8 @@ impl Studio {
             camera,
             path: None,
             wireframe: false,
-            export_dual: false,
+            export: strata_mesh::MeshOptions::default(),
+            view_draft: strata_mesh::MeshOptions::default(),
             message: "Ready. Left drag: sculpt · right drag: orbit · middle drag: pan · wheel: zoom".into(),
             last_edit_ms: 0.0,
             last_remesh_ms: 0.0,
@@ -336,7 +341,7 @@ impl Studio {
                 self.path = Some(path);
             }
             Action::Export(path) => {
-                let mesh = self.editor.export_mesh(self.export_dual);
+                let mesh = self.editor.export_mesh(self.export).map_err(|e| format!("Could not export: {e}"))?;
                 strata_mesh::export::save_mesh_with(&mesh, &path, &self.editor.scene.export_palette())
                     .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
                 self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
@@ -365,6 +370,21 @@ impl Studio {
                 self.message = format!("Brush radius {r:.2}");
             }
             Action::ToggleWireframe => self.wireframe = !self.wireframe,
+            Action::ViewMesher(options) => {
+                self.view_draft = options;
+                self.editor.set_view_mesher(options).map_err(|e| format!("Could not change the mesher: {e}"))?;
+                self.editor.finish_meshing();
+                self.full_upload = true;
+                self.message = match options.simplify {
+                    Some(e) => format!("Viewport: {}, chunks simplified to {e} cells", options.mesher),
+                    None => format!("Viewport: {}", options.mesher),
+                };
+                let mixed = (0..self.editor.scene.layers.len())
+                    .any(|l| self.editor.view_mesher_used(l).is_some_and(|m| m != options.mesher));
+                if mixed {
+                    self.message += " (layers whose chunks mix resolution levels are shown with marching cubes)";
+                }
+            }
             Action::AddLayer => {
                 let mut layers = self.editor.scene.layers.clone();
                 let n = layers.len() + 1;

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use std::sync::Arc;
-use strata_mesh::{Mesh, MeshCache, dual_contour_volume};
+use strata_mesh::{DualCache, Mesh, MeshCache, MeshOptions, Mesher, MesherError, dual_contour_volume};
 use strata_volume::brush::BrushError;
 
 use strata_volume::{ChunkKey, EditControl, EditError, EditReport, EditSettings, Level, Volume};
@@ -44,6 +44,10 @@ pub enum EditorError {
     /// A field tool's dab was refused (a bad parameter, a region too large).
     #[error(transparent)]
     Tool(#[from] strata_volume::tools::ToolError),
+    /// The mesher could not mesh a layer as asked (tetrahedra on mixed levels, a bad
+    /// simplification bound).
+    #[error(transparent)]
+    Mesher(#[from] MesherError),
     /// The current material is not in the scene's palette.
     #[error("material {id} is not in the palette ({count} materials)")]
     UnknownMaterial {
@@ -217,6 +221,11 @@ pub struct Editor {
     history: History,
     stroke: Option<Stroke>,
     caches: Vec<MeshCache>,
+    /// Dual-contouring chunk meshes by layer, used instead of `caches` while the viewport's
+    /// mesher is dual contouring.
+    duals: Vec<DualCache>,
+    /// The viewport's mesher and per-chunk simplification.
+    view_mesher: MeshOptions,
     dirty: Vec<BTreeSet<ChunkKey>>,
     /// Meshes computed but not yet shown: a chunk's new mesh is committed only together with
     /// every neighbour's, so no seam is ever drawn between a new mesh and a stale one.
@@ -257,6 +266,8 @@ impl Editor {
             history: History::default(),
             stroke: None,
             caches: Vec::new(),
+            duals: Vec::new(),
+            view_mesher: MeshOptions::default(),
             dirty: Vec::new(),
             staged: Vec::new(),
             lod: Vec::new(),
@@ -281,7 +292,26 @@ impl Editor {
 
     /// Rebuilds the per-layer caches and queues every chunk (after layers are added or removed).
     pub fn reset_caches(&mut self) {
-        self.caches = self.scene.layers.iter().map(|_| MeshCache::new()).collect();
+        let options = self.view_mesher;
+        let block = options.mesher.block().unwrap_or_default();
+        self.caches = self
+            .scene
+            .layers
+            .iter()
+            .map(|_| {
+                let mut c = MeshCache::with_mesher(block);
+                // Bounds are checked by `set_view_mesher`.
+                let _ = c.set_simplify(options.simplify);
+                c
+            })
+            .collect();
+        let single = options.mesher == Mesher::SingleVertexDualContouring;
+        self.duals = self
+            .scene
+            .layers
+            .iter()
+            .map(|_| if single { DualCache::single_vertex() } else { DualCache::new() })
+            .collect();
         self.staged = self.scene.layers.iter().map(|_| HashMap::new()).collect();
         self.lod = self.scene.layers.iter().map(|_| HashMap::new()).collect();
         self.dirty = self
@@ -756,6 +786,23 @@ impl Editor {
         let t0 = Instant::now();
         const BATCH: usize = 16;
         let mut computed = false;
+        if self.view_mesher.mesher.block().is_none() {
+            // Dual contouring: its cache finds and rebuilds what the queued chunks affect, in
+            // one parallel pass per layer (no time budget, no level-of-detail cap).
+            for layer in 0..self.dirty.len() {
+                if self.dirty[layer].is_empty() {
+                    continue;
+                }
+                let queued: Vec<ChunkKey> = std::mem::take(&mut self.dirty[layer]).into_iter().collect();
+                let rebuilt = self.duals[layer].update(&self.scene.layers[layer].volume, &queued);
+                report.remeshed.extend(rebuilt.into_iter().map(|k| (layer, k)));
+            }
+            report.remesh_time = t0.elapsed();
+            report.pending = 0;
+            return;
+        }
+        // Level of detail caps only marching cubes (tetrahedra do not patch seams between levels).
+        let lod_on = self.view_mesher.mesher == Mesher::MarchingCubes;
         for layer in 0..self.dirty.len() {
             while !self.dirty[layer].is_empty() {
                 if computed && t0.elapsed() >= budget {
@@ -764,7 +811,8 @@ impl Editor {
                 let batch: Vec<ChunkKey> = std::iter::from_fn(|| self.dirty[layer].pop_first()).take(BATCH).collect();
                 let lod = &self.lod[layer];
                 let cap = |k: ChunkKey| lod.get(&k).copied().unwrap_or(Level::FINEST);
-                let capped: Option<strata_mesh::LevelCap<'_>> = if lod.is_empty() { None } else { Some(&cap) };
+                let capped: Option<strata_mesh::LevelCap<'_>> =
+                    if lod.is_empty() || !lod_on { None } else { Some(&cap) };
                 let fresh = self.caches[layer].compute(&self.scene.layers[layer].volume, &batch, capped);
                 self.staged[layer].extend(fresh);
                 computed = true;
@@ -862,11 +910,70 @@ impl Editor {
         self.caches.get(layer)
     }
 
-    /// The box of a layer's marching-cubes surface in its grid coordinates (from the mesh
-    /// cache: chunks not meshed yet are not counted), or `None` for a layer without surface.
+    /// The viewport's mesher and per-chunk simplification.
+    pub fn view_mesher(&self) -> MeshOptions {
+        self.view_mesher
+    }
+
+    /// Meshes the viewport with `options` from now on (every chunk is queued again). Per-chunk
+    /// simplification keeps each chunk's border so neighbours still meet; it applies to the
+    /// meshers that mesh chunk by chunk (marching cubes and tetrahedra), dual contouring refuses
+    /// it. Tetrahedra mesh a layer whose chunks mix levels with marching cubes (see
+    /// [`Editor::view_mesher_used`]); level of detail by distance applies to marching cubes only.
+    pub fn set_view_mesher(&mut self, options: MeshOptions) -> Result<(), EditorError> {
+        if let Some(e) = options.simplify {
+            if !(e.is_finite() && e >= 0.0) {
+                return Err(MesherError::Simplify(strata_mesh::simplify::SimplifyError::BadError(e)).into());
+            }
+            if options.mesher.block().is_none() {
+                return Err(MesherError::ChunkSimplify(options.mesher).into());
+            }
+        }
+        if options != self.view_mesher {
+            self.view_mesher = options;
+            self.staged.iter_mut().for_each(HashMap::clear);
+            let lod = std::mem::take(&mut self.lod);
+            self.reset_caches();
+            self.lod = lod;
+        }
+        Ok(())
+    }
+
+    /// The mesher a layer's viewport meshes are made with now: the one asked for, or marching
+    /// cubes where tetrahedra were asked for and the layer's chunks mix levels.
+    pub fn view_mesher_used(&self, layer: usize) -> Option<Mesher> {
+        if self.view_mesher.mesher.block().is_none() {
+            return self.duals.get(layer).map(|_| self.view_mesher.mesher);
+        }
+        Some(match self.caches.get(layer)?.mesher_used() {
+            strata_mesh::BlockMesher::MarchingCubes => Mesher::MarchingCubes,
+            strata_mesh::BlockMesher::Tetrahedra => Mesher::Tetrahedra,
+            strata_mesh::BlockMesher::ClusteredTetrahedra => Mesher::ClusteredTetrahedra,
+        })
+    }
+
+    /// The viewport mesh of chunk `key` of a layer (chunk-local positions), by the viewport's
+    /// mesher.
+    pub fn chunk_mesh(&self, layer: usize, key: ChunkKey) -> Option<&Mesh> {
+        if self.view_mesher.mesher.block().is_none() {
+            return self.duals.get(layer)?.mesh(key).map(|m| &m.mesh);
+        }
+        self.caches.get(layer)?.mesh(key)
+    }
+
+    /// Every viewport chunk mesh of a layer.
+    pub fn chunk_meshes(&self, layer: usize) -> Vec<(ChunkKey, &Mesh)> {
+        if self.view_mesher.mesher.block().is_none() {
+            return self.duals.get(layer).map(|d| d.iter().map(|(k, m)| (k, &m.mesh)).collect()).unwrap_or_default();
+        }
+        self.caches.get(layer).map(|c| c.iter().collect()).unwrap_or_default()
+    }
+
+    /// The box of a layer's viewport surface in its grid coordinates (from the mesh cache:
+    /// chunks not meshed yet are not counted), or `None` for a layer without surface.
     pub fn surface_bounds(&self, layer: usize) -> Option<(DVec3, DVec3)> {
         let mut b: Option<(DVec3, DVec3)> = None;
-        for (key, mesh) in self.caches.get(layer)?.iter() {
+        for (key, mesh) in self.chunk_meshes(layer) {
             let o = key.origin_grid().as_dvec3();
             for p in &mesh.positions {
                 let q = o + glam::Vec3::from(*p).as_dvec3();
@@ -878,6 +985,9 @@ impl Editor {
 
     /// Triangles in all layers' caches.
     pub fn triangle_count(&self) -> usize {
+        if self.view_mesher.mesher.block().is_none() {
+            return self.duals.iter().map(DualCache::triangle_count).sum();
+        }
         self.caches.iter().map(MeshCache::triangle_count).sum()
     }
 
@@ -890,12 +1000,12 @@ impl Editor {
         Ok(mesh)
     }
 
-    /// One mesh of every visible layer in world coordinates, for export: marching cubes
-    /// (welded) or, with `dual`, dual contouring (sharp features).
-    pub fn export_mesh(&self, dual: bool) -> Mesh {
+    /// One mesh of every visible layer in world coordinates, for export, by `options` (each
+    /// layer welded, and simplified when asked).
+    pub fn export_mesh(&self, options: MeshOptions) -> Result<Mesh, EditorError> {
         let mut out = Mesh::default();
         for l in self.scene.layers.iter().filter(|l| l.visible) {
-            let mut m = if dual { dual_contour_volume(&l.volume) } else { strata_mesh::mesh_volume(&l.volume) };
+            let mut m = strata_mesh::mesh_volume_with(&l.volume, options)?;
             to_world(&mut m, &l.transform);
             let base = out.positions.len() as u32;
             for i in 0..m.vertex_count() {
@@ -903,7 +1013,7 @@ impl Editor {
             }
             out.indices.extend(m.indices.iter().map(|i| i + base));
         }
-        out
+        Ok(out)
     }
 
     /// The first surface hit of the world ray `origin + t · dir` (`t ≤ max_t`) on a visible layer.

@@ -6,6 +6,7 @@ use glam::IVec3;
 use rayon::prelude::*;
 use strata_volume::{ChunkKey, Level, Volume, VoxelBlock};
 
+use crate::simplify::{Simplify, SimplifyError, simplify};
 use crate::tetra::TetraScratch;
 use crate::{Mesh, mesh_block, mesh_block_tetra};
 
@@ -52,6 +53,8 @@ pub struct MeshCache {
     /// The mesher the stored meshes were made with: marching cubes where tetrahedra were asked
     /// for but the volume mixes levels (tetrahedra do not patch seams between levels).
     used: BlockMesher,
+    /// Simplify each chunk's mesh with this error (grid units), its border locked.
+    simplify: Option<f32>,
 }
 
 /// A level-of-detail cap: chunk `k` is meshed at no finer than `cap(k)`.
@@ -66,6 +69,24 @@ impl MeshCache {
     /// An empty cache that meshes with `mesher`.
     pub fn with_mesher(mesher: BlockMesher) -> Self {
         MeshCache { mesher, used: mesher, ..Self::default() }
+    }
+
+    /// Simplifies every chunk mesh made from now on by meshoptimizer with `max_error` grid units,
+    /// the chunk's border locked so neighbours still meet (`None`: no simplification). Refuses a
+    /// bound that is not finite and `>= 0`.
+    pub fn set_simplify(&mut self, max_error: Option<f32>) -> Result<(), SimplifyError> {
+        if let Some(e) = max_error
+            && !(e.is_finite() && e >= 0.0)
+        {
+            return Err(SimplifyError::BadError(e));
+        }
+        self.simplify = max_error;
+        Ok(())
+    }
+
+    /// The simplification error of chunk meshes, if any.
+    pub fn simplification(&self) -> Option<f32> {
+        self.simplify
     }
 
     /// The mesher asked for.
@@ -117,6 +138,15 @@ impl MeshCache {
     /// has one level, [`MeshCache::dependents`]; where levels mix (or did, in this cache), the
     /// 3×3×3 chunks around each, whose seams the change can move. Sorted, without repeats.
     pub fn affected(&self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        if self.effective(volume, false) != self.used {
+            // Tetrahedra asked for and the volume went from one level to several or back: every
+            // chunk changes mesher together, so no border joins the two.
+            let mut keys: Vec<ChunkKey> = self.meshes.keys().copied().collect();
+            keys.extend(crate::surface_chunks(volume));
+            keys.sort();
+            keys.dedup();
+            return keys;
+        }
         if volume.single_level() && !self.mixed {
             return Self::dependents(changed);
         }
@@ -129,16 +159,6 @@ impl MeshCache {
     /// Remeshes what an edit that changed `changed` can have affected, in parallel. Returns the
     /// chunks whose mesh was rebuilt (upload those).
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
-        if self.effective(volume, false) != self.used {
-            // Tetrahedra asked for and the volume went from one level to several or back: every
-            // chunk changes mesher together, so borders never mix the two.
-            let mut keys: Vec<ChunkKey> = self.meshes.keys().copied().collect();
-            keys.extend(crate::surface_chunks(volume));
-            keys.sort();
-            keys.dedup();
-            self.remesh(volume, &keys);
-            return keys;
-        }
         let keys = self.affected(volume, changed);
         self.remesh(volume, &keys);
         keys
@@ -157,6 +177,7 @@ impl MeshCache {
         self.mixed |= !volume.single_level() || cap.is_some();
         let mesher = self.effective(volume, cap.is_some());
         self.used = mesher;
+        let simplify_by = self.simplify.map(Simplify::chunk);
         keys.par_iter()
             .map_init(
                 || (VoxelBlock::default(), TetraScratch::default()),
@@ -167,6 +188,10 @@ impl MeshCache {
                     }
                     let mut mesh = Mesh::default();
                     mesher.mesh(block, scratch, &mut mesh);
+                    if let Some(how) = simplify_by {
+                        // The bound was checked by `set_simplify` and meshes are finite.
+                        mesh = simplify(&mesh, how).unwrap_or(mesh);
+                    }
                     (key, mesh)
                 },
             )

@@ -97,6 +97,11 @@ pub enum MesherError {
         "{0} needs every chunk at one resolution level; this volume mixes levels (use marching cubes or dual contouring, or bring the detail back to the base level)"
     )]
     MixedLevels(Mesher),
+    /// Chunk-by-chunk simplification (the viewport's) is done for the meshers that mesh chunk by
+    /// chunk from blocks (marching cubes, tetrahedra); dual contouring is simplified whole, on
+    /// export.
+    #[error("the viewport simplifies chunk meshes of marching cubes and tetrahedra only; {0} is simplified on export")]
+    ChunkSimplify(Mesher),
     /// Simplification refused its input.
     #[error(transparent)]
     Simplify(#[from] SimplifyError),
