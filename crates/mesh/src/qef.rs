@@ -46,6 +46,11 @@ impl Qef {
         self.count += 1;
     }
 
+    /// The number of planes added.
+    pub fn count(&self) -> u32 {
+        self.count
+    }
+
     /// The mass point (mean of the added points).
     pub fn mass_point(&self) -> DVec3 {
         if self.count == 0 { DVec3::ZERO } else { self.mass / self.count as f64 }

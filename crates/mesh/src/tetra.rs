@@ -33,6 +33,7 @@ use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, VoxelBlock};
 
 use crate::marching::{EdgeKey, edge_material};
+use crate::qef::Qef;
 use crate::{Mesh, VertexMaterial};
 
 /// The seven lattice edge directions as corner bit masks (bit 0 x, 1 y, 2 z), axes first.
@@ -371,8 +372,14 @@ struct Clusterer {
     /// Triangles around each vertex (some may be dropped or no longer hold it).
     around: Vec<SmallVec<[u32; 10]>>,
     pos: Vec<Vec3>,
-    /// Sum of the original positions and normals, and count, of the vertices merged into each.
-    sum: Vec<(Vec3, Vec3, u32)>,
+    /// Original positions and normals (the Hermite data of the candidates).
+    orig: Vec<(Vec3, Vec3)>,
+    /// The vertices merged into each surviving vertex, as a list: the next member, or `NONE`.
+    next: Vec<u32>,
+    /// The last member of each surviving vertex's list.
+    tail: Vec<u32>,
+    /// The cell size (grid units): a merged vertex stays within half a cell of its members' box.
+    cell: f32,
     /// Where each vertex went (itself while alive).
     rep: Vec<u32>,
     /// Vertices that must stay (shared with another chunk).
@@ -381,13 +388,16 @@ struct Clusterer {
 
 impl Clusterer {
     /// The candidate mesh `out` with triangles `tris`.
-    fn new(out: &Mesh, tris: Vec<[u32; 3]>) -> Self {
+    fn new(out: &Mesh, tris: Vec<[u32; 3]>, cell: f32) -> Self {
         let count = out.positions.len();
         let mut c = Clusterer {
             tris,
             around: vec![SmallVec::new(); count],
             pos: out.positions.iter().map(|&p| Vec3::from(p)).collect(),
-            sum: out.positions.iter().zip(&out.normals).map(|(&p, &q)| (Vec3::from(p), Vec3::from(q), 1)).collect(),
+            orig: out.positions.iter().zip(&out.normals).map(|(&p, &q)| (Vec3::from(p), Vec3::from(q))).collect(),
+            next: vec![NONE; count],
+            tail: (0..count as u32).collect(),
+            cell,
             rep: (0..count as u32).collect(),
             locked: vec![false; count],
         };
@@ -414,7 +424,7 @@ impl Clusterer {
     /// Clusters the candidate mesh of one block: the private vertices by their nearest node
     /// (vertices on edges in a chunk face are shared with a neighbour and stay).
     fn run(n: usize, sp: f32, s: &mut TetraScratch, out: &mut Mesh) {
-        let mut c = Clusterer::new(out, std::mem::take(&mut s.tris));
+        let mut c = Clusterer::new(out, std::mem::take(&mut s.tris), sp);
         let m = n + 1;
         let mut owned: Vec<(u32, u32)> = Vec::with_capacity(out.positions.len());
         for (v, (site, &t)) in s.sites.iter().zip(&s.ts).enumerate() {
@@ -461,7 +471,7 @@ impl Clusterer {
             if self.pos[a as usize].distance(self.pos[b as usize]) >= max_len || !self.adjacent(a, b) {
                 continue;
             }
-            self.collapse(a, b);
+            self.collapse(a, b, Some(SHORT_EDGE_RMS_CELLS * self.cell));
         }
     }
 
@@ -480,7 +490,7 @@ impl Clusterer {
                     if done[mi] {
                         continue;
                     }
-                    if self.collapse(v, seed) {
+                    if self.collapse(v, seed, None) {
                         done[mi] = true;
                         progress = true;
                     }
@@ -490,6 +500,32 @@ impl Clusterer {
                 }
             }
         }
+    }
+
+    /// The vertices merged into `v` (itself first).
+    fn members(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
+        std::iter::successors(Some(v), |&m| Some(self.next[m as usize]).filter(|&n| n != NONE))
+    }
+
+    /// Where the union of `a`'s and `b`'s members goes: the minimiser of their tangent planes'
+    /// squared distances (the dual-contouring QEF, biased to their mean where the planes leave
+    /// a direction free), so flat parts stay on the surface and edges and corners stay sharp;
+    /// kept within half a cell of the members' box.
+    fn place(&self, a: u32, b: u32) -> (Vec3, f32) {
+        let mut qef = Qef::default();
+        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+        let origin = self.orig[b as usize].0;
+        for m in self.members(a).chain(self.members(b)) {
+            let (p, n) = self.orig[m as usize];
+            qef.add((p - origin).as_dvec3(), n.as_dvec3());
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        let margin = Vec3::splat(0.5 * self.cell);
+        let p = (origin + qef.solve().as_vec3()).clamp(lo - margin, hi + margin);
+        // The root-mean-square distance of the members' tangent planes from the new vertex.
+        let rms = (qef.error((p - origin).as_dvec3()) / qef.count() as f64).sqrt() as f32;
+        (p, rms)
     }
 
     /// The triangles around `v` (the lists are kept exact: every collapse updates them).
@@ -513,9 +549,10 @@ impl Clusterer {
         out
     }
 
-    /// Merges `a` into `b` if that keeps the surface a closed manifold of the same topology and
-    /// turns no triangle over.
-    fn collapse(&mut self, a: u32, b: u32) -> bool {
+    /// Merges `a` into `b` if that keeps the surface a closed manifold of the same topology,
+    /// turns no triangle over and (with `max_rms`) keeps the members' tangent planes within
+    /// that root-mean-square distance of the merged vertex.
+    fn collapse(&mut self, a: u32, b: u32, max_rms: Option<f32>) -> bool {
         let mut shared: SmallVec<[(u32, u32); 2]> = SmallVec::new();
         for (t, tri) in self.live(a) {
             if tri.contains(&b) {
@@ -537,9 +574,10 @@ impl Clusterer {
         if na.iter().filter(|w| nb.contains(w)).count() != 2 {
             return false;
         }
-        let (sa, sb) = (self.sum[a as usize], self.sum[b as usize]);
-        let merged = (sa.0 + sb.0, sa.1 + sb.1, sa.2 + sb.2);
-        let p = merged.0 / merged.2 as f32;
+        let (p, rms) = self.place(a, b);
+        if max_rms.is_some_and(|m| rms > m) {
+            return false;
+        }
         // No surviving triangle may turn over or collapse.
         for v in [a, b] {
             for (_, tri) in self.live(v) {
@@ -572,7 +610,8 @@ impl Clusterer {
             self.around[b as usize].push(t);
         }
         self.pos[b as usize] = p;
-        self.sum[b as usize] = merged;
+        self.next[self.tail[b as usize] as usize] = a;
+        self.tail[b as usize] = self.tail[a as usize];
         self.rep[a as usize] = b;
         true
     }
@@ -590,8 +629,8 @@ impl Clusterer {
                 continue;
             }
             index[v] = mesh.positions.len() as u32;
-            let (_, nsum, k) = self.sum[v];
-            let normal = if k > 1 { nsum.normalize_or(Vec3::from(out.normals[v])) } else { Vec3::from(out.normals[v]) };
+            let normal = self.members(v as u32).map(|m| self.orig[m as usize].1).sum::<Vec3>();
+            let normal = normal.normalize_or(Vec3::from(out.normals[v]));
             mesh.positions.push(self.pos[v].to_array());
             mesh.normals.push(normal.to_array());
             if with_materials {
@@ -611,6 +650,10 @@ impl Clusterer {
 
 /// The second pass collapses edges shorter than this many cells (see [`Clusterer::collapse_short`]).
 pub const SHORT_EDGE_CELLS: f32 = 0.9;
+
+/// The second pass's collapses keep the merged candidates' tangent planes within this
+/// root-mean-square distance (cells) of the merged vertex, so edges and corners are not cut.
+pub const SHORT_EDGE_RMS_CELLS: f32 = 0.05;
 
 /// The node a vertex at `t` along its edge is nearest to (block-local).
 fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
@@ -693,7 +736,7 @@ pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -
     }
     if cluster {
         let tris: Vec<[u32; 3]> = out.triangles().collect();
-        let mut c = Clusterer::new(&out, tris);
+        let mut c = Clusterer::new(&out, tris, spacing);
         let mut groups: Vec<((i64, i64, i64), u32)> =
             nodes.iter().enumerate().map(|(v, p)| ((p.z, p.y, p.x), v as u32)).collect();
         c.cluster_groups(&mut groups);
