@@ -116,12 +116,17 @@ fn asteroid_brush(res: u32, scale: f64) -> SdfBrush {
 /// A noise asteroid of about `res` cells across; its reference is the marching-cubes mesh of the
 /// same field on a twice finer grid.
 pub fn asteroid(res: u32) -> Shape {
-    let volume = convert(&asteroid_brush(res, 1.0));
+    let volume = asteroid_volume(res);
     let mut reference = strata_mesh::mesh_volume(&convert(&asteroid_brush(res, 2.0)));
     for p in &mut reference.positions {
         *p = p.map(|c| c / 2.0);
     }
     Shape { name: format!("asteroid {res}"), volume, reference: Reference::Mesh(reference) }
+}
+
+/// The asteroid's lists alone (no reference).
+pub fn asteroid_volume(res: u32) -> Volume {
+    convert(&asteroid_brush(res, 1.0))
 }
 
 /// The Table 1 canvas after `count` radius-10 instructions; its reference is the same

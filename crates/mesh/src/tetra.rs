@@ -578,6 +578,18 @@ impl Clusterer {
         if max_rms.is_some_and(|m| rms > m) {
             return false;
         }
+        // Every candidate stays near the merged vertex's tangent plane (so the clustered
+        // surface stays within about this distance of the unclustered one) and near the vertex
+        // (thin tips, whose candidates surround the tip, are not cut off).
+        let normal = self.members(a).chain(self.members(b)).map(|m| self.orig[m as usize].1).sum::<Vec3>();
+        let normal = normal.normalize_or_zero();
+        let (off, reach) = (MAX_MOVE_CELLS * self.cell, (MAX_REACH_CELLS * self.cell).powi(2));
+        if self.members(a).chain(self.members(b)).any(|m| {
+            let q = self.orig[m as usize].0;
+            normal.dot(q - p).abs() > off || q.distance_squared(p) > reach
+        }) {
+            return false;
+        }
         // No surviving triangle may turn over or collapse.
         for v in [a, b] {
             for (_, tri) in self.live(v) {
@@ -650,6 +662,15 @@ impl Clusterer {
 
 /// The second pass collapses edges shorter than this many cells (see [`Clusterer::collapse_short`]).
 pub const SHORT_EDGE_CELLS: f32 = 0.9;
+
+/// No candidate vertex is merged into a vertex whose tangent plane is farther than this (cells)
+/// from it.
+pub const MAX_MOVE_CELLS: f32 = 0.35;
+
+/// Nor into a vertex farther than this (cells). With 0.75 the bunny's ear tips (at 64 cells)
+/// were cut by 0.63 cells; with 0.6 the clustered bunny stays within 0.39 cells of the
+/// unclustered one and clustering removes 78 % of its triangles instead of 82 %.
+pub const MAX_REACH_CELLS: f32 = 0.6;
 
 /// The second pass's collapses keep the merged candidates' tangent planes within this
 /// root-mean-square distance (cells) of the merged vertex, so edges and corners are not cut.
@@ -741,11 +762,7 @@ pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -
             nodes.iter().enumerate().map(|(v, p)| ((p.z, p.y, p.x), v as u32)).collect();
         c.cluster_groups(&mut groups);
         c.collapse_short(SHORT_EDGE_CELLS * spacing);
-        let distinct = groups.chunk_by(|a, b| a.0 == b.0).count();
         c.finish(&mut out);
-        if std::env::var("STRATA_DEBUG").is_ok() {
-            eprintln!("groups {distinct} vertices {} of {}", out.positions.len(), nodes.len());
-        }
     }
     out
 }

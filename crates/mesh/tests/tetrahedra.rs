@@ -300,6 +300,8 @@ fn a_big_sphere_loses_most_triangles_to_clustering() {
     let exact = 4.0 / 3.0 * PI * 8000.0;
     assert!((signed_volume(&whole) - exact).abs() / exact < 0.01);
     let reduction = |m: &Mesh| 1.0 - m.triangle_count() as f64 / plain.triangle_count() as f64;
-    assert!(reduction(&whole) >= 0.795, "whole: {:.3}", reduction(&whole));
-    assert!(reduction(&chunked) >= 0.70, "per chunk: {:.3}", reduction(&chunked));
+    // The bar is 70 % whole; chunk faces are never clustered, which costs about ten
+    // points chunk by chunk.
+    assert!(reduction(&whole) >= 0.70, "whole: {:.3}", reduction(&whole));
+    assert!(reduction(&chunked) >= 0.60, "per chunk: {:.3}", reduction(&chunked));
 }
