@@ -55,6 +55,8 @@ pub struct SuiteConfig {
     pub lod_frames: usize,
     /// Table 9's sizes.
     pub terrain: crate::terrain::TerrainConfig,
+    /// Table 10's sizes.
+    pub mesh_quality: crate::quality::QualityConfig,
     /// Workload seed.
     pub seed: u64,
 }
@@ -78,6 +80,7 @@ impl SuiteConfig {
             lod_resolution: 1024,
             lod_frames: 300,
             terrain: crate::terrain::TerrainConfig::full(),
+            mesh_quality: crate::quality::QualityConfig::full(),
             seed: 2021,
         }
     }
@@ -100,6 +103,7 @@ impl SuiteConfig {
             lod_resolution: 256,
             lod_frames: 10,
             terrain: crate::terrain::TerrainConfig::quick(),
+            mesh_quality: crate::quality::QualityConfig::quick(),
             seed: 2021,
         }
     }
@@ -219,6 +223,8 @@ pub struct SuiteResults {
     pub materials: Option<crate::materials::MaterialsResults>,
     /// Table 9 (terrain).
     pub terrain: Option<crate::terrain::TerrainResults>,
+    /// Table 10 (mesh quality).
+    pub mesh_quality: Vec<crate::quality::QualityRow>,
 }
 
 /// Runs every table. `mesh` is the scanned mesh of Table 3 (PLY, OBJ or STL).
@@ -241,6 +247,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         lod: None,
         materials: None,
         terrain: None,
+        mesh_quality: Vec::new(),
     };
     for &r in &config.radii {
         progress(&format!("table 1: radius {r}"));
@@ -314,6 +321,7 @@ pub fn run(config: &SuiteConfig, mesh: &Path, progress: &mut dyn FnMut(&str)) ->
         progress,
     )?);
     out.terrain = Some(crate::terrain::run(&config.terrain, progress)?);
+    out.mesh_quality = crate::quality::run(&config.mesh_quality, (&scanned.vertices, &tris), progress)?;
     Ok(out)
 }
 
@@ -643,6 +651,9 @@ pub fn markdown(r: &SuiteResults) -> String {
     }
     if let Some(t) = &r.terrain {
         crate::terrain::markdown(&mut s, t);
+    }
+    if !r.mesh_quality.is_empty() {
+        crate::quality::markdown(&r.mesh_quality, &mut s);
     }
     s
 }

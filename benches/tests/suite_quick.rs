@@ -64,8 +64,19 @@ fn the_quick_suite_measures_every_table() {
     assert_eq!(terrain.streaming.len(), 2, "without and with detail");
     assert!(terrain.streaming.iter().all(|f| f.frames > 0 && f.generated_per_s > 0.0), "{:?}", terrain.streaming);
     assert!(terrain.paging.iter().all(|p| p.write_batch_per_s > 0.0 && p.read_per_s > 0.0 && p.bytes_per_chunk > 0.0));
+    let q = &results.mesh_quality;
+    assert_eq!(q.len(), 4 * strata_bench::quality::methods().len(), "every shape by every mesher");
+    for r in q {
+        assert!(r.triangles > 0 && r.ms > 0.0 && r.error.is_finite(), "{r:?}");
+        // Every mesher but the first wave's dual contouring (and the simplifiers, which do not
+        // promise it) is closed and edge-manifold.
+        if !r.mesher.contains("one vertex") && !r.mesher.contains("simplification") {
+            assert_eq!((r.open_edges, r.non_manifold_edges), (0, 0), "{r:?}");
+        }
+    }
     let md = markdown(&results);
     for t in [
+        "Table 10 — mesh quality",
         "Table 9 — terrain",
         "Table 7 — level of detail",
         "Table 8 — materials",

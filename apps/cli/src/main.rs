@@ -75,7 +75,7 @@ enum Command {
         mesher: Mesher,
         /// Simplify the mesh (meshoptimizer) as far as it stays within this many cells of the
         /// surface.
-        #[arg(long, value_name = "CELLS")]
+        #[arg(long, value_name = "CELLS", allow_negative_numbers = true)]
         simplify: Option<f32>,
         /// Layers to export, by index or name, comma-separated (default: the visible ones).
         #[arg(long, value_delimiter = ',')]

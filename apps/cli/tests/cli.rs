@@ -56,6 +56,20 @@ fn convert_info_and_export_round_trip_the_bunny() {
         assert!(report.contains("triangles"), "{report}");
         assert!(std::fs::metadata(&out).unwrap().len() > 1000);
     }
+    // Regularised tetrahedra and simplification: fewer triangles, reported in the summary.
+    let count = |r: &str| -> usize {
+        r.split(", ").find_map(|p| p.strip_suffix(" triangles")?.parse().ok()).unwrap_or_else(|| panic!("{r}"))
+    };
+    let mc = count(&ok(strata(&["export", s(&scene), "-o", s(&dir.join("mc.glb"))])));
+    let rmt = ok(strata(&["export", s(&scene), "-o", s(&dir.join("rmt.glb")), "--mesher", "rmt"]));
+    assert!(rmt.contains("regularised tetrahedra") && count(&rmt) < mc, "{rmt}");
+    let simple = ok(strata(&["export", s(&scene), "-o", s(&dir.join("simple.ply")), "--simplify", "0.3"]));
+    assert!(simple.contains("simplified within 0.3 cells") && count(&simple) < mc / 2, "{simple}");
+    for bad in ["nan", "-1", "inf"] {
+        let out = dir.join("bad.glb");
+        refused(strata(&["export", s(&scene), "-o", s(&out), "--simplify", bad]), "simplification error");
+        assert!(!out.exists(), "nothing written for --simplify {bad}");
+    }
     // The exported mesh converts again (STL here), and the layer is in the mesh's own units:
     // the bunny's bounds survive the trip.
     let again = dir.join("again.strata");
