@@ -559,7 +559,7 @@ impl StudioApp {
                 if ui.button("Export mesh… (glb, obj, stl, ply)").clicked() {
                     self.ask_path(&ctx, Prompt::Export, None);
                 }
-                mesher_choice(ui, "export_mesher", "Export with", &mut self.studio.export);
+                mesher_choice(ui, false, "Export with", &mut self.studio.export);
                 ui.separator();
                 if ui.button("Quit").clicked() {
                     self.guard(&ctx, Then::Quit);
@@ -597,7 +597,7 @@ impl StudioApp {
                     let _ = self.studio.act(Action::ToggleOrthographic);
                     ui.close();
                 }
-                let settled = mesher_choice(ui, "view_mesher", "Viewport mesher", &mut self.studio.view_draft);
+                let settled = mesher_choice(ui, true, "Viewport mesher", &mut self.studio.view_draft);
                 if settled && self.studio.view_draft != self.studio.editor.view_mesher() {
                     let _ = self.studio.act(Action::ViewMesher(self.studio.view_draft));
                 }
@@ -1467,17 +1467,15 @@ pub fn run_window(studio: Studio) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("the window could not start: {e}"))
 }
 
-/// A mesher picker with a simplification toggle and error, under `label`; false while the error
+/// A mesher picker (one radio button a mesher: menus stay open while one is picked) with a
+/// simplification toggle and error, under `label`; false while the error
 /// slider is being dragged. Dual contouring is simplified on export only, so the viewport's
 /// picker offers it without.
-fn mesher_choice(ui: &mut egui::Ui, id: &str, label: &str, options: &mut strata_mesh::MeshOptions) -> bool {
-    let viewport = id == "view_mesher";
+fn mesher_choice(ui: &mut egui::Ui, viewport: bool, label: &str, options: &mut strata_mesh::MeshOptions) -> bool {
     ui.label(label);
-    egui::ComboBox::from_id_salt(id).selected_text(options.mesher.name()).show_ui(ui, |ui| {
-        for m in strata_mesh::Mesher::ALL {
-            ui.selectable_value(&mut options.mesher, m, m.name());
-        }
-    });
+    for m in strata_mesh::Mesher::ALL {
+        ui.radio_value(&mut options.mesher, m, m.name());
+    }
     let can_simplify = !viewport || options.mesher.block().is_some();
     if !can_simplify {
         options.simplify = None;

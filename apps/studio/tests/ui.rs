@@ -636,3 +636,63 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     h.run_steps(3);
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn the_viewport_and_exports_take_the_mesher_chosen_in_the_menus() {
+    let dir = temp("meshers");
+    let mut h = harness(&dir);
+    h.run();
+    let mc = h.state().studio.editor.triangle_count();
+    assert!(mc > 0);
+    // View > Viewport mesher: regularised tetrahedra.
+    h.get_by_label("View").click();
+    h.run();
+    h.get_by_label("regularised tetrahedra").click();
+    h.run();
+    let s = &h.state().studio;
+    assert_eq!(s.editor.view_mesher().mesher, strata_mesh::Mesher::ClusteredTetrahedra, "{}", s.message);
+    let rmt = s.editor.triangle_count();
+    assert!(rmt > 0 && rmt < mc, "the viewport shows the clustered mesh: {rmt} of {mc}");
+    assert!(s.message.contains("regularised tetrahedra"), "{}", s.message);
+    h.key_press(egui::Key::Escape);
+    h.run();
+    // A stroke remeshes with it.
+    drag_over_the_ball(&mut h, 6);
+    h.state_mut().studio.editor.finish_meshing();
+    assert_eq!(h.state().studio.editor.history().undo_len(), 1);
+    // File > Export with: dual contouring, simplified; then export through the prompt.
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("dual contouring").click();
+    h.run();
+    if h.query_by_label("Simplify (meshoptimizer)").is_none() {
+        // A click in a menu may close it: open it again.
+        h.get_by_label("File").click();
+        h.run();
+    }
+    h.get_by_label("Simplify (meshoptimizer)").click();
+    h.run();
+    if h.query_by_label("Export mesh… (glb, obj, stl, ply)").is_none() {
+        h.get_by_label("File").click();
+        h.run();
+    }
+    let export = h.state().studio.export;
+    assert_eq!(export.mesher, strata_mesh::Mesher::DualContouring);
+    assert_eq!(export.simplify, Some(0.1));
+    h.get_by_label("Export mesh… (glb, obj, stl, ply)").click();
+    h.run();
+    let path = dir.join("out.ply");
+    type_keys(&mut h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+    let s = &h.state().studio;
+    assert!(path.exists(), "{}", s.message);
+    let written = strata_mesh::import::load_mesh(&path).unwrap();
+    let full = s.editor.export_mesh(strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring)).unwrap();
+    assert!(
+        written.triangles.len() < full.triangle_count(),
+        "simplified: {} of {}",
+        written.triangles.len(),
+        full.triangle_count()
+    );
+}
