@@ -636,11 +636,11 @@ impl Clusterer {
         let mut mesh = Mesh::default();
         let mut kept = Vec::new();
         let with_materials = !out.materials.is_empty();
-        for v in 0..count {
+        for (v, slot) in index.iter_mut().enumerate() {
             if self.rep[v] != v as u32 {
                 continue;
             }
-            index[v] = mesh.positions.len() as u32;
+            *slot = mesh.positions.len() as u32;
             let normal = self.members(v as u32).map(|m| self.orig[m as usize].1).sum::<Vec3>();
             let normal = normal.normalize_or(Vec3::from(out.normals[v]));
             mesh.positions.push(self.pos[v].to_array());
