@@ -18,12 +18,16 @@
 //! **Clustering.** Every vertex belongs to the node it is nearest to. Around each node, its
 //! vertices are merged one at a time along the mesh edges that join them, each merge an edge
 //! collapse that is made only if the link condition holds (the two ends share exactly the two
-//! opposite corners of the edge's triangles), no vertex falls below valence three, and no
-//! surviving triangle turns over. A collapse that passes these checks keeps a closed 2-manifold
-//! closed and manifold with the same topology, so the output is closed and edge-manifold
-//! always: the study's loop and island tests become one exact local test. Vertices on edges that
-//! lie in a chunk face are shared with the neighbouring chunk and never merged; so chunk meshes
-//! stay crack-free and each chunk's clustering depends on its own block alone (incremental).
+//! opposite corners of the edge's triangles), no vertex falls below valence three, no
+//! surviving triangle turns over, and every merged candidate stays near the new vertex and its
+//! tangent plane ([`MAX_MOVE_CELLS`], [`MAX_REACH_CELLS`]). A collapse that passes these checks
+//! keeps a closed 2-manifold closed and manifold with the same topology, so the output is closed
+//! and edge-manifold always: the study's loop and island tests become one exact local test. The
+//! merged vertex is placed by the QEF of its candidates' tangent planes. A second pass collapses
+//! the remaining short edges ([`SHORT_EDGE_CELLS`]) under the same checks. Vertices on edges
+//! that lie in a chunk face are shared with the neighbouring chunk and never merged; so chunk
+//! meshes stay crack-free and each chunk's clustering depends on its own block alone
+//! (incremental). [`crate::tetra_volume`] clusters the welded whole mesh instead, faces included.
 
 use std::sync::OnceLock;
 
@@ -136,9 +140,9 @@ pub struct TetraScratch {
 
 /// Marching tetrahedra of one block, with integrated clustering when `cluster`, into `out`
 /// (cleared first): positions in grid units from the block's origin, like
-/// [`crate::mesh_block`]. Returns the lattice edge of every vertex (`keys` cleared first), which
-/// identifies shared vertices across chunks: only vertices on edges in a chunk face are shared,
-/// and those are never merged.
+/// [`crate::mesh_block`]. Vertices on edges in a chunk face are shared with the neighbouring
+/// block's mesh (same position bit for bit) and are never merged; the others belong to this
+/// chunk alone.
 pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraScratch, out: &mut Mesh) {
     out.clear();
     let n = block.cells();
@@ -660,7 +664,7 @@ impl Clusterer {
     }
 }
 
-/// The second pass collapses edges shorter than this many cells (see [`Clusterer::collapse_short`]).
+/// The second pass collapses edges shorter than this many cells, shortest first.
 pub const SHORT_EDGE_CELLS: f32 = 0.9;
 
 /// No candidate vertex is merged into a vertex whose tangent plane is farther than this (cells)
