@@ -642,6 +642,8 @@ fn the_viewport_and_exports_take_the_mesher_chosen_in_the_menus() {
     let dir = temp("meshers");
     let mut h = harness(&dir);
     h.run();
+    // Frames remesh within a time budget: finish, so the count does not depend on the machine.
+    h.state_mut().studio.editor.finish_meshing();
     let mc = h.state().studio.editor.triangle_count();
     assert!(mc > 0);
     // View > Viewport mesher: regularised tetrahedra.
