@@ -9,7 +9,7 @@ use glam::DVec3;
 use noise::{Fbm, MultiFractal, NoiseFn, Perlin};
 use serde::Serialize;
 use strata_mesh::Mesh;
-use strata_mesh::checks::{SurfaceIndex, aspect_stats, manifold_report, signed_volume};
+use strata_mesh::checks::{aspect_stats, distance_to, manifold_report, signed_volume, surface_samples};
 use strata_mesh::{MeshOptions, Mesher, mesh_volume_with};
 use strata_volume::brush::{Aabb, Brush, MeshBrush, MeshRule, SdfBrush, Sphere};
 use strata_volume::{Axis, CsgOp, EditSettings, Volume};
@@ -40,28 +40,13 @@ impl Reference {
     /// Largest distance from the samples of `mesh` (vertices, edge midpoints, centroids) to
     /// the reference surface, in cells.
     pub fn error(&self, mesh: &Mesh) -> f64 {
-        let samples = samples(mesh);
         match self {
-            Reference::Sphere(c, r) => samples.iter().map(|p| (p.distance(*c) - r).abs()).fold(0.0, f64::max),
-            Reference::Mesh(m) => {
-                let index = SurfaceIndex::new(m, 0.5);
-                samples.iter().map(|p| index.distance(*p, 4.0)).fold(0.0, f64::max)
+            Reference::Sphere(c, r) => {
+                surface_samples(mesh).iter().map(|p| (p.distance(*c) - r).abs()).fold(0.0, f64::max)
             }
+            Reference::Mesh(m) => distance_to(mesh, m, 4.0),
         }
     }
-}
-
-fn samples(mesh: &Mesh) -> Vec<DVec3> {
-    let p = |i: u32| {
-        let q = mesh.positions[i as usize];
-        DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64)
-    };
-    let mut out: Vec<DVec3> = (0..mesh.positions.len() as u32).map(p).collect();
-    for [a, b, c] in mesh.triangles() {
-        let (a, b, c) = (p(a), p(b), p(c));
-        out.extend([(a + b + c) / 3.0, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5]);
-    }
-    out
 }
 
 fn convert(brush: &dyn Brush) -> Volume {

@@ -1,7 +1,6 @@
 //! The viewport and exports by every mesher: the editor's chunk meshes meet across chunk
 //! borders after strokes, exports are closed, bad choices are refused with a clear error.
 
-use std::collections::HashMap;
 use std::time::Duration;
 
 use glam::{DQuat, DVec3};
@@ -20,22 +19,9 @@ fn ball_editor() -> Editor {
 /// border vertices bit for bit). Dual contouring's chunk meshes repeat vertices of the cells
 /// before them, which weld the same way.
 fn viewport(e: &Editor) -> Mesh {
-    let mut out = Mesh::default();
-    let mut at: HashMap<[u32; 3], u32> = HashMap::new();
     let mut parts = e.chunk_meshes(0);
     parts.sort_by_key(|(k, _)| *k);
-    for (key, m) in parts {
-        let o = key.origin_grid().as_vec3().to_array();
-        let remap: Vec<u32> = (0..m.positions.len())
-            .map(|i| {
-                let p = m.positions[i];
-                let id = [p[0] + o[0], p[1] + o[1], p[2] + o[2]].map(f32::to_bits);
-                *at.entry(id).or_insert_with(|| out.push_vertex_from(m, i, o))
-            })
-            .collect();
-        out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
-    }
-    out
+    strata_mesh::checks::weld_by_position(parts)
 }
 
 fn stroke(e: &mut Editor) {

@@ -259,7 +259,7 @@ impl<'a> SurfaceIndex<'a> {
 }
 
 /// Points spread over a mesh's surface: its vertices, edge midpoints and triangle centroids.
-fn surface_samples(mesh: &Mesh) -> Vec<DVec3> {
+pub fn surface_samples(mesh: &Mesh) -> Vec<DVec3> {
     let mut out: Vec<DVec3> =
         mesh.positions.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
     for t in mesh.triangles() {
@@ -272,9 +272,32 @@ fn surface_samples(mesh: &Mesh) -> Vec<DVec3> {
 /// The symmetric Hausdorff distance between two meshes, measured at the vertices, edge midpoints
 /// and centroids of each against the other's triangles, capped at `max` (grid units).
 pub fn hausdorff(a: &Mesh, b: &Mesh, max: f64) -> f64 {
-    let one_way = |from: &Mesh, to: &Mesh| {
-        let index = SurfaceIndex::new(to, 0.5);
-        surface_samples(from).into_iter().map(|p| index.distance(p, max)).fold(0.0, f64::max)
-    };
-    one_way(a, b).max(one_way(b, a))
+    distance_to(a, b, max).max(distance_to(b, a, max))
+}
+
+/// The one-way Hausdorff distance: the largest distance from `from`'s surface samples
+/// ([`surface_samples`]) to `to`'s triangles, capped at `max` (grid units).
+pub fn distance_to(from: &Mesh, to: &Mesh, max: f64) -> f64 {
+    let index = SurfaceIndex::new(to, 0.5);
+    surface_samples(from).into_iter().map(|p| index.distance(p, max)).fold(0.0, f64::max)
+}
+
+/// Chunk meshes (chunk-local positions) welded into one mesh by exact position: vertices two
+/// chunks share on their common face are computed from the same crossings by both, so they
+/// agree bit for bit and weld, and any crack between chunk meshes shows as open edges.
+pub fn weld_by_position<'a>(parts: impl IntoIterator<Item = (strata_volume::ChunkKey, &'a Mesh)>) -> Mesh {
+    let mut out = Mesh::default();
+    let mut at: HashMap<[u32; 3], u32> = HashMap::new();
+    for (key, m) in parts {
+        let o = key.origin_grid().as_vec3().to_array();
+        let remap: Vec<u32> = (0..m.positions.len())
+            .map(|i| {
+                let p = m.positions[i];
+                let id = [p[0] + o[0], p[1] + o[1], p[2] + o[2]].map(f32::to_bits);
+                *at.entry(id).or_insert_with(|| out.push_vertex_from(m, i, o))
+            })
+            .collect();
+        out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
+    }
+    out
 }

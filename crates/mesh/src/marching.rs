@@ -239,11 +239,20 @@ fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + S
 /// One mesh of chunk meshes (chunk-local positions), welding vertices with equal identities
 /// (`ids[i]` for vertex `i`; vertices after the ids belong to their chunk alone).
 pub(crate) fn weld(parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)>) -> Mesh {
+    weld_traced(&parts).0
+}
+
+/// [`weld`], also returning where each welded vertex came from: (part, vertex in the part).
+pub(crate) fn weld_traced(parts: &[(ChunkKey, Mesh, Vec<EdgeKey>)]) -> (Mesh, Vec<(u32, u32)>) {
     let mut out = Mesh::default();
+    let mut source: Vec<(u32, u32)> = Vec::new();
     let mut welded: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
-    for (key, m, ids) in parts {
+    for (part, (key, m, ids)) in parts.iter().enumerate() {
         let origin = key.origin_grid().as_vec3().to_array();
-        let place = |out: &mut Mesh, i: usize| out.push_vertex_from(&m, i, origin);
+        let mut place = |out: &mut Mesh, i: usize| {
+            source.push((part as u32, i as u32));
+            out.push_vertex_from(m, i, origin)
+        };
         let mut remap: Vec<u32> = Vec::with_capacity(m.positions.len());
         for (i, id) in ids.iter().enumerate() {
             let v = match welded.get(id) {
@@ -262,7 +271,7 @@ pub(crate) fn weld(parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)>) -> Mesh {
         }
         out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
     }
-    out
+    (out, source)
 }
 
 /// One welded marching-tetrahedra mesh of the whole volume (grid units, absolute), with the

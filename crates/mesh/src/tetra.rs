@@ -31,7 +31,7 @@
 
 use std::sync::OnceLock;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, I64Vec3, Vec3};
 use smallvec::SmallVec;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, VoxelBlock};
@@ -353,7 +353,7 @@ fn site_key(key: ChunkKey, block: &VoxelBlock, site: Site, t: f32) -> EdgeKey {
         );
     }
     let s = block.level().steps_per_cell() as i64;
-    let l = glam::I64Vec3::new(site.lower[0] as i64, site.lower[1] as i64, site.lower[2] as i64);
+    let l = I64Vec3::new(site.lower[0] as i64, site.lower[1] as i64, site.lower[2] as i64);
     (3 + site.dir, key.0.as_i64vec3() * 65536 + l * s)
 }
 
@@ -687,83 +687,60 @@ fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
     if t <= 0.5 { l } else { [l[0] + d[0], l[1] + d[1], l[2] + d[2]] }
 }
 
-/// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
-/// viewport (vertices on chunk faces never merged), welded into one mesh (grid units,
-/// absolute). `None` for a volume whose chunks mix levels.
-pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
+/// The tetrahedra mesh of every chunk that can hold surface (clustered chunk by chunk when
+/// `cluster`), with each vertex's identity and, for each vertex, its nearest node (global, in
+/// cells of the volume's level).
+fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<((ChunkKey, Mesh, Vec<EdgeKey>), Vec<I64Vec3>)> {
     use rayon::prelude::*;
-    if !volume.single_level() {
-        return None;
-    }
-    let keys = crate::surface_chunks(volume);
-    let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)> = keys
+    crate::surface_chunks(volume)
         .par_iter()
         .map_init(
             || (VoxelBlock::default(), TetraScratch::default()),
             |(block, scratch), &key| {
                 volume.extract_block_into(key, block);
                 let mut m = Mesh::default();
-                let ids = mesh_block_tetra_keyed(block, true, scratch, &mut m);
-                (key, m, ids)
+                let ids = mesh_block_tetra_keyed(block, cluster, scratch, &mut m);
+                let origin = key.0.as_i64vec3() * block.cells() as i64;
+                let nodes = scratch
+                    .sites
+                    .iter()
+                    .zip(&scratch.ts)
+                    .map(|(site, &t)| origin + I64Vec3::from_array(nearest_node(site, t).map(|c| c as i64)))
+                    .collect();
+                ((key, m, ids), nodes)
             },
         )
-        .collect();
-    Some(crate::marching::weld(parts))
+        .collect()
+}
+
+/// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
+/// viewport (vertices on chunk faces never merged), welded into one mesh (grid units,
+/// absolute). `None` for a volume whose chunks mix levels.
+pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
+    if !volume.single_level() {
+        return None;
+    }
+    Some(crate::marching::weld(chunk_parts(volume, true).into_iter().map(|(p, _)| p).collect()))
 }
 
 /// One welded marching-tetrahedra mesh of the whole volume, clustered over the whole mesh when
 /// `cluster` (no chunk face is locked: the export path, where no chunk is meshed alone).
 pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -> Mesh {
-    use rayon::prelude::*;
     // One level throughout (checked by the callers): its spacing scales the short edges.
     let spacing = volume.chunks().next().map_or(1.0, |(k, _)| volume.mesh_level(k).spacing() as f32);
-    let keys = crate::surface_chunks(volume);
-    let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>, Vec<glam::I64Vec3>)> = keys
-        .par_iter()
-        .map_init(
-            || (VoxelBlock::default(), TetraScratch::default()),
-            |(block, scratch), &key| {
-                volume.extract_block_into(key, block);
-                let mut m = Mesh::default();
-                let ids = mesh_block_tetra_keyed(block, false, scratch, &mut m);
-                let n = block.cells() as i64;
-                let origin = key.0.as_i64vec3() * n;
-                let nodes = scratch
-                    .sites
-                    .iter()
-                    .zip(&scratch.ts)
-                    .map(|(site, &t)| {
-                        let l = nearest_node(site, t);
-                        origin + glam::I64Vec3::new(l[0] as i64, l[1] as i64, l[2] as i64)
-                    })
-                    .collect();
-                (key, m, ids, nodes)
-            },
-        )
-        .collect();
-    let mut out = Mesh::default();
-    let mut nodes: Vec<glam::I64Vec3> = Vec::new();
-    let mut welded: std::collections::HashMap<EdgeKey, u32, std::hash::BuildHasherDefault<strata_volume::KeyHasher>> =
-        Default::default();
-    for (key, m, ids, near) in parts {
-        let origin = key.origin_grid().as_vec3().to_array();
-        let remap: Vec<u32> = ids
-            .iter()
-            .enumerate()
-            .map(|(i, id)| {
-                *welded.entry(*id).or_insert_with(|| {
-                    nodes.push(near[i]);
-                    out.push_vertex_from(&m, i, origin)
-                })
-            })
-            .collect();
-        out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
-    }
+    let (parts, near): (Vec<_>, Vec<_>) = chunk_parts(volume, false).into_iter().unzip();
+    let (mut out, source) = crate::marching::weld_traced(&parts);
     if cluster {
         let tris: Vec<[u32; 3]> = out.triangles().collect();
         let mut c = Clusterer::new(&out, tris, spacing);
-        let mut groups: Vec<((i64, i64, i64), u32)> =
-            nodes.iter().enumerate().map(|(v, p)| ((p.z, p.y, p.x), v as u32)).collect();
+        let mut groups: Vec<((i64, i64, i64), u32)> = source
+            .iter()
+            .enumerate()
+            .map(|(v, &(part, i))| {
+                let p = near[part as usize][i as usize];
+                ((p.z, p.y, p.x), v as u32)
+            })
+            .collect();
         c.cluster_groups(&mut groups);
         c.collapse_short(SHORT_EDGE_CELLS * spacing);
         c.finish(&mut out);

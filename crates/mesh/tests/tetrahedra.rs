@@ -2,12 +2,11 @@
 //! cell (alone and at a chunk corner), analytic shapes on and off the grid, random edit
 //! sequences, chunk borders, incremental meshing and mixed levels.
 
-use std::collections::HashMap;
 use std::f64::consts::PI;
 
 use glam::{DQuat, DVec3, IVec3, Vec3};
 use proptest::prelude::*;
-use strata_mesh::checks::{check_closed_manifold, hausdorff, signed_volume};
+use strata_mesh::checks::{self, check_closed_manifold, hausdorff, signed_volume};
 use strata_mesh::tetra::tetra_volume_per_chunk;
 use strata_mesh::{BlockMesher, Mesh, MeshCache, TetraScratch, mesh_block_tetra, tetra_volume};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Sphere, Torus};
@@ -19,23 +18,9 @@ fn mesh_one(block: &VoxelBlock, cluster: bool) -> Mesh {
     mesh
 }
 
-/// Chunk meshes welded by exact position (vertices shared across a chunk face are computed
-/// from the same crossings by both chunks, so they agree bit for bit).
+/// Chunk meshes welded by exact position.
 fn weld_by_position(parts: &[(ChunkKey, Mesh)]) -> Mesh {
-    let mut out = Mesh::default();
-    let mut at: HashMap<[u32; 3], u32> = HashMap::new();
-    for (key, m) in parts {
-        let o = key.origin_grid().as_vec3().to_array();
-        let remap: Vec<u32> = (0..m.positions.len())
-            .map(|i| {
-                let p = m.positions[i];
-                let id = [p[0] + o[0], p[1] + o[1], p[2] + o[2]].map(f32::to_bits);
-                *at.entry(id).or_insert_with(|| out.push_vertex_from(m, i, o))
-            })
-            .collect();
-        out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
-    }
-    out
+    checks::weld_by_position(parts.iter().map(|(k, m)| (*k, m)))
 }
 
 /// The crossing of the single-cell tests: positions that vary by edge, away from the middle.
