@@ -687,10 +687,13 @@ fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
     if t <= 0.5 { l } else { [l[0] + d[0], l[1] + d[1], l[2] + d[2]] }
 }
 
+/// One chunk's mesh with its vertices' identities.
+type ChunkPart = (ChunkKey, Mesh, Vec<EdgeKey>);
+
 /// The tetrahedra mesh of every chunk that can hold surface (clustered chunk by chunk when
 /// `cluster`), with each vertex's identity and, for each vertex, its nearest node (global, in
 /// cells of the volume's level).
-fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<((ChunkKey, Mesh, Vec<EdgeKey>), Vec<I64Vec3>)> {
+fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<I64Vec3>)> {
     use rayon::prelude::*;
     crate::surface_chunks(volume)
         .par_iter()
