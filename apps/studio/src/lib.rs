@@ -9,19 +9,20 @@
 
 mod app;
 mod headless;
+mod keymap;
 pub mod recent;
 pub mod recovery;
 mod studio;
 pub mod terrain;
 
-pub use app::{Dialogs, StudioApp, run_window};
+pub use app::{DialogRequest, DialogService, Dialogs, StudioApp, run_window};
 pub use headless::{screenshot, terrain_screenshot};
 pub use studio::{Action, ImportJob, PendingImport, Studio, default_scene};
 
 /// Every keyboard and mouse binding, as the help overlay (F1) lists them.
 pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Left drag", "sculpt with the current tool"),
-    ("Right drag / middle drag / wheel", "orbit / pan / zoom"),
+    ("Right drag / middle drag / wheel", "orbit / pan / zoom towards the pointer"),
     ("Ctrl or Alt held (or Alt + right drag)", "the inverse tool"),
     ("Shift held", "smooth with any tool"),
     ("C  A  E", "clay, add, erase"),
@@ -30,6 +31,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("V  K", "paint the current material, eyedropper (click the model to take its material)"),
     ("B", "next brush shape (sphere, box, capsule, cylinder)"),
     ("[  ]", "brush radius down, up"),
+    ("F", "size the brush by moving the pointer (click or Enter: keep, Escape or right click: cancel)"),
     ("L", "line tool: click two points"),
     ("X", "mirror across the layer's x plane"),
     ("W", "wireframe"),

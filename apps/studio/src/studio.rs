@@ -129,6 +129,8 @@ pub struct Studio {
     pub camera: Camera,
     /// Where the scene was loaded from or last saved to.
     pub path: Option<PathBuf>,
+    /// The file of the world open in terrain mode.
+    pub world_path: Option<PathBuf>,
     /// Wireframe overlay on.
     pub wireframe: bool,
     /// The mesher and simplification of exports.
@@ -137,6 +139,18 @@ pub struct Studio {
     pub view_draft: strata_mesh::MeshOptions,
     /// The last message for the status bar (errors included).
     pub message: String,
+    /// An error the user has not yet dismissed: shown in a notice that stays until read.
+    pub notice: Option<String>,
+    /// A message about the view (its text and the camera it describes): cleared once the camera
+    /// moves, so the status bar never says "Front view" of an orbited camera.
+    view_message: Option<(String, Camera)>,
+    /// The brush radius is kept in screen points ([`Studio::radius_points`]) rather than world
+    /// units: its size on screen stays as the view zooms.
+    pub screen_radius: bool,
+    /// The brush radius in screen points when [`Studio::screen_radius`] is on.
+    pub radius_points: f32,
+    /// The viewport's height in points (for the screen-space radius).
+    pub viewport_points: f32,
     /// Last frame's edit time (ms).
     pub last_edit_ms: f64,
     /// Last frame's remesh time (ms).
@@ -210,10 +224,16 @@ impl Studio {
             },
             camera,
             path: None,
+            world_path: None,
             wireframe: false,
             export: strata_mesh::MeshOptions::default(),
             view_draft: strata_mesh::MeshOptions::default(),
             message: "Ready. Left drag: sculpt · right drag: orbit · middle drag: pan · wheel: zoom".into(),
+            notice: None,
+            view_message: None,
+            screen_radius: false,
+            radius_points: 40.0,
+            viewport_points: 720.0,
             last_edit_ms: 0.0,
             last_remesh_ms: 0.0,
             uploads: Vec::new(),
@@ -261,9 +281,56 @@ impl Studio {
     pub fn act(&mut self, action: Action) -> Result<(), String> {
         let r = self.try_act(action);
         if let Err(e) = &r {
-            self.message = e.clone();
+            self.fail(e.clone());
         }
         r
+    }
+
+    /// Reports an error: in the status bar and in a notice that stays until the user closes it.
+    pub fn fail(&mut self, error: String) {
+        self.message = error.clone();
+        self.notice = Some(error);
+    }
+
+    /// Sets a message about the view the camera now shows.
+    fn view_said(&mut self, text: String) {
+        self.message = text.clone();
+        self.view_message = Some((text, self.camera));
+    }
+
+    /// Drops a message about the view once the camera has moved on (call every frame).
+    pub fn expire_messages(&mut self) {
+        if let Some((text, camera)) = &self.view_message
+            && (*camera != self.camera || *text != self.message)
+        {
+            if *text == self.message {
+                self.message.clear();
+            }
+            self.view_message = None;
+        }
+    }
+
+    /// World units per screen point at distance `depth` from the eye (for a perspective view;
+    /// an orthographic view has the same scale everywhere).
+    pub fn world_per_point(&self, depth: f64) -> f64 {
+        let c = &self.camera;
+        let half = (c.fov_y as f64 * 0.5).tan();
+        let span = if c.orthographic { 2.0 * c.distance as f64 * half } else { 2.0 * depth.max(1e-6) * half };
+        span / self.viewport_points.max(1.0) as f64
+    }
+
+    /// With a screen-space radius, sets the tool's world radius from
+    /// [`Studio::radius_points`] at the depth of `at` (or of the view's target).
+    pub fn apply_screen_radius(&mut self, at: Option<DVec3>) {
+        if !self.screen_radius {
+            return;
+        }
+        let eye = self.camera.eye().as_dvec3();
+        let depth = at.map_or(self.camera.distance as f64, |p| (p - eye).length());
+        let r = self.radius_points.clamp(1.0, 2000.0) as f64 * self.world_per_point(depth);
+        if r.is_finite() {
+            self.editor.tool.radius = r.clamp(0.05, 256.0);
+        }
     }
 
     fn try_act(&mut self, action: Action) -> Result<(), String> {
@@ -288,6 +355,7 @@ impl Studio {
                     .map_err(|e| format!("Could not create the world {}: {e}", path.display()))?;
                 self.terrain = Some(mode);
                 self.message = format!("New world {} from seed {seed}", path.display());
+                self.world_path = Some(path);
                 return Ok(());
             }
             Action::OpenWorld(path) => {
@@ -295,9 +363,11 @@ impl Studio {
                     .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
                 self.terrain = Some(mode);
                 self.message = format!("Opened the world {}", path.display());
+                self.world_path = Some(path);
                 return Ok(());
             }
             Action::CloseWorld => {
+                self.world_path = None;
                 if let Some(mut t) = self.terrain.take() {
                     let written = t.save().map_err(|e| format!("Could not write the world: {e}"))?;
                     self.message = format!("World written ({written} chunks); back to the scene");
@@ -365,9 +435,15 @@ impl Studio {
                 }
             }
             Action::ScaleRadius(f) => {
-                let r = (self.editor.tool.radius * f).clamp(0.25, 256.0);
-                self.editor.tool.radius = r;
-                self.message = format!("Brush radius {r:.2}");
+                if self.screen_radius {
+                    let r = (self.radius_points * f as f32).clamp(1.0, 2000.0);
+                    self.radius_points = r;
+                    self.message = format!("Brush radius {r:.0} points on screen");
+                } else {
+                    let r = (self.editor.tool.radius * f).clamp(0.25, 256.0);
+                    self.editor.tool.radius = r;
+                    self.message = format!("Brush radius {r:.2}");
+                }
             }
             Action::ToggleWireframe => self.wireframe = !self.wireframe,
             Action::ViewMesher(options) => {
@@ -404,15 +480,15 @@ impl Studio {
                 let v = View::framing(layers);
                 self.camera.target = v.target.as_vec3();
                 self.camera.distance = v.distance as f32;
-                self.message = "Framed the visible layers".into();
+                self.view_said("Framed the visible layers".into());
             }
             Action::AxisView(view, opposite) => {
                 self.camera.axis_view(view, opposite);
-                self.message = format!("{}{view:?} view", if opposite { "Opposite of the " } else { "" });
+                self.view_said(format!("{}{view:?} view", if opposite { "Opposite of the " } else { "" }));
             }
             Action::ToggleOrthographic => {
                 self.camera.orthographic = !self.camera.orthographic;
-                self.message = if self.camera.orthographic { "Orthographic" } else { "Perspective" }.into();
+                self.view_said(if self.camera.orthographic { "Orthographic" } else { "Perspective" }.into());
             }
         }
         Ok(())
@@ -530,7 +606,7 @@ impl Studio {
             Err(strata_editor::import::ConvertError::Edit(strata_volume::EditError::Cancelled)) => {
                 self.message = "Import cancelled".into();
             }
-            Err(e) => self.message = format!("Could not import {:?}: {e}", job.name),
+            Err(e) => self.fail(format!("Could not import {:?}: {e}", job.name)),
         }
         true
     }
@@ -675,7 +751,7 @@ impl Studio {
                         self.message = format!("Line: {} dabs", report.dabs);
                         self.uploads.extend(report.remeshed);
                     }
-                    Err(e) => self.message = e.to_string(),
+                    Err(e) => self.fail(e.to_string()),
                 }
                 self.line_mode = false;
             }
@@ -691,14 +767,24 @@ impl Studio {
         budget: Duration,
     ) {
         let held = buttons.primary || buttons.secondary;
-        // A stroke acts at the depth where it started: picking the surface every frame would
-        // climb onto the material the stroke itself just added.
+        // A stroke follows the surface under the pointer, skipping what its own dabs built or
+        // carved (`Editor::stroke_surface`); where that surface is hidden under the stroke's
+        // own work, and always with "follow the surface" off or for grab, it keeps its depth.
         let ray = ndc.map(|(x, y)| {
             let (o, d) = self.camera.ray(x, y, aspect);
             (o.as_dvec3(), d.as_dvec3())
         });
+        let follow = self.editor.tool.follow_surface && self.editor.tool.kind != ToolKind::Grab;
         let target = match (ray, self.stroke_depth.filter(|_| held)) {
-            (Some((o, d)), Some(depth)) => Some(o + d * depth),
+            (Some((o, d)), Some(depth)) => {
+                let depth = if follow && self.editor.stroking() {
+                    self.editor.stroke_surface(o, d, 1.0e4).unwrap_or(depth)
+                } else {
+                    depth
+                };
+                self.stroke_depth = Some(depth);
+                Some(o + d * depth)
+            }
             (Some((o, d)), None) => {
                 let p = self.ray_target(o, d);
                 self.hover_normal = self.editor.pick(o, d, 1.0e4).map(|h| h.normal);
@@ -713,6 +799,7 @@ impl Studio {
             self.stroke_depth = None;
         }
         self.hover = target;
+        self.apply_screen_radius(target);
         if self.job.is_some() {
             // A large dab is running: input waits for it (the app shows its progress).
             return;
@@ -735,7 +822,7 @@ impl Studio {
                         self.job = Some(job);
                         self.message = "Sculpting a large dab…".into();
                     }
-                    Err(e) => self.message = e.to_string(),
+                    Err(e) => self.fail(e.to_string()),
                 }
                 return;
             }
@@ -759,7 +846,7 @@ impl Studio {
                 }
                 self.uploads.extend(report.remeshed);
             }
-            Err(e) => self.message = e.to_string(),
+            Err(e) => self.fail(e.to_string()),
         }
     }
 
@@ -792,7 +879,10 @@ impl Studio {
             Err(strata_editor::EditorError::Edit(strata_volume::EditError::Cancelled)) => {
                 "Large dab cancelled: nothing changed".into()
             }
-            Err(e) => e.to_string(),
+            Err(e) => {
+                self.notice = Some(e.to_string());
+                e.to_string()
+            }
         };
         true
     }

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use std::sync::Arc;
+use strata_mesh::islands::IslandReport;
 use strata_mesh::{DualCache, Mesh, MeshCache, MeshOptions, Mesher, MesherError, dual_contour_volume};
 use strata_volume::brush::BrushError;
 
@@ -201,12 +202,46 @@ struct Stroke {
     anchor: DVec3,
     inverted: bool,
     records: Vec<strata_volume::UndoRecord>,
+    /// Balls (world centre, radius) holding everything the stroke's dabs built or carved,
+    /// mirror images included: the surface inside them is the stroke's own.
+    own: Vec<(DVec3, f64)>,
 }
 
 impl Stroke {
     /// A stroke starting at `position` (aligned) for a pose at `start` (as given).
     fn new(layer: usize, position: DVec3, start: DVec3, inverted: bool) -> Self {
-        Stroke { layer, last: position, start, anchor: position, inverted, records: Vec::new() }
+        Stroke { layer, last: position, start, anchor: position, inverted, records: Vec::new(), own: Vec::new() }
+    }
+
+    /// Whether world point `p` lies in one of the stroke's own balls.
+    fn owns(&self, p: DVec3) -> bool {
+        self.own.iter().any(|&(c, r)| (p - c).length_squared() <= r * r)
+    }
+
+    /// Where the ray `origin + t·dir` (unit `dir`), at `t` in the stroke's own balls, leaves
+    /// their union.
+    fn exit_own(&self, origin: DVec3, dir: DVec3, mut t: f64) -> f64 {
+        // Each pass leaves every ball holding the point; a ball is left at most once, so the
+        // loop ends within as many passes as there are balls.
+        for _ in 0..=self.own.len() {
+            let p = origin + dir * t;
+            let mut next = t;
+            for &(c, r) in &self.own {
+                let off = p - c;
+                if off.length_squared() <= r * r {
+                    // The far root of |origin + s·dir − c| = r.
+                    let b = (origin - c).dot(dir);
+                    let disc = b * b - ((origin - c).length_squared() - r * r);
+                    next = next.max(-b + disc.max(0.0).sqrt());
+                }
+            }
+            if next <= t {
+                return t;
+            }
+            // Just past the boundary, so the next pass does not find the same ball.
+            t = next + 1e-9 * (1.0 + next.abs());
+        }
+        t
     }
 }
 
@@ -430,16 +465,34 @@ impl Editor {
             // (The same images, in the same order, each with the stroke's direction.)
             let directions = self.tool.mirrored_directions(&transform, p, p - last);
             for (k, (at, orientation)) in images.into_iter().enumerate() {
-                let edit = if self.tool.kind.is_field_tool() {
+                let (edit, reach) = if self.tool.kind.is_field_tool() {
                     let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
                     let l = &mut self.scene.layers[layer];
-                    field_tool_dab(&self.tool, &l.transform, &mut l.volume, at, pose.pressure, inverted, direction)?
+                    let edit = field_tool_dab(
+                        &self.tool,
+                        &l.transform,
+                        &mut l.volume,
+                        at,
+                        pose.pressure,
+                        inverted,
+                        direction,
+                    )?;
+                    // Clay's and inflate's change stays within the ball; a tenth more covers the
+                    // surface it moved.
+                    (edit, self.tool.radius_at(pose.pressure) * 1.1)
                 } else {
                     let brush = self.tool.brush(&transform, at, orientation, pose.pressure)?;
                     let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
-                    self.scene.layers[layer].volume.apply(op, brush.as_ref(), &settings)?
+                    let b = brush.bounds();
+                    // The ball around the brush's box (grid units to world).
+                    let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
+                    (self.scene.layers[layer].volume.apply(op, brush.as_ref(), &settings)?, reach)
                 };
                 self.record(layer, edit);
+                if self.tool.kind.builds_or_carves() {
+                    let s = self.stroke.as_mut().expect("a stroke is in progress");
+                    s.own.push((at, reach));
+                }
             }
             let s = self.stroke.as_mut().expect("a stroke is in progress");
             s.last = p;
@@ -468,7 +521,9 @@ impl Editor {
         }
         let anchor = s.anchor;
         let transform = self.scene.layers[layer].transform;
-        let strength = self.tool.field_strength.clamp(0.0, 1.0);
+        // Grab follows the pointer one to one: the material under the anchor moves as far as
+        // the pointer (the falloff takes the rest of the ball along less far).
+        let strength = 1.0;
         let radius = self.tool.radius_at(pose.pressure) / transform.scale;
         let mut done: Vec<EditReport> = Vec::new();
         for (at, d) in self.tool.mirrored_with_vector(&transform, anchor, drag) {
@@ -1003,9 +1058,18 @@ impl Editor {
     /// One mesh of every visible layer in world coordinates, for export, by `options` (each
     /// layer welded, and simplified when asked).
     pub fn export_mesh(&self, options: MeshOptions) -> Result<Mesh, EditorError> {
+        self.export_mesh_reported(options).map(|(mesh, _)| mesh)
+    }
+
+    /// [`Editor::export_mesh`], also saying what `options.remove_islands` removed, summed over
+    /// the layers. Islands are measured in each layer's own cells (cells³ of its grid, before
+    /// the layer's transform), so one threshold means the same on layers of any scale.
+    pub fn export_mesh_reported(&self, options: MeshOptions) -> Result<(Mesh, IslandReport), EditorError> {
         let mut out = Mesh::default();
+        let mut islands = IslandReport::default();
         for l in self.scene.layers.iter().filter(|l| l.visible) {
-            let mut m = strata_mesh::mesh_volume_with(&l.volume, options)?;
+            let (mut m, removed) = strata_mesh::mesh_volume_reported(&l.volume, options)?;
+            islands = islands.then(removed);
             to_world(&mut m, &l.transform);
             let base = out.positions.len() as u32;
             for i in 0..m.vertex_count() {
@@ -1013,7 +1077,7 @@ impl Editor {
             }
             out.indices.extend(m.indices.iter().map(|i| i + base));
         }
-        Ok(out)
+        Ok((out, islands))
     }
 
     /// The first surface hit of the world ray `origin + t · dir` (`t ≤ max_t`) on a visible layer.
@@ -1024,6 +1088,50 @@ impl Editor {
     /// layers together walk at most [`PICK_CHUNK_STEPS`] chunks.
     pub fn pick(&self, origin: DVec3, dir: DVec3, max_t: f64) -> Option<Pick> {
         self.pick_counted(origin, dir, max_t).0
+    }
+
+    /// Where a stroke in progress meets the surface along the ray `origin + t·dir` (unit `dir`
+    /// not required): the ray parameter of the first surface that is not the stroke's own work,
+    /// or `None` where that surface cannot be seen (then the caller keeps the stroke's depth).
+    ///
+    /// A stroke follows the surface under the pointer, as sculptors expect: from the face onto
+    /// the body behind it, a stroke keeps touching. Tools that build or carve
+    /// ([`ToolKind::builds_or_carves`]) must not pick what their own dabs made, or each dab
+    /// would start on the last one and the stroke would climb towards the camera (or dig into
+    /// the model): a hit inside the balls of the stroke's dabs is skipped, the ray continues
+    /// where it leaves them, and if it leaves them inside solid the surface it looks for was
+    /// under the stroke's own material (`None`). With no stroke, this is [`Editor::pick`].
+    pub fn stroke_surface(&self, origin: DVec3, dir: DVec3, max_t: f64) -> Option<f64> {
+        let len = dir.length();
+        if !(len > 0.0 && len.is_finite()) {
+            return None;
+        }
+        let dir = dir / len;
+        let Some(stroke) = &self.stroke else { return self.pick(origin, dir, max_t).map(|p| p.t / len) };
+        let mut t0 = 0.0;
+        // Each pass leaves the union of the balls once; a ray meets it a few times at most.
+        for _ in 0..16 {
+            let hit = self.pick(origin + dir * t0, dir, max_t - t0)?;
+            let t = t0 + hit.t;
+            if !stroke.owns(origin + dir * t) {
+                return Some(t / len);
+            }
+            let exit = stroke.exit_own(origin, dir, t);
+            if exit >= max_t || self.solid_at(origin + dir * exit) {
+                return None;
+            }
+            t0 = exit;
+        }
+        None
+    }
+
+    /// Whether world point `p` is inside the solid of a visible layer.
+    pub fn solid_at(&self, p: DVec3) -> bool {
+        self.scene
+            .layers
+            .iter()
+            .filter(|l| l.visible && l.transform.is_valid())
+            .any(|l| l.volume.is_inside(l.transform.to_grid(p)))
     }
 
     /// [`Editor::pick`], also returning how many chunks it walked in all.

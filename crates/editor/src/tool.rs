@@ -103,6 +103,13 @@ impl ToolKind {
     pub fn is_field_tool(self) -> bool {
         !matches!(self, ToolKind::Add | ToolKind::Erase)
     }
+
+    /// Whether the tool builds material up or carves it away where it acts (add, erase, clay,
+    /// inflate, and their inverses): a stroke of it must not pick the surface it made itself, or
+    /// it would climb onto its own dabs (see [`crate::Editor::stroke_surface`]).
+    pub fn builds_or_carves(self) -> bool {
+        matches!(self, ToolKind::Add | ToolKind::Erase | ToolKind::Clay | ToolKind::Inflate)
+    }
 }
 
 /// The brush's shape, sized by the tool radius and oriented by the pose.
@@ -156,6 +163,10 @@ pub struct ToolSettings {
     /// The current material (an index into the scene's palette): what add and clay give the
     /// matter they add, and what paint paints.
     pub material: strata_volume::MaterialId,
+    /// A stroke follows the surface under the pointer from dab to dab (the sculptors'
+    /// convention; see [`crate::Editor::stroke_surface`]); off, it keeps the depth where it
+    /// started (a flat path in the view, as the line tool draws). Grab always keeps its depth.
+    pub follow_surface: bool,
 }
 
 impl Default for ToolSettings {
@@ -176,6 +187,7 @@ impl Default for ToolSettings {
             axis_lock: None,
             orient_to_normal: false,
             material: 0,
+            follow_surface: true,
         }
     }
 }
