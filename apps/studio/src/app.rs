@@ -210,6 +210,8 @@ pub struct StudioApp {
     resize: Option<Resize>,
     /// The window title last sent.
     title: String,
+    /// Where the viewport was last laid out (screen points).
+    viewport_rect: Option<egui::Rect>,
     /// What the windows, menus and modals showed last frame (see [`StudioApp::repaint_on_change`]).
     shown: u64,
 }
@@ -266,6 +268,7 @@ impl StudioApp {
             last_frame: None,
             resize: None,
             title: String::new(),
+            viewport_rect: None,
             shown: 0,
             open_next: None,
             recent,
@@ -1271,6 +1274,22 @@ impl StudioApp {
         format!("{file}{mark} — Strata Studio")
     }
 
+    /// Where the viewport was last laid out (screen points), and the screen point of world
+    /// point `p` there (for tests that aim at the model).
+    pub fn viewport_rect(&self) -> Option<egui::Rect> {
+        self.viewport_rect
+    }
+
+    /// The screen point (points) where the viewport shows world point `p`.
+    pub fn screen_of(&self, p: glam::Vec3) -> Option<egui::Pos2> {
+        let rect = self.viewport_rect?;
+        let clip = self.studio.camera.view_proj(rect.width() / rect.height().max(1.0)) * p.extend(1.0);
+        (clip.w > 0.0).then(|| {
+            let (x, y) = (clip.x / clip.w, clip.y / clip.w);
+            egui::pos2(rect.left() + (x + 1.0) * 0.5 * rect.width(), rect.top() + (1.0 - y) * 0.5 * rect.height())
+        })
+    }
+
     /// The title last sent to the window.
     pub fn sent_title(&self) -> &str {
         &self.title
@@ -1342,7 +1361,8 @@ impl StudioApp {
     }
 
     /// A frame of sizing the brush: the radius follows the pointer; a click or Enter (or F
-    /// again) keeps it, Escape or a right click cancels. Returns whether sizing goes on.
+    /// again) keeps it, Escape or a right click cancels. Returns whether sizing took this
+    /// frame's input (the click that keeps the size is not also a dab).
     fn resize_input(&mut self, ui: &egui::Ui) -> bool {
         let Some(r) = self.resize else { return false };
         use egui::{Key, Modifiers};
@@ -1360,7 +1380,7 @@ impl StudioApp {
             (self.studio.editor.tool.radius, self.studio.radius_points) = r.before;
             self.studio.message = "Brush size unchanged".into();
             self.resize = None;
-            return false;
+            return true;
         }
         if self.studio.screen_radius {
             self.studio.radius_points = points;
@@ -1377,9 +1397,7 @@ impl StudioApp {
                 format!("Brush radius {:.2}", self.studio.editor.tool.radius)
             };
             self.resize = None;
-            return false;
         }
-        ui.ctx().request_repaint();
         true
     }
 
@@ -1438,6 +1456,7 @@ impl StudioApp {
 
     fn viewport(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
         let (rect, response) = ui.allocate_exact_size(ui.available_size(), egui::Sense::click_and_drag());
+        self.viewport_rect = Some(rect);
         let aspect = rect.width() / rect.height().max(1.0);
         if self.studio.terrain.is_some() {
             self.terrain_input(ui, &response, rect, aspect);

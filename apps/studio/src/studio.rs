@@ -1065,7 +1065,7 @@ mod tests {
     }
 
     #[test]
-    fn a_stroke_keeps_its_depth_instead_of_climbing_its_own_material() {
+    fn a_stroke_does_not_climb_onto_its_own_material() {
         let mut s = Studio::new(default_scene());
         s.editor.tool.radius = 3.0;
         let start = s.surface_point(0.0, 0.0, 1.0).unwrap();

@@ -698,3 +698,448 @@ fn the_viewport_and_exports_take_the_mesher_chosen_in_the_menus() {
         full.triangle_count()
     );
 }
+
+// ---- What a newcomer hits in the first hour (issue 27) ----
+
+/// The app on `scene` with paths asked of `dialogs`.
+fn harness_with(dir: &std::path::Path, scene: strata_editor::Scene, dialogs: Dialogs) -> Harness<'static, StudioApp> {
+    let app = StudioApp::headless(Studio::new(scene), dialogs, dir.join("recovery"));
+    Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .build_ui_state(|ui, app: &mut StudioApp| app.show(ui, None), app)
+}
+
+/// A dialog service that answers `answer` after `after` (no portal: nothing, in a few ms).
+fn service(after: Duration, answer: Option<PathBuf>) -> Dialogs {
+    Dialogs::Service(std::sync::Arc::new(move |_: &strata_studio::DialogRequest| {
+        std::thread::sleep(after);
+        answer.clone()
+    }))
+}
+
+/// One frame slower than the dialog fallback's window (software rendering, a heavy remesh).
+fn slow_frame(h: &mut Harness<'static, StudioApp>) {
+    std::thread::sleep(Duration::from_millis(600));
+    h.step();
+    h.run();
+}
+
+#[test]
+fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_or_a_file() {
+    let dir = temp("no-portal");
+    let no_portal = || service(Duration::from_millis(30), None);
+    // Ctrl+S on a new scene: the dialog answers nothing at once, the next frame is slow.
+    let mut h = harness_with(&dir, default_scene(), no_portal());
+    h.run();
+    h.state_mut().studio.editor.touch();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    slow_frame(&mut h);
+    assert!(h.get_by_label("Path:").is_focused(), "Ctrl+S ends in the typed prompt: {}", h.state().studio.message);
+    let path = dir.join("saved.strata");
+    type_keys(&mut h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(path.exists(), "the typed path saved");
+    assert!(!h.state().studio.is_modified());
+
+    // File > Save on a new scene.
+    let mut h = harness_with(&dir, default_scene(), no_portal());
+    h.run();
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Save (Ctrl+S)").click();
+    h.step();
+    slow_frame(&mut h);
+    assert!(h.get_by_label("Path:").is_focused(), "File > Save ends in the typed prompt");
+
+    // Save from the unsaved-changes question on Quit: the prompt, then the file, then the quit.
+    let mut h = harness_with(&dir, default_scene(), no_portal());
+    h.run();
+    h.state_mut().studio.editor.touch();
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Quit").click();
+    h.run();
+    h.get_by_label("Save").click();
+    h.step();
+    slow_frame(&mut h);
+    assert!(h.get_by_label("Path:").is_focused(), "Save in the question ends in the typed prompt");
+    let quit_path = dir.join("before-quit.strata");
+    type_keys(&mut h, &quit_path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(quit_path.exists(), "Save from the Quit question saved");
+    assert!(!h.state().studio.is_modified());
+
+    // Open.
+    let mut h = harness_with(&dir, default_scene(), no_portal());
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.step();
+    slow_frame(&mut h);
+    assert!(h.get_by_label("Path:").is_focused(), "Ctrl+O ends in the typed prompt");
+    type_keys(&mut h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert_eq!(h.state().studio.path.as_deref(), Some(path.as_path()), "the typed path opened");
+}
+
+#[test]
+fn a_dialog_answer_counts_whatever_the_frames_and_a_cancel_is_said() {
+    let dir = temp("slow-dialog");
+    // A person picks a file after a while; the frames are slow too.
+    let path = dir.join("picked.strata");
+    let mut h = harness_with(&dir, default_scene(), service(Duration::from_millis(400), Some(path.clone())));
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    slow_frame(&mut h);
+    for _ in 0..50 {
+        if path.exists() {
+            break;
+        }
+        slow_frame(&mut h);
+    }
+    assert!(path.exists(), "the dialog's answer saved: {}", h.state().studio.message);
+    // A person cancels (the dialog showed for a while): the status bar says so.
+    let mut h = harness_with(&dir, default_scene(), service(Duration::from_millis(400), None));
+    h.run();
+    h.state_mut().studio.editor.touch();
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Quit").click();
+    h.run();
+    h.get_by_label("Save").click();
+    h.step();
+    for _ in 0..50 {
+        slow_frame(&mut h);
+        if !h.state().modal_open() {
+            break;
+        }
+    }
+    let message = h.state().studio.message.clone();
+    assert!(message.contains("cancelled") && message.contains("stays open"), "said: {message}");
+    assert!(h.state().studio.is_modified(), "nothing was lost or pretended saved");
+}
+
+#[test]
+fn a_focused_field_keeps_shortcut_letters_even_in_the_frame_it_was_clicked() {
+    let dir = temp("field-letters");
+    let mut h = harness(&dir);
+    h.run();
+    h.get_by_label("material name").click();
+    h.run();
+    type_keys(&mut h, "v");
+    let s = &h.state().studio;
+    assert_eq!(s.editor.scene.materials[0].name, "Clayv");
+    assert_eq!(s.editor.tool.kind, ToolKind::Clay, "V went to the field, not to the paint tool");
+    // A click on the field and a key in one slow frame.
+    let mut h = harness(&dir);
+    h.run();
+    let field = h.get_by_label("Name").rect().center();
+    h.event(egui::Event::PointerMoved(field));
+    h.event(egui::Event::PointerButton {
+        pos: field,
+        button: egui::PointerButton::Primary,
+        pressed: true,
+        modifiers: egui::Modifiers::NONE,
+    });
+    h.event(egui::Event::PointerButton {
+        pos: field,
+        button: egui::PointerButton::Primary,
+        pressed: false,
+        modifiers: egui::Modifiers::NONE,
+    });
+    h.step();
+    h.key_press(egui::Key::E);
+    h.event(egui::Event::Text("e".into()));
+    h.step();
+    h.run();
+    let s = &h.state().studio;
+    assert_eq!(s.editor.tool.kind, ToolKind::Clay, "E went to the field, not to the erase tool");
+    assert_eq!(s.editor.scene.layers[0].name, "Claye");
+}
+
+#[test]
+fn the_tool_panel_does_not_move_under_the_pointer_when_the_tool_changes() {
+    let dir = temp("panel");
+    let mut h = harness(&dir);
+    h.run();
+    let at = |h: &Harness<'static, StudioApp>| h.get_by_label("material name").rect().top();
+    let clay = at(&h);
+    for key in [egui::Key::A, egui::Key::D, egui::Key::S, egui::Key::G, egui::Key::V] {
+        h.key_press(key);
+        h.run();
+        assert_eq!(at(&h), clay, "the material name field stays put for {:?}", h.state().studio.editor.tool.kind);
+    }
+}
+
+#[test]
+fn the_window_title_names_the_file_and_marks_unsaved_changes() {
+    let dir = temp("title");
+    let mut h = harness(&dir);
+    h.run();
+    assert_eq!(h.state().sent_title(), "Untitled — Strata Studio");
+    h.state_mut().studio.editor.touch();
+    h.run();
+    assert_eq!(h.state().sent_title(), "Untitled* — Strata Studio");
+    let path = dir.join("named.strata");
+    h.state_mut().studio.act(strata_studio::Action::SaveAs(path)).unwrap();
+    h.run();
+    assert_eq!(h.state().sent_title(), "named.strata — Strata Studio");
+}
+
+#[test]
+fn errors_stay_in_a_notice_until_dismissed_and_the_status_bar_stays_one_line() {
+    let dir = temp("notice");
+    let mut h = harness(&dir);
+    h.run();
+    let viewport = h.state().viewport_rect().unwrap();
+    let missing = dir.join("no such folder").join("x".repeat(300) + ".strata");
+    let _ = h.state_mut().studio.act(strata_studio::Action::Open(missing));
+    for _ in 0..5 {
+        h.step();
+    }
+    h.run();
+    assert!(h.query_all_by_label_contains("Could not open").count() >= 1, "the error is shown");
+    assert_eq!(h.state().viewport_rect().unwrap(), viewport, "a long error does not shrink the viewport");
+    h.get_by_label("Dismiss").click();
+    h.run();
+    assert!(h.state().studio.notice.is_none());
+    assert!(h.query_by_label("Dismiss").is_none(), "the notice is gone once read");
+}
+
+#[test]
+fn a_view_message_goes_once_the_camera_moves_and_new_windows_get_their_second_frame() {
+    let dir = temp("stale");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::Num1);
+    h.run();
+    assert!(h.state().studio.status().contains("Front view"));
+    h.state_mut().studio.camera.orbit(0.5, 0.1);
+    h.run();
+    assert!(!h.state().studio.status().contains("Front view"), "{}", h.state().studio.status());
+    // F1: the help window is laid out in a first pass; the app asks for the frame that shows it.
+    h.key_press(egui::Key::F1);
+    h.step();
+    assert!(h.ctx.has_requested_repaint(), "the frame that opened the help asks for one more");
+}
+
+/// Presses and releases the primary button at `at` within one frame.
+fn quick_click(h: &mut Harness<'static, StudioApp>, at: egui::Pos2) {
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+    h.step();
+}
+
+#[test]
+fn keys_and_clicks_of_one_slow_frame_all_count_in_order() {
+    let dir = temp("one-frame");
+    let mut h = harness(&dir);
+    h.run();
+    let r0 = h.state().studio.editor.tool.radius;
+    // V then E within one frame ends on erase; three ] grow the brush three times.
+    for key in [egui::Key::V, egui::Key::E, egui::Key::CloseBracket, egui::Key::CloseBracket, egui::Key::CloseBracket] {
+        h.key_press(key);
+    }
+    h.step();
+    let s = &h.state().studio;
+    assert_eq!(s.editor.tool.kind, ToolKind::Erase);
+    assert!((s.editor.tool.radius / r0 - 1.15f64.powi(3)).abs() < 1e-9, "radius {} from {r0}", s.editor.tool.radius);
+    // A click on the ball pressed and released within one frame is a dab.
+    let before = h.state().studio.editor.scene.layers[0].volume.clone();
+    let centre = h.state().viewport_rect().unwrap().center();
+    h.hover_at(centre);
+    h.step();
+    quick_click(&mut h, centre);
+    h.run();
+    assert!(h.state().studio.editor.scene.layers[0].volume != before, "the quick click erased a dab");
+    assert_eq!(h.state().studio.editor.history().undo_len(), 1);
+}
+
+#[test]
+fn f_sizes_the_brush_by_dragging_and_the_radius_can_live_on_screen() {
+    let dir = temp("resize");
+    let mut h = harness(&dir);
+    h.run();
+    let centre = h.state().viewport_rect().unwrap().center();
+    h.hover_at(centre);
+    h.run();
+    let r0 = h.state().studio.editor.tool.radius;
+    h.key_press(egui::Key::F);
+    h.run();
+    assert!(h.state().modal_open(), "sizing holds the keyboard and the pointer");
+    h.hover_at(centre + egui::vec2(60.0, 0.0));
+    h.run();
+    let r1 = h.state().studio.editor.tool.radius;
+    assert!(r1 > r0 * 1.5, "moving away grows the brush: {r0} → {r1}");
+    quick_click(&mut h, centre + egui::vec2(60.0, 0.0));
+    h.run();
+    assert!(!h.state().modal_open());
+    let kept = h.state().studio.editor.tool.radius;
+    assert!((kept - r1).abs() < 1e-9 && h.state().studio.editor.history().undo_len() == 0, "the click kept it, no dab");
+    // Escape puts the old size back.
+    h.key_press(egui::Key::F);
+    h.run();
+    h.hover_at(centre + egui::vec2(200.0, 0.0));
+    h.run();
+    h.key_press(egui::Key::Escape);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.radius, kept);
+    // On screen: the world radius follows the zoom, the screen size stays.
+    h.state_mut().studio.screen_radius = true;
+    h.hover_at(centre);
+    h.run();
+    let near = h.state().studio.editor.tool.radius;
+    h.state_mut().studio.camera.distance *= 2.0;
+    h.hover_at(centre + egui::vec2(1.0, 0.0));
+    h.run();
+    let far = h.state().studio.editor.tool.radius;
+    assert!(far > near * 1.3, "zoomed out, the same screen size is more world: {near} → {far}");
+}
+
+#[test]
+fn the_wheel_zooms_towards_the_pointer() {
+    let dir = temp("zoom");
+    let mut h = harness(&dir);
+    h.run();
+    let rect = h.state().viewport_rect().unwrap();
+    let at = rect.center() + egui::vec2(rect.width() * 0.2, -rect.height() * 0.1);
+    h.hover_at(at);
+    h.run();
+    let s = &h.state().studio;
+    let (x, y) = ((at.x - rect.left()) / rect.width() * 2.0 - 1.0, 1.0 - (at.y - rect.top()) / rect.height() * 2.0);
+    let world = s.surface_point(x, y, rect.width() / rect.height()).unwrap();
+    let d0 = s.camera.distance;
+    h.event(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 200.0),
+        phase: egui::TouchPhase::Move,
+        source: egui::MouseWheelSource::Wheel,
+        modifiers: egui::Modifiers::NONE,
+    });
+    for _ in 0..30 {
+        h.step();
+    }
+    assert!(h.state().studio.camera.distance < d0 * 0.95, "zoomed in");
+    let seen = h.state().screen_of(world.as_vec3()).unwrap();
+    assert!((seen - at).length() < 3.0, "the point under the pointer stays under it: {seen:?} vs {at:?}");
+}
+
+/// Two boxes facing the camera, the left one 20 units nearer than the right one.
+fn two_depths() -> strata_editor::Scene {
+    use strata_volume::brush::Cuboid;
+    let mut scene = default_scene();
+    let cell = scene.layers[0].transform.scale;
+    let v = &mut scene.layers[0].volume;
+    *v = strata_volume::Volume::new();
+    for (c, half) in [
+        (glam::DVec3::new(20.0, 16.0, 40.0), glam::DVec3::new(8.0, 8.0, 4.0)),
+        (glam::DVec3::new(42.0, 16.0, 20.0), glam::DVec3::new(14.0, 8.0, 4.0)),
+    ] {
+        v.add(&Cuboid::new(c / cell, half / cell).unwrap()).unwrap();
+    }
+    scene.view =
+        strata_editor::View { target: glam::DVec3::new(32.0, 16.0, 30.0), distance: 70.0, yaw: 0.0, pitch: 0.0 };
+    scene
+}
+
+/// A left drag from `a` to `b` (screen points) in `steps` moves.
+fn drag(h: &mut Harness<'static, StudioApp>, a: egui::Pos2, b: egui::Pos2, steps: usize) {
+    h.hover_at(a);
+    h.step();
+    h.drag_at(a);
+    h.step();
+    for i in 1..=steps {
+        h.hover_at(a + (b - a) * (i as f32 / steps as f32));
+        h.step();
+    }
+    h.drop_at(b);
+    h.step();
+    h.run();
+}
+
+#[test]
+fn a_stroke_from_a_near_surface_onto_a_far_one_stays_on_the_surface() {
+    let dir = temp("follow");
+    for kind in [ToolKind::Add, ToolKind::Paint] {
+        let mut h = harness_with(&dir, two_depths(), Dialogs::Typed);
+        h.run();
+        {
+            let s = &mut h.state_mut().studio;
+            s.editor.tool.kind = kind;
+            s.editor.tool.radius = 1.5;
+            s.editor.tool.material = 4;
+            // (Paint at full strength paints every node; below, a dithered share.)
+            s.editor.tool.field_strength = 1.0;
+        }
+        let (a, b) = {
+            let app = h.state();
+            (
+                app.screen_of(glam::Vec3::new(22.0, 16.0, 44.0)).unwrap(),
+                app.screen_of(glam::Vec3::new(46.0, 16.0, 24.0)).unwrap(),
+            )
+        };
+        drag(&mut h, a, b, 24);
+        // At the stroke's end, the far box's front (z = 24) is what the stroke worked on.
+        let s = &h.state().studio;
+        let eye = s.camera.eye().as_dvec3();
+        // (A little short of the end: the last dab is up to a spacing before it.)
+        let end = glam::DVec3::new(44.0, 16.0, 24.0);
+        let pick = s.editor.pick(eye, (end - eye).normalize(), 1e4).expect("the far box is under the stroke's end");
+        match kind {
+            ToolKind::Paint => {
+                assert_eq!(s.editor.material_at(&pick), Some(4), "the far face was painted where the stroke ended");
+            }
+            _ => {
+                // Matter was added on the far face (it came out towards the eye), not left in the
+                // air at the near box's depth.
+                assert!(pick.point.z > 24.5 && pick.point.z < 28.0, "added on the far face: {:?}", pick.point);
+            }
+        }
+    }
+}
+
+#[test]
+fn grab_moves_the_surface_as_far_as_the_pointer() {
+    let dir = temp("grab");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::G);
+    h.run();
+    h.state_mut().studio.editor.tool.radius = 5.0;
+    // From a point on the ball's front, 60 points to the right.
+    let rect = h.state().viewport_rect().unwrap();
+    let a = rect.center();
+    let b = a + egui::vec2(60.0, 0.0);
+    let (start, moved_to) = {
+        let s = &h.state().studio;
+        let aspect = rect.width() / rect.height();
+        let ndc = |p: egui::Pos2| {
+            ((p.x - rect.left()) / rect.width() * 2.0 - 1.0, 1.0 - (p.y - rect.top()) / rect.height() * 2.0)
+        };
+        let (x, y) = ndc(a);
+        let start = s.surface_point(x, y, aspect).unwrap();
+        let eye = s.camera.eye().as_dvec3();
+        let depth = (start - eye).length();
+        let (x, y) = ndc(b);
+        let (o, d) = s.camera.ray(x, y, aspect);
+        (start, o.as_dvec3() + d.as_dvec3() * depth)
+    };
+    drag(&mut h, a, b, 12);
+    // The material that was under the pointer is under it again, where the pointer went.
+    let s = &h.state().studio;
+    let eye = s.camera.eye().as_dvec3();
+    let pick = s.editor.pick(eye, (moved_to - eye).normalize(), 1e4).expect("the grabbed surface is under the pointer");
+    let travel = (moved_to - start).length();
+    let err = (pick.point - moved_to).length();
+    assert!(err < 0.25 * travel, "grabbed {travel:.2} units; the surface is {err:.2} from where the pointer went");
+}
