@@ -468,12 +468,13 @@ fn clay_is_the_default_and_blends_into_the_surface() {
 
 #[test]
 fn grab_drags_the_surface_with_the_pointer_as_one_step() {
-    for mirrored in [false, true] {
+    // One to one, whatever the field tools' strength (grab once moved by the strength, 0.5).
+    for (mirrored, strength) in [(false, 0.5), (true, 1.0), (false, 0.1)] {
         let mut e = ball_editor();
         let before = e.scene.layers[0].volume.clone();
         e.tool.kind = ToolKind::Grab;
         e.tool.radius = 5.0;
-        e.tool.field_strength = 1.0;
+        e.tool.field_strength = strength;
         e.tool.symmetry = [mirrored, false, false];
         e.tool.symmetry_center = DVec3::new(16.0, 16.0, 16.0);
         // Press on the surface at +x and drag 4 cells outwards over four frames.
@@ -591,4 +592,63 @@ fn add_clay_and_paint_use_the_current_material_and_refuse_one_outside_the_palett
     // The eyedropper reads the material under a pick.
     let pick = e.pick(DVec3::new(15.0, 10.0, -20.0), DVec3::Z, 100.0).expect("the stroke is hit");
     assert_eq!(e.material_at(&pick), Some(3));
+}
+
+#[test]
+fn a_stroke_finds_the_surface_under_the_pointer_but_never_its_own_dabs() {
+    use strata_volume::brush::Cuboid;
+    // A near slab (front face z = 20, x up to 14) and a far one (front face z = 8), seen along -z.
+    let slabs = || {
+        let mut e = Editor::default();
+        let v = &mut e.scene.layers[0].volume;
+        v.add(&Cuboid::new(DVec3::new(6.0, 16.0, 16.0), DVec3::new(8.0, 8.0, 4.0)).unwrap()).unwrap();
+        v.add(&Cuboid::new(DVec3::new(26.0, 16.0, 4.0), DVec3::new(12.0, 8.0, 4.0)).unwrap()).unwrap();
+        e
+    };
+    let eye_z = 60.0;
+    let along = |e: &Editor, x: f64| e.stroke_surface(DVec3::new(x, 16.0, eye_z), -DVec3::Z, 1e4);
+    // (The lists hold crossings in fixed point and snapped off nodes: within a hundredth of a cell.)
+    let at = |t: Option<f64>, face_z: f64| t.is_some_and(|t| (t - (eye_z - face_z)).abs() < 0.01);
+    for (kind, buttons) in
+        [(ToolKind::Add, DOWN), (ToolKind::Erase, DOWN), (ToolKind::Clay, DOWN), (ToolKind::Add, ERASE)]
+    {
+        let mut e = slabs();
+        e.tool.kind = kind;
+        e.tool.radius = 2.0;
+        // No stroke: the first surface.
+        assert!(at(along(&e, 10.0), 20.0) && at(along(&e, 24.0), 8.0));
+        // A dab on the near face at x = 10.
+        let pose =
+            ToolPose { position: DVec3::new(10.0, 16.0, 20.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+        e.frame(&pose, BUDGET).unwrap();
+        assert!(e.stroking());
+        // Over the dab: what the ray meets there is the dab's own work, and the face it sits on
+        // is under it: no surface (the caller keeps the stroke's depth) rather than a climb or a dig.
+        for x in [10.0, 10.5, 11.0] {
+            assert_eq!(along(&e, x), None, "{kind:?} {buttons:?}: over its own dab at x = {x}");
+        }
+        // Away from the dab, the near face; past the near slab, the far face behind it.
+        assert!(at(along(&e, 4.0), 20.0), "{kind:?}: the near face beside the dab");
+        assert!(at(along(&e, 20.0), 8.0), "{kind:?}: the far face");
+        e.frame(&ToolPose::at(DVec3::ZERO, false), BUDGET).unwrap();
+        // The stroke over, its dabs are surface like any other.
+        assert!(!e.stroking());
+        assert!(along(&e, 10.0).is_some());
+    }
+    // A dab at the near slab's edge: a ray just past the edge leaves the dab in the air and
+    // finds the far face, so a stroke carries on from the near surface onto the far one.
+    let mut e = slabs();
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 2.0;
+    e.frame(
+        &ToolPose {
+            position: DVec3::new(14.0, 16.0, 20.0),
+            orientation: DQuat::IDENTITY,
+            pressure: 1.0,
+            buttons: DOWN,
+        },
+        BUDGET,
+    )
+    .unwrap();
+    assert!(at(along(&e, 15.0), 8.0), "past the edge: {:?}", along(&e, 15.0));
 }
