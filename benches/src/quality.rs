@@ -173,7 +173,7 @@ pub fn methods() -> Vec<Method> {
         Method::Whole(MeshOptions::new(Mesher::Tetrahedra)),
         Method::Whole(MeshOptions::new(Mesher::ClusteredTetrahedra)),
         Method::ChunkedClustered,
-        Method::Whole(MeshOptions { mesher: Mesher::MarchingCubes, simplify: Some(0.1) }),
+        Method::Whole(MeshOptions { mesher: Mesher::MarchingCubes, simplify: Some(0.1), remove_islands: None }),
         Method::McSimplifiedPureRust(0.1),
     ]
 }

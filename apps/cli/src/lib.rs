@@ -3,6 +3,7 @@
 
 pub mod commands;
 pub mod paths;
+pub mod runtime;
 pub mod terrain;
 
 use std::fmt::Write as _;

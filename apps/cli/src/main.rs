@@ -43,7 +43,8 @@ enum Command {
     /// Convert a triangle mesh (PLY, OBJ, STL, glTF, GLB) into an editable scene of one layer.
     #[command(after_help = "Examples:
   strata convert bunny.ply --cells 512 -o bunny.strata
-  strata convert part.stl --cell-size 0.25 --fill winding -o part.strata")]
+  strata convert part.stl --cell-size 0.25 --fill winding -o part.strata
+  strata convert scan.ply --cells 256 --remove-islands 8 -o scan.strata")]
     Convert {
         /// The mesh file.
         mesh: PathBuf,
@@ -56,13 +57,19 @@ enum Command {
         /// The scene file to write (.strata).
         #[arg(short, long)]
         output: PathBuf,
+        /// Remove the pieces of the solid smaller than this many cells³ (nodes joined along grid
+        /// edges; the largest piece is always kept). Default: keep every piece.
+        #[arg(long, value_name = "CELLS", allow_negative_numbers = true)]
+        remove_islands: Option<f64>,
     },
     /// Export a scene's layers as one mesh (.glb, .obj, .stl, .ply).
     #[command(after_help = "Examples:
   strata export scene.strata -o scene.glb
   strata export scene.strata -o body.stl --mesher dc --layers Body,2
   strata export scene.strata -o game.glb --mesher rmt
-  strata export scene.strata -o small.glb --simplify 0.2")]
+  strata export scene.strata -o small.glb --simplify 0.2
+  strata export scene.strata -o print.stl --remove-islands 50
+  strata export scene.strata -o all.stl --keep-islands")]
     Export {
         /// The scene file.
         scene: PathBuf,
@@ -80,6 +87,13 @@ enum Command {
         /// Layers to export, by index or name, comma-separated (default: the visible ones).
         #[arg(long, value_delimiter = ',')]
         layers: Vec<String>,
+        /// Remove the pieces of each layer's mesh that enclose less than this many cells³ (stray
+        /// islands); the largest piece is always kept. Default: 8 for .stl, off otherwise.
+        #[arg(long, value_name = "CELLS", allow_negative_numbers = true, conflicts_with = "keep_islands")]
+        remove_islands: Option<f32>,
+        /// Keep every piece, also in an .stl.
+        #[arg(long)]
+        keep_islands: bool,
     },
     /// Describe a scene: file version, layers, chunks by kind and level, crossings, memory,
     /// bounds.
@@ -116,7 +130,8 @@ A recipe is JSON; every field is optional (the defaults are printed by --print-r
         /// A JSON recipe file.
         #[arg(long, conflicts_with = "seed")]
         recipe: Option<PathBuf>,
-        /// The default recipe with this seed.
+        /// The default recipe with this seed. One of --seed and --recipe is required (--print-recipe
+        /// alone prints the default recipe, seed 1).
         #[arg(long)]
         seed: Option<u32>,
         /// The box of a scene or mesh, XxYxZ cells (centred on the origin).
@@ -146,25 +161,30 @@ A recipe is JSON; every field is optional (the defaults are printed by --print-r
 
 fn run(command: Command) -> Result<String> {
     match command {
-        Command::Convert { mesh, size, fill, output } => {
+        Command::Convert { mesh, size, fill, output, remove_islands } => {
             let resolution = match (size.cells, size.cell_size) {
                 (Some(n), _) => Resolution::Cells(n),
                 (None, Some(s)) => Resolution::CellSize(s),
                 (None, None) => unreachable!("clap requires one of them"),
             };
-            commands::convert(&mesh, resolution, fill, &output)
+            commands::convert(&mesh, resolution, fill, remove_islands, &output)
         }
-        Command::Export { scene, output, mesher, simplify, layers } => {
-            commands::export(&scene, &output, mesher, simplify, &layers)
+        Command::Export { scene, output, mesher, simplify, layers, remove_islands, keep_islands } => {
+            let islands = commands::island_threshold(&output, remove_islands, keep_islands);
+            commands::export(&scene, &output, mesher, simplify, islands, &layers)
         }
         Command::Info { scene } => commands::info(&scene),
         Command::Render { scene, output, size, wireframe } => commands::render(&scene, &output, size, wireframe),
         Command::Demo { scale, outputs, scene } => strata::demo(scale, &outputs, scene.as_deref()),
         Command::Terrain { recipe, seed, size, output, print_recipe } => {
             use strata::terrain::RecipeSource;
-            let source = match &recipe {
-                Some(p) => RecipeSource::File(p),
-                None => RecipeSource::Seed(seed.unwrap_or(1)),
+            let source = match (&recipe, seed) {
+                (Some(p), _) => RecipeSource::File(p),
+                (None, Some(s)) => RecipeSource::Seed(s),
+                (None, None) if print_recipe => RecipeSource::Seed(strata_terrain::Recipe::default().seed),
+                (None, None) => anyhow::bail!(
+                    "terrain needs --seed N or --recipe FILE to say which terrain to make (--seed 1 is the default recipe)"
+                ),
             };
             if print_recipe {
                 return Ok(strata::terrain::recipe(&source)?.to_json() + "\n");
@@ -178,7 +198,16 @@ fn run(command: Command) -> Result<String> {
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
-        Err(e) if matches!(e.kind(), clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion) => {
+        // Help asked for, or shown because no command was given (`strata` alone: the usage and
+        // the commands on standard error, exit code 2).
+        Err(e)
+            if matches!(
+                e.kind(),
+                clap::error::ErrorKind::DisplayHelp
+                    | clap::error::ErrorKind::DisplayVersion
+                    | clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) =>
+        {
             e.exit()
         }
         Err(e) => {
@@ -194,6 +223,16 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if matches!(cli.command, Command::Render { .. }) && strata::runtime::needs_runtime_dir() {
+        // The render runs in a child that has a private XDG_RUNTIME_DIR (see `runtime`).
+        return match strata::runtime::rerun_with_runtime_dir() {
+            Ok(code) => code,
+            Err(e) => {
+                eprintln!("strata: error: {}", format!("{e:#}").split_whitespace().collect::<Vec<_>>().join(" "));
+                ExitCode::FAILURE
+            }
+        };
+    }
     match run(cli.command) {
         Ok(report) => {
             print!("{report}");

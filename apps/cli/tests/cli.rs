@@ -192,10 +192,195 @@ fn render_writes_a_png_where_a_gpu_or_software_driver_exists() {
         eprintln!("skipped: no GPU adapter ({})", String::from_utf8_lossy(&out.stderr).trim());
         return;
     }
+    // A successful render says nothing on standard error, whatever XDG_RUNTIME_DIR holds (the
+    // Wayland probe complained twice when it was unset or relative).
+    for runtime_dir in [None, Some("relative/dir"), Some("")] {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_strata"));
+        command.args(["render", s(&scene), "-o", s(&png), "--size", "160x100"]);
+        match runtime_dir {
+            None => command.env_remove("XDG_RUNTIME_DIR"),
+            Some(v) => command.env("XDG_RUNTIME_DIR", v),
+        };
+        let out = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "XDG_RUNTIME_DIR {runtime_dir:?}: {stderr}");
+        assert_eq!(stderr, "", "XDG_RUNTIME_DIR {runtime_dir:?}: nothing on standard error");
+        assert!(String::from_utf8_lossy(&out.stdout).contains("rendered 160x100"));
+    }
+    let left: Vec<_> = std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with("strata-runtime-"))
+        .filter(|e| e.metadata().and_then(|m| m.modified()).is_ok_and(|t| t.elapsed().is_ok_and(|d| d.as_secs() < 60)))
+        .collect();
+    assert!(left.is_empty(), "the private runtime folders are removed: {left:?}");
     ok(out);
     let bytes = std::fs::read(&png).unwrap();
     assert_eq!(&bytes[1..4], b"PNG");
     refused(strata(&["render", s(&scene), "-o", s(&png), "--size", "0x10"]), "--size");
+}
+
+#[test]
+fn no_arguments_show_the_usage_and_every_command() {
+    let out = strata(&[]);
+    assert_eq!(out.status.code(), Some(2), "a usage error");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("Usage: strata <COMMAND>"), "{stderr}");
+    assert!(stderr.contains("Commands:"), "{stderr}");
+    for cmd in ["convert", "export", "info", "render", "terrain", "demo"] {
+        assert!(stderr.lines().any(|l| l.trim_start().starts_with(cmd)), "{cmd} is listed: {stderr}");
+    }
+    assert!(!stderr.contains("strata: error:"), "help, not an error line: {stderr}");
+}
+
+#[test]
+fn a_malformed_ply_is_refused_in_one_readable_line() {
+    let dir = temp("ply");
+    let out = dir.join("out.strata");
+    let files = [
+        ("short.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1 2\n", "line 7"),
+        ("typo.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty flot x\nend_header\n1\n", "property flot x"),
+        ("word.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty int x\nend_header\nabc\n", "abc"),
+        ("magic.ply", "hello\nformat ascii 1.0\nend_header\n", "magic number"),
+        (
+            "cut.ply",
+            "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nend_header\n\x01",
+            "ends before",
+        ),
+    ];
+    for (name, text, what) in files {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        let result = strata(&["convert", s(&path), "--cells", "16", "-o", s(&out)]);
+        let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
+        refused(result, what);
+        assert!(stderr.contains(name), "the file is named: {stderr}");
+        for dump in ["Custom {", "kind:", "ParseError", "LineCol", "ExpectedSet", "Scalar(", "\\n", "\t"] {
+            assert!(!stderr.contains(dump), "{name}: no parser debug output ({dump}): {stderr}");
+        }
+        assert!(stderr.trim_end().len() < 200, "{name}: a short line: {stderr}");
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn terrain_without_a_seed_or_recipe_says_which_it_needs() {
+    let dir = temp("terrain-seed");
+    let glb = dir.join("t.glb");
+    let out = strata(&["terrain", "--size", "16x16x16", "-o", s(&glb)]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    refused(out, "--seed");
+    assert!(stderr.contains("--recipe"), "{stderr}");
+    assert!(!glb.exists(), "nothing generated");
+    // --print-recipe alone still prints the default recipe (seed 1).
+    let printed = ok(strata(&["terrain", "--print-recipe"]));
+    assert!(printed.contains("\"seed\": 1"), "{printed}");
+}
+
+/// A GLB's vertex count and its number of distinct positions.
+fn vertices_and_positions(path: &Path) -> (usize, usize) {
+    let m = strata_mesh::import::load_mesh(path).unwrap();
+    let distinct: std::collections::HashSet<[u64; 3]> =
+        m.vertices.iter().map(|v| v.to_array().map(f64::to_bits)).collect();
+    (m.vertices.len(), distinct.len())
+}
+
+#[test]
+fn simplified_exports_are_welded() {
+    let dir = temp("weld");
+    let scene = dir.join("bunny.strata");
+    ok(strata(&["convert", s(&bunny()), "--cells", "48", "-o", s(&scene)]));
+    for mesher in ["mc", "dc", "rmt"] {
+        let glb = dir.join(format!("simple-{mesher}.glb"));
+        let report = ok(strata(&["export", s(&scene), "-o", s(&glb), "--simplify", "0.3", "--mesher", mesher]));
+        let (vertices, positions) = vertices_and_positions(&glb);
+        assert_eq!(vertices, positions, "{mesher}: one vertex per position: {report}");
+        assert!(report.contains(&format!("{vertices} vertices")), "{report}");
+    }
+}
+
+/// The number in `report` just before `suffix` (`"removed 4 islands"` → 4 for `" islands"`).
+fn number_before(report: &str, suffix: &str) -> f64 {
+    let end = report.find(suffix).unwrap_or_else(|| panic!("{suffix:?} in {report}"));
+    let start = report[..end].rfind([' ', '(']).map_or(0, |i| i + 1);
+    report[start..end].parse().unwrap_or_else(|_| panic!("a number before {suffix:?} in {report}"))
+}
+
+#[test]
+fn exports_remove_stray_islands_by_default_for_stl_and_count_them() {
+    let dir = temp("islands");
+    let scene = dir.join("demo.strata");
+    ok(strata(&["demo", "--scene", s(&scene)]));
+    let triangles = |r: &str| number_before(r, " triangles, ") as usize;
+    // The demo sculpture leaves stray nodes; an STL drops them and says so.
+    let stl = ok(strata(&["export", s(&scene), "-o", s(&dir.join("demo.stl"))]));
+    let islands = number_before(&stl, " islands (") as usize;
+    assert!(islands >= 1, "{stl}");
+    let removed_triangles = number_before(&stl, " triangles, 0") as usize;
+    assert!((8 * islands..=12 * islands).contains(&removed_triangles), "8 to 12 triangles an island: {stl}");
+    let volume = number_before(&stl, " cells³)");
+    assert!(volume > 0.0 && volume < 8.0 * islands as f64, "{stl}");
+    assert!(stl.contains("kept 1 piece"), "{stl}");
+    // --keep-islands keeps them (and says nothing of islands); other formats keep them too.
+    let kept = ok(strata(&["export", s(&scene), "-o", s(&dir.join("all.stl")), "--keep-islands"]));
+    assert!(!kept.contains("removed"), "{kept}");
+    assert_eq!(triangles(&kept), triangles(&stl) + removed_triangles, "{kept} vs {stl}");
+    let glb = ok(strata(&["export", s(&scene), "-o", s(&dir.join("all.glb"))]));
+    assert_eq!(triangles(&glb), triangles(&kept), "{glb}");
+    // On request for any format, with any threshold; 0 removes nothing.
+    let glb = ok(strata(&["export", s(&scene), "-o", s(&dir.join("clean.glb")), "--remove-islands", "8"]));
+    assert_eq!(triangles(&glb), triangles(&stl), "{glb}");
+    let none = ok(strata(&["export", s(&scene), "-o", s(&dir.join("none.stl")), "--remove-islands", "0"]));
+    assert!(none.contains("removed 0 islands (0 triangles, 0.00 cells³)"), "{none}");
+    for bad in ["nan", "-1", "inf"] {
+        let out = dir.join("bad.stl");
+        refused(strata(&["export", s(&scene), "-o", s(&out), "--remove-islands", bad]), "--remove-islands");
+        assert!(!out.exists());
+    }
+    refused(
+        strata(&["export", s(&scene), "-o", s(&dir.join("x.stl")), "--remove-islands", "3", "--keep-islands"]),
+        "cannot be used",
+    );
+}
+
+#[test]
+fn convert_removes_islands_of_the_solid_on_request() {
+    let dir = temp("convert-islands");
+    // A 4-unit cube and, apart from it, a speck 0.3 units wide: at 0.25 units a cell, the speck
+    // holds between 1 and 8 nodes, the cube 4,096.
+    let obj = dir.join("speck.obj");
+    let mut text = String::new();
+    for (o, e) in [([0.0, 0.0, 0.0], 4.0), ([7.0, 1.0, 1.0], 0.3)] {
+        for k in 0..8 {
+            let c = |bit: usize, i: usize| o[i] + if k & bit == 0 { 0.0 } else { e };
+            text += &format!("v {} {} {}\n", c(1, 0), c(2, 1), c(4, 2));
+        }
+    }
+    for base in [0, 8] {
+        for f in [[1, 3, 4, 2], [5, 6, 8, 7], [1, 2, 6, 5], [3, 7, 8, 4], [1, 5, 7, 3], [2, 4, 8, 6]] {
+            text += &format!("f {} {} {} {}\n", f[0] + base, f[1] + base, f[2] + base, f[3] + base);
+        }
+    }
+    std::fs::write(&obj, text).unwrap();
+    let pieces = |scene: &Path| strata_editor::file::load(scene).unwrap().scene.layers[0].volume.piece_sizes().unwrap();
+    let plain = dir.join("plain.strata");
+    ok(strata(&["convert", s(&obj), "--cell-size", "0.25", "-o", s(&plain)]));
+    let before = pieces(&plain);
+    assert_eq!(before.len(), 2, "the cube and the speck: {before:?}");
+    let clean = dir.join("clean.strata");
+    let report = ok(strata(&["convert", s(&obj), "--cell-size", "0.25", "--remove-islands", "10", "-o", s(&clean)]));
+    let line = format!("islands         removed 1 (of 2: {} nodes, {:.2} cells³) in ", before[1], before[1] as f64);
+    assert!(report.contains(&line), "{line:?} in {report}");
+    assert_eq!(pieces(&clean), &before[..1]);
+    let loaded = strata_editor::file::load(&clean).unwrap();
+    assert!(loaded.report.is_clean());
+    loaded.scene.layers[0].volume.check_invariants().unwrap();
+    let out = dir.join("bad.strata");
+    refused(
+        strata(&["convert", s(&obj), "--cell-size", "0.25", "--remove-islands", "-2", "-o", s(&out)]),
+        "--remove-islands",
+    );
+    assert!(!out.exists());
 }
 
 #[test]

@@ -75,17 +75,17 @@ fn per_chunk_simplification_keeps_chunk_borders_shared() {
         e.triangle_count()
     };
     for mesher in [Mesher::MarchingCubes, Mesher::ClusteredTetrahedra] {
-        e.set_view_mesher(MeshOptions { mesher, simplify: Some(0.2) }).unwrap();
+        e.set_view_mesher(MeshOptions { mesher, simplify: Some(0.2), remove_islands: None }).unwrap();
         e.finish_meshing();
         let m = viewport(&e);
         assert_eq!(manifold_report(&m).boundary, 0, "{mesher:?}: locked borders still meet");
         assert!(e.triangle_count() < full, "{mesher:?}: {} of {full}", e.triangle_count());
     }
     // Dual contouring is simplified on export only; bad bounds are refused.
-    let dc = MeshOptions { mesher: Mesher::DualContouring, simplify: Some(0.2) };
+    let dc = MeshOptions { mesher: Mesher::DualContouring, simplify: Some(0.2), remove_islands: None };
     assert!(matches!(e.set_view_mesher(dc), Err(EditorError::Mesher(MesherError::ChunkSimplify(_)))));
     for bad in [f32::NAN, -0.1, f32::INFINITY] {
-        let o = MeshOptions { mesher: Mesher::MarchingCubes, simplify: Some(bad) };
+        let o = MeshOptions { mesher: Mesher::MarchingCubes, simplify: Some(bad), remove_islands: None };
         assert!(e.set_view_mesher(o).is_err(), "{bad}");
     }
     assert_eq!(e.view_mesher().simplify, Some(0.2), "a refused choice changes nothing");
@@ -98,7 +98,7 @@ fn exports_by_every_mesher_and_tetrahedra_refuse_mixed_levels() {
     let volume = signed_volume(&mc);
     for mesher in Mesher::ALL {
         for simplify in [None, Some(0.1)] {
-            let m = e.export_mesh(MeshOptions { mesher, simplify }).unwrap();
+            let m = e.export_mesh(MeshOptions { mesher, simplify, remove_islands: None }).unwrap();
             assert!(m.triangle_count() > 0);
             assert!((signed_volume(&m) - volume).abs() / volume < 0.03, "{mesher:?} {simplify:?}");
             if mesher != Mesher::SingleVertexDualContouring && simplify.is_none() {

@@ -214,7 +214,7 @@ fn read_ply(bytes: &[u8]) -> Result<TriangleMesh, String> {
     use ply_rs::parser::Parser;
     use ply_rs::ply::{DefaultElement, Property};
     let mut f = Cursor::new(bytes);
-    let ply = Parser::<DefaultElement>::new().read_ply(&mut f).map_err(|e| e.to_string())?;
+    let ply = Parser::<DefaultElement>::new().read_ply(&mut f).map_err(|e| ply_message(&e.to_string()))?;
     let scalar = |p: Option<&Property>| -> Option<f64> {
         Some(match p? {
             Property::Float(v) => *v as f64,
@@ -249,6 +249,103 @@ fn read_ply(bytes: &[u8]) -> Result<TriangleMesh, String> {
         push_fan(&mut mesh.triangles, &corners);
     }
     Ok(mesh)
+}
+
+/// A `ply-rs` error as one readable line. Its messages span lines and nest the `Debug` dumps of
+/// inner errors (`Error: Custom { kind: InvalidInput, error: "…" }`, a `peg` `ParseError { … }`,
+/// `ParseFloatError { kind: Invalid }`); this keeps what went wrong, the line number and the
+/// offending text, and drops the dumps.
+fn ply_message(raw: &str) -> String {
+    let (what, text) = ply_parts(raw);
+    let mut out = if what.is_empty() { "not a PLY file this reader understands".to_string() } else { what };
+    if let Some(t) = text {
+        let shown: String = t.chars().take(48).collect();
+        let more = if t.chars().count() > 48 { "…" } else { "" };
+        out = format!("{out} (`{shown}{more}`)");
+    }
+    out.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// What a `ply-rs` message says went wrong, and the offending text if it quotes one.
+fn ply_parts(raw: &str) -> (String, Option<String>) {
+    /// The text of a `Debug`-quoted string, from just after its opening quote.
+    fn unquote(s: &str) -> String {
+        let mut out = String::new();
+        let mut chars = s.chars();
+        while let Some(c) = chars.next() {
+            match c {
+                '"' => break,
+                '\\' => match chars.next() {
+                    Some('n') => out.push('\n'),
+                    Some('t') => out.push('\t'),
+                    Some(other) => out.push(other),
+                    None => break,
+                },
+                c => out.push(c),
+            }
+        }
+        out
+    }
+    /// A sentence fragment: first letter lower-case, no final full stop, readable type names.
+    fn fragment(s: &str) -> String {
+        let s = s.trim().trim_end_matches([',', ' ', '.']).replace("Couln't", "Couldn't");
+        let lower = |s: &str| {
+            let mut c = s.chars();
+            c.next().map_or(String::new(), |f| f.to_lowercase().chain(c).collect::<String>())
+        };
+        let mut s = match s.strip_prefix("Line ").and_then(|rest| rest.split_once(": ")) {
+            Some((line, rest)) => format!("line {line}: {}", lower(rest)),
+            None => lower(&s),
+        };
+        // `'Scalar(Float)'` → `'float'`, `'List(UChar, Int)'` → `'list of int'`.
+        for (from, to) in [("'Scalar(", "'"), ("'List(", "'list of ("), (")'", "'")] {
+            s = s.replace(from, to);
+        }
+        for t in ["Char", "UChar", "Short", "UShort", "Int", "UInt", "Float", "Double"] {
+            s = s.replace(&format!("({t}, "), "").replace(t, &t.to_lowercase());
+        }
+        s
+    }
+    let mut lines = raw.lines().map(str::trim).filter(|l| !l.is_empty() && *l != "'");
+    let head = lines.next().map(fragment).unwrap_or_default();
+    if head == "failed to fill whole buffer" {
+        return ("the file ends before its last element".into(), None);
+    }
+    let (mut text, mut detail) = (None, None);
+    for l in lines {
+        if let Some(v) = l.strip_prefix("String:").or_else(|| l.strip_prefix("Value:")) {
+            let v = v.trim().trim_matches('\'').trim();
+            if !v.is_empty() {
+                text = Some(v.to_string());
+            }
+        } else if let Some(e) = l.strip_prefix("Error:") {
+            let e = e.trim().trim_end_matches([',', ' ']);
+            detail = if let Some(at) = e.find("error: \"") {
+                // A nested io::Error: its own message, read the same way.
+                let (inner, inner_text) = ply_parts(&unquote(&e[at + 8..]));
+                text = text.or(inner_text);
+                Some(inner)
+            } else if let Some(at) = e.find("column: ").map(|a| a + 8).or_else(|| {
+                // peg's Display: "error at LINE:COLUMN: expected …".
+                e.strip_prefix("error at ").and_then(|r| r.find(':')).map(|c| c + 10)
+            }) {
+                let col: String = e[at..].chars().take_while(char::is_ascii_digit).collect();
+                Some(format!("unexpected text at column {col}"))
+            } else if e.contains("ParseFloatError") || e.contains("ParseIntError") {
+                Some("not a number of the declared type".into())
+            } else if e.contains('{') || e.contains('(') {
+                None
+            } else {
+                Some(fragment(e))
+            };
+        }
+    }
+    let what = match detail.filter(|d| !d.is_empty()) {
+        Some(d) if !head.is_empty() => format!("{head}: {d}"),
+        Some(d) => d,
+        None => head,
+    };
+    (what, text)
 }
 
 fn read_obj(bytes: &[u8]) -> Result<TriangleMesh, String> {
@@ -334,4 +431,53 @@ fn read_binary_stl(records: &[u8], count: usize) -> TriangleMesh {
         mesh.triangles.push(tri);
     }
     mesh
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Malformed PLY files of every kind of mistake the parser reports.
+    const BROKEN: [(&str, &str); 8] = [
+        ("missing values", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1 2\n"),
+        ("a misspelt header line", "ply\nformat ascii 1.0\nelement vertex 1\nproperty flot x\nend_header\n1\n"),
+        ("a word for a number", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\nabc\n"),
+        ("no format line", "ply\nelement vertex 1\nproperty float x\nend_header\n1\n"),
+        ("no magic number", "hello\nformat ascii 1.0\nend_header\n"),
+        (
+            "a short list",
+            "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n3 0 1\n",
+        ),
+        (
+            "binary cut short",
+            "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nend_header\n\x01",
+        ),
+        ("a fraction for an integer", "ply\nformat ascii 1.0\nelement vertex 1\nproperty int x\nend_header\n1.5\n"),
+    ];
+
+    #[test]
+    fn malformed_ply_files_give_one_readable_line_without_debug_dumps() {
+        for (what, text) in BROKEN {
+            let message = read_ply(text.as_bytes()).expect_err(what);
+            assert!(!message.contains('\n') && !message.contains('\t'), "{what}: one line: {message:?}");
+            for dump in ["Custom {", "kind:", "ParseError", "LineCol", "ExpectedSet", "Scalar(", "{ "] {
+                assert!(!message.contains(dump), "{what}: no debug output ({dump}): {message}");
+            }
+            assert!(message.len() < 160, "{what}: short: {message}");
+            assert!(message.chars().any(char::is_alphabetic), "{what}: says something: {message:?}");
+        }
+        let missing = read_ply(BROKEN[0].1.as_bytes()).unwrap_err();
+        assert_eq!(missing, "line 7: couldn't read element line: expected element of type 'float', but found nothing");
+        let word = read_ply(BROKEN[2].1.as_bytes()).unwrap_err();
+        assert_eq!(
+            word,
+            "line 6: couldn't read element line: couldn't parse element line: unexpected text at column 1 (`abc`)"
+        );
+        let fraction = read_ply(BROKEN[7].1.as_bytes()).unwrap_err();
+        assert!(fraction.contains("not a number of the declared type") && fraction.contains("1.5"), "{fraction}");
+        let header = read_ply(BROKEN[1].1.as_bytes()).unwrap_err();
+        assert_eq!(header, "line 4: couldn't parse line: unexpected text at column 10 (`property flot x`)");
+        let cut = read_ply(BROKEN[6].1.as_bytes()).unwrap_err();
+        assert_eq!(cut, "the file ends before its last element");
+    }
 }

@@ -11,8 +11,9 @@
 //!
 //! Manifold dual contouring ([`DualCache`], [`dual_contour_volume`]) and regularised marching
 //! tetrahedra ([`tetra`], [`mesh_block_tetra`], [`tetra_volume`]) are closed and edge-manifold
-//! too; [`simplify`] simplifies by meshoptimizer; [`Mesher`] and [`mesh_volume_with`] name the
-//! choice for every caller.
+//! too; [`simplify`] simplifies by meshoptimizer; [`islands`] removes stray pieces below a
+//! volume; [`Mesher`] and [`mesh_volume_with`] ([`MeshOptions`]) name the choice for every
+//! caller.
 //!
 //! ```
 //! use glam::DVec3;
@@ -34,6 +35,7 @@ pub mod checks;
 mod dual;
 pub mod export;
 pub mod import;
+pub mod islands;
 mod marching;
 mod mesh;
 mod mesher;
@@ -47,6 +49,6 @@ pub use cache::{BlockMesher, LevelCap, MeshCache};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks, tetra_volume};
 pub use mesh::{Mesh, VertexMaterial};
-pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_with};
+pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_reported, mesh_volume_with};
 pub use tetra::{TetraScratch, mesh_block_tetra};
 pub use workers::MeshWorkers;

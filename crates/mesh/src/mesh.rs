@@ -102,6 +102,29 @@ impl Mesh {
         self.materials.get(i).copied().unwrap_or(VertexMaterial::single(0))
     }
 
+    /// The mesh with the vertices that agree bit for bit in position, normal and material merged
+    /// into the first of them (`-0.0` taken as `0.0`), the others dropped; triangles keep their
+    /// order and orientation. Vertices split only for their normals stay apart.
+    pub fn welded(&self) -> Mesh {
+        let bits = |v: [f32; 3]| v.map(|c| (c + 0.0).to_bits());
+        let mut first: std::collections::HashMap<([u32; 3], [u32; 3], VertexMaterial), u32> =
+            std::collections::HashMap::with_capacity(self.positions.len());
+        let mut out = Mesh::default();
+        let with_materials = !self.materials.is_empty();
+        let remap: Vec<u32> = (0..self.positions.len())
+            .map(|i| {
+                let normal = self.normals.get(i).copied().unwrap_or([0.0, 0.0, 1.0]);
+                let key = (bits(self.positions[i]), bits(normal), self.material(i));
+                *first.entry(key).or_insert_with(|| {
+                    out.push_vertex(self.positions[i], normal, self.material(i), with_materials);
+                    out.positions.len() as u32 - 1
+                })
+            })
+            .collect();
+        out.indices = self.indices.iter().map(|&i| remap.get(i as usize).copied().unwrap_or(i)).collect();
+        out
+    }
+
     /// Appends vertex `i` of `from` (position moved by `offset`), keeping materials aligned;
     /// returns its index here.
     pub fn push_vertex_from(&mut self, from: &Mesh, i: usize, offset: [f32; 3]) -> u32 {
@@ -146,5 +169,28 @@ mod tests {
         assert!(m.materials.is_empty());
         m.push_vertex([1.0; 3], [0.0, 0.0, 1.0], VertexMaterial::single(4), false);
         assert_eq!(m.materials, vec![VertexMaterial::single(0), VertexMaterial::single(4)]);
+    }
+
+    #[test]
+    fn welding_merges_only_vertices_equal_in_position_normal_and_material() {
+        let mut m = Mesh::default();
+        let up = [0.0, 0.0, 1.0];
+        for (p, n, id) in [
+            ([0.0, 0.0, 0.0], up, 0),
+            ([1.0, 0.0, 0.0], up, 0),
+            ([0.0, 1.0, 0.0], up, 0),
+            ([-0.0, 0.0, 0.0], up, 0),             // the first again
+            ([1.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0), // another normal
+            ([0.0, 1.0, 0.0], up, 3),              // another material
+        ] {
+            m.push_vertex(p, n, VertexMaterial::single(id), false);
+        }
+        m.indices = vec![0, 1, 2, 3, 4, 5];
+        let w = m.welded();
+        assert_eq!(w.vertex_count(), 5);
+        assert_eq!(w.indices, vec![0, 1, 2, 0, 3, 4]);
+        assert_eq!(w.material(4), VertexMaterial::single(3));
+        assert_eq!(w.normals[3], [1.0, 0.0, 0.0]);
+        assert_eq!(w.welded(), w, "welding twice changes nothing");
     }
 }

@@ -6,6 +6,7 @@ use std::str::FromStr;
 use strata_volume::Volume;
 use thiserror::Error;
 
+use crate::islands::{IslandError, IslandReport, remove_islands};
 use crate::simplify::{Simplify, SimplifyError, simplify};
 use crate::{BlockMesher, DualCache, Mesh};
 
@@ -105,27 +106,52 @@ pub enum MesherError {
     /// Simplification refused its input.
     #[error(transparent)]
     Simplify(#[from] SimplifyError),
+    /// Island removal refused its threshold.
+    #[error(transparent)]
+    Islands(#[from] IslandError),
 }
 
-/// A mesher and an optional simplification: what an export asks for.
+/// A mesher, an optional island removal and an optional simplification: what an export asks
+/// for.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MeshOptions {
     /// The mesher.
     pub mesher: Mesher,
     /// Simplify the welded mesh with this error (grid units), or not at all.
     pub simplify: Option<f32>,
+    /// Remove the pieces of the mesh that enclose less than this many cells³ (grid units cubed),
+    /// before simplifying ([`crate::islands`]: the largest piece and cavity walls are kept), or
+    /// keep every piece. [`crate::islands::DEFAULT_MIN_ISLAND_CELLS`] removes stray nodes. For
+    /// whole meshes (export); the viewport meshes chunk by chunk and shows every piece.
+    pub remove_islands: Option<f32>,
 }
 
 impl MeshOptions {
-    /// `mesher`, without simplification.
+    /// `mesher`, without island removal or simplification.
     pub const fn new(mesher: Mesher) -> Self {
-        MeshOptions { mesher, simplify: None }
+        MeshOptions { mesher, simplify: None, remove_islands: None }
     }
 }
 
 /// One welded mesh of the whole volume (grid units, absolute) by `options`.
 pub fn mesh_volume_with(volume: &Volume, options: MeshOptions) -> Result<Mesh, MesherError> {
-    let mesh = match options.mesher {
+    mesh_volume_reported(volume, options).map(|(mesh, _)| mesh)
+}
+
+/// [`mesh_volume_with`], also saying what island removal removed (an empty report when
+/// `options.remove_islands` is `None`). Every option is checked before meshing starts.
+pub fn mesh_volume_reported(volume: &Volume, options: MeshOptions) -> Result<(Mesh, IslandReport), MesherError> {
+    if let Some(e) = options.simplify
+        && !(e.is_finite() && e >= 0.0)
+    {
+        return Err(SimplifyError::BadError(e).into());
+    }
+    if let Some(min) = options.remove_islands
+        && !(min.is_finite() && min >= 0.0)
+    {
+        return Err(IslandError::BadThreshold(min).into());
+    }
+    let mut mesh = match options.mesher {
         Mesher::MarchingCubes => crate::mesh_volume(volume),
         Mesher::DualContouring => DualCache::build(volume).welded(),
         Mesher::SingleVertexDualContouring => DualCache::build_single_vertex(volume).welded(),
@@ -133,10 +159,15 @@ pub fn mesh_volume_with(volume: &Volume, options: MeshOptions) -> Result<Mesh, M
             crate::tetra_volume(volume, m == Mesher::ClusteredTetrahedra).ok_or(MesherError::MixedLevels(m))?
         }
     };
-    match options.simplify {
-        Some(e) => Ok(simplify(&mesh, Simplify::export(e))?),
-        None => Ok(mesh),
-    }
+    let islands = match options.remove_islands {
+        Some(min) => remove_islands(&mut mesh, min)?,
+        None => IslandReport::default(),
+    };
+    let mesh = match options.simplify {
+        Some(e) => simplify(&mesh, Simplify::export(e))?,
+        None => mesh,
+    };
+    Ok((mesh, islands))
 }
 
 #[cfg(test)]

@@ -38,6 +38,7 @@ pub mod coords;
 mod edit;
 pub mod generate;
 mod invariants;
+pub mod islands;
 mod level;
 pub mod material;
 mod memory;
