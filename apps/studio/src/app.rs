@@ -603,6 +603,22 @@ impl StudioApp {
                     self.ask_path(&ctx, Prompt::Export, None);
                 }
                 mesher_choice(ui, false, "Export with", &mut self.studio.export);
+                ui.label("Remove islands");
+                for (choice, name) in [
+                    (crate::studio::Islands::ForStl, "for STL"),
+                    (crate::studio::Islands::Remove, "always"),
+                    (crate::studio::Islands::Keep, "never"),
+                ] {
+                    ui.radio_value(&mut self.studio.islands, choice, name)
+                        .on_hover_text("Drop stray pieces of the surface (isolated solid nodes) from exports");
+                }
+                ui.add(
+                    egui::DragValue::new(&mut self.studio.island_cells)
+                        .range(0.0..=1.0e6)
+                        .speed(0.5)
+                        .prefix("smaller than ")
+                        .suffix(" cells³"),
+                );
                 ui.separator();
                 if ui.button("Quit").clicked() {
                     self.guard(&ctx, Then::Quit);

@@ -116,6 +116,18 @@ pub fn default_scene() -> Scene {
     scene
 }
 
+/// Which exports remove stray islands: pieces of the surface enclosing fewer cells³ than
+/// [`Studio::island_cells`] (isolated solid nodes that print as specks).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Islands {
+    /// STL exports (for printing) only: the default.
+    ForStl,
+    /// Every export.
+    Remove,
+    /// None.
+    Keep,
+}
+
 /// Everything the studio knows besides the GPU.
 #[derive(Debug)]
 pub struct Studio {
@@ -135,6 +147,10 @@ pub struct Studio {
     pub wireframe: bool,
     /// The mesher and simplification of exports.
     pub export: strata_mesh::MeshOptions,
+    /// Which exports drop stray islands (pieces enclosing less than [`Studio::island_cells`]).
+    pub islands: Islands,
+    /// The smallest piece an export keeps, in cells³ of its layer's grid.
+    pub island_cells: f32,
     /// The viewport mesher as the View menu shows it (applied once its error slider settles).
     pub view_draft: strata_mesh::MeshOptions,
     /// The last message for the status bar (errors included).
@@ -227,6 +243,8 @@ impl Studio {
             world_path: None,
             wireframe: false,
             export: strata_mesh::MeshOptions::default(),
+            islands: Islands::ForStl,
+            island_cells: strata_mesh::islands::DEFAULT_MIN_ISLAND_CELLS,
             view_draft: strata_mesh::MeshOptions::default(),
             message: "Ready. Left drag: sculpt · right drag: orbit · middle drag: pan · wheel: zoom".into(),
             notice: None,
@@ -411,10 +429,24 @@ impl Studio {
                 self.path = Some(path);
             }
             Action::Export(path) => {
-                let mesh = self.editor.export_mesh(self.export).map_err(|e| format!("Could not export: {e}"))?;
+                let stl = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("stl"));
+                let remove = match self.islands {
+                    Islands::Keep => None,
+                    Islands::ForStl if !stl => None,
+                    Islands::ForStl | Islands::Remove => Some(self.island_cells),
+                };
+                let options = strata_mesh::MeshOptions { remove_islands: remove, ..self.export };
+                let (mesh, islands) =
+                    self.editor.export_mesh_reported(options).map_err(|e| format!("Could not export: {e}"))?;
                 strata_mesh::export::save_mesh_with(&mesh, &path, &self.editor.scene.export_palette())
                     .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
                 self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
+                if let Some(min) = remove {
+                    self.message += &format!(
+                        " (removed {} islands below {min} cells³: {} triangles, {:.2} cells³)",
+                        islands.removed, islands.removed_triangles, islands.removed_volume
+                    );
+                }
             }
             Action::Undo | Action::Redo => {
                 let structure = self.editor.structure_revision();
@@ -1331,5 +1363,36 @@ mod tests {
             s.act(Action::Export(temp(&format!("out.{ext}")))).unwrap();
         }
         assert!(s.act(Action::Export(temp("out.xyz"))).is_err());
+    }
+}
+
+#[cfg(test)]
+mod island_tests {
+    use super::*;
+
+    #[test]
+    fn exports_drop_stray_islands_for_stl_by_default_and_say_so() {
+        let dir = std::env::temp_dir().join(format!("strata-studio-specks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut s = Studio::new(default_scene());
+        // A speck: one solid node well away from the ball.
+        let cell = s.editor.scene.layers[0].transform.scale;
+        let speck = DVec3::new(90.0, 18.0, 32.0) / cell;
+        s.editor.scene.layers[0].volume.add(&Sphere::new(speck.round(), 0.4).unwrap()).unwrap();
+        let count = |path: &std::path::Path| strata_mesh::import::load_mesh(path).unwrap().triangles.len();
+        let stl = dir.join("print.stl");
+        s.act(Action::Export(stl.clone())).unwrap();
+        assert!(s.message.contains("removed 1 islands"), "{}", s.message);
+        let obj = dir.join("game.obj");
+        s.act(Action::Export(obj.clone())).unwrap();
+        assert!(!s.message.contains("islands"), "{}", s.message);
+        assert!(count(&obj) > count(&stl), "the OBJ keeps the speck's triangles");
+        s.islands = Islands::Keep;
+        s.act(Action::Export(stl.clone())).unwrap();
+        assert_eq!(count(&stl), count(&obj), "kept when asked");
+        s.islands = Islands::Remove;
+        s.act(Action::Export(obj.clone())).unwrap();
+        assert!(s.message.contains("removed 1 islands"), "{}", s.message);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
