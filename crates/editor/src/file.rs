@@ -22,9 +22,19 @@
 //!   Strata; guessing a material would silently change the model).
 //!   Everything else is repaired and reported in [`LoadReport`]: a layer with an invalid
 //!   transform gets a valid one, a chunk whose bytes fail their CRC or do not decode is dropped,
-//!   a volume whose lists disagree is rebuilt from its x lines ([`Volume::repair`]), an invalid
-//!   view is reset. A file whose payload checksum fails is still read chunk by chunk: chunks whose
-//!   own CRC fails are dropped and the report says so.
+//!   a chunk key stored more than once (solid and lists, or twice the same kind) keeps its first
+//!   chunk of lists or else one solid entry and the report names what was dropped, materials
+//!   stored twice, for an empty chunk or not fitting their chunk are dropped (its nodes use
+//!   material 0), a volume whose lists disagree is rebuilt from its x lines ([`Volume::repair`],
+//!   which keeps chunks stored at other levels than the layer's), an invalid view is reset. A
+//!   file whose payload checksum fails is still read chunk by chunk: chunks whose own CRC fails
+//!   are dropped and the report says so.
+//! - **Levels.** A layer stores its base level and every chunk of lists its own; any mix is
+//!   valid (a layer whose chunks were all raised is stored that way), so a layer level that
+//!   differs from its chunks' is kept as it is. A level that does not exist becomes level 0; a
+//!   chunk whose own level field disagrees with its data does not decode and is dropped. A
+//!   uniform chunk's materials are per node of the layer's level, so runs that reach past that
+//!   count are dropped; runs written for a coarser level fit and cannot be told apart.
 //! - **Bounded reads.** Only regular files of at most [`MAX_SCENE_BYTES`] are read; anything else
 //!   is refused before a byte is read ([`strata_mesh::import::read_limited`]), and decoding never
 //!   allocates more than the file's size for the payload.
@@ -34,6 +44,7 @@
 //!   saves of one path at once end with one of the two complete files (the last rename wins).
 //!   Temporary files left by saves that were killed are removed by the next save of that path.
 
+use std::collections::{HashMap, HashSet, hash_map};
 use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -144,19 +155,21 @@ pub struct Loaded {
     pub version: u32,
 }
 
-/// What version 4 stores per layer.
-#[derive(Serialize, Deserialize)]
-struct LayerRecord {
-    name: String,
-    transform: LayerTransform,
-    visible: bool,
-    locked: bool,
-    level: u8,
-    cell_size: f64,
-    solid: Vec<ChunkKey>,
-    lists: Vec<ChunkRecord>,
+/// What version 4 stores per layer (public for tests that craft files; not a stable API).
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct LayerRecord {
+    pub name: String,
+    pub transform: LayerTransform,
+    pub visible: bool,
+    pub locked: bool,
+    /// The volume's base level; its chunks of lists each carry their own.
+    pub level: u8,
+    pub cell_size: f64,
+    pub solid: Vec<ChunkKey>,
+    pub lists: Vec<ChunkRecord>,
     /// Framed [`ChunkMaterials`], one per chunk with materials.
-    materials: Vec<ChunkRecord>,
+    pub materials: Vec<ChunkRecord>,
 }
 
 /// What version 3 stored per layer: one material for the whole layer, no node materials.
@@ -174,10 +187,11 @@ struct LayerRecordV3 {
 }
 
 /// A palette entry of versions 2 and 3.
-#[derive(Serialize, Deserialize)]
-struct MaterialV3 {
-    name: String,
-    color: [f32; 3],
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct MaterialV3 {
+    pub name: String,
+    pub color: [f32; 3],
 }
 
 #[derive(Deserialize)]
@@ -187,72 +201,93 @@ struct SceneRecordV3 {
     view: View,
 }
 
-/// A version 2 file: the scene of that time as one postcard value.
-#[derive(Serialize, Deserialize)]
-struct SceneV2 {
-    layers: Vec<LayerV2>,
-    materials: Vec<MaterialV3>,
-    view: View,
+/// A version 2 file: the scene of that time as one postcard value (public for tests that
+/// craft files; not a stable API).
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct SceneV2 {
+    pub layers: Vec<LayerV2>,
+    pub materials: Vec<MaterialV3>,
+    pub view: View,
 }
 
-#[derive(Serialize, Deserialize)]
-struct LayerV2 {
-    name: String,
-    transform: LayerTransform,
-    visible: bool,
-    locked: bool,
-    material: u32,
-    volume: VolumeV2,
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct LayerV2 {
+    pub name: String,
+    pub transform: LayerTransform,
+    pub visible: bool,
+    pub locked: bool,
+    pub material: u32,
+    pub volume: VolumeV2,
 }
 
-#[derive(Serialize, Deserialize)]
-struct VolumeV2 {
-    chunks: ChunkMap,
-    level: Level,
-    cell_size: f64,
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct VolumeV2 {
+    pub chunks: ChunksV2,
+    pub level: Level,
+    pub cell_size: f64,
+}
+
+/// A [`ChunkMap`] as version 2 wrote it (a map of list chunks, then a set of solid keys: in
+/// postcard, the same bytes as these two sequences), read without its checks so that a key
+/// stored twice is resolved and reported rather than failing the whole file.
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct ChunksV2 {
+    pub lists: Vec<(ChunkKey, Chunk)>,
+    pub solid: Vec<ChunkKey>,
 }
 
 /// The payload of a version 2 file holding `scene` (its layers' one material each taken from
-/// the material of their first solid node), for tests of the reader.
+/// the material of their first solid node), for tests of the reader. The chunks are written as
+/// version 2 wrote them, a [`ChunkMap`], and read back as [`ChunksV2`].
 #[doc(hidden)]
 pub fn encode_version_2_payload(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
-    let v2 = SceneV2 {
-        layers: scene
-            .layers
-            .iter()
-            .map(|l| LayerV2 {
-                name: l.name.clone(),
-                transform: l.transform,
-                visible: l.visible,
-                locked: l.locked,
-                material: l.volume.max_material().unwrap_or(0) as u32,
-                volume: VolumeV2 {
-                    chunks: ChunkMap::from_chunks(l.volume.chunks().map(|(k, c)| (k, c.clone()))),
-                    level: l.volume.level(),
-                    cell_size: l.volume.cell_size(),
-                },
-            })
-            .collect(),
-        materials: scene.materials.iter().map(|m| MaterialV3 { name: m.name.clone(), color: m.color }).collect(),
-        view: scene.view,
-    };
-    postcard::to_allocvec(&v2).map_err(|e| SceneFileError::Payload(e.to_string()))
+    let payload_err = |e: postcard::Error| SceneFileError::Payload(e.to_string());
+    let mut layers = Vec::with_capacity(scene.layers.len());
+    for l in &scene.layers {
+        let map = ChunkMap::from_chunks(l.volume.chunks().map(|(k, c)| (k, c.clone())));
+        let chunks = postcard::from_bytes(&postcard::to_allocvec(&map).map_err(payload_err)?).map_err(payload_err)?;
+        layers.push(LayerV2 {
+            name: l.name.clone(),
+            transform: l.transform,
+            visible: l.visible,
+            locked: l.locked,
+            material: l.volume.max_material().unwrap_or(0) as u32,
+            volume: VolumeV2 { chunks, level: l.volume.level(), cell_size: l.volume.cell_size() },
+        });
+    }
+    let materials = scene.materials.iter().map(|m| MaterialV3 { name: m.name.clone(), color: m.color }).collect();
+    postcard::to_allocvec(&SceneV2 { layers, materials, view: scene.view }).map_err(payload_err)
 }
 
 /// One chunk of lists, framed: its key, the CRC-32 of its bytes and its bytes (a postcard
 /// [`ChunkLists`]).
-#[derive(Serialize, Deserialize)]
-struct ChunkRecord {
-    key: ChunkKey,
-    crc: u32,
-    bytes: Vec<u8>,
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct ChunkRecord {
+    pub key: ChunkKey,
+    pub crc: u32,
+    pub bytes: Vec<u8>,
 }
 
-#[derive(Serialize, Deserialize)]
-struct SceneRecord {
-    layers: Vec<LayerRecord>,
-    materials: Vec<Material>,
-    view: View,
+impl ChunkRecord {
+    /// `bytes` framed at `key` with their CRC.
+    #[doc(hidden)]
+    pub fn new(key: ChunkKey, bytes: Vec<u8>) -> Self {
+        ChunkRecord { key, crc: crc32fast::hash(&bytes), bytes }
+    }
+}
+
+/// The payload of a version 4 file (public for tests that craft files; not a stable API).
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct SceneRecord {
+    pub layers: Vec<LayerRecord>,
+    pub materials: Vec<Material>,
+    pub view: View,
 }
 
 /// Checks `scene` as [`load`] does and repairs in place whatever would be refused; returns the
@@ -307,7 +342,7 @@ pub fn validate_scene(scene: &mut Scene) -> LoadReport {
             report.repairs.push(format!(
                 "layer {name:?}: its lists were inconsistent ({problem}); rebuilt from its x lines ({} node states on y and z lines moved{}; {} chunks before, {} after)",
                 r.repaired_nodes,
-                if r.dropped_chunks > 0 { format!(", {} chunks at a foreign level dropped", r.dropped_chunks) } else { String::new() },
+                relevelled(&r, l.volume.level()),
                 r.chunks_before,
                 r.chunks_after
             ));
@@ -323,9 +358,32 @@ pub fn validate_scene(scene: &mut Scene) -> LoadReport {
     report
 }
 
+/// What a repair did to chunks stored at other levels than the layer's, as a clause of the
+/// repair's sentence (empty when there were none).
+fn relevelled(r: &strata_volume::RepairReport, level: Level) -> String {
+    let mut out = String::new();
+    if r.relevelled_chunks > 0 {
+        out += &format!(
+            ", {} chunks stored at other levels brought to the layer's level {} for it and back",
+            r.relevelled_chunks,
+            level.get()
+        );
+    }
+    if r.dropped_chunks > 0 {
+        out += &format!(", {} chunks that could not be brought to level {} dropped", r.dropped_chunks, level.get());
+    }
+    out
+}
+
 /// The file's bytes for `scene`, which must be valid (see [`validate_scene`]; [`save`] makes
 /// sure of it).
 pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
+    encode_record(&scene_record(scene)?)
+}
+
+/// What [`encode`] writes for `scene`, before it is framed (for tests that craft files).
+#[doc(hidden)]
+pub fn scene_record(scene: &Scene) -> Result<SceneRecord, SceneFileError> {
     let payload_err = |e: postcard::Error| SceneFileError::Payload(e.to_string());
     let mut layers = Vec::with_capacity(scene.layers.len());
     for l in &scene.layers {
@@ -335,8 +393,7 @@ pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
         let mut with_materials: Vec<(ChunkKey, &ChunkMaterials)> = l.volume.material_chunks().collect();
         with_materials.sort_by_key(|(k, _)| k.0.to_array());
         for (key, m) in with_materials {
-            let bytes = postcard::to_allocvec(m).map_err(payload_err)?;
-            materials.push(ChunkRecord { key, crc: crc32fast::hash(&bytes), bytes });
+            materials.push(ChunkRecord::new(key, postcard::to_allocvec(m).map_err(payload_err)?));
         }
         let mut chunks: Vec<(ChunkKey, &Chunk)> = l.volume.chunks().collect();
         // A canonical order: the same scene always gives the same bytes.
@@ -344,10 +401,7 @@ pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
         for (key, chunk) in chunks {
             match chunk {
                 Chunk::Solid => solid.push(key),
-                Chunk::Lists(c) => {
-                    let bytes = postcard::to_allocvec(c).map_err(payload_err)?;
-                    lists.push(ChunkRecord { key, crc: crc32fast::hash(&bytes), bytes });
-                }
+                Chunk::Lists(c) => lists.push(ChunkRecord::new(key, postcard::to_allocvec(c).map_err(payload_err)?)),
             }
         }
         layers.push(LayerRecord {
@@ -362,8 +416,14 @@ pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
             materials,
         });
     }
-    let record = SceneRecord { layers, materials: scene.materials.clone(), view: scene.view };
-    let payload = postcard::to_allocvec(&record).map_err(payload_err)?;
+    Ok(SceneRecord { layers, materials: scene.materials.clone(), view: scene.view })
+}
+
+/// The file's bytes for a version 4 payload: `record` with the header (for tests that craft
+/// files; [`encode`] is `scene_record` then this).
+#[doc(hidden)]
+pub fn encode_record(record: &SceneRecord) -> Result<Vec<u8>, SceneFileError> {
+    let payload = postcard::to_allocvec(record).map_err(|e| SceneFileError::Payload(e.to_string()))?;
     let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -411,12 +471,10 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
                 .layers
                 .into_iter()
                 .map(|l| {
-                    let volume = Volume::from_chunks(
-                        l.volume.level,
-                        l.volume.cell_size,
-                        l.volume.chunks.iter().map(|(k, c)| (*k, c.clone())),
-                    )
-                    .ok_or_else(|| {
+                    let ChunksV2 { lists, solid } = l.volume.chunks;
+                    let entries = solid.into_iter().map(|k| (k, Chunk::Solid)).chain(lists);
+                    let chunks = resolve_chunks(&l.name, entries, &mut report);
+                    let volume = Volume::from_chunks(l.volume.level, l.volume.cell_size, chunks).ok_or_else(|| {
                         SceneFileError::Payload(format!("layer {:?}: cell size not finite and positive", l.name))
                     })?;
                     Ok(Layer { name: l.name, transform: l.transform, visible: l.visible, locked: l.locked, volume })
@@ -502,7 +560,7 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
                 .push(format!("layer {name:?}: cell size {} is not finite and positive; it is 1", l.cell_size));
             1.0
         };
-        let mut chunks: Vec<(ChunkKey, Chunk)> = l.solid.into_iter().map(|k| (k, Chunk::Solid)).collect();
+        let mut entries: Vec<(ChunkKey, Chunk)> = l.solid.into_iter().map(|k| (k, Chunk::Solid)).collect();
         for c in l.lists {
             let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
             if crc32fast::hash(&c.bytes) != c.crc {
@@ -512,13 +570,17 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
                 continue;
             }
             match postcard::from_bytes::<ChunkLists>(&c.bytes) {
-                Ok(lists) => chunks.push((c.key, Chunk::Lists(lists))),
+                Ok(lists) => entries.push((c.key, Chunk::Lists(lists))),
                 Err(e) => report
                     .repairs
                     .push(format!("layer {name:?}: chunk ({x}, {y}, {z}) does not decode ({e}) and was dropped")),
             }
         }
+        let chunks = resolve_chunks(&name, entries, report);
         let mut volume = Volume::from_chunks(level, cell_size, chunks).expect("cell size checked");
+        // Materials are checked against their chunk, now that the chunks and the level (which
+        // sizes a uniform chunk's materials) are in place.
+        let mut with_materials = HashSet::new();
         for c in l.materials {
             let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
             if crc32fast::hash(&c.bytes) != c.crc {
@@ -527,16 +589,112 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
                 ));
                 continue;
             }
-            match postcard::from_bytes::<ChunkMaterials>(&c.bytes) {
-                Ok(m) => volume.set_chunk_materials(c.key, Some(m)),
-                Err(e) => report.repairs.push(format!(
-                    "layer {name:?}: the materials of chunk ({x}, {y}, {z}) do not decode ({e}); its nodes use material 0"
-                )),
+            let m = match postcard::from_bytes::<ChunkMaterials>(&c.bytes) {
+                Ok(m) => m,
+                Err(e) => {
+                    report.repairs.push(format!(
+                        "layer {name:?}: the materials of chunk ({x}, {y}, {z}) do not decode ({e}); its nodes use material 0"
+                    ));
+                    continue;
+                }
+            };
+            if !with_materials.insert(c.key) {
+                report.repairs.push(format!(
+                    "layer {name:?}: the materials of chunk ({x}, {y}, {z}) are stored more than once; the first record was read and a later one dropped"
+                ));
+            } else if volume.chunk(c.key).is_none() {
+                report.repairs.push(format!(
+                    "layer {name:?}: materials are stored for chunk ({x}, {y}, {z}), which is empty; they were dropped"
+                ));
+            } else if let Err(e) = volume.check_chunk_materials(c.key, &m) {
+                report.repairs.push(format!(
+                    "layer {name:?}: the materials of chunk ({x}, {y}, {z}) do not fit it ({e}) and were dropped; its nodes use material 0"
+                ));
+            } else {
+                volume.set_chunk_materials(c.key, Some(m));
             }
         }
         layers.push(Layer { name, transform: l.transform, visible: l.visible, locked: l.locked, volume });
     }
     Scene { layers, materials: record.materials, view: record.view }
+}
+
+/// The chunks of layer `name`, one per key, from `entries` as the file lists them. A key stored
+/// more than once keeps its first chunk of lists (a solid entry says only that every node is
+/// inside; Strata never writes both), or else one solid entry; every entry dropped is reported,
+/// one sentence per key, in the order the keys first appear.
+fn resolve_chunks(
+    name: &str,
+    entries: impl IntoIterator<Item = (ChunkKey, Chunk)>,
+    report: &mut LoadReport,
+) -> Vec<(ChunkKey, Chunk)> {
+    /// Entries dropped at one key.
+    #[derive(Default)]
+    struct Dropped {
+        solid: usize,
+        same_lists: usize,
+        other_lists: usize,
+        lists_seen: usize,
+    }
+    let mut chunks: Vec<(ChunkKey, Chunk)> = Vec::new();
+    let mut dropped: Vec<Dropped> = Vec::new();
+    let mut slot: HashMap<ChunkKey, usize> = HashMap::new();
+    for (key, chunk) in entries {
+        match slot.entry(key) {
+            hash_map::Entry::Vacant(e) => {
+                e.insert(chunks.len());
+                dropped.push(Dropped { lists_seen: matches!(chunk, Chunk::Lists(_)) as usize, ..Default::default() });
+                chunks.push((key, chunk));
+            }
+            hash_map::Entry::Occupied(e) => {
+                let (kept, d) = (&mut chunks[*e.get()].1, &mut dropped[*e.get()]);
+                match chunk {
+                    Chunk::Solid => d.solid += 1,
+                    Chunk::Lists(lists) => {
+                        d.lists_seen += 1;
+                        match kept {
+                            Chunk::Solid => {
+                                d.solid += 1;
+                                *kept = Chunk::Lists(lists);
+                            }
+                            Chunk::Lists(first) if *first == lists => d.same_lists += 1,
+                            Chunk::Lists(_) => d.other_lists += 1,
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for ((key, kept), d) in chunks.iter().zip(&dropped) {
+        let total = 1 + d.solid + d.same_lists + d.other_lists;
+        if total == 1 {
+            continue;
+        }
+        let (x, y, z) = (key.0.x, key.0.y, key.0.z);
+        let kept = match kept {
+            Chunk::Solid => "one solid entry was kept",
+            Chunk::Lists(_) if d.lists_seen > 1 => "the first of its lists was kept",
+            Chunk::Lists(_) => "its lists were kept",
+        };
+        let count = |n: usize, one: &str, many: &str| match n {
+            0 => None,
+            1 => Some(format!("1 {one}")),
+            n => Some(format!("{n} {many}")),
+        };
+        let parts: Vec<String> = [
+            count(d.solid, "solid entry", "solid entries"),
+            count(d.same_lists, "identical copy of the lists", "identical copies of the lists"),
+            count(d.other_lists, "different chunk of lists", "different chunks of lists"),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        report.repairs.push(format!(
+            "layer {name:?}: chunk ({x}, {y}, {z}) is stored {total} times; {kept} and {} dropped",
+            parts.join(" and ")
+        ));
+    }
+    chunks
 }
 
 /// Reads the scene at `path` (a regular file of at most [`MAX_SCENE_BYTES`]), repairing what it

@@ -11,6 +11,7 @@ use proptest::prelude::*;
 use strata_editor::file::{self, SceneFileError, decode, encode, load, save, write_atomically};
 use strata_editor::{Layer, LayerTransform, Material, Scene};
 use strata_volume::brush::{Cuboid, Sphere, Torus};
+use strata_volume::{Chunk, ChunkKey, ChunkMaterials, Level, Volume};
 
 /// The temporary files of saves of `path` present in its folder.
 fn temp_files(path: &Path) -> Vec<PathBuf> {
@@ -458,4 +459,444 @@ fn two_threads_saving_one_path_with_a_reader_never_show_a_corrupt_file() {
     assert!(last == a || last == b);
     assert!(temp_files(&path).is_empty(), "no temporary files remain");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// Crafted files: fields that contradict each other, written through the format's own records.
+
+/// A ball of radius 19 around (24, 20, 22) at `level`: 27 chunks, the middle one (1, 1, 1) solid,
+/// painted so that the solid chunk and chunks of lists hold runs of materials.
+fn ball(level: Level) -> Volume {
+    let mut v = Volume::with_level(level);
+    v.add(&Sphere::new(DVec3::new(24.0, 20.0, 22.0), 19.0).unwrap()).unwrap();
+    v.paint(&Sphere::new(DVec3::new(30.0, 24.0, 26.0), 7.0).unwrap(), 2).unwrap();
+    v.paint(&Cuboid::new(DVec3::new(8.0, 20.0, 22.0), DVec3::splat(4.0)).unwrap(), 1).unwrap();
+    assert_eq!(v.chunk(SOLID_KEY), Some(&Chunk::Solid), "the ball's middle chunk is solid");
+    assert!(
+        matches!(v.chunk_materials(SOLID_KEY), Some(strata_volume::ChunkMaterials::Runs(_))),
+        "the solid chunk holds runs of materials"
+    );
+    v
+}
+
+const SOLID_KEY: ChunkKey = ChunkKey::new(1, 1, 1);
+
+fn scene_of(volume: Volume) -> Scene {
+    let mut s = Scene::default();
+    s.layers[0].volume = volume;
+    s
+}
+
+fn key_text(k: ChunkKey) -> String {
+    format!("({}, {}, {})", k.0.x, k.0.y, k.0.z)
+}
+
+/// Every stored chunk, sorted by key.
+fn sorted_chunks(v: &Volume) -> Vec<(ChunkKey, Chunk)> {
+    let mut c: Vec<(ChunkKey, Chunk)> = v.chunks().map(|(k, c)| (k, c.clone())).collect();
+    c.sort_by_key(|(k, _)| k.0.to_array());
+    c
+}
+
+/// Runs every query over the volume's stored box (none may panic), checks the invariants and
+/// that a save and a reload give the scene back with nothing to repair.
+fn check_loaded(scene: &Scene, what: &str) {
+    for l in &scene.layers {
+        let v = &l.volume;
+        v.check_invariants().unwrap_or_else(|e| panic!("{what}: a loaded volume is consistent: {e}"));
+        let Some((lo, hi)) = v.chunk_bounds_grid() else { continue };
+        let per_unit = v.level().nodes_per_unit() as i64;
+        let (lo_n, hi_n) = (lo.as_i64vec3() * per_unit, hi.as_i64vec3() * per_unit);
+        let mut inside = 0u64;
+        for z in (lo_n.z - 1..=hi_n.z).step_by(3) {
+            for y in (lo_n.y - 1..=hi_n.y).step_by(5) {
+                for x in lo_n.x - 1..=hi_n.x {
+                    let node = glam::I64Vec3::new(x, y, z);
+                    if v.node_inside(node) {
+                        inside += 1;
+                        assert!(v.node_material_at(node).is_some(), "{what}: an inside node {node} has a material");
+                    }
+                }
+            }
+        }
+        assert!(inside > 0, "{what}: the solid is still there");
+        for i in 0..2000 {
+            let f = |k: u32| ((i * k) % 997) as f64 / 997.0;
+            let _ = v.is_inside(lo - 1.0 + (hi - lo + 2.0) * DVec3::new(f(7), f(13), f(31)));
+            let _ = v.material_near(lo + (hi - lo) * DVec3::new(f(11), f(17), f(5)));
+        }
+        let centre = (lo + hi) / 2.0;
+        for dir in [DVec3::X, DVec3::NEG_X, DVec3::Y, DVec3::NEG_Y, DVec3::Z, DVec3::NEG_Z] {
+            let _ = v.raycast(centre - dir * 100.0 + DVec3::new(0.3, 0.2, 0.1), dir, 200.0);
+        }
+        let _ = v.crossing_stats();
+        for axis in strata_volume::Axis::ALL {
+            assert!(v.measured_volume(axis) > 0.0, "{what}: a volume is measured");
+        }
+    }
+    // Tests run in parallel: one file per check.
+    static SAVES: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let path = temp(&format!("crafted-{}.strata", SAVES.fetch_add(1, std::sync::atomic::Ordering::Relaxed)));
+    assert!(save(scene, &path).unwrap().is_clean(), "{what}: a repaired scene saves as it is");
+    let back = load(&path).unwrap();
+    assert!(back.report.is_clean(), "{what}: what was saved needs no repair: {}", back.report);
+    assert!(back.scene == *scene, "{what}: the repaired scene round-trips");
+    std::fs::remove_file(&path).unwrap();
+}
+
+/// One volume at `level` holding exactly `chunks`, each with its materials.
+fn assemble(level: Level, chunks: impl IntoIterator<Item = (ChunkKey, Chunk, Option<ChunkMaterials>)>) -> Volume {
+    let mut materials = Vec::new();
+    let chunks: Vec<(ChunkKey, Chunk)> = chunks
+        .into_iter()
+        .map(|(k, c, m)| {
+            materials.push((k, m));
+            (k, c)
+        })
+        .collect();
+    let mut v = Volume::from_chunks(level, 1.0, chunks).unwrap();
+    for (k, m) in materials {
+        v.set_chunk_materials(k, m);
+    }
+    v
+}
+
+#[test]
+fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query() {
+    let sources: Vec<Volume> = (0..=strata_volume::coords::MAX_LEVEL).map(|k| ball(Level::new(k).unwrap())).collect();
+    let mut keys: Vec<ChunkKey> = sources.iter().flat_map(|v| v.chunks().map(|(k, _)| k)).collect();
+    keys.sort_by_key(|k| k.0.to_array());
+    keys.dedup();
+    // Which source each chunk comes from: all from one level, or (`None`) a mix of all three.
+    let configs = (0..sources.len()).map(Some).chain([None]);
+    for one_level in configs {
+        let config = match one_level {
+            Some(c) => format!("every chunk at level {c}"),
+            None => "chunks at levels 0, 1 and 2".into(),
+        };
+        let source_of = |k: ChunkKey| one_level.unwrap_or((k.0.x + k.0.y + k.0.z).rem_euclid(3) as usize);
+        let crafted: Vec<(ChunkKey, Chunk, Option<ChunkMaterials>)> = keys
+            .iter()
+            .filter_map(|&k| {
+                let s = &sources[source_of(k)];
+                s.chunk(k).map(|c| (k, c.clone(), s.chunk_materials(k).cloned()))
+            })
+            .collect();
+        let solid_source = source_of(SOLID_KEY) as u8;
+        for stored in [0u8, 1, 2, 3, 200] {
+            let what = format!("{config}, layer level {stored}");
+            let level = Level::new(stored).unwrap_or(Level::BASE);
+            let crafted_volume = assemble(level, crafted.iter().cloned());
+            let mut record = file::scene_record(&scene_of(crafted_volume.clone())).unwrap();
+            record.layers[0].level = stored;
+            let loaded = decode(&file::encode_record(&record).unwrap()).unwrap_or_else(|e| panic!("{what}: {e}"));
+            // What must be repaired: a level that does not exist, and the solid chunk's runs of
+            // materials, which are per node of the layer's level, where they were written for a
+            // finer one and reach past the chunk's nodes. (Runs written for a coarser level fit
+            // a finer one's node count: nothing in the file tells them apart, and they are kept.)
+            let mut expected = 0;
+            if stored > strata_volume::coords::MAX_LEVEL {
+                expected += 1;
+                assert!(
+                    loaded
+                        .report
+                        .repairs
+                        .iter()
+                        .any(|r| r.contains(&format!("resolution level {stored} does not exist"))),
+                    "{what}: {}",
+                    loaded.report
+                );
+            }
+            if solid_source > level.get() {
+                expected += 1;
+                assert!(
+                    loaded
+                        .report
+                        .repairs
+                        .iter()
+                        .any(|r| r.contains(&format!("the materials of chunk {} do not fit it", key_text(SOLID_KEY)))
+                            && r.contains("material 0")),
+                    "{what}: {}",
+                    loaded.report
+                );
+            }
+            assert_eq!(loaded.report.repairs.len(), expected, "{what}: nothing else is repaired: {}", loaded.report);
+            let v = &loaded.scene.layers[0].volume;
+            assert_eq!(v.level(), level, "{what}");
+            assert!(sorted_chunks(v) == sorted_chunks(&crafted_volume), "{what}: every chunk is kept as it was");
+            // Every node of a chunk's own level reads as the ball of that level says.
+            let n = level.cells() as i64;
+            for z in (-1..3 * n + 1).step_by(2) {
+                for y in (-1..3 * n + 1).step_by(3) {
+                    for x in -1..3 * n + 1 {
+                        let node = glam::I64Vec3::new(x, y, z);
+                        let key = ChunkKey(node.div_euclid(glam::I64Vec3::splat(n)).as_ivec3());
+                        let got = v.node_inside(node);
+                        let want = match v.stored_level(key) {
+                            None => v.chunk(key).is_some(),
+                            Some(c) if c >= level => {
+                                sources[c.get() as usize].node_inside(node * (1 << (c.get() - level.get())))
+                            }
+                            Some(c) => {
+                                let f = 1 << (level.get() - c.get());
+                                if node % f != glam::I64Vec3::ZERO {
+                                    continue;
+                                }
+                                sources[c.get() as usize].node_inside(node / f)
+                            }
+                        };
+                        assert_eq!(got, want, "{what}: node {node}");
+                    }
+                }
+            }
+            check_loaded(&loaded.scene, &what);
+        }
+    }
+}
+
+#[test]
+fn a_chunk_whose_own_level_is_wrong_or_out_of_range_is_dropped_and_named() {
+    for true_level in [0u8, 2] {
+        let s = scene_of(ball(Level::new(true_level).unwrap()));
+        let record = file::scene_record(&s).unwrap();
+        let at = record.layers[0].lists.iter().position(|c| c.key == ChunkKey::new(0, 1, 1)).expect("a chunk of lists");
+        for wrong in [0u8, 1, 2, 3, 255].into_iter().filter(|&w| w != true_level) {
+            let what = format!("a level-{true_level} chunk labelled level {wrong}");
+            let mut record = file::scene_record(&s).unwrap();
+            let c = &mut record.layers[0].lists[at];
+            let mut bytes = std::mem::take(&mut c.bytes);
+            assert_eq!(bytes[0], true_level, "a chunk's bytes begin with its level");
+            bytes[0] = wrong;
+            *c = file::ChunkRecord::new(c.key, bytes);
+            let loaded = decode(&file::encode_record(&record).unwrap()).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let r = &loaded.report;
+            assert!(
+                r.repairs.iter().any(|r| r.contains("chunk (0, 1, 1) does not decode") && r.contains("dropped")),
+                "{what}: {r}"
+            );
+            assert!(r.repairs.iter().any(|r| r.contains("rebuilt")), "{what}: the hole it leaves is closed: {r}");
+            assert!(loaded.scene.layers[0].volume.chunk_count() >= 26, "{what}: the other chunks are kept");
+            check_loaded(&loaded.scene, &what);
+        }
+    }
+}
+
+/// The postcard form of `strata_volume::ChunkLists`, for a chunk its own type cannot hold.
+#[derive(serde::Serialize)]
+struct RawChunkLists {
+    level: u8,
+    corner: bool,
+    family_start: [u32; 2],
+    nonempty: Vec<u64>,
+    positions: Vec<u16>,
+    normals: Vec<u16>,
+}
+
+/// The kinds of entry a file can give one chunk key.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    /// Lists without a crossing: an empty chunk written as lists (refused by the chunk's decoder).
+    Empty,
+    Solid,
+    /// The chunk's own lists.
+    Lists,
+    /// Another chunk's lists.
+    Other,
+}
+
+#[test]
+fn every_pair_of_chunk_kinds_for_one_key_is_resolved_and_what_was_dropped_is_named() {
+    use Kind::*;
+    let s = scene_of(ball(Level::BASE));
+    let key = ChunkKey::new(0, 1, 1);
+    let lists_of = |k: ChunkKey| match s.layers[0].volume.chunk(k) {
+        Some(Chunk::Lists(l)) => l.clone(),
+        other => panic!("chunk {k:?} holds lists, not {other:?}"),
+    };
+    let (own, other) = (lists_of(key), lists_of(ChunkKey::new(2, 1, 1)));
+    let empty = postcard::to_allocvec(&RawChunkLists {
+        level: 0,
+        corner: false,
+        family_start: [0, 0],
+        nonempty: vec![0; 12],
+        positions: Vec::new(),
+        normals: Vec::new(),
+    })
+    .unwrap();
+    let kinds = [Empty, Solid, Lists, Other];
+    for first in kinds {
+        for second in kinds {
+            let what = format!("chunk {} stored as {first:?} and as {second:?}", key_text(key));
+            let mut record = file::scene_record(&s).unwrap();
+            let layer = &mut record.layers[0];
+            layer.lists.retain(|c| c.key != key);
+            layer.materials.retain(|c| c.key != key);
+            for kind in [first, second] {
+                match kind {
+                    Empty => layer.lists.push(file::ChunkRecord::new(key, empty.clone())),
+                    Solid => layer.solid.push(key),
+                    Lists => layer.lists.push(file::ChunkRecord::new(key, postcard::to_allocvec(&own).unwrap())),
+                    Other => layer.lists.push(file::ChunkRecord::new(key, postcard::to_allocvec(&other).unwrap())),
+                }
+            }
+            let loaded = decode(&file::encode_record(&record).unwrap()).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let r = &loaded.report;
+            let named = |part: &str| r.repairs.iter().any(|s| s.contains(&key_text(key)) && s.contains(part));
+            let empties = [first, second].iter().filter(|&&k| k == Empty).count();
+            assert_eq!(
+                r.repairs.iter().filter(|s| s.contains(&format!("chunk {} does not decode", key_text(key)))).count(),
+                empties,
+                "{what}: each empty entry is dropped and named: {r}"
+            );
+            // The entries the chunk decoder accepts, solid entries first (as the file lists them).
+            let mut decoded: Vec<Kind> = [first, second].into_iter().filter(|&k| k == Solid).collect();
+            decoded.extend([first, second].into_iter().filter(|&k| k == Lists || k == Other));
+            let kept = decoded.iter().copied().find(|&k| k != Solid).or(decoded.first().copied());
+            if decoded.len() == 2 {
+                assert!(named("is stored 2 times"), "{what}: the duplicate is reported: {r}");
+                let solid_dropped = decoded.contains(&Solid) && kept != Some(Solid) || decoded == [Solid, Solid];
+                assert_eq!(named("1 solid entry"), solid_dropped, "{what}: a dropped solid entry is named: {r}");
+                assert_eq!(
+                    named("identical copy"),
+                    decoded == [Lists, Lists] || decoded == [Other, Other],
+                    "{what}: {r}"
+                );
+                assert_eq!(
+                    named("different chunk of lists"),
+                    matches!(decoded[..], [Lists, Other] | [Other, Lists]),
+                    "{what}: {r}"
+                );
+            } else {
+                assert!(!named("is stored"), "{what}: one entry is no duplicate: {r}");
+            }
+            let v = &loaded.scene.layers[0].volume;
+            if kept == Some(Lists) {
+                assert_eq!(v.chunk(key), Some(&Chunk::Lists(own.clone())), "{what}: the chunk's own lists are kept");
+                assert_eq!(r.repairs.len(), empties + (decoded.len() == 2) as usize, "{what}: nothing else: {r}");
+            } else {
+                assert!(r.repairs.iter().any(|s| s.contains("rebuilt")), "{what}: the misfit is repaired: {r}");
+            }
+            check_loaded(&loaded.scene, &what);
+        }
+    }
+}
+
+#[test]
+fn materials_stored_twice_or_for_an_empty_chunk_are_dropped_and_named() {
+    let s = scene_of(ball(Level::BASE));
+    let mut record = file::scene_record(&s).unwrap();
+    let layer = &mut record.layers[0];
+    let painted = layer.materials.iter().position(|c| c.key == SOLID_KEY).unwrap();
+    // A second, different copy of the solid chunk's materials, and materials of a chunk that is empty.
+    let mut twice = postcard::from_bytes::<ChunkMaterials>(&layer.materials[painted].bytes).unwrap();
+    assert_ne!(twice, ChunkMaterials::Uniform(3));
+    twice = ChunkMaterials::Uniform(3);
+    layer.materials.push(file::ChunkRecord::new(SOLID_KEY, postcard::to_allocvec(&twice).unwrap()));
+    let far = ChunkKey::new(9, 9, 9);
+    layer.materials.push(file::ChunkRecord::new(far, postcard::to_allocvec(&ChunkMaterials::Uniform(2)).unwrap()));
+    let loaded = decode(&file::encode_record(&record).unwrap()).unwrap();
+    let r = &loaded.report;
+    assert_eq!(r.repairs.len(), 2, "{r}");
+    assert!(r.repairs[0].contains("chunk (1, 1, 1) are stored more than once"), "{r}");
+    assert!(r.repairs[1].contains("chunk (9, 9, 9), which is empty"), "{r}");
+    let v = &loaded.scene.layers[0].volume;
+    assert_eq!(v.chunk_materials(SOLID_KEY), s.layers[0].volume.chunk_materials(SOLID_KEY), "the first copy is kept");
+    assert_eq!(v.chunk_materials(far), None);
+    assert!(loaded.scene == s, "nothing else changed");
+    check_loaded(&loaded.scene, "materials twice");
+}
+
+#[test]
+fn a_version_2_file_with_a_key_both_solid_and_lists_opens_and_says_what_was_dropped() {
+    let s = scene_of(ball(Level::BASE));
+    let payload = file::encode_version_2_payload(&s).unwrap();
+    let mut v2: file::SceneV2 = postcard::from_bytes(&payload).unwrap();
+    let key = ChunkKey::new(0, 1, 1);
+    let chunks = &mut v2.layers[0].volume.chunks;
+    assert!(chunks.lists.iter().any(|(k, _)| *k == key));
+    // The key in the set of solid chunks, and a solid chunk among the chunks of lists.
+    chunks.solid.push(key);
+    chunks.lists.push((SOLID_KEY, Chunk::Solid));
+    let payload = postcard::to_allocvec(&v2).unwrap();
+    let mut bytes = file::MAGIC.to_vec();
+    bytes.extend_from_slice(&2u32.to_le_bytes());
+    bytes.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&crc32fast_hash(&payload).to_le_bytes());
+    bytes.extend_from_slice(&payload);
+    let loaded = decode(&bytes).expect("a duplicate no longer fails the whole file");
+    let r = &loaded.report;
+    assert_eq!(r.repairs.len(), 2, "{r}");
+    assert!(
+        r.repairs.iter().any(|s| s.contains("chunk (0, 1, 1) is stored 2 times") && s.contains("1 solid entry")),
+        "{r}"
+    );
+    assert!(
+        r.repairs
+            .iter()
+            .any(|s| s.contains("chunk (1, 1, 1) is stored 2 times") && s.contains("one solid entry was kept")),
+        "{r}"
+    );
+    assert!(
+        sorted_chunks(&loaded.scene.layers[0].volume) == sorted_chunks(&s.layers[0].volume),
+        "every chunk as it was"
+    );
+    check_loaded(&loaded.scene, "version 2 duplicates");
+}
+
+#[test]
+fn a_repair_keeps_the_chunks_stored_at_other_levels_than_the_layers() {
+    let sources: Vec<Volume> = (0..=strata_volume::coords::MAX_LEVEL).map(|k| ball(Level::new(k).unwrap())).collect();
+    let damaged = ChunkKey::new(0, 1, 0);
+    let near = |k: ChunkKey| (k.0 - damaged.0).abs().max_element() <= 1;
+    for (stored, source) in [(0u8, 2usize), (2, 0), (1, 0), (1, 2)] {
+        let what = format!("chunks at level {source} in a layer of level {stored}");
+        let level = Level::new(stored).unwrap();
+        let original = &sources[source];
+        let crafted = assemble(level, original.chunks().map(|(k, c)| (k, c.clone(), None)));
+        let mut record = file::scene_record(&scene_of(crafted)).unwrap();
+        let at = record.layers[0].lists.iter().position(|c| c.key == damaged).unwrap();
+        record.layers[0].lists[at].crc ^= 1;
+        let loaded = decode(&file::encode_record(&record).unwrap()).unwrap_or_else(|e| panic!("{what}: {e}"));
+        let r = &loaded.report;
+        assert!(r.repairs[0].contains("chunk (0, 1, 0) failed its checksum"), "{what}: {r}");
+        assert!(
+            r.repairs
+                .iter()
+                .any(|s| s.contains("rebuilt") && s.contains(&format!("brought to the layer's level {stored}"))),
+            "{what}: {r}"
+        );
+        assert!(!r.to_string().contains("dropped,"), "{what}: no chunk is dropped for its level: {r}");
+        let v = &loaded.scene.layers[0].volume;
+        assert!(v.chunk_count() >= original.chunk_count() - 1, "{what}: the chunks are kept: {r}");
+        for (k, c) in original.chunks() {
+            if near(k) {
+                continue;
+            }
+            match c {
+                Chunk::Solid => assert_eq!(v.chunk(k), Some(&Chunk::Solid), "{what}: chunk {k:?}"),
+                Chunk::Lists(l) => {
+                    assert_eq!(v.stored_level(k), Some(l.level()), "{what}: chunk {k:?} keeps its level");
+                    if l.level() < level {
+                        assert_eq!(v.chunk(k), Some(c), "{what}: a coarser chunk comes back bit for bit");
+                    }
+                }
+            }
+        }
+        // Away from the damage, every node of the layer's level reads as before.
+        let n = level.cells() as i64;
+        let coarse = Level::new(stored.min(source as u8)).unwrap();
+        let f = 1i64 << (stored - coarse.get());
+        for z in (0..3 * n).step_by(f as usize) {
+            for y in (0..3 * n).step_by(f as usize) {
+                for x in (0..3 * n).step_by(f as usize) {
+                    let node = glam::I64Vec3::new(x, y, z);
+                    if near(ChunkKey(node.div_euclid(glam::I64Vec3::splat(n)).as_ivec3())) {
+                        continue;
+                    }
+                    let at_source = node * (1 << source) / (1 << stored);
+                    assert_eq!(v.node_inside(node), original.node_inside(at_source), "{what}: node {node}");
+                }
+            }
+        }
+        check_loaded(&loaded.scene, &what);
+    }
 }

@@ -505,9 +505,15 @@ impl ChunkLists {
     }
 
     /// The line `(u, v)` along `axis` (derives the family's start states: for one-off reads;
-    /// walk a [`LineCursor`] to read many lines).
+    /// walk a [`LineCursor`] to read many lines). `u` and `v` index the chunk's own lines, at
+    /// its level: a line outside `0..n` on either is a caller's bug and panics saying so.
     pub fn line(&self, axis: Axis, u: usize, v: usize) -> LineRef<'_> {
         let n = self.level().cells();
+        assert!(
+            u < n && v < n,
+            "line ({u}, {v}) is outside a chunk of level {} ({n} lines a side)",
+            self.level().get()
+        );
         self.cursor(axis, u + n * v).next_line()
     }
 

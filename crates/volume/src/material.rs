@@ -382,9 +382,21 @@ impl Volume {
     }
 
     /// Replaces the stored materials of chunk `key` (for loaders); nothing is checked: call
-    /// [`Volume::check_invariants`] after.
+    /// [`Volume::check_chunk_materials`] before or [`Volume::check_invariants`] after.
     pub fn set_chunk_materials(&mut self, key: ChunkKey, materials: Option<ChunkMaterials>) {
         self.store_materials(key, materials);
+    }
+
+    /// Whether `materials` fit the chunk at `key` as it is stored now, as
+    /// [`Volume::check_invariants`] requires: a chunk that is not empty, one id per node of the
+    /// chunk's level (a uniform chunk's: the volume's level), in canonical form. `Err` says why
+    /// not. Loaders call it after the chunks and the volume's level are in place.
+    pub fn check_chunk_materials(&self, key: ChunkKey, materials: &ChunkMaterials) -> Result<(), String> {
+        if !self.chunks.contains_key(&key) {
+            return Err("materials stored for an empty chunk".into());
+        }
+        let level = self.level_of(key);
+        materials.check(&own_states(self.view(key), level), level.cells())
     }
 
     /// Stores (or removes) the materials of `key`; returns what was there. The map's table is
@@ -741,13 +753,7 @@ impl Volume {
     /// [`Volume::check_invariants`]).
     pub(crate) fn check_materials(&self) -> Result<(), crate::InvariantViolation> {
         for (key, m) in &self.materials {
-            let bad = |what: String| crate::InvariantViolation { key: *key, what };
-            if !self.chunks.contains_key(key) {
-                return Err(bad("materials stored for an empty chunk".into()));
-            }
-            let level = self.level_of(*key);
-            let rows = own_states(self.view(*key), level);
-            m.check(&rows, level.cells()).map_err(bad)?;
+            self.check_chunk_materials(*key, m).map_err(|what| crate::InvariantViolation { key: *key, what })?;
         }
         Ok(())
     }

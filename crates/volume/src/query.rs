@@ -4,8 +4,8 @@ use glam::{DVec3, I64Vec3, IVec3};
 
 use crate::axis::Axis;
 use crate::block::VoxelBlock;
-use crate::chunk::{Chunk, ChunkView};
-use crate::coords::{CHUNK_CELLS, CHUNK_STEPS, ChunkKey, edge_of};
+use crate::chunk::{Chunk, ChunkLists, ChunkView};
+use crate::coords::{CHUNK_CELLS, CHUNK_STEPS, ChunkKey, Level};
 use crate::normal::unpack_normal;
 use crate::volume::Volume;
 
@@ -39,6 +39,11 @@ pub struct RayHit {
 
 impl Volume {
     /// Whether the node `node` (global, in the volume's level units) is inside.
+    ///
+    /// Exact for every node of the chunk holding it, whatever level that chunk is stored at. A
+    /// chunk stored at a coarser level than the volume's has no lines between its own nodes: a
+    /// node there is read exactly along x, on the x line of the chunk's nodes at or below it
+    /// on y and z.
     pub fn node_inside(&self, node: I64Vec3) -> bool {
         let n = self.level.cells() as i64;
         let key = node.div_euclid(I64Vec3::splat(n));
@@ -47,15 +52,18 @@ impl Volume {
         match self.view(key) {
             ChunkView::Uniform(s) => s,
             ChunkView::Lists(l) => {
-                let line = l.line(Axis::X, local.y as usize, local.z as usize);
-                let before = line.positions().take_while(|&q| edge_of(q, l.level()) < local.x as usize).count();
-                line.start_inside ^ (before % 2 == 1)
+                // A crossing in cell `e` lies before node `x` exactly when `e < x`, that is when
+                // it lies before the node's position.
+                let x_steps = local.x as u32 * self.level.steps_per_cell();
+                x_line_state(l, self.level, local.y as usize, local.z as usize, |q| (q as u32) < x_steps)
             }
         }
     }
 
     /// Whether the grid point `p_grid` is inside, read from the x line through the nearest row
-    /// of nodes (exact along x, within half a cell across). Non-finite points are outside.
+    /// of nodes at the volume's level (exact along x, within half a cell across; in a chunk
+    /// stored at a coarser level, the row of the chunk's nodes at or below that row, within one
+    /// of the chunk's cells). Non-finite points are outside.
     pub fn is_inside(&self, p_grid: DVec3) -> bool {
         if !p_grid.is_finite() {
             return false;
@@ -73,10 +81,9 @@ impl Volume {
         match self.view(key) {
             ChunkView::Uniform(s) => s,
             ChunkView::Lists(l) => {
-                let line = l.line(Axis::X, ny.rem_euclid(n) as usize, nz.rem_euclid(n) as usize);
                 let t = (p_grid.x - kx * CHUNK_CELLS as f64) * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64);
-                let before = line.positions().take_while(|&q| (q as f64) < t).count();
-                line.start_inside ^ (before % 2 == 1)
+                let (u, v) = (ny.rem_euclid(n) as usize, nz.rem_euclid(n) as usize);
+                x_line_state(l, self.level, u, v, |q| (q as f64) < t)
             }
         }
     }
@@ -187,6 +194,19 @@ pub fn clip_to_box(origin: DVec3, dir: DVec3, lo: DVec3, hi: DVec3) -> Option<(f
         }
     }
     (t0 <= t1).then_some((t0, t1))
+}
+
+/// The state read along an x line of `lists` where `before(q)` says whether the crossing at
+/// `q` lies before the point: the line of row `(y, z)` of level `at` (`0..at.cells()` each), or
+/// where the chunk is stored at a coarser level and has no such line, the line of its own nodes
+/// at or below it on y and z.
+fn x_line_state(lists: &ChunkLists, at: Level, y: usize, z: usize, before: impl Fn(u16) -> bool) -> bool {
+    let (stored, at) = (lists.level().get(), at.get());
+    let (y, z) =
+        if stored >= at { (y << (stored - at), z << (stored - at)) } else { (y >> (at - stored), z >> (at - stored)) };
+    let line = lists.line(Axis::X, y, z);
+    let crossed = line.positions().take_while(|&q| before(q)).count();
+    line.start_inside ^ (crossed % 2 == 1)
 }
 
 fn key_of(k: I64Vec3) -> Option<ChunkKey> {

@@ -7,6 +7,13 @@
 //! lies in a cell whose nodes differ; crossings on y and z lines that contradicted the x lines
 //! are moved to the middle of their cell (or dropped), exactly as an edit by a brush whose lines
 //! disagree is repaired.
+//!
+//! The rebuild reads lines on the volume's grid, so chunks stored at another level (a layer
+//! whose chunks were raised or lowered) are brought to the volume's level first
+//! ([`Volume::set_chunk_level`]) and back to their own level after: a coarser chunk comes back
+//! bit for bit where the rebuild left it as it was (raising then lowering is exact); a finer one
+//! keeps the shape of its lines at the volume's level, refined again, and its materials follow
+//! its nodes as a level change moves them.
 
 use glam::{DVec3, I64Vec3, IVec3};
 
@@ -23,8 +30,11 @@ use crate::volume::Volume;
 pub struct RepairReport {
     /// The first broken invariant found, if any (nothing was changed when `None`).
     pub problem: Option<String>,
-    /// Chunks stored at a level other than the volume's, dropped (their lines cannot be read on
-    /// the volume's grid).
+    /// Chunks stored at a level other than the volume's, brought to the volume's level for the
+    /// rebuild (whose lines are read on the volume's grid) and back to their own level after it.
+    pub relevelled_chunks: usize,
+    /// Of those, chunks that could not be brought to the volume's level and were dropped (none
+    /// is expected: every chunk of lists can be raised and lowered).
     pub dropped_chunks: usize,
     /// Node states on y and z lines that were moved to agree with the x lines.
     pub repaired_nodes: u64,
@@ -222,16 +232,23 @@ impl Volume {
         };
         report.problem = Some(problem);
         let level = self.level;
-        let wrong_level: Vec<ChunkKey> = self
+        let mut wrong_level: Vec<(ChunkKey, crate::coords::Level)> = self
             .chunks
             .iter()
-            .filter(|(_, c)| matches!(c, Chunk::Lists(l) if l.level() != level))
-            .map(|(k, _)| *k)
+            .filter_map(|(k, c)| match c {
+                Chunk::Lists(l) if l.level() != level => Some((*k, l.level())),
+                _ => None,
+            })
             .collect();
-        for k in &wrong_level {
-            self.chunks.remove(k);
+        wrong_level.sort_by_key(|(k, _)| k.0.to_array());
+        for &(k, _) in &wrong_level {
+            let _ = self.set_chunk_level(k, level);
+            if self.stored_level(k).is_some_and(|l| l != level) {
+                self.take_chunk(k);
+                report.dropped_chunks += 1;
+            }
         }
-        report.dropped_chunks = wrong_level.len();
+        report.relevelled_chunks = wrong_level.len() - report.dropped_chunks;
         let old = std::mem::replace(
             self,
             Volume { chunks: Default::default(), materials: Default::default(), level, cell_size: self.cell_size },
@@ -249,6 +266,17 @@ impl Volume {
         let previous: Vec<(ChunkKey, Option<Chunk>)> = self.chunks.keys().map(|k| (*k, None)).collect();
         let mut undo = Vec::new();
         self.carry_materials(&old, glam::I64Vec3::ZERO, &previous, &mut undo);
+        // Back to their own levels, where the rebuild left lists; kept at the volume's level if
+        // that broke an invariant (it does not: level changes keep them).
+        let mut back = crate::edit::EditReport::default();
+        for &(k, own) in &wrong_level {
+            if self.stored_level(k).is_some() {
+                back = back.then(self.set_chunk_level(k, own));
+            }
+        }
+        if self.check_invariants().is_err() {
+            self.restore(back.undo);
+        }
         report.chunks_after = self.chunk_count();
         report
     }
