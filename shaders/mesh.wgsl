@@ -18,6 +18,9 @@ struct Frame {
     light_dir: vec4<f32>,
     // Colour of wireframe lines.
     line_color: vec4<f32>,
+    // Unit vector from the camera's target towards the eye; w: 1 for an orthographic
+    // projection, 0 for a perspective one.
+    view_axis: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -122,14 +125,61 @@ fn vs_mesh(v: VertexIn) -> VertexOut {
     return transform(v);
 }
 
+// `v` scaled to unit length, or `fallback` where `v` is too short to have a direction: WGSL's
+// normalize of a zero vector is undefined (NaN on many GPUs, which shades black). |v|² > 1e-24
+// (|v| > 1e-12) keeps v·v and its inverse square root far from f32 denormals and overflow.
+fn safe_normalize(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let l2 = dot(v, v);
+    return select(fallback, v * inverseSqrt(l2), l2 > 1e-24);
+}
+
+// The unit normal of the triangle being drawn, from the screen-space derivatives of the world
+// position, turned towards the eye (`to_eye`, unit). Derivatives need uniform control flow: call
+// this first in a fragment shader, outside any branch.
+fn geometric_normal(world: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
+    let g = safe_normalize(cross(dpdx(world), dpdy(world)), to_eye);
+    return select(-g, g, dot(g, to_eye) >= 0.0);
+}
+
+// The normal to shade with: the interpolated vertex normal where the triangle's vertex normals
+// agree, the triangle's own normal `g` (unit, on the visible side) where they do not.
+//
+// Why: at thin features (horn tips, tubes and sheets a cell or two thick, fillets) a
+// marching-cubes triangle can join vertices from opposite sides of the feature, whose normals
+// point nearly opposite ways. The interpolated normal then passes through zero inside the
+// triangle: around that point its direction is arbitrary, often facing down or away from the
+// light (a dark speck, as dark as the ground bounce alone), and at zero normalize gives NaN
+// (black). On the thin-feature test model of `tests/headless.rs` (tori of minor radius 1 and
+// 0.7 cells, capsules of 0.6 to 1.4, a tapered horn, three grabbed horns), 268 of 10,244
+// triangles interpolate to |n| < 0.5 and 42 to |n| < 0.05; seen from above (lavapipe), they
+// made 2-6 pixel specks at 30-40 % of the brightness of the same surface with those triangles
+// flat-shaded: 57 pixels below 40 % in the test's 8 views, none with this function.
+//
+// Trust in the vertex normals falls from 1 to 0 as |n| falls from 0.7 to 0.4: unit normals θ
+// apart interpolate to at least cos(θ/2), so normals up to ~90° apart are trusted fully (box
+// and cylinder edges give 0.71) and those over ~130° apart not at all. It falls too as the
+// normal turns from the face past 53° (dot 0.6) to 73° (dot 0.3): the specks left by the length
+// test alone had normals 77-81° off their face. On smooth models (spheres, a box, a cylinder,
+// grabbed horns) this changes only the bevel triangles along the cylinder's sharp rims. Where
+// `s` is used at all, dot(s, g) >= 0.3, so the blend is never shorter than ~0.8.
+fn shading_normal(interpolated: vec3<f32>, g: vec3<f32>) -> vec3<f32> {
+    let len = length(interpolated);
+    let s = safe_normalize(interpolated, g);
+    let trust = smoothstep(0.4, 0.7, len) * smoothstep(0.3, 0.6, dot(s, g));
+    return safe_normalize(mix(g, s, trust), g);
+}
+
 // A key light (Lambert plus a soft Blinn-Phong highlight) over a hemispheric ambient: sky
 // colour from above, ground bounce from below, so form reads even on the unlit side.
 @fragment
 fn fs_mesh(in: VertexOut) -> @location(0) vec4<f32> {
-    let n = normalize(in.normal);
+    let v = safe_normalize(frame.eye.xyz - in.world, vec3<f32>(0.0, 1.0, 0.0));
+    // (Back faces are culled: the triangle faces the eye, so `g` is its outward normal.)
+    let n = shading_normal(in.normal, geometric_normal(in.world, v));
     let l = frame.light_dir.xyz;
-    let v = normalize(frame.eye.xyz - in.world);
-    let h = normalize(l + v);
+    // (l + v vanishes only with the eye exactly opposite the light, where a surface facing the
+    // eye is unlit: no half vector, no highlight.)
+    let h = safe_normalize(l + v, vec3<f32>(0.0));
     let sky = vec3<f32>(0.62, 0.70, 0.85);
     let ground = vec3<f32>(0.30, 0.26, 0.22);
     let ambient = mix(ground, sky, 0.5 + 0.5 * n.y) * 0.38;
@@ -139,18 +189,60 @@ fn fs_mesh(in: VertexOut) -> @location(0) vec4<f32> {
     let textured = in.layers_a.x + in.layers_a.y + in.layers_a.z + in.layers_a.w + in.layers_b.x + in.layers_b.y;
     let factor = mix(1.0, 0.55 + 0.9 * d, clamp(textured, 0.0, 1.0));
     let rough = clamp(in.surface.y, 0.0, 1.0);
+    // (pow(0, e) is 0 for e > 0, the only case here: the exponent is 8 to 80.)
     let spec = pow(max(dot(n, h), 0.0), mix(80.0, 8.0, rough)) * mix(0.25, 0.04, rough);
     let rgb = in.color.rgb * factor * (ambient + vec3<f32>(diffuse)) + vec3<f32>(spec);
     return vec4<f32>(rgb, in.color.a);
 }
 
-// Lines (wireframe over the mesh, and the ground grid): drawn slightly towards the camera so
-// they win the depth test against the surface they lie on.
+// Lines (wireframe over the mesh, and the ground grid) are moved towards the eye by a fraction
+// of their view depth, along the ray they are seen on (so they stay on the same pixels). WebGPU
+// allows no pipeline depth bias for line topologies, hence the move here.
+//
+// It used to be a fixed clip-space offset (z − 0.0004·w): with the depth 0..1 perspective and
+// z = f/(f − n)·(1 − n/d), that is a pull of about 0.0004·d²/n in world units, which grows with
+// the square of the distance. For the default camera (distance 110, n = 1.1, f = 3200) it was
+// 4.4 units at the target, 33 at d = 300 and 360 at d = 1000, so the grid and the axes showed
+// through any box, model or hill lower than that above the ground.
+//
+// The smallest useful pull is set by the depth buffer: Depth32Float steps by 2⁻²⁴ near 1, which
+// is 6e-8·d²/n in world units, i.e. 6e-8·d/n of the distance: 1.7e-4 at the far plane of the
+// default camera (f/n = 2000 + 10⁵/distance = 2900). LINE_PULL = 1e-3 is six such steps there:
+// 0.11 units at distance 110, 1 unit at 1000.
+const LINE_PULL: f32 = 1e-3;
+// Wireframe lines lie on the mesh and must still win over it: a line's pixel centre lies up to
+// half a pixel off the edge, where the neighbouring triangle of a surface tilted by θ from the
+// view is nearer by up to ½·pixel·tan θ. A pixel spans 2·tan(fov/2)/height of the distance:
+// 0.0035 at 240 pixels and fov 0.8, 0.0008 at 1080. So wire lines also move by
+// WIRE_PULL_SLOPE·tan θ (θ from the vertex normal, tan θ at most WIRE_MAX_TAN = 8, 83°): half a
+// pixel at 240 pixels tall, over a pixel from 480, at most 1.7 % of the distance at grazing
+// edges. The grid lies on nothing (normally), so it moves by LINE_PULL alone.
+const WIRE_PULL_SLOPE: f32 = 2e-3;
+const WIRE_MAX_TAN: f32 = 8.0;
+
+// `v` transformed with its position moved `fraction` of the way towards the eye along its view
+// ray (the ray to the eye in perspective, the view axis in an orthographic view).
+fn pulled(v: VertexIn, fraction: f32) -> VertexOut {
+    let to_eye = frame.eye.xyz - v.position;
+    let axis = frame.view_axis.xyz;
+    let ray = select(to_eye, axis * dot(to_eye, axis), frame.view_axis.w > 0.5);
+    var moved = v;
+    moved.position = v.position + ray * fraction;
+    return transform(moved);
+}
+
 @vertex
 fn vs_line(v: VertexIn) -> VertexOut {
-    var out = transform(v);
-    out.clip.z = out.clip.z - 0.0004 * out.clip.w;
-    return out;
+    let to_eye = safe_normalize(frame.eye.xyz - v.position, frame.view_axis.xyz);
+    let ray = select(to_eye, frame.view_axis.xyz, frame.view_axis.w > 0.5);
+    let c = abs(dot(safe_normalize(v.normal, ray), ray));
+    let tan_theta = min(sqrt(max(1.0 - c * c, 0.0)) / max(c, 1e-3), WIRE_MAX_TAN);
+    return pulled(v, LINE_PULL + WIRE_PULL_SLOPE * tan_theta);
+}
+
+@vertex
+fn vs_grid(v: VertexIn) -> VertexOut {
+    return pulled(v, LINE_PULL);
 }
 
 // Wireframe lines take the frame's line colour.
@@ -165,10 +257,14 @@ fn fs_grid(in: VertexOut) -> @location(0) vec4<f32> {
     return in.color;
 }
 
-// The translucent brush preview: lit like a mesh, alpha from the vertex colour.
+// The translucent brush preview: lit like a mesh, alpha from the vertex colour. Drawn without
+// culling, so the triangle's normal is turned to the side the vertex normal is on (the rim term
+// only needs the normal up to sign).
 @fragment
 fn fs_preview(in: VertexOut) -> @location(0) vec4<f32> {
-    let n = normalize(in.normal);
-    let rim = 1.0 - abs(dot(n, normalize(frame.eye.xyz - in.world)));
+    let v = safe_normalize(frame.eye.xyz - in.world, vec3<f32>(0.0, 1.0, 0.0));
+    let g = geometric_normal(in.world, v);
+    let n = shading_normal(in.normal, select(-g, g, dot(g, in.normal) >= 0.0));
+    let rim = 1.0 - abs(dot(n, v));
     return vec4<f32>(in.color.rgb * (0.6 + 0.4 * rim), in.color.a * (0.5 + 0.5 * rim));
 }

@@ -30,7 +30,7 @@ mod tests {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .expect("WGSL validates");
-        for entry in ["vs_mesh", "fs_mesh", "vs_line", "fs_wire", "fs_grid", "fs_preview"] {
+        for entry in ["vs_mesh", "fs_mesh", "vs_line", "vs_grid", "fs_wire", "fs_grid", "fs_preview"] {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }
     }

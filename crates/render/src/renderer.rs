@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
-use glam::{Mat3, Mat4, Vec3};
+use glam::{DVec3, Mat3, Mat4, Vec3};
 use strata_mesh::Mesh;
 use strata_volume::ChunkKey;
 use wgpu::util::DeviceExt;
@@ -69,6 +69,9 @@ struct FrameUniforms {
     eye: [f32; 4],
     light_dir: [f32; 4],
     line_color: [f32; 4],
+    /// Unit vector from the target towards the eye; w: 1 orthographic, 0 perspective (lines are
+    /// moved towards the eye along it or along their ray to the eye).
+    view_axis: [f32; 4],
 }
 
 /// A translucent brush preview: a mesh in its own coordinates, placed by `model`.
@@ -260,7 +263,7 @@ impl Renderer {
         };
         let fill = pipeline("strata fill", "vs_mesh", "fs_mesh", wgpu::PrimitiveTopology::TriangleList, false);
         let wire = pipeline("strata wire", "vs_line", "fs_wire", wgpu::PrimitiveTopology::LineList, false);
-        let grid = pipeline("strata grid", "vs_line", "fs_grid", wgpu::PrimitiveTopology::LineList, true);
+        let grid = pipeline("strata grid", "vs_grid", "fs_grid", wgpu::PrimitiveTopology::LineList, true);
         let preview = pipeline("strata preview", "vs_mesh", "fs_preview", wgpu::PrimitiveTopology::TriangleList, true);
         let grid_lines = grid_vertices();
         let grid_vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -307,8 +310,8 @@ impl Renderer {
             self.chunks.remove(&(layer, key));
             return;
         }
-        let model = model * Mat4::from_translation(key.origin_grid().as_vec3());
-        let vertices = world_vertices(mesh, model, [color[0], color[1], color[2], 1.0], true);
+        let vertices =
+            world_vertices(mesh, model, key.origin_grid().as_dvec3(), [color[0], color[1], color[2], 1.0], true);
         let edges = edge_indices(&mesh.indices);
         let data: [(&[u8], wgpu::BufferUsages); 3] = [
             (bytemuck::cast_slice(&vertices), wgpu::BufferUsages::VERTEX),
@@ -423,13 +426,14 @@ impl Renderer {
             eye: cam.eye().extend(1.0).to_array(),
             light_dir: light.extend(0.0).to_array(),
             line_color: [0.05, 0.05, 0.06, 1.0],
+            view_axis: toward_eye.extend(if cam.orthographic { 1.0 } else { 0.0 }).to_array(),
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
         // All previews in one pair of buffers, each mesh's indices offset past the ones before.
         let (mut vertices, mut indices) = (Vec::new(), Vec::new());
         for p in settings.previews.iter().filter(|p| !p.mesh.indices.is_empty()) {
             let base = vertices.len() as u32;
-            vertices.extend(world_vertices(p.mesh, p.model, p.color, false));
+            vertices.extend(world_vertices(p.mesh, p.model, DVec3::ZERO, p.color, false));
             indices.extend(p.mesh.indices.iter().map(|i| i + base));
         }
         self.preview_buffers = (!indices.is_empty()).then(|| {
@@ -518,7 +522,6 @@ impl Renderer {
     }
 }
 
-/// Vertices of `mesh` moved into the world by `model` (normals by its inverse transpose).
 /// The palette as the shader's uniform block: per entry (colour, 0) then (layer, scale,
 /// roughness, 0); unused entries repeat entry 0.
 fn palette_uniforms(entries: &[PaletteEntry]) -> Vec<[f32; 4]> {
@@ -563,8 +566,18 @@ fn detail_texture(device: &wgpu::Device) -> (wgpu::TextureView, wgpu::Sampler, w
     (view, sampler, texture)
 }
 
-fn world_vertices(mesh: &Mesh, model: Mat4, color: [f32; 4], with_materials: bool) -> Vec<Vertex> {
+/// Vertices of `mesh` (positions relative to `origin`, a chunk's origin in the layer's grid)
+/// moved into the world by `model` (normals by its inverse transpose).
+///
+/// Positions are placed in f64 and rounded to f32 once: the vertices two neighbouring chunks
+/// share on their common face have the same grid position (origin + local is exact), so they
+/// land on the same f32 world position bit for bit and the chunk meshes meet without cracks.
+/// Composing `model · translate(origin)` in f32 per chunk instead rounds each chunk's product
+/// differently, and under a rotated or scaled layer the shared vertices of neighbours differed
+/// by an ulp or so.
+fn world_vertices(mesh: &Mesh, model: Mat4, origin: DVec3, color: [f32; 4], with_materials: bool) -> Vec<Vertex> {
     let normal_matrix = Mat3::from_mat4(model).inverse().transpose();
+    let world_from_grid = model.as_dmat4();
     mesh.positions
         .iter()
         .zip(&mesh.normals)
@@ -572,7 +585,7 @@ fn world_vertices(mesh: &Mesh, model: Mat4, color: [f32; 4], with_materials: boo
         .map(|(i, (p, n))| {
             let m = mesh.material(i);
             Vertex {
-                position: model.transform_point3(Vec3::from(*p)).to_array(),
+                position: world_from_grid.transform_point3(origin + Vec3::from(*p).as_dvec3()).as_vec3().to_array(),
                 normal: (normal_matrix * Vec3::from(*n)).normalize_or(Vec3::Y).to_array(),
                 color,
                 ids: m.ids,
@@ -628,7 +641,7 @@ mod tests {
         };
         let model =
             Mat4::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::from_rotation_y(1.0), Vec3::X * 5.0);
-        let v = world_vertices(&mesh, model, [1.0; 4], true);
+        let v = world_vertices(&mesh, model, DVec3::ZERO, [1.0; 4], true);
         assert!((Vec3::from(v[1].position) - Vec3::new(5.0, 2.0, 0.0)).length() < 1e-5);
         for x in &v {
             assert!((Vec3::from(x.normal).length() - 1.0).abs() < 1e-5);
@@ -636,5 +649,31 @@ mod tests {
         assert_eq!(edge_indices(&mesh.indices), vec![0, 1, 1, 2, 2, 0]);
         // The grid's axis lines are coloured, the others translucent grey.
         assert!(grid_vertices().iter().any(|g| g.color == [0.85, 0.25, 0.25, 0.9]));
+    }
+
+    #[test]
+    fn neighbouring_chunks_put_their_shared_vertices_on_one_world_position() {
+        // A layer turned, scaled and moved as the studio's layers are, far enough from the
+        // origin that an f32 rounding is worth about 1e-5 units.
+        let model = Mat4::from_scale_rotation_translation(
+            Vec3::splat(0.3),
+            glam::Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 0.2),
+            Vec3::new(123.4, -56.7, 88.9),
+        );
+        let cells = strata_volume::coords::CHUNK_CELLS as f32;
+        let mut differ = 0;
+        for i in 0..400 {
+            // A vertex on the face x = 16 of chunk (k, 2, -3), which is x = 0 of chunk (k + 1, 2, -3):
+            // marching cubes places both copies from the same crossing.
+            let k = i % 20 - 10;
+            let (y, z) = ((i as f32 * 0.137).fract() * cells, (i as f32 * 0.291).fract() * cells);
+            let chunk =
+                |x: f32| Mesh { positions: vec![[x, y, z]], normals: vec![[1.0, 0.0, 0.0]], ..Default::default() };
+            let (lower, upper) = (ChunkKey::new(k, 2, -3), ChunkKey::new(k + 1, 2, -3));
+            let a = world_vertices(&chunk(cells), model, lower.origin_grid().as_dvec3(), [1.0; 4], false);
+            let b = world_vertices(&chunk(0.0), model, upper.origin_grid().as_dvec3(), [1.0; 4], false);
+            differ += usize::from(a[0].position.map(f32::to_bits) != b[0].position.map(f32::to_bits));
+        }
+        assert_eq!(differ, 0, "{differ} of 400 shared vertices land on different world positions (a crack)");
     }
 }
