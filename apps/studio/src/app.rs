@@ -212,8 +212,9 @@ pub struct StudioApp {
     title: String,
     /// Where the viewport was last laid out (screen points).
     viewport_rect: Option<egui::Rect>,
-    /// What the windows, menus and modals showed last frame (see [`StudioApp::repaint_on_change`]).
-    shown: u64,
+    /// What the windows, menus and modals showed last frame, and the status message (see
+    /// [`StudioApp::repaint_on_change`]).
+    shown: (u64, String),
 }
 
 /// Sizing the brush by dragging (Blender's F): the radius is the pointer's distance from
@@ -269,7 +270,7 @@ impl StudioApp {
             resize: None,
             title: String::new(),
             viewport_rect: None,
-            shown: 0,
+            shown: (0, String::new()),
             open_next: None,
             recent,
             help_open: false,
@@ -1337,15 +1338,9 @@ impl StudioApp {
         ]
         .iter()
         .fold(0u64, |acc, &b| acc << 1 | b as u64);
-        let message = {
-            use std::hash::{Hash, Hasher};
-            let mut h = std::collections::hash_map::DefaultHasher::new();
-            self.studio.message.hash(&mut h);
-            h.finish()
-        };
-        let now = shown ^ message.rotate_left(16);
-        if now != self.shown {
-            self.shown = now;
+        // (A new status message is a change too: it is drawn at once, not on the next event.)
+        if shown != self.shown.0 || self.studio.message != self.shown.1 {
+            self.shown = (shown, self.studio.message.clone());
             ctx.request_repaint();
         }
     }

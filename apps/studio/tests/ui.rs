@@ -35,10 +35,7 @@ fn drag_over_the_ball(h: &mut Harness<'static, StudioApp>, steps: usize) {
 }
 
 fn harness(dir: &std::path::Path) -> Harness<'static, StudioApp> {
-    let app = StudioApp::headless(Studio::new(default_scene()), Dialogs::Typed, dir.join("recovery"));
-    Harness::builder()
-        .with_size(egui::vec2(1280.0, 800.0))
-        .build_ui_state(|ui, app: &mut StudioApp| app.show(ui, None), app)
+    harness_with(dir, default_scene(), Dialogs::Typed)
 }
 
 /// Types `text` as a keyboard does: a key press (for keys egui knows) and the text it makes.
@@ -717,6 +714,24 @@ fn service(after: Duration, answer: Option<PathBuf>) -> Dialogs {
     }))
 }
 
+/// Types `path` into the focused prompt and presses Enter.
+fn enter_path(h: &mut Harness<'static, StudioApp>, path: &std::path::Path) {
+    type_keys(h, &path.display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run();
+}
+
+/// File > Quit with unsaved changes, then Save in the question (one frame of it).
+fn quit_and_save(h: &mut Harness<'static, StudioApp>) {
+    h.state_mut().studio.editor.touch();
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Quit").click();
+    h.run();
+    h.get_by_label("Save").click();
+    h.step();
+}
+
 /// One frame slower than the dialog fallback's window (software rendering, a heavy remesh).
 fn slow_frame(h: &mut Harness<'static, StudioApp>) {
     std::thread::sleep(Duration::from_millis(600));
@@ -737,9 +752,7 @@ fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_o
     slow_frame(&mut h);
     assert!(h.get_by_label("Path:").is_focused(), "Ctrl+S ends in the typed prompt: {}", h.state().studio.message);
     let path = dir.join("saved.strata");
-    type_keys(&mut h, &path.display().to_string());
-    h.key_press(egui::Key::Enter);
-    h.run();
+    enter_path(&mut h, &path);
     assert!(path.exists(), "the typed path saved");
     assert!(!h.state().studio.is_modified());
 
@@ -756,19 +769,11 @@ fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_o
     // Save from the unsaved-changes question on Quit: the prompt, then the file, then the quit.
     let mut h = harness_with(&dir, default_scene(), no_portal());
     h.run();
-    h.state_mut().studio.editor.touch();
-    h.get_by_label("File").click();
-    h.run();
-    h.get_by_label("Quit").click();
-    h.run();
-    h.get_by_label("Save").click();
-    h.step();
+    quit_and_save(&mut h);
     slow_frame(&mut h);
     assert!(h.get_by_label("Path:").is_focused(), "Save in the question ends in the typed prompt");
     let quit_path = dir.join("before-quit.strata");
-    type_keys(&mut h, &quit_path.display().to_string());
-    h.key_press(egui::Key::Enter);
-    h.run();
+    enter_path(&mut h, &quit_path);
     assert!(quit_path.exists(), "Save from the Quit question saved");
     assert!(!h.state().studio.is_modified());
 
@@ -779,9 +784,7 @@ fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_o
     h.step();
     slow_frame(&mut h);
     assert!(h.get_by_label("Path:").is_focused(), "Ctrl+O ends in the typed prompt");
-    type_keys(&mut h, &path.display().to_string());
-    h.key_press(egui::Key::Enter);
-    h.run();
+    enter_path(&mut h, &path);
     assert_eq!(h.state().studio.path.as_deref(), Some(path.as_path()), "the typed path opened");
 }
 
@@ -805,13 +808,7 @@ fn a_dialog_answer_counts_whatever_the_frames_and_a_cancel_is_said() {
     // A person cancels (the dialog showed for a while): the status bar says so.
     let mut h = harness_with(&dir, default_scene(), service(Duration::from_millis(400), None));
     h.run();
-    h.state_mut().studio.editor.touch();
-    h.get_by_label("File").click();
-    h.run();
-    h.get_by_label("Quit").click();
-    h.run();
-    h.get_by_label("Save").click();
-    h.step();
+    quit_and_save(&mut h);
     for _ in 0..50 {
         slow_frame(&mut h);
         if !h.state().modal_open() {
@@ -839,19 +836,7 @@ fn a_focused_field_keeps_shortcut_letters_even_in_the_frame_it_was_clicked() {
     h.run();
     let field = h.get_by_label("Name").rect().center();
     h.event(egui::Event::PointerMoved(field));
-    h.event(egui::Event::PointerButton {
-        pos: field,
-        button: egui::PointerButton::Primary,
-        pressed: true,
-        modifiers: egui::Modifiers::NONE,
-    });
-    h.event(egui::Event::PointerButton {
-        pos: field,
-        button: egui::PointerButton::Primary,
-        pressed: false,
-        modifiers: egui::Modifiers::NONE,
-    });
-    h.step();
+    press_release(&mut h, field);
     h.key_press(egui::Key::E);
     h.event(egui::Event::Text("e".into()));
     h.step();
@@ -927,8 +912,8 @@ fn a_view_message_goes_once_the_camera_moves_and_new_windows_get_their_second_fr
     assert!(h.ctx.has_requested_repaint(), "the frame that opened the help asks for one more");
 }
 
-/// Presses and releases the primary button at `at` within one frame.
-fn quick_click(h: &mut Harness<'static, StudioApp>, at: egui::Pos2) {
+/// Queues a press and a release of the primary button at `at` (for one frame).
+fn press_release(h: &mut Harness<'static, StudioApp>, at: egui::Pos2) {
     for pressed in [true, false] {
         h.event(egui::Event::PointerButton {
             pos: at,
@@ -937,6 +922,11 @@ fn quick_click(h: &mut Harness<'static, StudioApp>, at: egui::Pos2) {
             modifiers: egui::Modifiers::NONE,
         });
     }
+}
+
+/// Presses and releases the primary button at `at` within one frame.
+fn quick_click(h: &mut Harness<'static, StudioApp>, at: egui::Pos2) {
+    press_release(h, at);
     h.step();
 }
 
