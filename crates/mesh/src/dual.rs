@@ -256,23 +256,71 @@ impl ChunkDual {
         self.faces.binary_search_by_key(&(index, fa as u8), |f| (f.0, f.1)).ok().map(|i| &self.faces[i].2)
     }
 
-    /// The vertex of `cell` whose component holds the cell edge `edge` (a [`local_edge`] bit;
-    /// `None`: the cell's first), and its component's number within the cell.
-    fn vertex(&self, cell: [usize; 3], edge: Option<usize>) -> Option<(usize, CellVertex)> {
+    /// The vertices of `cell`, in component order.
+    fn cell_vertices(&self, cell: [usize; 3]) -> &[CellVertex] {
         let index = (cell[0] + self.n * (cell[1] + self.n * cell[2])) as u32;
         let first = self.cells.partition_point(|c| c.0 < index);
-        let of_cell = self.cells[first..].iter().take_while(|c| c.0 == index);
-        let mut found = None;
-        for (k, c) in of_cell.enumerate() {
-            match edge {
-                Some(e) if c.1 >> e & 1 == 0 => {}
-                _ => {
-                    found = Some((k, *c));
-                    break;
+        let count = self.cells[first..].iter().take_while(|c| c.0 == index).count();
+        &self.cells[first..first + count]
+    }
+
+    /// The vertex of `cell` whose component holds the cell edge `edge` (a [`local_edge`] bit),
+    /// and its component's number within the cell.
+    fn vertex(&self, cell: [usize; 3], edge: usize) -> Option<(usize, CellVertex)> {
+        self.cell_vertices(cell).iter().enumerate().find(|(_, c)| c.1 >> edge & 1 == 1).map(|(k, c)| (k, *c))
+    }
+
+    /// The vertex of `cell` whose component holds the face segment (on the cell's face with
+    /// normal `fa` at `side`) that a finer sign-changing edge inside that face belongs to, given
+    /// the finer edge's inside end `inside_end` in units of the cell from its minimum corner;
+    /// and its component's number within the cell.
+    ///
+    /// The finer side's face is the coarse face refined by the face table, so its contour is
+    /// the coarse face's contour with extra vertices: the finer edge is cut by one of the coarse
+    /// face's segments. Where one component holds all of the face's crossed edges (one segment,
+    /// or both in one component) that is the component. Otherwise the face has four crossed
+    /// edges and two segments, each cutting off an inside corner from the crossings of the two
+    /// edges at it (the face rule separates inside corners), and each component holds one such
+    /// pair. The segment cutting off corner `c` between crossings at `a` and `b` (`a, b < 1`
+    /// from `c`) bounds the triangle `u/a + v/b ≤ 1`, whose points are less than 1 from `c` in
+    /// the L1 norm, while the other corner's triangle is more than 1 from `c`: so the finer
+    /// edge's inside end, which lies in its segment's triangle, picks the component.
+    fn vertex_on_face(
+        &self,
+        cell: [usize; 3],
+        fa: usize,
+        side: usize,
+        inside_end: DVec3,
+    ) -> Option<(usize, CellVertex)> {
+        let face = face_edges(fa, side);
+        let vertices = self.cell_vertices(cell);
+        let mut on_face = vertices.iter().enumerate().filter(|(_, c)| c.1 & face != 0);
+        let first = on_face.next();
+        let Some(second) = on_face.next() else {
+            return first.map(|(k, c)| (k, *c));
+        };
+        let (u, v) = ((fa + 1) % 3, (fa + 2) % 3);
+        // The corner (offsets along u and v) whose two face edges a component's mask holds.
+        let corner_of = |mask: u16| {
+            let mut corner = [0usize; 2];
+            for (slot, axis, other) in [(1, u, v), (0, v, u)] {
+                for o in 0..2 {
+                    let mut off = [0; 3];
+                    off[fa] = side;
+                    off[other] = o;
+                    if mask >> local_edge(axis, off) & 1 == 1 {
+                        // An edge along `axis` at offset `o` on `other` fixes the corner there.
+                        corner[slot] = o;
+                    }
                 }
             }
-        }
-        found
+            corner
+        };
+        [first, Some(second)].into_iter().flatten().chain(on_face).find_map(|(k, c)| {
+            let [cu, cv] = corner_of(c.1 & face);
+            let l1 = (inside_end[u] - cu as f64).abs() + (inside_end[v] - cv as f64).abs();
+            (l1 < 1.0).then_some((k, *c))
+        })
     }
 }
 
@@ -423,9 +471,11 @@ impl DualCache {
     /// cells around each edge, each in whichever chunk holds it at that chunk's level). Every
     /// sign-changing edge of the finest level around it (its *minimal* edge) gets one polygon
     /// joining the cells around it, a triangle where a coarser cell holds two of them: with the
-    /// shared faces patched to the coarser side's contour, every polygon edge is shared by an
-    /// even number of polygons, so the surface is closed. Vertices and meshes are recomputed
-    /// for the 3×3×3 chunks around each change.
+    /// shared faces patched to the coarser side's contour, and a finer edge inside a coarser
+    /// cell's face taking the component of the face segment that cuts it (as the finer edges on
+    /// that segment's ends do), every polygon edge is shared by an even number of polygons, so
+    /// the surface is closed. Vertices and meshes are recomputed for the 3×3×3 chunks around
+    /// each change.
     fn update_mixed(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
         let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
             let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
@@ -514,16 +564,26 @@ impl DualCache {
             let mut complete = true;
             for &(k, l, local) in &cells {
                 // The component of the cell that holds the edge, where the edge lies on one of
-                // the cell's edges (a finer edge inside a coarser cell's face takes its first).
+                // the cell's edges; a finer edge inside a coarser cell's face takes the component
+                // of the face segment that cuts it (`ChunkDual::vertex_on_face`).
                 let to_cell = |v: DVec3| (v - k.origin_grid().as_dvec3()) * l.nodes_per_unit();
                 let (e0, e1) = (to_cell(mid - axis.unit() * (0.5 * sp)), to_cell(mid + axis.unit() * (0.5 * sp)));
                 let corner = DVec3::new(local[0] as f64, local[1] as f64, local[2] as f64);
                 let (r0, r1) = (e0 - corner, e1 - corner);
-                let on_edge = (0..3).all(|i| i == axis.index() || (r0[i] == r1[i] && (r0[i] == 0.0 || r0[i] == 1.0)));
-                let edge = on_edge.then(|| {
-                    local_edge(axis.index(), [0, 1, 2].map(|i| if i == axis.index() { 0 } else { r0[i] as usize }))
-                });
-                let found = self.duals.get(&k).and_then(|d| d.vertex(local, edge));
+                let on_face = |i: usize| r0[i] == r1[i] && (r0[i] == 0.0 || r0[i] == 1.0);
+                let dual = self.duals.get(&k);
+                let found = if (0..3).all(|i| i == axis.index() || on_face(i)) {
+                    let edge =
+                        local_edge(axis.index(), [0, 1, 2].map(|i| if i == axis.index() { 0 } else { r0[i] as usize }));
+                    dual.and_then(|d| d.vertex(local, edge))
+                } else {
+                    // Every cell around an edge holds it on its boundary: inside a face here.
+                    let fa = (0..3)
+                        .find(|&i| i != axis.index() && on_face(i))
+                        .expect("an edge of a finer chunk lies in a face of a coarser cell");
+                    let inside_end = if lower_inside { r0 } else { r1 };
+                    dual.and_then(|d| d.vertex_on_face(local, fa, r0[fa] as usize, inside_end))
+                };
                 let Some((component, (_, _, pos, normal, material))) = found else {
                     complete = false;
                     break;
@@ -538,7 +598,8 @@ impl DualCache {
                 }
                 let i = out.mesh.positions.len() as u32;
                 let shift = (k.origin_grid() - key.origin_grid()).as_vec3();
-                out.mesh.push_vertex((pos + shift).to_array(), normal.to_array(), material, false);
+                let pos = exact_in_neighbour_frames(pos) + shift;
+                out.mesh.push_vertex(pos.to_array(), normal.to_array(), material, false);
                 out.cells.push(id);
                 ids.insert(id, i);
                 q.push(i);
@@ -591,7 +652,7 @@ impl DualCache {
                 // The edge seen from this cell picks the component it belongs to.
                 let offset = (l - cell).to_array().map(|c| c as usize);
                 let edge = local_edge(axis.index(), offset);
-                let found = source.and_then(|d| d.vertex(local, Some(edge)));
+                let found = source.and_then(|d| d.vertex(local, edge));
                 let Some((component, (_, mask, pos, normal, material))) = found else {
                     complete = false;
                     break;
@@ -747,6 +808,26 @@ fn push_quad(mesh: &mut Mesh, q: [u32; 4]) {
 
 /// Node spacing of the finest level (grid units).
 const MIN_SPACING: f64 = 0.25;
+
+/// Vertex positions between chunks of different levels are multiples of this (grid units).
+const POSITION_QUANTUM: f32 = 1.0 / (1 << 18) as f32;
+
+/// `pos_in_chunk` (a cell vertex, within half a cell of its chunk: `[-0.5, 16.5]`) rounded to
+/// [`POSITION_QUANTUM`], so that it stays exact in the frame of every chunk around its own.
+///
+/// A chunk mesh copies the vertices of neighbouring chunks' cells shifted into its own frame.
+/// Between chunks of one level the copied cells are those of the chunks before, near their `+`
+/// faces, and `pos − 16` is exact (Sterbenz); between levels the finest chunk around an edge
+/// owns it, so a chunk also copies cells of the chunks after it, near their `−` faces, and
+/// `0.0145 + 16` is rounded: the two chunk meshes then held the vertex 1 ulp apart (32 open
+/// edges after a weld by position on a ball with one raised chunk). Multiples of 2⁻¹⁸ below 64
+/// in magnitude are exact in `f32`, and the shifted positions lie in `[-16.5, 32.5]`; every
+/// chunk mesh then holds the same real position less its own (integer) origin, so adding the
+/// origin rounds them all alike. 2⁻¹⁸ grid units (1/65,536 of a finest cell) is below any
+/// tolerance here.
+fn exact_in_neighbour_frames(pos_in_chunk: Vec3) -> Vec3 {
+    (pos_in_chunk / POSITION_QUANTUM).round() * POSITION_QUANTUM
+}
 
 /// A cell's identity across chunks and levels: its minimum corner in units of the finest
 /// level's cells, with the level in the two lowest bits of x.
