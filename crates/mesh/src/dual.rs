@@ -1,15 +1,21 @@
-//! Dual contouring with Hermite data: one vertex per cell with a sign change, placed by the QEF
-//! of the cell's edge crossings and clamped to the cell grown by half a cell; one quad per
-//! sign-changing edge joining the four cells around it, split into two triangles along the
-//! flatter diagonal.
+//! Dual contouring with Hermite data. The manifold form (the default) gives a cell one vertex
+//! per surface component (per marching-cubes loop of its sign-changing edges), each placed by
+//! the QEF of that component's edge crossings and clamped to the cell grown by half a cell; the
+//! first wave's form ([`DualCache::single_vertex`]) gives the cell one vertex for all of them.
+//! One quad per sign-changing edge joins the four cells around it, each at the vertex of the
+//! component holding the edge, split into two triangles along the flatter diagonal; across
+//! levels a finer edge inside a coarser cell's face takes the component of the face segment
+//! that cuts it.
 //!
 //! Chunk borders: each chunk computes the vertices of its own cells and owns the sign-changing
 //! edges whose lower node lies in the chunk on the two across axes. The quad of an owned edge
 //! on the chunk's `−` faces uses cells of up to three neighbours (`−u`, `−v`, `−u−v`); the chunk
 //! mesh copies those vertices, which every chunk computes identically, so chunk meshes meet
-//! without cracks (the paper's 2×2×2 idea, section VI-C). The result is closed; a cell whose
-//! surface has several sheets gets one vertex for all of them, which can make edges
-//! non-manifold ([`crate::checks::manifold_report`] counts them).
+//! without cracks (the paper's 2×2×2 idea, section VI-C). The result is closed, at one level and
+//! across levels; it is edge-manifold at one level (tested), and nearly so across levels (a few
+//! non-manifold edges in a million, measured in docs/ARCHITECTURE.md § Levels). The single-vertex
+//! form is closed too but can make edges non-manifold where a cell holds several sheets
+//! ([`crate::checks::manifold_report`] counts them).
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
