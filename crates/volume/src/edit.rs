@@ -547,6 +547,9 @@ impl Volume {
             report.undo.previous.push((key, previous));
             report.repaired_nodes += repaired;
         }
+        if self.settle_uniform(&mut report.changed, &mut report.undo.previous) {
+            report.changed.sort();
+        }
         let rule = match op {
             CsgOp::Add => MaterialRule::Fill(settings.material),
             CsgOp::Subtract | CsgOp::Intersect => MaterialRule::Nearest,

@@ -9,16 +9,22 @@
 //!   centre, which no face table reaches) are intersected with the cell's surface, estimated
 //!   from its Hermite data: the planes of its crossings, weighted by inverse squared distance;
 //! - the faces the chunk's lines end on keep the states the lines end in; where the neighbour
-//!   there is already as fine as the new level, its own nodes are taken instead.
+//!   there is already as fine as the new level, its own nodes are taken instead;
+//! - the new nodes of the chunk's first faces that the lines of a neighbour before it, already
+//!   as fine as the new level, end on take the states those lines end in ([`take_ends_before`]).
 //!
 //! Node states are decided first and crossings only where the two ends of an edge differ, so the
 //! result satisfies every invariant by construction. Old crossings never sit on a new node
 //! ([`crate::coords::quantize_into_edge`]), so lowering again gives back the old lists bit for
-//! bit. A finer neighbour before the chunk, whose lines end on the chunk's first face, has those
-//! lines' last cells made to end as the refined face now says.
+//! bit, but for a crossing on a first face that a finer neighbour's line end contradicts (moved
+//! into the other half of its edge). Where two finer neighbours before the chunk disagree on a
+//! node of one of its edges, one of them has that line's last cell made to end as the chunk now
+//! says (the one case where a raise writes a neighbour; it is in the same undo record); a raise
+//! that would leave that neighbour uniform is not made.
 //!
 //! Lowering keeps every second line and node and, on each coarse edge whose ends differ, the one
-//! crossing of the two fine edges it covers.
+//! crossing of the two fine edges it covers; a lowering that would leave a uniform chunk that a
+//! neighbour contradicts is not made (see [`super::settle`]).
 
 use glam::DVec3;
 
@@ -43,7 +49,16 @@ pub(crate) fn raise(volume: &Volume, key: ChunkKey) -> Option<(Built, Vec<(Chunk
     let mut neighbours = Vec::new();
     for normal in Axis::ALL {
         let before = key.offset(-normal.unit_i64().as_ivec3());
+        // A coarser neighbour's lines end on nodes of the old level, which keep their states.
+        if volume.stored_level(before).is_none_or(|l| l < r.level) {
+            continue;
+        }
         if let Some(b) = end_lines_on(volume, before, normal, &r) {
+            if matches!(b, Built::Uniform(_)) {
+                // Its only crossings were last cells the raise takes away: a raise never empties
+                // or fills a neighbour, so this one is not made.
+                return None;
+            }
             neighbours.push((before, b));
         }
     }
@@ -111,6 +126,7 @@ fn refine(volume: &Volume, key: ChunkKey, s: &Dense) -> Dense {
             r.put_face(&effective_face(&new_map, normal, owner, fine), 2 * n);
         }
     }
+    take_ends_before(volume, key, &mut r);
     for z in 0..n {
         for y in 0..n {
             for x in 0..n {
@@ -120,6 +136,128 @@ fn refine(volume: &Volume, key: ChunkKey, s: &Dense) -> Dense {
     }
     r.make_consistent();
     r
+}
+
+/// One line of a neighbour before a chunk that ends on a node of the chunk's first face: the
+/// state it ends in, whether its last cell holds a crossing (which making it end otherwise would
+/// take away), and whether it can be made to end otherwise at all (a uniform neighbour's cannot).
+#[derive(Clone, Copy)]
+pub(super) struct End {
+    pub(super) node: usize,
+    pub(super) inside: bool,
+    pub(super) last_crossed: bool,
+    pub(super) rewritable: bool,
+}
+
+/// Sets each node of `d` that lines in `ends` end on to the state they end in; returns the nodes
+/// whose state changed.
+///
+/// A node on one of the chunk's three edges through its minimum corner ends lines of two
+/// neighbours. Where they disagree, the node follows the one that cannot be rewritten, else the
+/// one whose last cell holds a crossing while the other's does not, so the other's line, made
+/// to end there ([`end_lines_on`]), gains a crossing rather than losing one (else the lower
+/// axis).
+pub(super) fn take_ends(d: &mut Dense, mut ends: Vec<End>) -> Vec<usize> {
+    // Ends on one node are next to each other, in axis order.
+    ends.sort_by_key(|e| e.node);
+    let mut changed = Vec::new();
+    for group in ends.chunk_by(|a, b| a.node == b.node) {
+        let against = |e: End| group.iter().filter(move |o| o.inside != e.inside);
+        let wins = *group
+            .iter()
+            .find(|e| !e.rewritable)
+            .or_else(|| group.iter().find(|e| e.last_crossed && against(**e).all(|o| !o.last_crossed)))
+            .unwrap_or(&group[0]);
+        debug_assert!(against(wins).all(|o| o.rewritable), "two uniform neighbours disagree on a node");
+        if d.states[wins.node] != wins.inside {
+            d.states[wins.node] = wins.inside;
+            changed.push(wins.node);
+        }
+    }
+    changed
+}
+
+/// The lines of the chunk `before` along `normal` that end on plane 0 of `d` (the first face of
+/// the chunk after it), for [`take_ends`]: one per line of the coarser of `d`'s level and the
+/// chunk's own (a uniform chunk's: `d`'s) whose node `(u, v)` of `d` `keep` accepts.
+pub(super) fn ends_of(
+    volume: &Volume,
+    before: ChunkKey,
+    normal: Axis,
+    d: &Dense,
+    keep: impl Fn(usize, usize) -> bool,
+) -> Vec<End> {
+    let mut ends = Vec::new();
+    let mut line = WorkLine::EMPTY;
+    let view = volume.view(before);
+    let stored = match view {
+        ChunkView::Lists(l) => Some(l.level()),
+        ChunkView::Uniform(_) => None,
+    };
+    // Lines are read at `lattice` (the coarser of `d`'s level and the chunk's), `f` nodes of `d`
+    // apart; `g` of the chunk's own lines apart.
+    let lattice = stored.map_or(d.level, |l| l.min(d.level));
+    let f = 1usize << (d.level.get() - lattice.get());
+    let (read_at, g) = match stored {
+        Some(l) => (l, 1usize << (l.get() - lattice.get())),
+        None => (lattice, 1),
+    };
+    let n = read_at.cells();
+    let mut reader = LineReader::new(view, normal);
+    for v in 0..lattice.cells() {
+        for u in 0..lattice.cells() {
+            if !keep(u * f, v * f) {
+                continue;
+            }
+            reader.read(u * g, v * g, read_at, &mut line);
+            let inside = (line.states >> n) & 1 == 1;
+            let last_crossed = ((line.states >> (n - 1)) & 1 == 1) != inside;
+            let node = d.index(compose(normal, 0, u * f, v * f));
+            ends.push(End { node, inside, last_crossed, rewritable: stored.is_some() });
+        }
+    }
+    ends
+}
+
+/// The new nodes of the first faces of `r` (the chunk `key` one level finer than stored) that
+/// the lines of a neighbour before it, stored at least as fine as `r`, end on: each takes the
+/// state those lines end in ([`take_ends`]), so the neighbour's lines keep their ends and
+/// lowering the chunk again leaves the neighbour as it was. (Those ends are the neighbour's own
+/// finer data; the face table would guess them from the chunk's coarser face.)
+///
+/// A crossing of the chunk on a coarse edge whose middle node now lies on the crossing's side of
+/// it moves, as little as it can, into the other half of the edge, so every old crossing stays on
+/// its edge and lowering gives back that edge's crossing within half a coarse cell.
+fn take_ends_before(volume: &Volume, key: ChunkKey, r: &mut Dense) {
+    let mut ends = Vec::new();
+    for normal in Axis::ALL {
+        let before = key.offset(-normal.unit_i64().as_ivec3());
+        if volume.stored_level(before).is_some_and(|l| l >= r.level) {
+            // The nodes of the old level are bound already and kept as they are.
+            ends.extend(ends_of(volume, before, normal, r, |u, v| u % 2 == 1 || v % 2 == 1));
+        }
+    }
+    let m = r.n + 1;
+    for node in take_ends(r, ends) {
+        let p = [node % m, (node / m) % m, node / (m * m)];
+        // The coarse edge this node is the middle of: exactly one odd coordinate.
+        let mut odd = (0..3).filter(|&i| p[i] % 2 == 1);
+        let (Some(e), None) = (odd.next(), odd.next()) else { continue };
+        let mut lo = p;
+        lo[e] -= 1;
+        let mut hi = p;
+        hi[e] += 1;
+        let (s_lo, s_mid, s_hi) = (r.state(lo), r.states[node], r.state(hi));
+        let (k_lo, k_mid) = (r.index(lo), node);
+        let (c_lo, c_mid) = (r.cross[e][k_lo], r.cross[e][k_mid]);
+        if c_lo != NONE && c_mid == NONE && s_lo == s_mid && s_mid != s_hi {
+            r.cross[e][k_mid] = pack(quantize_steps(pos(c_lo) as f64, p[e], r.level), nrm(c_lo));
+            r.cross[e][k_lo] = NONE;
+        } else if c_mid != NONE && c_lo == NONE && s_mid == s_hi && s_lo != s_mid {
+            r.cross[e][k_lo] = pack(quantize_steps(pos(c_mid) as f64, lo[e], r.level), nrm(c_mid));
+            r.cross[e][k_mid] = NONE;
+        }
+    }
 }
 
 /// The centre node of cell `c` of `s` and the six half-edges through it, in `r` (one level finer).
@@ -202,16 +340,19 @@ fn refine_centre(s: &Dense, r: &mut Dense, c: [usize; 3]) {
     }
 }
 
-/// The chunk `before` (the neighbour before the raised chunk along `normal`) with the last cells
-/// of its lines along `normal` changed to end in the states of the raised chunk's first face
-/// (`r`'s plane 0), where it is a list chunk at least as fine as `r` and some line disagrees.
-fn end_lines_on(volume: &Volume, before: ChunkKey, normal: Axis, r: &Dense) -> Option<Built> {
+/// The list chunk `before` (the neighbour before the chunk of `r` along `normal`) with the last
+/// cells of its lines along `normal` changed to end in the states of `r`'s plane 0, where some
+/// line disagrees (`None` where none does, or the chunk is uniform). Its lines of the coarser of
+/// the two levels end on nodes of `r`; its finer ones end between them and are left alone.
+pub(super) fn end_lines_on(volume: &Volume, before: ChunkKey, normal: Axis, r: &Dense) -> Option<Built> {
     let ChunkView::Lists(lists) = volume.view(before) else { return None };
     let level = lists.level();
-    if level < r.level {
-        return None;
-    }
-    let f = 1usize << (level.get() - r.level.get());
+    // Line (u, v) is bound where both are multiples of `f`; it ends on node (u, v) / f * g of `r`.
+    let (f, g) = if level >= r.level {
+        (1usize << (level.get() - r.level.get()), 1)
+    } else {
+        (1, 1usize << (r.level.get() - level.get()))
+    };
     let n = level.cells();
     let mut b = ChunkBuilder::default();
     b.begin(level);
@@ -224,7 +365,7 @@ fn end_lines_on(volume: &Volume, before: ChunkKey, normal: Axis, r: &Dense) -> O
             for u in 0..n {
                 reader.read(u, v, level, &mut line);
                 if axis == normal && u % f == 0 && v % f == 0 {
-                    let want = r.state(compose(normal, 0, u / f, v / f));
+                    let want = r.state(compose(normal, 0, u / f * g, v / f * g));
                     if ((line.states >> n) & 1 == 1) != want {
                         // Toggle the last node's state: the last cell gains or loses its crossing.
                         line.states ^= 1u128 << n;
@@ -245,7 +386,9 @@ fn end_lines_on(volume: &Volume, before: ChunkKey, normal: Axis, r: &Dense) -> O
     changed.then(|| b.finish())
 }
 
-/// The chunk at `key` (lists at level `l > 0`) lowered to `l - 1`.
+/// The chunk at `key` (lists at level `l > 0`) lowered to `l - 1`; `None` where it is at level 0
+/// or where it would become uniform and a face neighbour's line contradicts that
+/// ([`uniform_fits`]: possible only below the volume's level), which keeps it as it is.
 pub(crate) fn lower(volume: &Volume, key: ChunkKey) -> Option<Built> {
     let ChunkView::Lists(lists) = volume.view(key) else { return None };
     let coarse = Level::new(lists.level().get().checked_sub(1)?)?;
@@ -263,7 +406,42 @@ pub(crate) fn lower(volume: &Volume, key: ChunkKey) -> Option<Built> {
             }
         }
     }
-    Some(b.finish())
+    let built = b.finish();
+    if let Built::Uniform(inside) = built
+        && !uniform_fits(volume, key, inside)
+    {
+        return None;
+    }
+    Some(built)
+}
+
+/// Whether the chunk at `key` can be stored as uniform `inside` without contradicting a
+/// neighbour across a face. A uniform chunk has no level: edits and the invariant checker sample
+/// it at the volume's level, so every line of a face neighbour at that level (or at the
+/// neighbour's, where it is coarser) that ends on the chunk's first face or starts on the face
+/// after it must end or start `inside`. A list chunk below the volume's level binds only every
+/// second of those lines, and the others can disagree (a neighbour's node between its nodes, or
+/// a neighbour's line ending on a node of the chunk that the chunk's level does not have).
+pub(super) fn uniform_fits(volume: &Volume, key: ChunkKey, inside: bool) -> bool {
+    let mut line = WorkLine::EMPTY;
+    for axis in Axis::ALL {
+        let step = axis.unit_i64().as_ivec3();
+        for (k, ends_here) in [(key.offset(-step), true), (key.offset(step), false)] {
+            let level = volume.level_of(k).min(volume.level);
+            let n = level.cells();
+            let mut reader = LineReader::new(volume.view(k), axis);
+            for v in 0..n {
+                for u in 0..n {
+                    reader.read(u, v, level, &mut line);
+                    let state = if ends_here { (line.states >> n) & 1 == 1 } else { line.states & 1 == 1 };
+                    if state != inside {
+                        return false;
+                    }
+                }
+            }
+        }
+    }
+    true
 }
 
 impl Volume {

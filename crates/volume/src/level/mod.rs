@@ -11,6 +11,7 @@ mod dense;
 mod extract;
 pub(crate) mod face;
 mod read;
+mod settle;
 
 pub(crate) use dense::Dense;
 pub(crate) use extract::{extract_patched, plain, same_level_around};
@@ -24,8 +25,12 @@ impl Volume {
     /// Changes the stored level of the list chunk at `key` to `level`, one level at a time
     /// (raising by the face table and the cells' Hermite data, lowering by dropping the lines
     /// the coarser level does not have). Uniform and empty chunks have no level and are left as
-    /// they are. The report's undo restores the volume exactly; `changed` lists the chunks whose
-    /// meshes the change touches (the chunk and its 26 neighbours).
+    /// they are. A step that would break an invariant is not made and the chunk stays at the
+    /// level it reached: a lowering that would leave a uniform chunk that a face neighbour's line
+    /// at the volume's level contradicts (only below the volume's level), and a raise that would
+    /// leave a neighbour it rewrites uniform. The report's undo restores the volume exactly;
+    /// `changed` lists the chunks whose meshes the change touches (the chunk and its 26
+    /// neighbours).
     pub fn set_chunk_level(&mut self, key: ChunkKey, level: Level) -> EditReport {
         let mut undo: Vec<(ChunkKey, Option<crate::chunk::Chunk>)> = Vec::new();
         let mut material_undo: crate::material::MaterialUndo = Vec::new();

@@ -639,6 +639,7 @@ impl Volume {
             report.changed.push(key);
             report.undo.previous.push((key, previous));
         }
+        self.settle_uniform(&mut report.changed, &mut report.undo.previous);
         let rule = fill.map_or(crate::material::MaterialRule::Nearest, crate::material::MaterialRule::Fill);
         report.undo.materials = self.update_materials(&report.undo.previous, rule);
         report.changed.sort_by_key(|k| k.0.to_array());
