@@ -524,3 +524,37 @@ fn a_raise_moves_a_crossing_the_finer_neighbour_contradicts_within_half_a_cell()
     assert!(new[0] > 22_528 && new[0] < 22_528 + 16, "moved just past the middle: {}", new[0]);
     check_round_trip_bound(&before, &v, key).unwrap();
 }
+
+/// Found by the editor's `random_level_maps_save_and_load_clean_and_mesh_closed`: a box face
+/// 0.018 past the plane z = 16 leaves a crossing in the first cell of the level-2 chunk (0,0,1),
+/// and a second box beside it, from x = 14.68, leaves (0,0,1)'s x line at y = 0, z = 16 two
+/// crossings (14.2 and 14.68) in one cell of level 0, the level of the chunks below. Raising
+/// (0,0,0) to 1 took the nodes of its last face along z from the effective face, whose border
+/// row y = 0 is that line read at level 0 (no crossing there) and refined back up, so its z line
+/// at (14.5, 0) ended inside where (0,0,1)'s starts outside. The ends now take the neighbour's own
+/// nodes.
+#[test]
+fn raising_a_chunk_before_a_finer_one_takes_the_neighbour_nodes_on_its_last_face_border() {
+    let mut v = Volume::new();
+    v.add(
+        &Cuboid::new(DVec3::new(4.728154128209596, 0.0, 0.0), DVec3::new(9.470084518883041, 4.0, 16.017701430200393))
+            .unwrap(),
+    )
+    .unwrap();
+    let after = ChunkKey::new(0, 0, 1);
+    let _ = v.set_chunk_level(after, level(2));
+    v.add(&Cuboid::new(DVec3::new(24.5, 0.0, 17.0), DVec3::new(9.815766544524637, 4.0, 4.0)).unwrap()).unwrap();
+    v.check_invariants().expect("before");
+    assert!(!lists(&v, after).unwrap().line(Axis::Z, 58, 0).start_inside, "(0,0,1) starts outside at (14.5, 0)");
+    let before = v.clone();
+    let key = ChunkKey::new(0, 0, 0);
+    let up = v.set_chunk_level(key, level(1));
+    check_level_change(&before, &v, key, up, "raise").unwrap();
+    assert_eq!(v.stored_level(key), Some(level(1)));
+    assert!(!lists(&v, key).unwrap().line(Axis::Z, 29, 0).end_inside(), "(0,0,0) ends as (0,0,1) starts");
+    let raised = v.clone();
+    let down = v.set_chunk_level(key, level(0));
+    check_level_change(&raised, &v, key, down, "lower").unwrap();
+    check_round_trip_bound(&before, &v, key).unwrap();
+    assert!(v == before, "raise then lower is the identity here");
+}

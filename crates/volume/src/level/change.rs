@@ -124,6 +124,7 @@ fn refine(volume: &Volume, key: ChunkKey, s: &Dense) -> Dense {
         let owner = key.offset(normal.unit_i64().as_ivec3());
         if volume.stored_level(owner).is_some_and(|l| l >= fine) {
             r.put_face(&effective_face(&new_map, normal, owner, fine), 2 * n);
+            take_starts_after(volume, owner, normal, &mut r);
         }
     }
     take_ends_before(volume, key, &mut r);
@@ -136,6 +137,28 @@ fn refine(volume: &Volume, key: ChunkKey, s: &Dense) -> Dense {
     }
     r.make_consistent();
     r
+}
+
+/// Sets the nodes of the last face along `normal` of `r` that the chunk's own lines end on
+/// (`u, v < n`) to the states the lines of `owner`, the list chunk after it and stored at least
+/// as fine as `r`, start in: the invariant binds every one of those ends to the neighbour's own
+/// node. The effective face put there first takes its border lines (the face's rows and columns
+/// through the chunk's edges) from the coarsest chunk around each edge, refined back up by the
+/// 1D rule, which guesses the new nodes on them: two crossings of the neighbour's line in one
+/// cell of that coarser level (a face just past the chunk plane, another box beside it) refine to
+/// a node of the wrong state there.
+fn take_starts_after(volume: &Volume, owner: ChunkKey, normal: Axis, r: &mut Dense) {
+    let n = r.n;
+    let mut reader = LineReader::new(volume.view(owner), normal);
+    let mut line = WorkLine::EMPTY;
+    for v in 0..n {
+        for u in 0..n {
+            let ok = reader.read(u, v, r.level, &mut line);
+            debug_assert!(ok, "read at or below the neighbour's level");
+            let k = r.index(compose(normal, n, u, v));
+            r.states[k] = line.states & 1 == 1;
+        }
+    }
 }
 
 /// One line of a neighbour before a chunk that ends on a node of the chunk's first face: the
