@@ -101,6 +101,10 @@ pub enum EditError {
     /// Volumes at different resolution levels cannot be merged.
     #[error("the volumes are stored at different levels")]
     LevelMismatch,
+    /// A volume whose chunks are stored at several levels cannot be merged (its lists are read
+    /// at one level; chunks at others would be lost).
+    #[error("the merged volume holds chunks at more than one resolution level")]
+    MixedLevels,
 }
 
 /// What an edit did.

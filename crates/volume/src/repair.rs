@@ -181,7 +181,8 @@ impl Volume {
 
     /// Adds the solid of `other` (at the same level) shifted by `offset` whole cells: how layers
     /// are merged. Region by region, as a repair rebuilds; one report for all of it (its undo
-    /// restores the volume as it was). A level mismatch or a failed edit changes nothing.
+    /// restores the volume as it was). A level mismatch, an `other` whose chunks are stored at
+    /// more than one level ([`EditError::MixedLevels`]) or a failed edit changes nothing.
     pub fn merge_from(
         &mut self,
         other: &Volume,
@@ -190,6 +191,11 @@ impl Volume {
     ) -> Result<EditReport, EditError> {
         if other.level != self.level {
             return Err(EditError::LevelMismatch);
+        }
+        // Its lists are read as a brush at its level: chunks stored at other levels would read as
+        // empty and be lost. (This volume may mix levels: an edit samples every chunk at its own.)
+        if !other.single_level() {
+            return Err(EditError::MixedLevels);
         }
         let shift = offset.as_dvec3();
         let mut report: Option<EditReport> = None;

@@ -9,11 +9,11 @@
 //! Cases default to 24; `PROPTEST_CASES=200 cargo test -p strata-volume --test level_changes
 //! --release` runs a longer search.
 
-use glam::{DVec3, I64Vec3};
+use glam::{DVec3, I64Vec3, IVec3};
 use proptest::prelude::*;
 use strata_volume::brush::{Brush, Cuboid, Sphere};
 use strata_volume::coords::edge_of;
-use strata_volume::{Axis, Chunk, ChunkKey, ChunkLists, CsgOp, EditSettings, Level, Volume, tools};
+use strata_volume::{Axis, Chunk, ChunkKey, ChunkLists, CsgOp, EditError, EditSettings, Level, Volume, tools};
 
 fn level(k: u8) -> Level {
     Level::new(k).unwrap()
@@ -557,4 +557,27 @@ fn raising_a_chunk_before_a_finer_one_takes_the_neighbour_nodes_on_its_last_face
     check_level_change(&raised, &v, key, down, "lower").unwrap();
     check_round_trip_bound(&before, &v, key).unwrap();
     assert!(v == before, "raise then lower is the identity here");
+}
+
+/// Merging (the studio's merge down) reads the other volume's lists through a brush: chunks
+/// stored at another level than the volume's were read as empty, and their solid was lost.
+#[test]
+fn merging_a_volume_with_chunks_at_other_levels_keeps_them_or_refuses() {
+    let mut upper = Volume::new();
+    upper.add(&Sphere::new(DVec3::new(8.0, 8.0, 8.0), 5.0).unwrap()).unwrap();
+    upper.add(&Sphere::new(DVec3::new(24.0, 8.0, 8.0), 5.0).unwrap()).unwrap();
+    let _ = upper.set_chunk_level(ChunkKey::new(1, 0, 0), Level::new(1).unwrap());
+    let mut lower = Volume::new();
+    match lower.merge_from(&upper, IVec3::ZERO, &EditSettings::default()) {
+        Ok(_) => {
+            lower.check_invariants().unwrap();
+            for x in [8, 24] {
+                assert!(lower.node_inside(I64Vec3::new(x, 8, 8)), "the ball at x = {x} was merged");
+            }
+        }
+        Err(e) => {
+            assert!(matches!(e, EditError::MixedLevels), "{e}");
+            assert_eq!(lower, Volume::new(), "a refused merge changes nothing");
+        }
+    }
 }
