@@ -910,6 +910,13 @@ fn a_view_message_goes_once_the_camera_moves_and_new_windows_get_their_second_fr
     h.key_press(egui::Key::F1);
     h.step();
     assert!(h.ctx.has_requested_repaint(), "the frame that opened the help asks for one more");
+    h.key_press(egui::Key::F1);
+    h.run();
+    // A notice that comes from no input (a background job failing): its first frame asks for
+    // the next, or the notice would show only once the pointer moves.
+    h.state_mut().studio.notice = Some("The large dab failed".into());
+    h.step();
+    assert!(h.ctx.has_requested_repaint(), "the frame that opened the notice asks for one more");
 }
 
 /// Queues a press and a release of the primary button at `at` (for one frame).
