@@ -47,8 +47,7 @@
 use std::collections::{HashMap, HashSet, hash_map};
 use std::fs;
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use strata_volume::{Chunk, ChunkKey, ChunkLists, ChunkMap, ChunkMaterials, Level, Volume};
@@ -737,98 +736,15 @@ pub fn is_valid(scene: &Scene) -> bool {
         && v.pitch.is_finite()
 }
 
-/// A name unique to one save (process, a counter, the time), for the temporary file beside
-/// `path`: `.NAME.PID-COUNTER-NANOS.strata-tmp`.
-pub fn temp_path(path: &Path) -> PathBuf {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let count = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
-    let mut name = std::ffi::OsString::from(".");
-    name.push(path.file_name().unwrap_or_default());
-    name.push(format!(".{}-{count}-{nanos}{TEMP_SUFFIX}", std::process::id()));
-    path.with_file_name(name)
-}
+pub use strata_mesh::atomic::{stale_temp_files, temp_path};
 
-const TEMP_SUFFIX: &str = ".strata-tmp";
-
-/// Temporary files of saves of `path` whose process is gone (killed mid-save), which the next
-/// save removes. Only files named by [`temp_path`] for this very target are considered, and only
-/// when their process no longer runs (on systems without `/proc`, when they are over an hour
-/// old), so a save in progress in another process is never disturbed.
-pub fn stale_temp_files(path: &Path) -> Vec<PathBuf> {
-    let Some(name) = path.file_name().and_then(|n| n.to_str()) else { return Vec::new() };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let prefix = format!(".{name}.");
-    let Ok(entries) = fs::read_dir(&dir) else { return Vec::new() };
-    let me = std::process::id();
-    let mut out = Vec::new();
-    for e in entries.flatten() {
-        let file = e.file_name();
-        let Some(file) = file.to_str() else { continue };
-        let Some(rest) = file.strip_prefix(&prefix).and_then(|r| r.strip_suffix(TEMP_SUFFIX)) else { continue };
-        let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else { continue };
-        if pid == me || rest.split('-').count() != 3 {
-            continue;
-        }
-        let gone = if Path::new("/proc/self").exists() {
-            !Path::new(&format!("/proc/{pid}")).exists()
-        } else {
-            e.metadata()
-                .and_then(|m| m.modified())
-                .ok()
-                .and_then(|t| t.elapsed().ok())
-                .is_some_and(|age| age > std::time::Duration::from_secs(3600))
-        };
-        if gone {
-            out.push(e.path());
-        }
-    }
-    out
-}
-
-/// Writes through `write` into a temporary file beside `path` (see [`temp_path`]), syncs it,
-/// renames it over `path` and syncs the folder. If anything fails, the temporary file is
-/// removed and `path` is untouched. Stale temporary files of earlier, killed saves of `path`
-/// are removed first.
+/// Writes through `write` into a temporary file beside `path`, syncs it, renames it over `path`
+/// and syncs the folder ([`strata_mesh::atomic::write_atomically`], which every file Strata
+/// writes goes through). If anything fails, the temporary file is removed and `path` is
+/// untouched.
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut fs::File) -> io::Result<()>,
 ) -> Result<(), SceneFileError> {
-    for stale in stale_temp_files(path) {
-        let _ = fs::remove_file(stale);
-    }
-    let tmp = temp_path(path);
-    let result = (|| {
-        let mut f = fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-        write(&mut f)?;
-        f.sync_all()?;
-        drop(f);
-        fs::rename(&tmp, path)?;
-        sync_parent(path)
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    Ok(result?)
-}
-
-/// Syncs the folder holding `path`, so a rename into it survives a power cut.
-fn sync_parent(path: &Path) -> io::Result<()> {
-    #[cfg(unix)]
-    {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        fs::File::open(dir)?.sync_all()
-    }
-    #[cfg(not(unix))]
-    {
-        // Folders cannot be opened for syncing here; the rename itself is what the system offers.
-        let _ = path;
-        Ok(())
-    }
+    Ok(strata_mesh::atomic::write_atomically::<io::Error>(path, write)?)
 }

@@ -153,25 +153,17 @@ pub fn save_mesh_with(mesh: &Mesh, path: &Path, palette: &[ExportMaterial]) -> R
     })
 }
 
+/// Writes through `write` atomically (see [`crate::atomic`]), buffered.
 fn write_atomic(
     path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> Result<(), ExportError>,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), ExportError>,
 ) -> Result<(), ExportError> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("mesh");
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| -> Result<(), ExportError> {
-        let mut w = BufWriter::new(File::create(&tmp)?);
+    crate::atomic::write_atomically(path, |f| {
+        let mut w = BufWriter::new(f);
         write(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)?;
+        w.flush()?;
         Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    })
 }
 
 /// Writes `mesh` in `format`.

@@ -29,6 +29,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod atomic;
 mod cache;
 mod cases;
 pub mod checks;

@@ -87,7 +87,7 @@ impl Image {
         [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
     }
 
-    /// Encodes as PNG and writes it atomically (temporary file beside `path`, then rename).
+    /// Encodes as PNG and writes it atomically ([`strata_mesh::atomic::write_atomically`]).
     pub fn save_png(&self, path: &Path) -> Result<(), RenderError> {
         let mut bytes = Vec::new();
         {
@@ -97,14 +97,7 @@ impl Image {
             let mut w = enc.write_header().map_err(|e| RenderError::Png(e.to_string()))?;
             w.write_image_data(&self.rgba).map_err(|e| RenderError::Png(e.to_string()))?;
         }
-        let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
-        name.push(".tmp");
-        let tmp = path.with_file_name(name);
-        std::fs::write(&tmp, &bytes)?;
-        std::fs::rename(&tmp, path).inspect_err(|_| {
-            let _ = std::fs::remove_file(&tmp);
-        })?;
-        Ok(())
+        strata_mesh::atomic::write_atomically::<RenderError>(path, |f| Ok(std::io::Write::write_all(f, &bytes)?))
     }
 }
 
