@@ -270,8 +270,8 @@ fn cells3(v: f64) -> String {
 /// Exports the chosen layers of the scene at `scene` as one mesh at `out`. Returns a report.
 /// With `remove_islands`, the pieces of each layer's mesh enclosing less than that many cells³
 /// are dropped first ([`strata_mesh::islands`]); with `simplify`, the welded mesh is then
-/// simplified by meshoptimizer within that many cells and keeps the mesher's normals. The
-/// result is welded (vertices equal in position, normal and material merged).
+/// simplified by meshoptimizer within that many cells, keeps the mesher's normals and is welded
+/// (vertices equal in position, normal and material merged).
 pub fn export(
     scene: &Path,
     out: &Path,
@@ -306,7 +306,10 @@ pub fn export(
     // (the surface's, from the stored crossings) on welded vertices.
     let dual = matches!(mesher, Mesher::Dc | Mesher::Dc1);
     let mesh = if dual || simplify.is_some() { mesh } else { crease_normals(&mesh, DEFAULT_CREASE_DEGREES) };
-    let mesh = mesh.welded();
+    // (Only a simplified mesh can carry vertices equal in everything: the meshers weld theirs,
+    // and creased normals split vertices on purpose. A weld of every export would cost a hash
+    // map of all its vertices, hundreds of MiB for the bunny at 1,024 cells.)
+    let mesh = if simplify.is_some() { mesh.welded() } else { mesh };
     meshing.finish_and_clear();
     if mesh.indices.is_empty() {
         bail!("{}: the chosen layers hold no surface to export", scene.display());
