@@ -786,6 +786,22 @@ fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_o
     assert!(h.get_by_label("Path:").is_focused(), "Ctrl+O ends in the typed prompt");
     enter_path(&mut h, &path);
     assert_eq!(h.state().studio.path.as_deref(), Some(path.as_path()), "the typed path opened");
+
+    // Import, Export and New world from their menus, each with a slow frame after the click.
+    for (menu, item) in [
+        ("File", "Import mesh… (PLY, OBJ, STL, glTF)"),
+        ("File", "Export mesh… (glb, obj, stl, ply)"),
+        ("Terrain", "New world…"),
+    ] {
+        let mut h = harness_with(&dir, default_scene(), no_portal());
+        h.run();
+        h.get_by_label(menu).click();
+        h.run();
+        h.get_by_label(item).click();
+        h.step();
+        slow_frame(&mut h);
+        assert!(h.get_by_label("Path:").is_focused(), "{menu} > {item} ends in the typed prompt");
+    }
 }
 
 #[test]
