@@ -13,7 +13,7 @@
 use glam::DVec3;
 
 use super::ops::{Dab, ToolError, falloff, finite};
-use super::region::{Reach, Region};
+use super::region::{Reach, Region, RowSpans};
 use crate::edit::EditReport;
 use crate::volume::Volume;
 
@@ -25,17 +25,24 @@ pub const MAX_STEP: f64 = 0.3;
 pub const MAX_STEPS: usize = 100_000;
 
 /// Moves `region`'s surface by `steps` maps `x → x + δ(k, x)` (grid units, see the module
-/// docs) and writes it back.
+/// docs) and writes it back. `moved` bounds where any step moves a point: within the distance
+/// `moved.2` of the segment from `moved.0` to `moved.1`.
 fn deform(
     volume: &mut Volume,
     mut region: Region,
+    moved: (DVec3, DVec3, f64),
     steps: usize,
     delta: impl Fn(usize, DVec3) -> DVec3,
 ) -> Result<EditReport, ToolError> {
     let d = region.dims;
+    // Nodes farther than `moved.2` from the segment `moved.0`–`moved.1` (grid units) no step
+    // moves: they keep weight 0.
+    let inv_sp = 1.0 / region.spacing();
+    let spans = RowSpans::near_segment(region.origin, d, moved.0 * inv_sp, moved.1 * inv_sp, moved.2 * inv_sp + 1.0);
     for z in 0..d[2] {
         for y in 0..d[1] {
-            for x in 0..d[0] {
+            let (x0, x1) = spans.row(y, z);
+            for x in x0..x1 {
                 let p = region.grid_point(x, y, z);
                 let mut q = p;
                 for k in (0..steps).rev() {
@@ -93,7 +100,7 @@ pub fn grab(volume: &mut Volume, dab: &Dab, drag: DVec3) -> Result<EditReport, T
     )?;
     let step = travel / steps as f64;
     let (c0, radius, r2) = (dab.center, dab.radius, dab.radius * dab.radius);
-    deform(volume, region, steps, |k, q| {
+    deform(volume, region, (c0, c0 + travel, radius), steps, |k, q| {
         let c = c0 + step * k as f64;
         let off = q - c;
         let d2 = off.length_squared();
@@ -132,7 +139,7 @@ pub fn pinch(volume: &mut Volume, dab: &Dab, axis: Option<DVec3>, amount: f64) -
     let steps = step_count(0.45 * pull.abs() * dab.radius, dab.radius, sp)?.max((4.0 * pull.abs()).ceil() as usize);
     let per = pull / steps as f64;
     let (c, radius, r2) = (dab.center, dab.radius, dab.radius * dab.radius);
-    deform(volume, region, steps, move |_, q| {
+    deform(volume, region, (c, c, radius), steps, move |_, q| {
         let off = q - c;
         let d2 = off.length_squared();
         if d2 >= r2 { DVec3::ZERO } else { across(-off) * (per * falloff(d2.sqrt() / radius)) }

@@ -8,7 +8,7 @@
 use glam::DVec3;
 use thiserror::Error;
 
-use super::region::{Reach, Region, RegionError};
+use super::region::{Reach, Region, RegionError, RowSpans};
 use crate::edit::EditReport;
 use crate::volume::Volume;
 
@@ -73,9 +73,15 @@ impl Dab {
         let r = DVec3::splat(self.radius);
         let reach = Reach::ball(self.center, self.radius, depth);
         let mut region = volume.read_region_within(self.center - r, self.center + r, apron, reach)?;
+        // The weight is 0 beyond the radius: only the rows' spans of the ball (a node wider, so
+        // no rounding of a span's ends loses a node) are weighed.
+        let inv_sp = 1.0 / region.spacing();
+        let c = self.center * inv_sp;
+        let ball = RowSpans::near_segment(region.origin, region.dims, c, c, self.radius * inv_sp + 1.0);
         for z in 0..region.dims[2] {
             for y in 0..region.dims[1] {
-                for x in 0..region.dims[0] {
+                let (x0, x1) = ball.row(y, z);
+                for x in x0..x1 {
                     let i = region.index(x, y, z);
                     region.weight[i] = self.weight(region.grid_point(x, y, z)) as f32;
                 }
@@ -180,11 +186,22 @@ pub fn smooth(volume: &mut Volume, dab: &Dab, method: Smoothing, passes: u32) ->
     if method == Smoothing::VolumePreserving {
         // The offset δ (node units, times the weight) that restores the enclosed volume, by
         // bisection: the volume grows monotonically with δ.
-        let pairs: Vec<(f32, f32)> = active.iter().map(|&i| (region.phi[i], region.weight[i])).collect();
+        // Only nodes an offset within the bisection's bracket can bring within half a cell of
+        // the surface count differently for different offsets; the rest count 0 or 1 always.
         let (mut lo, mut hi) = (-4.0f32, 4.0f32);
+        let mut solid = 0.0f64;
+        let mut pairs: Vec<(f32, f32)> = Vec::new();
+        for &i in &active {
+            let (p, w) = (region.phi[i], region.weight[i]);
+            if p + hi * w <= -0.5 {
+                solid += 1.0;
+            } else if p - hi * w < 0.5 {
+                pairs.push((p, w));
+            }
+        }
         for _ in 0..24 {
             let mid = 0.5 * (lo + hi);
-            if enclosed(pairs.iter().map(|&(p, w)| p - mid * w)) < before {
+            if solid + enclosed(pairs.iter().map(|&(p, w)| p - mid * w)) < before {
                 lo = mid;
             } else {
                 hi = mid;
