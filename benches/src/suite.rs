@@ -592,7 +592,7 @@ pub fn markdown(r: &SuiteResults) -> String {
     let t = &r.tools;
     let _ = writeln!(
         s,
-        "\n### Table 6 — sculpting tools\n\n{} dabs per tool and radius on the surface of a canvas of {} radius-10 Table 1 instructions, with the studio's defaults (strength 0.5, 4 smoothing passes, inflate 0.2 r, pinch 0.5, clay fillet 0.5 r, grab 0.25 r per frame). A tool runs on one thread; the whole frame adds the remesh of the affected chunks, on one thread or on all cores. Targets, one thread: whole frame ≤ 4 ms at radius 10 and ≤ 11.1 ms at radius 20.\n",
+        "\n### Table 6 — sculpting tools\n\n{} dabs per tool and radius on the surface of a canvas of {} radius-10 Table 1 instructions, with the studio's defaults (strength 0.5, 4 smoothing passes, inflate 0.2 r, pinch 0.5, clay fillet 0.5 r, grab 0.25 r per frame). The dab column is the tool on one thread; the whole frame adds the remesh of the affected chunks, the dab and the remesh both on one thread or both on all cores (a dab's chunks and its band run in parallel there). Targets, one thread: whole frame ≤ 4 ms at radius 10 and ≤ 11.1 ms at radius 20.\n",
         t.dabs, r.config.tool_canvas
     );
     let _ = writeln!(

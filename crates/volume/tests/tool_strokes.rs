@@ -119,3 +119,36 @@ proptest! {
         prop_assert!(v == before, "undoing the stroke of tool {} did not give the volume back", tool);
     }
 }
+
+/// A dab's chunks and its band run in parallel where there are several threads: every tool's
+/// strokes give the same volume, bit for bit, on one thread and on four.
+#[test]
+fn every_tool_gives_the_same_volume_on_one_thread_and_on_four() {
+    let shapes = [(0u8, [96, 100, 104], 60), (1, [130, 96, 110], 40), (2, [110, 120, 100], 40)];
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+    for tool in 0..TOOLS {
+        for (r, fine) in [(12.0, vec![]), (20.0, vec![(0u8, 1u8)])] {
+            let run = |pool: &rayon::ThreadPool| {
+                pool.install(|| {
+                    let mut v = scene(&shapes, &fine);
+                    let dir = DVec3::new(0.6, 0.8, 0.0);
+                    let mut changed = Vec::new();
+                    for k in 0..4 {
+                        let c = DVec3::new(24.0, 25.0, 14.0) + dir * (k as f64 * 0.25 * r);
+                        let dab = Dab { material: 1, ..Dab::new(c, r, 0.5).unwrap() };
+                        changed.push(dab_of(&mut v, tool, &dab, dir).changed);
+                    }
+                    (v, changed)
+                })
+            };
+            let (a, b) = (run(&one), run(&four));
+            assert!(
+                a.1.iter().any(|c| !c.is_empty()),
+                "tool {tool} at radius {r} changed nothing: a test that cannot fail"
+            );
+            assert_eq!(a.1, b.1, "tool {tool} at radius {r}: the changed chunks differ");
+            assert!(a.0 == b.0, "tool {tool} at radius {r}: the volumes differ between one thread and four");
+        }
+    }
+}

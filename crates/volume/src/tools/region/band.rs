@@ -4,6 +4,8 @@
 
 use glam::{DVec3, I64Vec3};
 
+use rayon::prelude::*;
+
 use super::BAND;
 use super::read::RowSpans;
 
@@ -44,22 +46,78 @@ pub(super) fn band(
         plane: vec![f32::INFINITY; count],
         nearest: if with_nearest { vec![u32::MAX; count] } else { Vec::new() },
     };
+    let kept: Vec<u32> = (0..samples.len() as u32).filter(|&k| !skip(samples[k as usize].0)).collect();
+    // Slabs of z planes, each written by the crossings whose balls reach it, in the crossings'
+    // order: the same values whatever the slabs, so on several cores the slabs run in parallel.
+    let threads = rayon::current_num_threads();
+    let planes = if threads > 1 && count >= PARALLEL_NODES { dims[2].div_ceil(threads * 4).max(1) } else { dims[2] };
+    let plane_len = dims[0] * dims[1];
+    let mut slabs = Vec::new();
+    let (mut near2, mut lateral2, mut plane) = (&mut out.near2[..], &mut out.lateral2[..], &mut out.plane[..]);
+    let mut nearest = &mut out.nearest[..];
+    let mut z = 0;
+    while z < dims[2] {
+        let end = (z + planes).min(dims[2]);
+        let len = (end - z) * plane_len;
+        let (a, rest) = std::mem::take(&mut near2).split_at_mut(len);
+        near2 = rest;
+        let (b, rest) = std::mem::take(&mut lateral2).split_at_mut(len);
+        lateral2 = rest;
+        let (c, rest) = std::mem::take(&mut plane).split_at_mut(len);
+        plane = rest;
+        let (d, rest) = std::mem::take(&mut nearest).split_at_mut(if with_nearest { len } else { 0 });
+        nearest = rest;
+        slabs.push(Slab { z: z..end, near2: a, lateral2: b, plane: c, nearest: d });
+        z = end;
+    }
+    let fill = |slab: Slab<'_>| fill_slab(slab, samples, &kept, origin, dims, spans, with_nearest);
+    if slabs.len() > 1 {
+        slabs.into_par_iter().for_each(fill);
+    } else {
+        slabs.into_iter().for_each(fill);
+    }
+    out
+}
+
+/// Band reads of at least this many nodes split into slabs on several cores.
+const PARALLEL_NODES: usize = 1 << 15;
+
+/// The z planes `z` of a band's arrays.
+struct Slab<'a> {
+    z: std::ops::Range<usize>,
+    near2: &'a mut [f32],
+    lateral2: &'a mut [f32],
+    plane: &'a mut [f32],
+    /// Empty unless the nearest crossings are asked for.
+    nearest: &'a mut [u32],
+}
+
+/// The band of the `kept` samples in one slab (see [`band`]).
+fn fill_slab(
+    slab: Slab<'_>,
+    samples: &[(DVec3, DVec3)],
+    kept: &[u32],
+    origin: I64Vec3,
+    dims: [usize; 3],
+    spans: &RowSpans,
+    with_nearest: bool,
+) {
+    let Slab { z: planes, near2, lateral2, plane, nearest } = slab;
+    let first_row = planes.start * dims[1];
     let b2 = (BAND * BAND) as f32;
-    for (k, &(p, nrm)) in samples.iter().enumerate() {
-        if skip(p) {
-            continue;
-        }
+    for &k in kept {
+        let (p, nrm) = samples[k as usize];
         // The nodes of the ball of radius BAND about the crossing, row by row (a row's x range
         // from what is left of the radius), so no node outside it is visited. Offsets from the
         // crossing are small: single precision holds them to a millionth of a node.
         let local = p - origin.as_dvec3();
         let (lx, ly, lz) = (local.x as f32, local.y as f32, local.z as f32);
         let n = nrm.as_vec3();
-        let z0 = (local.z - BAND).ceil().max(0.0) as usize;
-        let z1 = (local.z + BAND).floor().min(dims[2] as f64 - 1.0);
+        let z0 = (local.z - BAND).ceil().max(planes.start as f64) as usize;
+        let z1 = (local.z + BAND).floor().min(planes.end as f64 - 1.0);
         let y0 = (local.y - BAND).ceil().max(0.0) as usize;
         let y1 = (local.y + BAND).floor().min(dims[1] as f64 - 1.0);
-        if z1 < 0.0 || y1 < 0.0 {
+        if z1 < z0 as f64 || y1 < 0.0 {
             continue;
         }
         // The x lanes of the ball: from the first node within BAND below the crossing, when all
@@ -81,7 +139,7 @@ pub(super) fn band(
                     continue;
                 }
                 let along_yz = n.y * dy + n.z * dz;
-                let row = (y + dims[1] * z) * dims[0];
+                let row = (y + dims[1] * z - first_row) * dims[0];
                 let (slo, shi) = spans.row(y, z);
                 if let (Some(xb), false) = (full_width, with_nearest) {
                     // Eight lanes from `xb` (all inside the row), the ball's and the span's
@@ -89,11 +147,11 @@ pub(super) fn band(
                     // compiler vectorises, instead of a short loop per row.
                     let base = row + xb;
                     let (slo, shi) = (slo as f32, shi as f32);
-                    let near2: &mut [f32; LANES] = (&mut out.near2[base..base + LANES]).try_into().expect("lanes");
-                    let lateral2: &mut [f32; LANES] =
-                        (&mut out.lateral2[base..base + LANES]).try_into().expect("lanes");
-                    let plane: &mut [f32; LANES] = (&mut out.plane[base..base + LANES]).try_into().expect("lanes");
-                    let (mut nd, mut la, mut pl) = (*near2, *lateral2, *plane);
+                    let lane_near2: &mut [f32; LANES] = (&mut near2[base..base + LANES]).try_into().expect("lanes");
+                    let lane_lateral2: &mut [f32; LANES] =
+                        (&mut lateral2[base..base + LANES]).try_into().expect("lanes");
+                    let lane_plane: &mut [f32; LANES] = (&mut plane[base..base + LANES]).try_into().expect("lanes");
+                    let (mut nd, mut la, mut pl) = (*lane_near2, *lane_lateral2, *lane_plane);
                     for j in 0..LANES {
                         let (x, dx) = (lane_x[j], lane_dx[j]);
                         let held = (dx * dx <= left) & (x >= slo) & (x < shi);
@@ -105,7 +163,7 @@ pub(super) fn band(
                         la[j] = if better { l2 } else { la[j] };
                         pl[j] = if better { along.abs() } else { pl[j] };
                     }
-                    (*near2, *lateral2, *plane) = (nd, la, pl);
+                    (*lane_near2, *lane_lateral2, *lane_plane) = (nd, la, pl);
                     continue;
                 }
                 let half = left.sqrt();
@@ -115,23 +173,22 @@ pub(super) fn band(
                     let i = row + x;
                     let dx = x as f32 - lx;
                     let d2 = dx * dx + dyz2;
-                    if d2 < out.near2[i] {
-                        out.near2[i] = d2;
+                    if d2 < near2[i] {
+                        near2[i] = d2;
                         if with_nearest {
-                            out.nearest[i] = k as u32;
+                            nearest[i] = k;
                         }
                     }
                     let along = n.x * dx + along_yz;
                     let l2 = d2 - along * along;
-                    if l2 < out.lateral2[i] {
-                        out.lateral2[i] = l2;
-                        out.plane[i] = along.abs();
+                    if l2 < lateral2[i] {
+                        lateral2[i] = l2;
+                        plane[i] = along.abs();
                     }
                 }
             }
         }
     }
-    out
 }
 
 /// Propagates each node's nearest crossing (`nearest`, with its distance `dist`) to the

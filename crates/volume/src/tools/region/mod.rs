@@ -178,17 +178,6 @@ impl Region {
     pub fn was_inside(&self, i: usize) -> bool {
         self.original[i] < 0.0
     }
-
-    /// The region-local coordinates of a node (level units), if it is in the region.
-    #[inline]
-    fn local(&self, g: I64Vec3) -> Option<usize> {
-        let l = g - self.origin;
-        if l.min_element() < 0 {
-            return None;
-        }
-        let (x, y, z) = (l.x as usize, l.y as usize, l.z as usize);
-        (x < self.dims[0] && y < self.dims[1] && z < self.dims[2]).then(|| self.index(x, y, z))
-    }
 }
 
 /// Where a region's field has to be a distance: the rest of its box reads [`FAR`] with the

@@ -1,6 +1,7 @@
 //! Writing a region back as an ordinary edit.
 
 use glam::{DVec3, I64Vec3, IVec3};
+use rayon::prelude::*;
 
 use super::{Region, RegionError};
 use crate::axis::{Axis, compose};
@@ -9,6 +10,9 @@ use crate::coords::{ChunkKey, Level, quantize_into_edge};
 use crate::edit::{EditReport, UndoRecord};
 use crate::normal::pack_normal;
 use crate::volume::Volume;
+
+/// Writes of at least this many chunks run in parallel where there are several threads.
+const PARALLEL_CHUNKS: usize = 4;
 
 /// The field a write takes from a region: the operator's where it owns the node (a positive
 /// weight, not on the region's outer layer), else the field as read.
@@ -95,8 +99,7 @@ impl Volume {
         // Chunk c holds nodes c n ..= c n + n along each line, so a node on a chunk plane is also
         // the last node of the chunk below.
         let (klo, khi) = ((lo - I64Vec3::ONE).div_euclid(I64Vec3::splat(n)), hi.div_euclid(I64Vec3::splat(n)));
-        let mut builder = ChunkBuilder::default();
-        let mut results = Vec::new();
+        let mut jobs = Vec::new();
         for kz in klo.z..=khi.z {
             for ky in klo.y..=khi.y {
                 for kx in klo.x..=khi.x {
@@ -112,13 +115,22 @@ impl Volume {
                     }
                     let stride = 1i64 << (level.get() - chunk_level.get());
                     let base = I64Vec3::new(kx, ky, kz) * n;
-                    let at = Stride { base, level: chunk_level, stride };
-                    if let Some(built) = rewrite_chunk(self.view(key), at, &written, (lo, hi), &mut builder) {
-                        results.push((key, built));
-                    }
+                    jobs.push((key, Stride { base, level: chunk_level, stride }));
                 }
             }
         }
+        // Chunks are rewritten independently; on several cores, a dab's chunks in parallel
+        // (the results, in the same order, are the same whatever the thread count).
+        let this = &*self;
+        let rewrite = |b: &mut ChunkBuilder, &(key, at): &(ChunkKey, Stride)| {
+            rewrite_chunk(this.view(key), at, &written, (lo, hi), b).map(|built| (key, built))
+        };
+        let results: Vec<(ChunkKey, Built)> = if jobs.len() >= PARALLEL_CHUNKS && rayon::current_num_threads() > 1 {
+            jobs.par_iter().map_init(ChunkBuilder::default, rewrite).flatten().collect()
+        } else {
+            let mut builder = ChunkBuilder::default();
+            jobs.iter().filter_map(|job| rewrite(&mut builder, job)).collect()
+        };
         for (key, built) in results {
             let previous = match built.into_chunk() {
                 Some(c) => self.chunks.insert(key, c),
@@ -186,12 +198,20 @@ fn rewrite_chunk(
                 let line = cursor.next_line();
                 old_line.load(line, level);
                 new_line.states = old_line.states;
-                // Per node of the line: its region index if the operator owns it.
+                // Per node of the line: its region index if the operator owns it. (The line
+                // crosses the owned box, which lies inside the region: only its nodes along
+                // the axis can fall outside.)
                 let mut ids = [usize::MAX; crate::chunk::MAX_NODES];
-                let step = axis.unit_i64() * stride;
+                let local = g0 - region.origin;
+                let d = region.dims;
+                let steps = [1, d[0], d[0] * d[1]];
+                let cross =
+                    local[ua.index()] as usize * steps[ua.index()] + local[va.index()] as usize * steps[va.index()];
                 let mut any = false;
                 for (j, id) in ids.iter_mut().enumerate().take(n + 1) {
-                    if let Some(i) = region.local(g0 + step * j as i64) {
+                    let t = local[a] + stride * j as i64;
+                    if t >= 0 && (t as usize) < d[a] {
+                        let i = cross + t as usize * steps[a];
                         *id = i;
                         if written.owned[i] {
                             any = true;
