@@ -17,7 +17,7 @@ pub mod terrain;
 
 pub use app::{DialogRequest, DialogService, Dialogs, StudioApp, run_window};
 pub use headless::{screenshot, terrain_screenshot};
-pub use studio::{Action, ImportJob, Islands, PendingImport, Studio, default_scene};
+pub use studio::{Action, DEFAULT_CELL, ImportJob, Islands, PendingImport, Studio, default_scene};
 
 /// Every keyboard and mouse binding, as the help overlay (F1) lists them.
 pub const SHORTCUTS: &[(&str, &str)] = &[

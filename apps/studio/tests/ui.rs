@@ -450,6 +450,36 @@ fn a_stroke_through_the_pointer_sculpts_and_ctrl_z_takes_it_back() {
     assert!(h.state().studio.editor.scene.layers[0].volume == before, "Ctrl+Z undid the stroke");
 }
 
+/// Every tool, picked by its key, strokes the ball at a radius of 20 cells (issue 29: the
+/// radius the frame targets are set for), and each stroke is one undo step.
+#[test]
+fn a_stroke_of_every_tool_at_radius_20_sculpts() {
+    let dir = temp("radius20");
+    let mut h = harness(&dir);
+    h.run();
+    for (key, kind) in [
+        (egui::Key::C, ToolKind::Clay),
+        (egui::Key::S, ToolKind::Smooth),
+        (egui::Key::I, ToolKind::Inflate),
+        (egui::Key::T, ToolKind::Flatten),
+        (egui::Key::P, ToolKind::Pinch),
+        (egui::Key::G, ToolKind::Grab),
+        (egui::Key::A, ToolKind::Add),
+        (egui::Key::E, ToolKind::Erase),
+    ] {
+        h.key_press(key);
+        h.run();
+        assert_eq!(h.state().studio.editor.tool.kind, kind, "{key:?}");
+        h.state_mut().studio.editor.tool.radius = 20.0 * strata_studio::DEFAULT_CELL;
+        let steps = h.state().studio.editor.history().undo_len();
+        let before = h.state().studio.editor.scene.layers[0].volume.clone();
+        drag_over_the_ball(&mut h, 12);
+        let after = &h.state().studio.editor.scene.layers[0].volume;
+        assert!(*after != before, "{kind:?} at radius 20 sculpted nothing: {}", h.state().studio.message);
+        assert_eq!(h.state().studio.editor.history().undo_len(), steps + 1, "{kind:?}: one stroke, one step");
+    }
+}
+
 #[test]
 fn the_detail_tool_raises_the_resolution_where_it_is_dragged() {
     let dir = temp("detail");
