@@ -129,6 +129,19 @@ impl ReadBox {
         l.x as usize + self.dims[0] * (l.y as usize + self.dims[1] * l.z as usize)
     }
 
+    /// The chunks of level `level` whose own lines the line box may hold, with the node of
+    /// their node 0, in z, y, x order.
+    fn chunks(&self, level: Level) -> impl Iterator<Item = (ChunkKey, I64Vec3)> {
+        let n = level.cells() as i64;
+        let (lo, hi) = (self.lines_lo.div_euclid(I64Vec3::splat(n)), self.lines_hi.div_euclid(I64Vec3::splat(n)));
+        (lo.z..=hi.z).flat_map(move |z| {
+            (lo.y..=hi.y).flat_map(move |y| {
+                (lo.x..=hi.x)
+                    .map(move |x| (ChunkKey(IVec3::new(x as i32, y as i32, z as i32)), I64Vec3::new(x, y, z) * n))
+            })
+        })
+    }
+
     #[inline]
     fn holds_node(&self, g: I64Vec3) -> bool {
         let l = g - self.origin;
@@ -308,26 +321,19 @@ impl Volume {
         let count = at.dims.iter().product();
         let mut g = Gathered { inside: vec![false; count], samples: Vec::new(), axes: Vec::new() };
         let n = level.cells() as i64;
-        let (klo, khi) = (at.lines_lo.div_euclid(I64Vec3::splat(n)), at.lines_hi.div_euclid(I64Vec3::splat(n)));
         let mut block = None;
-        for kz in klo.z..=khi.z {
-            for ky in klo.y..=khi.y {
-                for kx in klo.x..=khi.x {
-                    let key = ChunkKey(IVec3::new(kx as i32, ky as i32, kz as i32));
-                    let base = I64Vec3::new(kx, ky, kz) * n;
-                    match self.view(key) {
-                        ChunkView::Uniform(s) => {
-                            if s {
-                                for_own_nodes(at, base, n, |i, _| g.inside[i] = true);
-                            }
-                        }
-                        ChunkView::Lists(l) if l.level() == level => read_own_lines(l, base, at, &mut g),
-                        ChunkView::Lists(_) => {
-                            let block = block.get_or_insert_with(crate::VoxelBlock::default);
-                            if self.read_refined(key, level, block) {
-                                read_block(block, base, n, at, &mut g);
-                            }
-                        }
+        for (key, base) in at.chunks(level) {
+            match self.view(key) {
+                ChunkView::Uniform(s) => {
+                    if s {
+                        for_own_nodes(at, base, n, |i, _| g.inside[i] = true);
+                    }
+                }
+                ChunkView::Lists(l) if l.level() == level => read_own_lines(l, base, at, &mut g),
+                ChunkView::Lists(_) => {
+                    let block = block.get_or_insert_with(crate::VoxelBlock::default);
+                    if self.read_refined(key, level, block) {
+                        read_block(block, base, n, at, &mut g);
                     }
                 }
             }
@@ -454,36 +460,28 @@ mod tests {
         let count = at.dims.iter().product();
         let mut g = Gathered { inside: vec![false; count], samples: Vec::new(), axes: Vec::new() };
         let n = level.cells() as i64;
-        let (klo, khi) = (at.lines_lo.div_euclid(I64Vec3::splat(n)), at.lines_hi.div_euclid(I64Vec3::splat(n)));
         let mut block = crate::VoxelBlock::default();
-        for kz in klo.z..=khi.z {
-            for ky in klo.y..=khi.y {
-                for kx in klo.x..=khi.x {
-                    let key = ChunkKey(IVec3::new(kx as i32, ky as i32, kz as i32));
-                    let base = I64Vec3::new(kx, ky, kz) * n;
-                    match v.view(key) {
-                        ChunkView::Uniform(true) => for_own_nodes(at, base, n, |i, _| g.inside[i] = true),
-                        ChunkView::Uniform(false) => {}
-                        ChunkView::Lists(l)
-                            if l.level() == level
-                                && (v.single_level()
-                                    || crate::level::plain(&crate::level::LevelMap::stored(v), key)) =>
-                        {
-                            v.extract_block_into(key, &mut block);
-                            read_block(&block, base, n, at, &mut g);
-                        }
-                        ChunkView::Lists(l) if l.level() == level => {
-                            let mut d = crate::level::Dense::new(level);
-                            d.read_own(v.view(key));
-                            d.make_consistent();
-                            block.fill_from_dense(key, level, &d, 0);
-                            read_block(&block, base, n, at, &mut g);
-                        }
-                        ChunkView::Lists(_) => {
-                            if v.read_refined(key, level, &mut block) {
-                                read_block(&block, base, n, at, &mut g);
-                            }
-                        }
+        for (key, base) in at.chunks(level) {
+            match v.view(key) {
+                ChunkView::Uniform(true) => for_own_nodes(at, base, n, |i, _| g.inside[i] = true),
+                ChunkView::Uniform(false) => {}
+                ChunkView::Lists(l)
+                    if l.level() == level
+                        && (v.single_level() || crate::level::plain(&crate::level::LevelMap::stored(v), key)) =>
+                {
+                    v.extract_block_into(key, &mut block);
+                    read_block(&block, base, n, at, &mut g);
+                }
+                ChunkView::Lists(l) if l.level() == level => {
+                    let mut d = crate::level::Dense::new(level);
+                    d.read_own(v.view(key));
+                    d.make_consistent();
+                    block.fill_from_dense(key, level, &d, 0);
+                    read_block(&block, base, n, at, &mut g);
+                }
+                ChunkView::Lists(_) => {
+                    if v.read_refined(key, level, &mut block) {
+                        read_block(&block, base, n, at, &mut g);
                     }
                 }
             }
