@@ -69,8 +69,14 @@ impl Fbm {
     }
 }
 
-/// The columns of the last chunk footprint a thread computed: `(x, z, level)` and heights.
-type ColumnCache = Option<((i64, i64, u8), Vec<f64>)>;
+/// The columns of the last chunk footprint a thread computed: `(field, x, z, level)` and
+/// heights. The field's id is part of the key: two fields (two worlds, or a recipe changed and
+/// generated again) on one thread share the cache, and heights are the field's own.
+type ColumnCache = Option<((u64, i64, i64, u8), Vec<f64>)>;
+
+/// Ids of fields built so far ([`TerrainField::new`]; a clone keeps its field's id, and its
+/// recipe).
+static FIELDS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 thread_local! {
     static COLUMNS: RefCell<ColumnCache> = const { RefCell::new(None) };
@@ -79,6 +85,8 @@ thread_local! {
 /// A recipe made ready to evaluate: its noises built once.
 #[derive(Clone, Debug)]
 pub struct TerrainField {
+    /// Unique to this field and its clones: the column cache's key.
+    id: u64,
     recipe: Recipe,
     heights: Fbm,
     warp_x: Perlin,
@@ -95,6 +103,7 @@ impl TerrainField {
         let h = &recipe.heights;
         // Fractal sums of cave and overhang noise use lacunarity 2 and gain 1/2.
         Ok(TerrainField {
+            id: FIELDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             recipe: recipe.clone(),
             heights: Fbm::new(s, 1, h.octaves, h.wavelength, h.lacunarity, h.gain),
             warp_x: Perlin::new(s.wrapping_mul(0x9E37_79B9).wrapping_add(7001)),
@@ -206,7 +215,7 @@ impl TerrainField {
     fn with_columns<R>(&self, origin: I64Vec3, level: Level, f: impl FnOnce(&[f64]) -> R) -> R {
         COLUMNS.with(|cell| {
             let mut cache = cell.borrow_mut();
-            let key = (origin.x, origin.z, level.get());
+            let key = (self.id, origin.x, origin.z, level.get());
             if cache.as_ref().is_none_or(|(k, _)| *k != key) {
                 let n = level.cells();
                 let sp = level.spacing();

@@ -207,3 +207,38 @@ fn a_region_is_a_closed_solid_inside_its_box() {
     let again = one.install(|| strata_terrain::generate_region(&field, lo, hi, &done).unwrap());
     assert_eq!(postcard::to_allocvec(&again).unwrap(), postcard::to_allocvec(&v).unwrap());
 }
+
+/// The recipe random search found (CI, stop 36), generated right after another recipe's chunk
+/// of the same footprint on the same thread, as a shrinking proptest run does: the chunk at
+/// (-18, -1, -10) and its +x, +y, +z neighbours keep the invariants and the density's sign.
+/// (The thread's column cache was keyed by the footprint alone, so the second field took the
+/// first one's heights; it fails without the field's id in the key.)
+#[test]
+fn the_recipe_found_by_random_search_keeps_the_invariants() {
+    let mut r = Recipe::with_seed(4277352220);
+    (r.heights.base, r.heights.amplitude, r.heights.wavelength, r.heights.octaves, r.heights.ridged) =
+        (12.868530093032545, 11.344729476576969, 149.78638527459023, 3, 0.8515657763144565);
+    (r.warp.amplitude, r.warp.wavelength) = (14.22378259929941, 32.098296271567506);
+    (r.overhangs.amplitude, r.overhangs.wavelength, r.overhangs.octaves) = (12.343739085684154, 38.30865213202071, 1);
+    (r.caves.strength, r.caves.threshold, r.caves.wavelength, r.caves.floor) =
+        (42.39315324929771, 0.6530896948419734, 31.535043143971127, -25.176843192793953);
+    let (x, y, z) = (-18, -1, -10);
+    let keys = vec![
+        ChunkKey::new(x, y, z),
+        ChunkKey::new(x + 1, y, z),
+        ChunkKey::new(x, y + 1, z),
+        ChunkKey::new(x, y, z + 1),
+    ];
+    for seed in 0..8u32 {
+        let mut other = r.clone();
+        other.seed = seed;
+        other.heights.base = -20.0 + 5.0 * seed as f64;
+        let _ = generate(&TerrainField::new(&other).unwrap(), &keys[..1], Level::BASE);
+        let field = TerrainField::new(&r).unwrap();
+        let v = generate(&field, &keys, Level::BASE);
+        if let Err(e) = v.check_invariants_within(&|k| keys.contains(&k)) {
+            panic!("after a recipe of seed {seed}: {e}");
+        }
+        check_nodes(&field, &v, keys[0], Level::BASE);
+    }
+}
