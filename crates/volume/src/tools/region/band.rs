@@ -6,8 +6,8 @@ use glam::{DVec3, I64Vec3};
 
 use rayon::prelude::*;
 
-use super::BAND;
 use super::read::RowSpans;
+use super::{BAND, RegionCrossing};
 
 /// The width of the band's fixed-width rows: the 7 nodes a ball of radius [`BAND`] spans along x,
 /// and one more.
@@ -20,19 +20,19 @@ pub(super) struct Band {
     pub(super) near2: Vec<f32>,
     pub(super) lateral2: Vec<f32>,
     pub(super) plane: Vec<f32>,
-    /// The nearest crossing's index in the samples (`u32::MAX`: none), when asked for; else
+    /// The nearest crossing's index in the crossings (`u32::MAX`: none), when asked for; else
     /// empty.
     pub(super) nearest: Vec<u32>,
 }
 
-/// The band of `samples` (points in node units, unit normals) over the nodes `spans` holds of
-/// the region at `origin` with `dims` (the rest stay infinite), leaving out the samples `skip`
+/// The band of `crossings` (points in node units, unit normals) over the nodes `spans` holds of
+/// the region at `origin` with `dims` (the rest stay infinite), leaving out the crossings `skip`
 /// refuses. On a smooth surface the crossing whose normal line passes closest to a node sits
 /// near the node's foot point, so its plane's distance is the surface's to a small fraction of a
 /// cell; where no normal line passes near, at edges and corners, the distance to the nearest
 /// crossing is used instead (see the read).
 pub(super) fn band(
-    samples: &[(DVec3, DVec3)],
+    crossings: &[RegionCrossing],
     skip: impl Fn(DVec3) -> bool,
     origin: I64Vec3,
     dims: [usize; 3],
@@ -46,7 +46,7 @@ pub(super) fn band(
         plane: vec![f32::INFINITY; count],
         nearest: if with_nearest { vec![u32::MAX; count] } else { Vec::new() },
     };
-    let kept: Vec<u32> = (0..samples.len() as u32).filter(|&k| !skip(samples[k as usize].0)).collect();
+    let kept: Vec<u32> = (0..crossings.len() as u32).filter(|&k| !skip(crossings[k as usize].point)).collect();
     // Slabs of z planes, each written by the crossings whose balls reach it, in the crossings'
     // order: the same values whatever the slabs, so on several cores the slabs run in parallel.
     let threads = rayon::current_num_threads();
@@ -70,7 +70,7 @@ pub(super) fn band(
         slabs.push(Slab { z: z..end, near2: a, lateral2: b, plane: c, nearest: d });
         z = end;
     }
-    let fill = |slab: Slab<'_>| fill_slab(slab, samples, &kept, origin, dims, spans, with_nearest);
+    let fill = |slab: Slab<'_>| fill_slab(slab, crossings, &kept, origin, dims, spans, with_nearest);
     if slabs.len() > 1 {
         slabs.into_par_iter().for_each(fill);
     } else {
@@ -92,10 +92,10 @@ struct Slab<'a> {
     nearest: &'a mut [u32],
 }
 
-/// The band of the `kept` samples in one slab (see [`band`]).
+/// The band of the `kept` crossings in one slab (see [`band`]).
 fn fill_slab(
     slab: Slab<'_>,
-    samples: &[(DVec3, DVec3)],
+    crossings: &[RegionCrossing],
     kept: &[u32],
     origin: I64Vec3,
     dims: [usize; 3],
@@ -106,7 +106,7 @@ fn fill_slab(
     let first_row = planes.start * dims[1];
     let b2 = (BAND * BAND) as f32;
     for &k in kept {
-        let (p, nrm) = samples[k as usize];
+        let RegionCrossing { point: p, normal: nrm, .. } = crossings[k as usize];
         // The nodes of the ball of radius BAND about the crossing, row by row (a row's x range
         // from what is left of the radius), so no node outside it is visited. Offsets from the
         // crossing are small: single precision holds them to a millionth of a node.

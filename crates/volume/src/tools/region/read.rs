@@ -4,7 +4,9 @@
 use glam::{DVec3, I64Vec3, IVec3};
 
 use super::band::{Band, band, grow_nearest, sweep_nearest};
-use super::{BAND, FAR, GROW_LAYERS, MAX_LATERAL, MAX_REGION_NODES, MIN_DISTANCE, Reach, Region, RegionError};
+use super::{
+    BAND, FAR, GROW_LAYERS, MAX_LATERAL, MAX_REGION_NODES, MIN_DISTANCE, Reach, Region, RegionCrossing, RegionError,
+};
 use crate::axis::{Axis, compose};
 use crate::chunk::{ChunkLists, ChunkView, node_mask};
 use crate::coords::{ChunkKey, Level, edge_of};
@@ -104,11 +106,10 @@ pub(crate) fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 }
 
 /// What a region read gathers from the chunks: node states, and the stored crossings near the
-/// box as (point in node units, unit normal) with their axes.
+/// box (points in node units, unit normals).
 struct Gathered {
     inside: Vec<bool>,
-    samples: Vec<(DVec3, DVec3)>,
-    axes: Vec<Axis>,
+    crossings: Vec<RegionCrossing>,
 }
 
 /// The box a read gathers from, in node coordinates of its level: node states of `states`
@@ -212,7 +213,7 @@ impl Volume {
             lines_lo: origin - I64Vec3::splat(band_nodes),
             lines_hi: top + I64Vec3::splat(band_nodes),
         };
-        let Gathered { inside, samples, axes } = self.gather(level, &at);
+        let Gathered { inside, crossings } = self.gather(level, &at);
 
         let reach_nodes = reach.in_nodes(inv_sp, apron as f64);
         let (needed, mode) = match reach_nodes {
@@ -248,14 +249,15 @@ impl Volume {
             _ => false,
         };
         let Band { near2, lateral2, plane, mut nearest } =
-            band(&samples, skip, origin, dims, swept.as_ref().unwrap_or(&needed), mode != Mode::Band);
+            band(&crossings, skip, origin, dims, swept.as_ref().unwrap_or(&needed), mode != Mode::Band);
         // The distance to the nearest crossing: from the band, and beyond it by propagating each
         // node's nearest crossing to its neighbours (a closest-point transform; the crossings lie
         // about a cell apart, so far from the surface this is the distance to it within a small
         // fraction of a cell).
         // (The band alone needs no distance array: its squared distances are rooted per node.)
         let mut dist: Vec<f64> = Vec::new();
-        let points: Vec<DVec3> = if mode == Mode::Band { Vec::new() } else { samples.iter().map(|s| s.0).collect() };
+        let points: Vec<DVec3> =
+            if mode == Mode::Band { Vec::new() } else { crossings.iter().map(|c| c.point).collect() };
         if mode != Mode::Band {
             dist = near2.iter().map(|&d| (d as f64).sqrt()).collect();
         }
@@ -290,7 +292,7 @@ impl Volume {
                     None => d as f32,
                 };
             } else if let Some(b) = beyond
-                && !samples.is_empty()
+                && !crossings.is_empty()
             {
                 phi[i] = b as f32;
             }
@@ -299,19 +301,7 @@ impl Volume {
             let m = if v.is_finite() { v.max(MIN_DISTANCE) } else { FAR };
             *v = if inside { -m } else { m };
         }
-        Ok(Region {
-            origin,
-            dims,
-            original: phi.clone(),
-            phi,
-            weight: vec![0.0; count],
-            crossings: samples
-                .into_iter()
-                .zip(axes)
-                .map(|((point, normal), axis)| super::RegionCrossing { axis, point, normal })
-                .collect(),
-            level,
-        })
+        Ok(Region { origin, dims, original: phi.clone(), phi, weight: vec![0.0; count], crossings, level })
     }
 
     /// The node states of `at`'s box and the crossings of the lines through its line box, read
@@ -319,7 +309,7 @@ impl Volume {
     /// store).
     fn gather(&self, level: Level, at: &ReadBox) -> Gathered {
         let count = at.dims.iter().product();
-        let mut g = Gathered { inside: vec![false; count], samples: Vec::new(), axes: Vec::new() };
+        let mut g = Gathered { inside: vec![false; count], crossings: Vec::new() };
         let n = level.cells() as i64;
         let mut block = None;
         for (key, base) in at.chunks(level) {
@@ -384,8 +374,11 @@ fn read_own_lines(l: &ChunkLists, base: I64Vec3, at: &ReadBox, g: &mut Gathered)
                     let lower = compose(axis, e as i64, u as i64, v as i64);
                     let mut p = (base + I64Vec3::from_array(lower)).as_dvec3();
                     p[a] += ((q as u32 - e as u32 * s) as f32 * inv_s) as f64;
-                    g.samples.push((p, unpack_normal(nr).normalize_or(axis.unit())));
-                    g.axes.push(axis);
+                    g.crossings.push(RegionCrossing {
+                        axis,
+                        point: p,
+                        normal: unpack_normal(nr).normalize_or(axis.unit()),
+                    });
                 }
                 if axis == Axis::X {
                     // Line (u, v) along x holds the nodes (x, u, v).
@@ -423,8 +416,11 @@ fn read_block(block: &crate::VoxelBlock, base: I64Vec3, n: i64, at: &ReadBox, g:
             }
             let mut p = line.as_dvec3();
             p[axis.index()] += c.t as f64;
-            g.samples.push((p, unpack_normal(c.normal).normalize_or(axis.unit())));
-            g.axes.push(axis);
+            g.crossings.push(RegionCrossing {
+                axis,
+                point: p,
+                normal: unpack_normal(c.normal).normalize_or(axis.unit()),
+            });
         }
     }
 }
@@ -458,7 +454,7 @@ mod tests {
     /// level, raised where it is coarser), its own crossings and nodes.
     fn gather_by_blocks(v: &Volume, level: Level, at: &ReadBox) -> Gathered {
         let count = at.dims.iter().product();
-        let mut g = Gathered { inside: vec![false; count], samples: Vec::new(), axes: Vec::new() };
+        let mut g = Gathered { inside: vec![false; count], crossings: Vec::new() };
         let n = level.cells() as i64;
         let mut block = crate::VoxelBlock::default();
         for (key, base) in at.chunks(level) {
@@ -487,31 +483,24 @@ mod tests {
             }
         }
         // Only the lines through the line box.
-        let keep: Vec<bool> = g
-            .samples
-            .iter()
-            .zip(&g.axes)
-            .map(|((p, _), axis)| {
-                let (ua, va) = axis.across();
-                [ua.index(), va.index()].iter().all(|&c| {
-                    let x = p[c].round() as i64;
-                    x >= at.lines_lo[c] && x <= at.lines_hi[c]
-                })
+        g.crossings.retain(|c| {
+            let (ua, va) = c.axis.across();
+            [ua.index(), va.index()].iter().all(|&k| {
+                let x = c.point[k].round() as i64;
+                x >= at.lines_lo[k] && x <= at.lines_hi[k]
             })
-            .collect();
-        let mut k = keep.iter();
-        g.samples.retain(|_| *k.next().expect("one flag a sample"));
-        let mut k = keep.iter();
-        g.axes.retain(|_| *k.next().expect("one flag a sample"));
+        });
         g
     }
 
     fn sorted(g: &Gathered) -> Vec<(u8, [u64; 6])> {
         let mut s: Vec<(u8, [u64; 6])> = g
-            .samples
+            .crossings
             .iter()
-            .zip(&g.axes)
-            .map(|((p, nrm), a)| (a.index() as u8, [p.x, p.y, p.z, nrm.x, nrm.y, nrm.z].map(f64::to_bits)))
+            .map(|c| {
+                let (p, n) = (c.point, c.normal);
+                (c.axis.index() as u8, [p.x, p.y, p.z, n.x, n.y, n.z].map(f64::to_bits))
+            })
             .collect();
         s.sort();
         s
