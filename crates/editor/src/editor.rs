@@ -264,7 +264,7 @@ pub struct Editor {
     dirty: Vec<BTreeSet<ChunkKey>>,
     /// Meshes computed but not yet shown: a chunk's new mesh is committed only together with
     /// every neighbour's, so no seam is ever drawn between a new mesh and a stale one.
-    staged: Vec<HashMap<ChunkKey, Mesh>>,
+    staged: Vec<HashMap<ChunkKey, std::sync::Arc<Mesh>>>,
     /// Level-of-detail caps by layer (chunks missing are meshed at their stored level).
     lod: Vec<HashMap<ChunkKey, Level>>,
     view: Option<LodView>,
@@ -572,7 +572,7 @@ impl Editor {
 
     /// Queues an edit of the stroke in progress for meshing and keeps its undo record.
     fn record(&mut self, layer: usize, edit: EditReport) {
-        self.queue(layer, &edit.changed);
+        self.queue(layer, &edit.changed, edit.reach);
         self.revision += 1;
         let s = self.stroke.as_mut().expect("a stroke is in progress");
         s.records.push(edit.undo);
@@ -678,7 +678,7 @@ impl Editor {
         let mut records = Vec::with_capacity(edits.len());
         for edit in edits {
             changed += edit.changed.len();
-            self.queue(layer, &edit.changed);
+            self.queue(layer, &edit.changed, edit.reach);
             records.push(edit.undo);
         }
         self.revision += 1;
@@ -703,7 +703,7 @@ impl Editor {
         }
         let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
         let mut edit = l.volume.apply(op, brush, &settings)?;
-        self.queue(layer, &edit.changed);
+        self.queue(layer, &edit.changed, edit.reach);
         self.revision += 1;
         // The history keeps the undo record; the report returned has an empty one.
         self.history.push(HistoryEntry {
@@ -801,7 +801,7 @@ impl Editor {
         self.revision += 1;
         match restored {
             // Only the restored chunks changed: remesh them and the chunks that read them.
-            crate::history::Restored::Chunks(layer, keys) => self.queue(layer, &keys),
+            crate::history::Restored::Chunks(layer, keys) => self.queue(layer, &keys, None),
             crate::history::Restored::Layers => {
                 self.reset_caches();
                 self.structure += 1;
@@ -830,8 +830,10 @@ impl Editor {
         self.structure
     }
 
-    fn queue(&mut self, layer: usize, changed: &[ChunkKey]) {
-        let keys = self.caches[layer].affected(&self.scene.layers[layer].volume, changed);
+    /// Queues the meshes an edit of `layer` that changed `changed` within `reach` (`None`:
+    /// anywhere in them) affects.
+    fn queue(&mut self, layer: usize, changed: &[ChunkKey], reach: Option<strata_volume::Reach>) {
+        let keys = self.caches[layer].note(&self.scene.layers[layer].volume, changed, reach);
         self.dirty[layer].extend(keys);
     }
 
@@ -900,7 +902,7 @@ impl Editor {
             }
         }
         let ready: Vec<ChunkKey> = staged.keys().copied().filter(|k| !waiting.contains(k)).collect();
-        let fresh: Vec<(ChunkKey, Mesh)> =
+        let fresh: Vec<(ChunkKey, std::sync::Arc<Mesh>)> =
             ready.iter().map(|k| (*k, self.staged[layer].remove(k).expect("staged"))).collect();
         self.caches[layer].commit(fresh);
         report.remeshed.extend(ready.into_iter().map(|k| (layer, k)));
@@ -1220,7 +1222,9 @@ fn field_tool_dab(
             pinch(volume, &dab, axis, if inverted { -0.5 } else { 0.5 })
         }
         // (Grab drags through `Editor::grab_to`; a dab of it alone has nothing to drag.)
-        ToolKind::Grab => Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 }),
+        ToolKind::Grab => {
+            Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0, reach: None })
+        }
         ToolKind::Detail => {
             let target = if inverted { volume.level() } else { tool.detail_level.max(volume.level()) };
             Ok(volume.set_chunk_levels(&chunks_in_ball(volume, dab.center, radius), target))

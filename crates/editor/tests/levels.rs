@@ -245,3 +245,88 @@ fn raising_a_chunk_before_a_finer_one_whose_first_cell_holds_a_crossing_keeps_th
     let _ = v.set_chunk_level(ChunkKey::new(0, 0, 0), Level::new(1).unwrap());
     v.check_invariants().unwrap();
 }
+
+/// Fine chunks remeshed in parts (issue 29): strokes of every field tool over a ball stored in
+/// 64³ chunks, with level of detail on and a frame budget so small that meshes wait for their
+/// neighbours, leave the same meshes as an editor that meshed the result from scratch, and the
+/// surface closed.
+#[test]
+fn strokes_on_fine_chunks_remesh_in_parts_to_what_a_fresh_editor_meshes() {
+    let mut e = Editor::default();
+    // A volume of 64³ chunks: the ball, and a second one far away, which level of detail
+    // meshes coarser.
+    let mut v = strata_volume::Volume::with_level(Level::FINEST);
+    v.add(&Sphere::new(DVec3::new(16.3, 15.8, 16.1), 12.0).unwrap()).unwrap();
+    v.add(&Sphere::new(DVec3::new(200.0, 16.0, 16.0), 6.0).unwrap()).unwrap();
+    v.set_cell_size(1.0).unwrap();
+    e.scene.layers[0].volume = v;
+    e.reset_caches();
+    e.clear_history();
+    // Near enough that the first ball stays at 64³ (its chunks then read plainly, in parts).
+    let view = LodView { eye: DVec3::new(16.0, 16.0, 40.0), pixels_per_radian: 100.0, pixel_error: 2.0 };
+    e.set_view(Some(view));
+    e.finish_meshing();
+    let before = e.scene.layers[0].volume.clone();
+    let down = Buttons { primary: true, secondary: false };
+    // (Paint first: it does not say where it reaches, so its chunks are remeshed whole.)
+    let tools =
+        [ToolKind::Paint, ToolKind::Clay, ToolKind::Smooth, ToolKind::Inflate, ToolKind::Flatten, ToolKind::Pinch];
+    for (i, kind) in tools.into_iter().enumerate() {
+        e.tool.kind = kind;
+        e.tool.radius = 1.0 + 0.5 * i as f64;
+        e.tool.material = 1 + (i % 3) as u8;
+        for k in 0..4 {
+            // Across the top of the ball, over the borders of chunks (0, 0, 1) and (1, 1, 1).
+            let x = 13.0 + 1.5 * k as f64 + 0.25 * i as f64;
+            let from = DVec3::new(x, 16.0 - 0.5 * i as f64, 40.0);
+            let p = e.pick(from, -DVec3::Z, 100.0).map(|h| h.point).expect("the ball is under the stroke");
+            e.frame(
+                &ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: down },
+                Duration::ZERO,
+            )
+            .unwrap();
+        }
+        e.frame(&ToolPose::at(DVec3::ZERO, false), Duration::ZERO).unwrap();
+    }
+    e.finish_meshing();
+    let v = &e.scene.layers[0].volume;
+    assert!(*v != before, "the strokes sculpted");
+    assert!(v.chunks().all(|(k, _)| k.0.x > 5 || e.lod_level(0, k).is_none()), "the first ball is meshed at 64³");
+    assert_eq!(e.lod_level(0, ChunkKey::new(12, 0, 0)), Some(Level::BASE), "the far ball at 16³");
+    let mut fresh = Editor::new(e.scene.clone());
+    fresh.set_view(Some(view));
+    fresh.finish_meshing();
+    let (a, b) = (e.mesh_cache(0).unwrap(), fresh.mesh_cache(0).unwrap());
+    assert_eq!(a.len(), b.len());
+    let materials = |m: &Mesh| (0..m.positions.len()).map(|i| m.material(i)).collect::<Vec<_>>();
+    for (k, m) in b.iter() {
+        let c = a.mesh(k).unwrap_or_else(|| panic!("chunk {k:?} has no mesh"));
+        assert!(
+            c.positions == m.positions
+                && c.indices == m.indices
+                && c.normals == m.normals
+                && materials(c) == materials(m),
+            "chunk {k:?}: the stroked editor's mesh differs from a fresh one"
+        );
+    }
+    // Each chunk's triangles are those of its whole block meshed at once.
+    let cap = |k: ChunkKey| e.lod_level(0, k).unwrap_or(Level::FINEST);
+    let mut block = strata_volume::VoxelBlock::default();
+    let mut whole = Mesh::default();
+    let triangles = |m: &Mesh| {
+        let mut t: Vec<[[u32; 3]; 3]> =
+            m.triangles().map(|t| t.map(|i| m.positions[i as usize].map(|c| (c + 0.0).to_bits()))).collect();
+        for t in t.iter_mut() {
+            let first = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
+            t.rotate_left(first);
+        }
+        t.sort();
+        t
+    };
+    for (k, m) in a.iter() {
+        v.extract_block_capped(k, &cap, &mut block);
+        strata_mesh::mesh_block(&block, &mut whole);
+        assert!(triangles(m) == triangles(&whole), "chunk {k:?}: not the whole block's triangles");
+    }
+    checks::check_closed_manifold(&welded(&e)).unwrap();
+}

@@ -1,10 +1,11 @@
 //! Per-chunk meshes kept up to date incrementally after edits.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
-use glam::IVec3;
+use glam::{DVec3, IVec3};
 use rayon::prelude::*;
-use strata_volume::{ChunkKey, Level, Volume, VoxelBlock};
+use strata_volume::{ChunkKey, Level, Reach, Volume, VoxelBlock};
 
 use crate::simplify::{Simplify, SimplifyError, simplify};
 use crate::tetra::TetraScratch;
@@ -40,12 +41,39 @@ impl BlockMesher {
     }
 }
 
+/// Cells a side of the parts a finer chunk's marching-cubes mesh is kept in (a base chunk's
+/// size): a 64³ chunk's mesh is 4³ parts, and an edit remeshes only the parts it reaches.
+pub const PART_CELLS: usize = 16;
+
+/// A finer chunk's mesh as it was last computed, in parts of [`PART_CELLS`] cells: the parts'
+/// vertices and triangles follow each other in `mesh`, x fastest.
+#[derive(Debug, Clone)]
+struct Parts {
+    /// The level the chunk was meshed at (plainly: nothing patched).
+    level: Level,
+    mesh: Arc<Mesh>,
+    /// Per part, the end of its vertices and of its indices in `mesh`.
+    ends: Vec<(u32, u32)>,
+}
+
 /// Meshes by chunk, by marching cubes or (for volumes of one level) marching tetrahedra.
 /// Positions are chunk-local (grid units from the chunk's origin), so far-away chunks keep full
 /// f32 precision; the renderer places each chunk.
+///
+/// Marching cubes keeps the mesh of a chunk finer than 16³ cells, where the chunk and its
+/// neighbours share its level, in parts of 16³ cells: edits that say where they reach
+/// ([`EditReport::reach`](strata_volume::EditReport::reach), given to [`MeshCache::note`])
+/// remesh only the parts they reach, each from the lines through it alone. A part's triangles
+/// are the whole chunk's triangles in its cells, so the mesh equals the whole-chunk mesh after
+/// welding the parts' shared border vertices by position.
 #[derive(Debug, Default, Clone)]
 pub struct MeshCache {
-    meshes: HashMap<ChunkKey, Mesh>,
+    meshes: HashMap<ChunkKey, Arc<Mesh>>,
+    /// The last computed parts of the finer chunks meshed in parts.
+    parts: HashMap<ChunkKey, Parts>,
+    /// Where each chunk changed since its parts were last computed (`None`: anywhere); a chunk
+    /// not listed is remeshed whole.
+    reach: HashMap<ChunkKey, Option<Reach>>,
     /// Whether a volume of mixed levels was meshed: seams then reach every neighbour.
     mixed: bool,
     /// The mesher asked for.
@@ -159,8 +187,28 @@ impl MeshCache {
     /// Remeshes what an edit that changed `changed` can have affected, in parallel. Returns the
     /// chunks whose mesh was rebuilt (upload those).
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
-        let keys = self.affected(volume, changed);
+        self.update_reached(volume, changed, None)
+    }
+
+    /// [`MeshCache::update`] for an edit that changed nothing outside `reach` (`None`:
+    /// anywhere in `changed`).
+    pub fn update_reached(&mut self, volume: &Volume, changed: &[ChunkKey], reach: Option<Reach>) -> Vec<ChunkKey> {
+        let keys = self.note(volume, changed, reach);
         self.remesh(volume, &keys);
+        keys
+    }
+
+    /// Records an edit that changed the chunks `changed` of `volume` within `reach` (`None`:
+    /// anywhere in them) and returns the chunks whose meshes it affects (see
+    /// [`MeshCache::affected`]): queue those. Until they are computed again, their parts that
+    /// the edits noted since do not reach are reused. A chunk queued without being noted (a
+    /// level of detail changed, an undo) is remeshed whole.
+    pub fn note(&mut self, volume: &Volume, changed: &[ChunkKey], reach: Option<Reach>) -> Vec<ChunkKey> {
+        let keys = self.affected(volume, changed);
+        for &k in &keys {
+            let r = self.reach.entry(k).or_insert(reach);
+            *r = r.zip(reach).map(|(a, b)| a.union(b));
+        }
         keys
     }
 
@@ -173,15 +221,36 @@ impl MeshCache {
 
     /// The meshes of `keys`, in parallel, without storing them (with an optional level-of-detail
     /// cap): [`MeshCache::commit`] them together, so neighbours swap in the same frame.
-    pub fn compute(&mut self, volume: &Volume, keys: &[ChunkKey], cap: Option<LevelCap<'_>>) -> Vec<(ChunkKey, Mesh)> {
+    pub fn compute(
+        &mut self,
+        volume: &Volume,
+        keys: &[ChunkKey],
+        cap: Option<LevelCap<'_>>,
+    ) -> Vec<(ChunkKey, Arc<Mesh>)> {
         self.mixed |= !volume.single_level() || cap.is_some();
         let mesher = self.effective(volume, cap.is_some());
         self.used = mesher;
         let simplify_by = self.simplify.map(Simplify::chunk);
-        keys.par_iter()
+        let in_parts = mesher == BlockMesher::MarchingCubes && simplify_by.is_none();
+        // Each key with where it changed since its parts were computed (`None`: anywhere) and
+        // those parts.
+        let jobs: Vec<(ChunkKey, Option<Reach>, Option<Parts>)> =
+            keys.iter().map(|&k| (k, self.reach.remove(&k).flatten(), self.parts.remove(&k))).collect();
+        let done: Vec<(ChunkKey, Arc<Mesh>, Option<Parts>)> = jobs
+            .into_par_iter()
             .map_init(
-                || (VoxelBlock::default(), TetraScratch::default()),
-                |(block, scratch), &key| {
+                || (VoxelBlock::default(), TetraScratch::default(), Mesh::default()),
+                |(block, scratch, part), (key, reach, old)| {
+                    let plain = volume.plain_block_level(key, cap);
+                    if plain.is_some() && volume.plain_block_uniform(key) {
+                        // The chunk and its apron are all inside or all outside: no surface.
+                        return (key, Arc::new(Mesh::default()), None);
+                    }
+                    if let Some(level) = plain.filter(|l| in_parts && l.cells() > PART_CELLS) {
+                        let old = old.filter(|o| o.level == level);
+                        let parts = mesh_parts(volume, key, level, reach, old.as_ref(), block, part);
+                        return (key, parts.mesh.clone(), Some(parts));
+                    }
                     match cap {
                         Some(c) => volume.extract_block_capped(key, c, block),
                         None => volume.extract_block_into(key, block),
@@ -192,14 +261,22 @@ impl MeshCache {
                         // The bound was checked by `set_simplify` and meshes are finite.
                         mesh = simplify(&mesh, how).unwrap_or(mesh);
                     }
-                    (key, mesh)
+                    (key, Arc::new(mesh), None)
                 },
             )
+            .collect();
+        done.into_iter()
+            .map(|(key, mesh, parts)| {
+                if let Some(p) = parts {
+                    self.parts.insert(key, p);
+                }
+                (key, mesh)
+            })
             .collect()
     }
 
     /// Stores meshes made by [`MeshCache::compute`] (an empty mesh removes the chunk's).
-    pub fn commit(&mut self, fresh: Vec<(ChunkKey, Mesh)>) {
+    pub fn commit(&mut self, fresh: Vec<(ChunkKey, Arc<Mesh>)>) {
         for (key, mesh) in fresh {
             if mesh.indices.is_empty() {
                 self.meshes.remove(&key);
@@ -211,12 +288,12 @@ impl MeshCache {
 
     /// The mesh of `key`, if it has triangles.
     pub fn mesh(&self, key: ChunkKey) -> Option<&Mesh> {
-        self.meshes.get(&key)
+        self.meshes.get(&key).map(|m| &**m)
     }
 
     /// All chunk meshes.
     pub fn iter(&self) -> impl Iterator<Item = (ChunkKey, &Mesh)> {
-        self.meshes.iter().map(|(k, m)| (*k, m))
+        self.meshes.iter().map(|(k, m)| (*k, &**m))
     }
 
     /// Number of chunks with triangles.
@@ -231,8 +308,47 @@ impl MeshCache {
 
     /// Total triangles over all chunks.
     pub fn triangle_count(&self) -> usize {
-        self.meshes.values().map(Mesh::triangle_count).sum()
+        self.meshes.values().map(|m| m.triangle_count()).sum()
     }
+}
+
+/// The mesh of the plain block of `key` at `level` in parts of [`PART_CELLS`] cells: the parts
+/// `reach` meets (every part where it is `None` or nothing was kept) meshed from the lines
+/// through them, the others copied from `old`.
+fn mesh_parts(
+    volume: &Volume,
+    key: ChunkKey,
+    level: Level,
+    reach: Option<Reach>,
+    old: Option<&Parts>,
+    block: &mut VoxelBlock,
+    part: &mut Mesh,
+) -> Parts {
+    let per_side = level.cells() / PART_CELLS;
+    let sp = level.spacing();
+    let origin = key.origin_grid().as_dvec3();
+    let mut mesh = Mesh::default();
+    let mut ends = Vec::with_capacity(per_side.pow(3));
+    for i in 0..per_side.pow(3) {
+        let at = [i % per_side, (i / per_side) % per_side, i / (per_side * per_side)].map(|c| c * PART_CELLS);
+        // The part's nodes, apron included, in grid units.
+        let lo = origin + DVec3::new(at[0] as f64, at[1] as f64, at[2] as f64) * sp;
+        let hi = lo + DVec3::splat(PART_CELLS as f64 * sp);
+        match old {
+            Some(o) if reach.is_some_and(|r| !r.meets(lo, hi)) => {
+                let (v0, i0) = if i == 0 { (0, 0) } else { o.ends[i - 1] };
+                let (v1, i1) = o.ends[i];
+                mesh.append_range(&o.mesh, v0 as usize..v1 as usize, i0 as usize..i1 as usize);
+            }
+            _ => {
+                volume.extract_part(key, at, PART_CELLS, block);
+                mesh_block(block, part);
+                mesh.append_range(part, 0..part.positions.len(), 0..part.indices.len());
+            }
+        }
+        ends.push((mesh.positions.len() as u32, mesh.indices.len() as u32));
+    }
+    Parts { level, mesh: Arc::new(mesh), ends }
 }
 
 #[cfg(test)]

@@ -46,7 +46,7 @@ pub mod simplify;
 pub mod tetra;
 mod workers;
 
-pub use cache::{BlockMesher, LevelCap, MeshCache};
+pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
 pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks, tetra_volume};
 pub use mesh::{Mesh, VertexMaterial};

@@ -13,7 +13,8 @@ use crate::cases::cases;
 use crate::{Mesh, VertexMaterial};
 
 /// Meshes the cells `0..n` of one block into `out` (cleared first). Positions are grid units
-/// relative to the block's origin; vertex `i` of the axis-`a` crossings is vertex
+/// relative to the origin of the block's chunk (a part of a chunk, [`VoxelBlock::offset`], is
+/// placed where it is in the chunk); vertex `i` of the axis-`a` crossings is vertex
 /// `first_vertex(block, a) + i`. The block's apron makes the mesh of neighbouring blocks meet
 /// exactly: both place the vertices of shared edges from the same crossing.
 pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
@@ -21,9 +22,10 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
     let n = block.cells();
     let sp = block.level().spacing() as f32;
     let with_materials = block.has_materials();
+    let offset = block.offset();
     for axis in Axis::ALL {
         for c in block.crossings(axis) {
-            let mut p = c.lower.map(|v| v as f32);
+            let mut p = [0, 1, 2].map(|i| (c.lower[i] as usize + offset[i]) as f32);
             p[axis.index()] += c.t;
             out.positions.push(p.map(|v| v * sp));
             out.normals.push(unpack_normal(c.normal).as_vec3().to_array());

@@ -138,6 +138,23 @@ impl Mesh {
         self.positions.len() as u32 - 1
     }
 
+    /// Appends the vertices `vertices` of `from` and its triangles `indices` (which use only
+    /// those vertices), keeping materials aligned.
+    pub fn append_range(&mut self, from: &Mesh, vertices: std::ops::Range<usize>, indices: std::ops::Range<usize>) {
+        let shift = self.positions.len() as i64 - vertices.start as i64;
+        if from.materials.is_empty() {
+            if !self.materials.is_empty() {
+                self.materials.resize(self.positions.len() + vertices.len(), VertexMaterial::single(0));
+            }
+        } else {
+            self.materials.resize(self.positions.len(), VertexMaterial::single(0));
+            self.materials.extend_from_slice(&from.materials[vertices.clone()]);
+        }
+        self.positions.extend_from_slice(&from.positions[vertices.clone()]);
+        self.normals.extend_from_slice(&from.normals[vertices]);
+        self.indices.extend(from.indices[indices].iter().map(|&i| (i as i64 + shift) as u32));
+    }
+
     /// Appends a vertex. Materials are stored once any vertex has one (`with_material`) or a
     /// material other than 0; earlier vertices are then given material 0.
     pub fn push_vertex(&mut self, position: [f32; 3], normal: [f32; 3], material: VertexMaterial, with_material: bool) {

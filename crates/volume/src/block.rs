@@ -72,6 +72,9 @@ pub struct VoxelBlock {
     key: Option<ChunkKey>,
     level: Option<Level>,
     n: usize,
+    /// Node `(0, 0, 0)` of the block is node `offset` of its chunk (zero for a whole chunk's
+    /// block, see [`Volume::extract_part`]).
+    offset: [usize; 3],
     /// `rows[y + (n+1) z]`, bit `x`: whether node `(x, y, z)` is inside.
     rows: Vec<u128>,
     crossings: [Vec<EdgeCrossing>; 3],
@@ -133,9 +136,16 @@ impl VoxelBlock {
         self.level.unwrap_or(Level::BASE)
     }
 
-    /// Grid coordinate of node `(0, 0, 0)`.
+    /// Grid coordinate of the chunk's node `(0, 0, 0)` (the block's own first node is
+    /// [`VoxelBlock::offset`] cells of its level further).
     pub fn origin_grid(&self) -> I64Vec3 {
         self.key.map(|k| k.origin_grid()).unwrap_or_default()
+    }
+
+    /// The chunk node that is node `(0, 0, 0)` of this block, in cells of its level: zero for
+    /// a chunk's whole block, the part's first cell for [`Volume::extract_part`].
+    pub fn offset(&self) -> [usize; 3] {
+        self.offset
     }
 
     #[inline]
@@ -316,11 +326,16 @@ impl VoxelBlock {
     }
 
     fn reset(&mut self, key: ChunkKey, level: Level) {
-        let n = level.cells();
+        self.reset_part(key, level, [0; 3], level.cells());
+    }
+
+    /// Empties the block for `n` cells a side of the chunk `key` from its node `offset`.
+    fn reset_part(&mut self, key: ChunkKey, level: Level, offset: [usize; 3], n: usize) {
         let m = n + 1;
         self.key = Some(key);
         self.level = Some(level);
         self.n = n;
+        self.offset = offset;
         self.rows.clear();
         self.rows.resize(m * m, 0);
         for a in 0..3 {
@@ -372,8 +387,9 @@ impl Volume {
         if !self.has_materials() {
             return;
         }
-        let n = out.n;
-        let m = n + 1;
+        // The block's cells per side, the chunk's, and the chunk node of the block's node 0.
+        let (w, n, off) = (out.n, out.level().cells(), out.offset);
+        let m = w + 1;
         out.materials.resize(m * m * m, 0);
         // The owners: this chunk (o = 0) and its neighbours across the far faces, edges and
         // corner (bit 0: x = n, bit 1: y = n, bit 2: z = n), each read at its stored level.
@@ -381,8 +397,16 @@ impl Volume {
         for o in 0..8usize {
             let far = [o & 1 == 1, o & 2 == 2, o & 4 == 4];
             let owner = key.offset(IVec3::new(far[0] as i32, far[1] as i32, far[2] as i32));
-            let range = |f: bool| if f { n..m } else { 0..n };
-            let (xs, ys, zs) = (range(far[0]), range(far[1]), range(far[2]));
+            // The block's nodes on axis `i` that `owner` holds: those before the chunk's node n,
+            // or that node itself.
+            let range = |i: usize| {
+                let near_end = (n - off[i]).min(m);
+                if far[i] { near_end..m } else { 0..near_end }
+            };
+            let (xs, ys, zs) = (range(0), range(1), range(2));
+            if xs.is_empty() || ys.is_empty() || zs.is_empty() {
+                continue;
+            }
             match self.chunk_materials(owner) {
                 None => {} // material 0: already there
                 Some(crate::ChunkMaterials::Uniform(id)) => {
@@ -397,16 +421,19 @@ impl Volume {
                     let level = self.level_of(owner);
                     let on = level.cells();
                     self.decode_materials(owner, level, &mut ids);
-                    let at = |c: usize, far: bool| if far { 0 } else { ((c * on + n / 2) / n).min(on - 1) };
+                    // The owner's node for block node `c` on axis `i`.
+                    let at =
+                        |c: usize, i: usize| if far[i] { 0 } else { (((c + off[i]) * on + n / 2) / n).min(on - 1) };
                     for z in zs {
                         for y in ys.clone() {
-                            let src = on * (at(y, far[1]) + on * at(z, far[2]));
+                            let src = on * (at(y, 1) + on * at(z, 2));
                             let row = m * (y + m * z);
                             if on == n && !far[0] {
-                                out.materials[row..row + n].copy_from_slice(&ids[src..src + n]);
+                                let len = xs.end - xs.start;
+                                out.materials[row..row + len].copy_from_slice(&ids[src + off[0]..src + off[0] + len]);
                             } else {
                                 for x in xs.clone() {
-                                    out.materials[row + x] = ids[src + at(x, far[0])];
+                                    out.materials[row + x] = ids[src + at(x, 0)];
                                 }
                             }
                         }
@@ -438,23 +465,75 @@ impl Volume {
     }
 
     fn extract_plain(&self, key: ChunkKey, out: &mut VoxelBlock) {
+        self.extract_lines(key, [0; 3], self.level_of(key).cells(), out);
+    }
+
+    /// The block of the cells `offset .. offset + cells` (on each axis, in cells of the chunk's
+    /// level) of chunk `key`, with their `+1` apron: what [`Volume::extract_block_into`] gives
+    /// for those cells, as a block of `cells` cells a side whose [`VoxelBlock::offset`] is
+    /// `offset`. Only the lines through the part are read. Meaningful where the chunk's block is
+    /// read plainly ([`Volume::plain_block_level`]): a part has no seams to patch.
+    ///
+    /// # Panics
+    /// If `cells` is 0 or the part reaches past the chunk.
+    pub fn extract_part(&self, key: ChunkKey, offset: [usize; 3], cells: usize, out: &mut VoxelBlock) {
+        let n = self.level_of(key).cells();
+        assert!(
+            cells > 0 && offset.iter().all(|&o| o + cells <= n),
+            "a part of {cells} cells from {offset:?} of a {n}-cell chunk"
+        );
+        self.extract_lines(key, offset, cells, out);
+        self.fill_block_materials(out);
+    }
+
+    /// The level at which the block of `key` is read straight from its own lines and those of
+    /// its neighbours at one level, nothing patched (level of detail capped by `cap`, if any):
+    /// the chunk's stored level where its face and edge neighbours share it, else `None`.
+    pub fn plain_block_level(&self, key: ChunkKey, cap: Option<&(dyn Fn(ChunkKey) -> Level + Sync)>) -> Option<Level> {
+        let plain = match cap {
+            None => self.single_level() || crate::level::plain(&crate::level::LevelMap::stored(self), key),
+            // (Every chunk around capped at its stored level: read as stored.)
+            Some(c) => crate::level::plain(&crate::level::LevelMap::new(self, Some(c), None), key),
+        };
+        plain.then(|| self.level_of(key))
+    }
+
+    /// Whether every node of the plain block of `key` has one state: the chunk and the seven
+    /// after it (its apron's owners) are uniform alike, so the block holds no surface.
+    pub fn plain_block_uniform(&self, key: ChunkKey) -> bool {
+        let state = |k: ChunkKey| match self.view(k) {
+            ChunkView::Uniform(s) => Some(s),
+            ChunkView::Lists(_) => None,
+        };
+        let Some(first) = state(key) else { return false };
+        (1..8).all(|d| state(key.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))) == Some(first))
+    }
+
+    /// Node states and crossings of the part of `key`'s block from node `offset`, `w` cells a
+    /// side (the whole block for offset 0 and `w = n`), read from the lines through it.
+    fn extract_lines(&self, key: ChunkKey, offset: [usize; 3], w: usize, out: &mut VoxelBlock) {
         let level = self.level_of(key);
-        out.reset(key, level);
+        out.reset_part(key, level, offset, w);
         let n = level.cells();
-        let m = n + 1;
+        let m = w + 1;
         let s = level.steps_per_cell();
         let inv_s = 1.0 / s as f32;
         for axis in Axis::ALL {
             let (ua, va) = axis.across();
             let a = axis.index();
+            let (oa, ou, ov) = (offset[a], offset[ua.index()], offset[va.index()]);
             let mut expected_ok = true;
             // One cursor per source chunk: this chunk, its neighbours along `ua`, `va` and both.
             let mut cursors: [Option<ViewCursor<'_>>; 4] = [None, None, None, None];
-            for v in 0..=n {
-                // Lines u in 0..n come from one chunk, u = n from its neighbour along `ua`.
+            for v in ov..=ov + w {
+                // Lines u < n come from one chunk, u = n from its neighbour along `ua`.
                 let base = key.offset(if v == n { unit(va) } else { IVec3::ZERO });
-                let sources = [(base, 0..n), (base.offset(unit(ua)), n..n + 1)];
+                let far = if ou + w == n { n..n + 1 } else { 0..0 };
+                let sources = [(base, ou..(ou + w + 1).min(n)), (base.offset(unit(ua)), far)];
                 for (k, (source, us)) in sources.into_iter().enumerate() {
+                    if us.is_empty() {
+                        continue;
+                    }
                     let view = self.view(source);
                     if let ChunkView::Lists(l) = view
                         && l.level() != level
@@ -466,26 +545,29 @@ impl Volume {
                     let cursor = cursors[2 * usize::from(v == n) + k].get_or_insert_with(|| view.cursor(axis, 0));
                     cursor.advance_to((us.start % n) + n * (v % n));
                     for u in us {
+                        let (pu, pv) = (u - ou, v - ov);
                         // x lines derive their start states; y and z lines start on nodes the x
-                        // lines have already given.
+                        // lines have already given (only their crossings are read here).
                         let line = match axis {
                             Axis::X => cursor.next_line(),
-                            // y line (u, v) = (z, x) starts at node (x, 0, z).
-                            Axis::Y => cursor.next_with((out.rows[m * u] >> v) & 1 == 1),
-                            // z line (u, v) = (x, y) starts at node (x, y, 0).
-                            Axis::Z => cursor.next_with((out.rows[v] >> u) & 1 == 1),
+                            Axis::Y | Axis::Z => cursor.next_with(false),
                         };
                         let mut states = if line.start_inside { node_mask(n) } else { 0 };
                         for (q, &nr) in line.positions().zip(line.normals) {
                             let e = edge_of(q, level);
                             if axis == Axis::X {
                                 states ^= node_mask(n) & !((1u128 << (e + 1)) - 1);
-                            } else if !edge_changes(out, axis, e, u, v) {
+                            }
+                            if e < oa || e >= oa + w {
+                                continue;
+                            }
+                            let pe = e - oa;
+                            if axis != Axis::X && !edge_changes(out, axis, pe, pu, pv) {
                                 out.repaired += 1;
                                 expected_ok = false;
                                 continue;
                             }
-                            let lower = compose(axis, e, u, v);
+                            let lower = compose(axis, pe, pu, pv);
                             let idx = out.node_index(lower[0], lower[1], lower[2]);
                             out.lookup[a][idx] = out.crossings[a].len() as u32;
                             out.crossings[a].push(EdgeCrossing {
@@ -495,7 +577,7 @@ impl Volume {
                             });
                         }
                         if axis == Axis::X {
-                            out.rows[u + m * v] = states;
+                            out.rows[pu + m * pv] = (states >> oa) & node_mask(w);
                         }
                     }
                 }

@@ -118,6 +118,31 @@ pub struct EditReport {
     /// Node states of the brush that the volume repaired so that x, y and z lines agree (only
     /// for brushes whose [`Brush::lines_agree`] is false).
     pub repaired_nodes: u64,
+    /// Where in the changed chunks the edit can have changed anything (`None`: anywhere in
+    /// them). Meshers rebuild only the parts of a chunk's mesh that it reaches.
+    pub reach: Option<Reach>,
+}
+
+/// A box that holds every node whose state or material an edit changed and both ends of every
+/// edge whose crossing it moved, turned, added or removed: grid units, bounds included.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reach {
+    /// The lowest corner.
+    pub min: DVec3,
+    /// The highest corner.
+    pub max: DVec3,
+}
+
+impl Reach {
+    /// The smallest box holding both.
+    pub fn union(self, other: Reach) -> Reach {
+        Reach { min: self.min.min(other.min), max: self.max.max(other.max) }
+    }
+
+    /// Whether the box meets the box `lo ..= hi` (grid units).
+    pub fn meets(&self, lo: DVec3, hi: DVec3) -> bool {
+        self.min.cmple(hi).all() && lo.cmple(self.max).all()
+    }
 }
 
 impl EditReport {
@@ -137,6 +162,13 @@ impl EditReport {
                 self.undo.materials.push((key, m));
             }
         }
+        // A report that changed nothing reaches nothing; otherwise the union, unknown where
+        // either is.
+        self.reach = match (self.changed.is_empty(), later.changed.is_empty()) {
+            (_, true) => self.reach,
+            (true, false) => later.reach,
+            (false, false) => self.reach.zip(later.reach).map(|(a, b)| a.union(b)),
+        };
         self.changed.extend(later.changed);
         self.changed.sort_by_key(|k| k.0.to_array());
         self.changed.dedup();
@@ -539,8 +571,12 @@ impl Volume {
             return Err(EditError::Cancelled);
         }
         results.sort_by_key(|r| r.0);
-        let mut report =
-            EditReport { changed: Vec::with_capacity(results.len()), undo: UndoRecord::default(), repaired_nodes: 0 };
+        let mut report = EditReport {
+            changed: Vec::with_capacity(results.len()),
+            undo: UndoRecord::default(),
+            repaired_nodes: 0,
+            reach: None,
+        };
         report.undo.previous.reserve(results.len());
         for (key, built, repaired) in results {
             let previous = match built.into_chunk() {

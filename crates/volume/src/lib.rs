@@ -53,7 +53,7 @@ pub use axis::Axis;
 pub use block::{EdgeCrossing, SeamPoint, SeamSplit, VoxelBlock};
 pub use chunk::{Chunk, ChunkLists, LineRef};
 pub use coords::{ChunkKey, Level};
-pub use edit::{CsgOp, EditControl, EditError, EditReport, EditSettings, UndoRecord};
+pub use edit::{CsgOp, EditControl, EditError, EditReport, EditSettings, Reach, UndoRecord};
 pub use generate::{GeneratedChunk, NodeField, generate_chunk};
 pub use invariants::InvariantViolation;
 pub use material::{ChunkMaterials, MATERIAL_IDS, MaterialId};

@@ -218,8 +218,12 @@ impl Volume {
                 }
             }
         }
-        let mut report =
-            report.unwrap_or(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
+        let mut report = report.unwrap_or(EditReport {
+            changed: Vec::new(),
+            undo: Default::default(),
+            repaired_nodes: 0,
+            reach: None,
+        });
         let node_shift = offset.as_i64vec3() * (1i64 << self.level.get());
         self.carry_materials(other, node_shift, &report.undo.previous, &mut report.undo.materials);
         Ok(report)

@@ -70,7 +70,12 @@ impl Volume {
             c.sort();
             c
         };
-        EditReport { changed, undo: UndoRecord { previous: undo, materials: material_undo }, repaired_nodes: 0 }
+        EditReport {
+            changed,
+            undo: UndoRecord { previous: undo, materials: material_undo },
+            repaired_nodes: 0,
+            reach: None,
+        }
     }
 
     /// [`Volume::set_chunk_level`] for several chunks, in key order, as one report.

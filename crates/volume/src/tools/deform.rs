@@ -89,7 +89,7 @@ pub fn grab(volume: &mut Volume, dab: &Dab, drag: DVec3) -> Result<EditReport, T
     let sp = volume.level_near(lo, hi).spacing();
     let steps = step_count(travel.length(), dab.radius, sp)?;
     if travel == DVec3::ZERO {
-        return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
+        return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0, reach: None });
     }
     let region = volume.read_region_within(
         lo,

@@ -290,7 +290,7 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
     }
     let r = dab.radius * dab.strength;
     if r <= 0.0 {
-        return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0 });
+        return Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0, reach: None });
     }
     let reach = DVec3::splat(r + fillet);
     let sp = volume.level_near(dab.center - reach, dab.center + reach).spacing();

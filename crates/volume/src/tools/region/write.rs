@@ -91,10 +91,16 @@ impl Volume {
         if region.phi.len() != count || region.weight.len() != count || region.original.len() != count {
             return Err(RegionError::Mismatch);
         }
-        let mut report = EditReport { changed: Vec::new(), undo: UndoRecord::default(), repaired_nodes: 0 };
+        let mut report =
+            EditReport { changed: Vec::new(), undo: UndoRecord::default(), repaired_nodes: 0, reach: None };
         let (written, owned_box) = Written::new(region);
         let Some((lo, hi)) = owned_box else { return Ok(report) };
         let level = region.level;
+        // Only owned nodes change, and the crossings of edges with an owned end: one cell of the
+        // coarsest level around the owned box holds both ends of those edges in every chunk.
+        let sp = level.spacing();
+        report.reach =
+            Some(crate::edit::Reach { min: lo.as_dvec3() * sp - DVec3::ONE, max: hi.as_dvec3() * sp + DVec3::ONE });
         let n = level.cells() as i64;
         // Chunk c holds nodes c n ..= c n + n along each line, so a node on a chunk plane is also
         // the last node of the chunk below.
