@@ -268,7 +268,6 @@ fn strokes_on_fine_chunks_remesh_in_parts_to_what_a_fresh_editor_meshes() {
     e.finish_meshing();
     let before = e.scene.layers[0].volume.clone();
     let down = Buttons { primary: true, secondary: false };
-    // (Paint first: it does not say where it reaches, so its chunks are remeshed whole.)
     let tools =
         [ToolKind::Paint, ToolKind::Clay, ToolKind::Smooth, ToolKind::Inflate, ToolKind::Flatten, ToolKind::Pinch];
     for (i, kind) in tools.into_iter().enumerate() {

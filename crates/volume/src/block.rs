@@ -417,7 +417,21 @@ impl Volume {
                         }
                     }
                 }
+                Some(stored) if self.level_of(owner).cells() == n => {
+                    // The owner at the block's level: only the rows the block needs, read in
+                    // order from the change points.
+                    let mut reader = crate::material::IdReader::new(Some(stored));
+                    let at = |c: usize, i: usize| if far[i] { 0 } else { c + off[i] };
+                    for z in zs {
+                        for y in ys.clone() {
+                            let row = m * (y + m * z);
+                            let src = at(xs.start, 0) + n * (at(y, 1) + n * at(z, 2));
+                            reader.read(src, &mut out.materials[row + xs.start..row + xs.end]);
+                        }
+                    }
+                }
                 Some(_) => {
+                    // An owner at another level: its nearest node.
                     let level = self.level_of(owner);
                     let on = level.cells();
                     self.decode_materials(owner, level, &mut ids);
@@ -428,13 +442,8 @@ impl Volume {
                         for y in ys.clone() {
                             let src = on * (at(y, 1) + on * at(z, 2));
                             let row = m * (y + m * z);
-                            if on == n && !far[0] {
-                                let len = xs.end - xs.start;
-                                out.materials[row..row + len].copy_from_slice(&ids[src + off[0]..src + off[0] + len]);
-                            } else {
-                                for x in xs.clone() {
-                                    out.materials[row + x] = ids[src + at(x, 0)];
-                                }
+                            for x in xs.clone() {
+                                out.materials[row + x] = ids[src + at(x, 0)];
                             }
                         }
                     }

@@ -914,6 +914,18 @@ pub(crate) fn node_mask(n: usize) -> u128 {
     (1u128 << (n + 1)) - 1
 }
 
+/// The node states of a stored line (bit `i` for node `i`, `0..=n`), without unpacking its
+/// crossings.
+#[inline]
+pub(crate) fn line_states(line: LineRef<'_>, level: Level) -> u128 {
+    let full = node_mask(level.cells());
+    let mut s = if line.start_inside { full } else { 0 };
+    for q in line.positions() {
+        s ^= full & !((1u128 << (edge_of(q, level) + 1)) - 1);
+    }
+    s
+}
+
 /// A line unpacked for editing: node states as bits and, per cell, the crossing data (valid only
 /// on cells whose two nodes differ).
 #[derive(Clone, Copy, Debug)]

@@ -9,9 +9,9 @@ use thiserror::Error;
 use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
-use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, WorkLine, node_mask};
+use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, WorkLine, line_states, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, edge_of, quantize_into_edge};
-use crate::material::MaterialRule;
+use crate::material::{MaterialRule, RowChange};
 use crate::normal::{flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, pack_oriented};
 use crate::volume::Volume;
@@ -221,6 +221,19 @@ impl UndoRecord {
 struct Scratch {
     builder: ChunkBuilder,
     x_states: Vec<u128>,
+    /// The x lines whose own node states the chunk's edit changed (kept when `EditCtx::rows`).
+    rows: Vec<RowChange>,
+}
+
+/// Notes x line `index` in `rows` when its own nodes' states went from `before` to `after`
+/// (what the materials pass reads instead of every node of the chunk). Lines along y and z are
+/// not noted (callers skip computing their states).
+#[inline]
+fn note_row(rows: &mut Vec<RowChange>, axis: Axis, index: usize, before: u128, after: u128, n: usize) {
+    let own = (1u128 << n) - 1;
+    if axis == Axis::X && (before ^ after) & own != 0 {
+        rows.push(RowChange { row: index as u32, before: before & own, after: after & own });
+    }
 }
 
 struct EditCtx<'a> {
@@ -233,6 +246,8 @@ struct EditCtx<'a> {
     distance_field: bool,
     /// Span tables by level (index: level number), for the levels of the chunks edited.
     tables: [Option<SpanTable>; crate::coords::MAX_LEVEL as usize + 1],
+    /// Whether chunks note the x lines whose node states they change (for the materials).
+    rows: bool,
 }
 
 /// The brush's spans on every grid line through its box, computed once per edit (a line
@@ -534,6 +549,10 @@ impl Volume {
             let level = Level::new(k as u8).expect("within the maximum level");
             if levels[k] { SpanTable::build(brush, &bounds, cmin, level, settings.parallel) } else { None }
         });
+        let rule = match op {
+            CsgOp::Add => MaterialRule::Fill(settings.material),
+            CsgOp::Subtract | CsgOp::Intersect => MaterialRule::Nearest,
+        };
         let ctx = EditCtx {
             brush,
             op,
@@ -541,13 +560,15 @@ impl Volume {
             reconcile: !brush.lines_agree(),
             distance_field: brush.field_is_distance(),
             tables,
+            rows: self.has_materials() || matches!(rule, MaterialRule::Fill(f) if f != 0),
         };
         let control = settings.control.as_deref();
         if let Some(c) = control {
             c.total.store(keys.len() as u64, std::sync::atomic::Ordering::Relaxed);
             c.done.store(0, std::sync::atomic::Ordering::Relaxed);
         }
-        let run = |scratch: &mut Scratch, key: ChunkKey| -> Option<(ChunkKey, Built, u64)> {
+        type Edited = (ChunkKey, Built, u64, Option<Vec<RowChange>>);
+        let run = |scratch: &mut Scratch, key: ChunkKey| -> Option<Edited> {
             if let Some(c) = control {
                 if c.is_cancelled() {
                     return None;
@@ -556,12 +577,15 @@ impl Volume {
             }
             let view = self.view(key);
             if op == CsgOp::Intersect && !in_range(key, cmin, cmax) {
-                return Some((key, Built::Uniform(false), 0));
+                return Some((key, Built::Uniform(false), 0, None));
             }
             let level = self.level_of(key);
-            edit_chunk(&ctx, key, view, level, scratch).map(|(b, r)| (key, b, r))
+            scratch.rows.clear();
+            let mut noted = false;
+            let edited = edit_chunk(&ctx, key, view, level, scratch, &mut noted);
+            edited.map(|(b, r)| (key, b, r, noted.then(|| scratch.rows.clone())))
         };
-        let mut results: Vec<(ChunkKey, Built, u64)> = if settings.parallel && keys.len() >= PARALLEL_MIN_CHUNKS {
+        let mut results: Vec<Edited> = if settings.parallel && keys.len() >= PARALLEL_MIN_CHUNKS {
             keys.par_iter().with_min_len(4).map_init(Scratch::default, |s, &k| run(s, k)).flatten().collect()
         } else {
             let mut s = Scratch::default();
@@ -578,7 +602,8 @@ impl Volume {
             reach: None,
         };
         report.undo.previous.reserve(results.len());
-        for (key, built, repaired) in results {
+        let mut rows = Vec::with_capacity(results.len());
+        for (key, built, repaired, changes) in results {
             let previous = match built.into_chunk() {
                 Some(c) => self.chunks.insert(key, c),
                 None => self.chunks.remove(&key),
@@ -586,15 +611,15 @@ impl Volume {
             report.changed.push(key);
             report.undo.previous.push((key, previous));
             report.repaired_nodes += repaired;
+            rows.push(changes);
         }
         if self.settle_uniform(&mut report.changed, &mut report.undo.previous) {
             report.changed.sort();
+            // Settling rewrote chunks after their lines were written: the noted rows may not
+            // tell what changed, so every chunk's materials are recomputed whole.
+            rows.clear();
         }
-        let rule = match op {
-            CsgOp::Add => MaterialRule::Fill(settings.material),
-            CsgOp::Subtract | CsgOp::Intersect => MaterialRule::Nearest,
-        };
-        report.undo.materials = self.update_materials(&report.undo.previous, rule);
+        report.undo.materials = self.update_materials(&report.undo.previous, rule, &rows);
         Ok(report)
     }
 
@@ -689,13 +714,15 @@ fn across_range(bounds: &Aabb, origin: I64Vec3, axis: Axis, level: Level) -> Opt
 }
 
 /// Edits one chunk. Returns `None` when nothing changed, else the new chunk and the number of
-/// repaired brush nodes.
+/// repaired brush nodes. `noted` is set where the chunk was written line by line and its changed
+/// x lines were noted in `s.rows` (when `ctx.rows` asks for them).
 fn edit_chunk(
     ctx: &EditCtx<'_>,
     key: ChunkKey,
     old: ChunkView<'_>,
     level: Level,
     s: &mut Scratch,
+    noted: &mut bool,
 ) -> Option<(Built, u64)> {
     if !ctx.reconcile && old == ChunkView::Uniform(ctx.op == CsgOp::Add) && ctx.op != CsgOp::Intersect {
         // Adding to a solid chunk or subtracting from an empty one changes nothing.
@@ -764,11 +791,13 @@ fn edit_chunk(
         && ctx.op != CsgOp::Intersect
         && !ctx.reconcile
     {
+        *noted = ctx.rows;
         return edit_chunk_by_table(ctx, t, offset, origin, old, level, s, &mut sampler).map(|b| (b, 0));
     }
     // Lines are visited in storage order and written straight into the new chunk, the lines
     // between them copied in runs (as in `edit_chunk_by_table`).
-    let b = &mut s.builder;
+    *noted = ctx.rows;
+    let Scratch { builder: b, rows, x_states } = s;
     b.begin(level);
     let mut changed = false;
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
@@ -815,7 +844,7 @@ fn edit_chunk(
                     sampler.sample(at(axis, u, v), &mut brush_line);
                 }
                 if ctx.reconcile && inside_box && axis != Axis::X {
-                    repaired += reconcile_line(&s.x_states, axis, u, v, level, sampler.flip, &mut brush_line);
+                    repaired += reconcile_line(x_states, axis, u, v, level, sampler.flip, &mut brush_line);
                 }
                 if brush_line.states == 0 && ctx.op != CsgOp::Intersect {
                     // An empty brush line leaves a union or difference unchanged.
@@ -834,6 +863,10 @@ fn edit_chunk(
                     // The brush fills the line: the result is a full or an empty line.
                     let now = ctx.op == CsgOp::Add;
                     if line.start_inside != now || !uniform {
+                        if ctx.rows && axis == Axis::X {
+                            let after = if now { full } else { 0 };
+                            note_row(rows, axis, index, line_states(line, level), after, n);
+                        }
                         b.push_uniform(now, 1);
                         changed = true;
                     } else {
@@ -841,13 +874,13 @@ fn edit_chunk(
                     }
                     continue;
                 }
-                let result = if uniform && ctx.op != CsgOp::Intersect {
+                let (result, before) = if uniform && ctx.op != CsgOp::Intersect {
                     // An empty line gains the brush's piece, a full line loses it: the crossings
                     // are the brush's (its normals are already flipped for subtraction).
                     if ctx.op == CsgOp::Subtract {
                         brush_line.states = !brush_line.states & full;
                     }
-                    &brush_line
+                    (&brush_line, if line.start_inside { full } else { 0 })
                 } else {
                     old_line.load(line, level);
                     combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
@@ -855,8 +888,11 @@ fn edit_chunk(
                         b.push_stored(line);
                         continue;
                     }
-                    &new_line
+                    (&new_line, old_line.states)
                 };
+                if ctx.rows {
+                    note_row(rows, axis, index, before, result.states, n);
+                }
                 b.push_work(result, n);
                 changed = true;
             }
@@ -888,7 +924,7 @@ fn edit_chunk_by_table(
         return None;
     }
     let fill = ctx.op == CsgOp::Add;
-    let b = &mut s.builder;
+    let Scratch { builder: b, rows, .. } = s;
     b.begin(level);
     let mut changed = false;
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
@@ -923,7 +959,15 @@ fn edit_chunk_by_table(
                     }
                     let span = &spans.spans[spans.offsets[first_line + j] as usize];
                     let piece = Piece { fill, lo, hi, span, shift: shift_along };
-                    changed |= splice_piece(b, line, piece, level);
+                    let spliced = splice_piece(b, line, piece, level);
+                    if spliced && ctx.rows && axis == Axis::X {
+                        // The piece's nodes `lo..=hi` take the fill state.
+                        let before = line_states(line, level);
+                        let covered = node_mask(hi) & !((1u128 << lo) - 1);
+                        let after = if fill { before | covered } else { before & !covered };
+                        note_row(rows, axis, index, before, after, n);
+                    }
+                    changed |= spliced;
                 } else {
                     sampler.fill_from_spans(
                         spans.spans_at(first_line + j),
@@ -939,6 +983,9 @@ fn edit_chunk_by_table(
                     let line = cursor.next_line();
                     old_line.load(line, level);
                     combine(&old_line, &brush_line, ctx.op, n, &mut new_line);
+                    if ctx.rows {
+                        note_row(rows, axis, index, old_line.states, new_line.states, n);
+                    }
                     changed |= b.push_edited(line, &old_line, &new_line, n);
                 }
             }

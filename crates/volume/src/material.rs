@@ -125,6 +125,254 @@ impl Iterator for Entries<'_> {
     }
 }
 
+/// Reads the ids of a chunk's nodes at indices that never go back (x-major order), walking the
+/// change points once: what a block that needs a few rows of a chunk reads instead of decoding
+/// all `n³` nodes.
+pub(crate) struct IdReader<'a> {
+    entries: Entries<'a>,
+    /// The id of the run the last index read lies in.
+    id: MaterialId,
+    /// The next change point (`usize::MAX`: none) and its id.
+    next_at: usize,
+    next_id: MaterialId,
+}
+
+impl<'a> IdReader<'a> {
+    pub(crate) fn new(this: Option<&'a ChunkMaterials>) -> Self {
+        let (bytes, id): (&[u8], MaterialId) = match this {
+            None => (&[], 0),
+            Some(ChunkMaterials::Uniform(id)) => (&[], *id),
+            Some(ChunkMaterials::Runs(bytes)) => (bytes, 0),
+        };
+        let mut r = IdReader { entries: Entries::new(bytes), id, next_at: 0, next_id: id };
+        r.advance();
+        r
+    }
+
+    /// Moves to the next change point (as decoding does, a malformed tail ends the runs).
+    fn advance(&mut self) {
+        match self.entries.next() {
+            Some(Ok((delta, id))) => {
+                self.next_at = self.next_at.saturating_add(delta);
+                self.next_id = id;
+            }
+            _ => self.next_at = usize::MAX,
+        }
+    }
+
+    /// The ids of the nodes `start..start + out.len()`, into `out`. `start` is at least the end
+    /// of the run read before.
+    pub(crate) fn read(&mut self, start: usize, out: &mut [MaterialId]) {
+        let end = start + out.len();
+        let mut i = start;
+        while i < end {
+            while self.next_at <= i {
+                self.id = self.next_id;
+                self.advance();
+            }
+            let stop = end.min(self.next_at);
+            out[i - start..stop - start].fill(self.id);
+            i = stop;
+        }
+    }
+}
+
+/// One x line of a chunk whose own node states an edit changed: its index (`y + n z`, the row
+/// of the materials' x-major order) and its own nodes' states before and after (bit `x`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RowChange {
+    pub(crate) row: u32,
+    pub(crate) before: u128,
+    pub(crate) after: u128,
+}
+
+/// The old change points of a chunk, walked forward once: the id in effect at a node, and the
+/// points of a stretch to copy.
+struct OldPoints<'a> {
+    bytes: &'a [u8],
+    entries: Entries<'a>,
+    /// Where the next point's entry starts in `bytes`.
+    next_start: usize,
+    /// The id of the last point consumed (`None`: before the first point of runs, where no node
+    /// is solid).
+    id: Option<MaterialId>,
+    /// The next point's node (`usize::MAX`: none) and id.
+    next_at: usize,
+    next_id: MaterialId,
+}
+
+impl<'a> OldPoints<'a> {
+    fn new(this: Option<&'a ChunkMaterials>) -> Self {
+        let (bytes, id): (&[u8], _) = match this {
+            None => (&[], Some(0)),
+            Some(ChunkMaterials::Uniform(id)) => (&[], Some(*id)),
+            Some(ChunkMaterials::Runs(bytes)) => (bytes, None),
+        };
+        let mut p = OldPoints { bytes, entries: Entries::new(bytes), next_start: 0, id, next_at: 0, next_id: 0 };
+        p.fetch();
+        p
+    }
+
+    fn fetch(&mut self) {
+        self.next_start = self.entries.at;
+        match self.entries.next() {
+            Some(Ok((delta, id))) => {
+                self.next_at = self.next_at.saturating_add(delta);
+                self.next_id = id;
+            }
+            _ => self.next_at = usize::MAX,
+        }
+    }
+
+    /// Consumes the points before node `i`.
+    fn skip_below(&mut self, i: usize) {
+        while self.next_at < i {
+            self.id = Some(self.next_id);
+            self.fetch();
+        }
+    }
+
+    /// The id in effect at node `i` (not before the last node asked).
+    fn id_at(&mut self, i: usize) -> Option<MaterialId> {
+        self.skip_below(i + 1);
+        self.id
+    }
+}
+
+/// Writes change points in node order, dropping those that change nothing: the canonical
+/// encoding of the solid nodes' ids when fed every solid node where its id may change.
+#[derive(Default)]
+struct PointWriter {
+    out: Vec<u8>,
+    id: Option<MaterialId>,
+    last_at: usize,
+    points: usize,
+}
+
+impl PointWriter {
+    /// A point at node `at` (after the last one), unless the id is already `id`; returns
+    /// whether it was written.
+    #[inline]
+    fn put(&mut self, at: usize, id: MaterialId) -> bool {
+        if self.id == Some(id) {
+            return false;
+        }
+        push_varint(&mut self.out, at - self.last_at);
+        self.out.push(id);
+        self.last_at = at;
+        self.id = Some(id);
+        self.points += 1;
+        true
+    }
+
+    fn finish(self) -> Option<ChunkMaterials> {
+        match (self.points, self.id) {
+            (0, _) | (1, Some(0)) => None,
+            (1, Some(id)) => Some(ChunkMaterials::Uniform(id)),
+            _ => Some(ChunkMaterials::Runs(self.out.into_boxed_slice())),
+        }
+    }
+}
+
+/// The new materials of a chunk whose own node states changed only in `rows` (sorted by row,
+/// each with different states), from its `old` materials: nodes solid before and after keep
+/// their ids, nodes made solid take `fill`. `view` is the chunk after the edit at `level`.
+/// Only the changed rows are decoded; the change points between them are copied, with a point
+/// added or dropped where a stretch is entered with another id than before.
+pub(crate) fn splice_rows(
+    old: Option<&ChunkMaterials>,
+    rows: &[RowChange],
+    fill: MaterialId,
+    view: ChunkView<'_>,
+    level: Level,
+) -> Option<ChunkMaterials> {
+    let n = level.cells();
+    let nodes = n * n * n;
+    let mut points = OldPoints::new(old);
+    let mut w = PointWriter { out: Vec::with_capacity(points.bytes.len() + 8 * rows.len()), ..Default::default() };
+    // The rows after the edit, read forward where a stretch needs its first solid node.
+    let mut cursor = view.cursor(Axis::X, 0);
+    let own = (1u128 << n) - 1;
+    // (Rows are asked in increasing order: a stretch's search ends before the next stretch.)
+    let mut row_states = |r: usize| -> u128 {
+        cursor.advance_to(r);
+        crate::chunk::line_states(cursor.next_line(), level) & own
+    };
+    // Copies the old points of the unchanged nodes `a..b` (whole rows).
+    let mut stretch = |a: usize, b: usize, points: &mut OldPoints<'_>, w: &mut PointWriter| {
+        if a >= b {
+            return;
+        }
+        points.skip_below(a);
+        if let Some(entering) = points.id
+            && w.id != Some(entering)
+        {
+            // The stretch's solid nodes before its first point had `entering`, which the writer
+            // is not at: a point on the first of them.
+            let end = points.next_at.min(b);
+            let mut r = a / n;
+            while r * n < end {
+                let bits = row_states(r);
+                if bits != 0 {
+                    let at = r * n + bits.trailing_zeros() as usize;
+                    if at < end {
+                        w.put(at, entering);
+                    }
+                    break;
+                }
+                r += 1;
+            }
+        }
+        // The stretch's points, the first ones one at a time until one is written: the rest
+        // follow it as they were stored (their deltas and ids unchanged), copied as bytes.
+        while points.next_at < b {
+            let (at, id) = (points.next_at, points.next_id);
+            points.skip_below(at + 1);
+            if w.put(at, id) {
+                let from = points.next_start;
+                let mut count = 0;
+                while points.next_at < b {
+                    let (at, id) = (points.next_at, points.next_id);
+                    points.skip_below(at + 1);
+                    (w.last_at, w.id) = (at, Some(id));
+                    count += 1;
+                }
+                w.out.extend_from_slice(&points.bytes[from..points.next_start]);
+                w.points += count;
+                break;
+            }
+        }
+    };
+    let mut done = 0;
+    for c in rows {
+        let base = c.row as usize * n;
+        stretch(done, base, &mut points, &mut w);
+        // The row's solid nodes run by run: runs made solid take `fill`, runs that stay solid
+        // their old ids (the id at the run's start, then the old points inside it).
+        let (kept, grown) = (c.after & c.before, c.after & !c.before);
+        let mut bits = c.after;
+        while bits != 0 {
+            let a = bits.trailing_zeros() as usize;
+            let stays = kept >> a & 1 == 1;
+            let b = a + ((if stays { kept } else { grown }) >> a).trailing_ones() as usize;
+            bits &= !(((1u128 << (b - a)) - 1) << a);
+            if stays {
+                w.put(base + a, points.id_at(base + a).unwrap_or(fill));
+                while points.next_at < base + b {
+                    let (at, id) = (points.next_at, points.next_id);
+                    points.skip_below(at + 1);
+                    w.put(at, id);
+                }
+            } else {
+                w.put(base + a, fill);
+            }
+        }
+        done = base + n;
+    }
+    stretch(done, nodes, &mut points, &mut w);
+    w.finish()
+}
+
 fn push_varint(out: &mut Vec<u8>, mut v: usize) {
     while v >= 0x80 {
         out.push((v as u8 & 0x7f) | 0x80);
@@ -547,60 +795,54 @@ impl Volume {
 
     /// Brings the materials of the chunks `previous` lists (each with its contents before the
     /// edit) in line with their new node states under `rule`; returns the previous materials of
-    /// the chunks whose materials changed.
+    /// the chunks whose materials changed. `rows[i]`, where the writer kept it, lists the x
+    /// lines whose own node states it changed in `previous[i]`'s chunk: only those rows are
+    /// decoded ([`splice_rows`]) unless nodes were made solid under [`MaterialRule::Nearest`]
+    /// (which looks at the rows around them) or the chunk changed level.
     pub(crate) fn update_materials(
         &mut self,
         previous: &[(ChunkKey, Option<crate::chunk::Chunk>)],
         rule: MaterialRule,
+        rows: &[Option<Vec<RowChange>>],
     ) -> MaterialUndo {
         if self.materials.is_empty() && matches!(rule, MaterialRule::Nearest | MaterialRule::Fill(0)) {
             return Vec::new();
         }
         let mut ids = Vec::new();
         let mut updates = Vec::with_capacity(previous.len());
-        for (key, old_chunk) in previous {
+        for (i, (key, old_chunk)) in previous.iter().enumerate() {
             let level = self.level_of(*key);
-            let before_view = ChunkView::of(old_chunk.as_ref());
-            let before_level = match before_view {
-                ChunkView::Lists(l) => l.level(),
-                ChunkView::Uniform(_) => level,
-            };
             let old = self.materials.get(key);
-            // Cases decided without the previous node states: a chunk of one material that
-            // gains nodes of that material (or only loses or moves nodes), or of material 0
-            // that gains material 0.
-            let keeps = match (old, rule) {
-                (Some(ChunkMaterials::Uniform(u)), MaterialRule::Fill(f)) => (f == *u).then_some(*u),
-                (Some(ChunkMaterials::Uniform(u)), MaterialRule::Nearest) => Some(*u),
-                (None, MaterialRule::Fill(0)) => Some(0),
-                _ => None,
+            let same_level = match old_chunk {
+                Some(crate::chunk::Chunk::Lists(l)) => l.level() == level,
+                _ => true,
             };
-            if let (Some(u), true) = (keeps, before_level == level) {
-                let next = match self.view(*key) {
-                    ChunkView::Uniform(false) => None,
-                    ChunkView::Uniform(true) => (u != 0).then_some(ChunkMaterials::Uniform(u)),
-                    // (A list chunk may, rarely, have no solid node of its own.)
-                    view => own_states(view, level)
-                        .iter()
-                        .any(|&r| r != 0)
-                        .then_some(ChunkMaterials::Uniform(u))
-                        .filter(|_| u != 0),
-                };
-                if next.as_ref() != old {
-                    updates.push((*key, next));
+            let fill = |changes: &[RowChange]| match rule {
+                MaterialRule::Fill(f) => Some(f),
+                MaterialRule::Nearest => changes.iter().all(|c| c.after & !c.before == 0).then_some(0),
+            };
+            let next = match rows.get(i) {
+                Some(Some(changes)) if same_level && fill(changes).is_some() => {
+                    let f = fill(changes).unwrap_or(0);
+                    if changes.is_empty() {
+                        // No own node changed state: the materials stay.
+                        debug_assert_eq!(
+                            old.cloned(),
+                            self.whole_chunk_materials(*key, old_chunk.as_ref(), rule, &mut ids)
+                        );
+                        continue;
+                    }
+                    let next = splice_rows(old, changes, f, self.view(*key), level);
+                    debug_assert_eq!(
+                        next,
+                        self.whole_chunk_materials(*key, old_chunk.as_ref(), rule, &mut ids),
+                        "materials spliced by rows equal the whole chunk's pass"
+                    );
+                    next
                 }
-                continue;
-            }
-            let after = own_states(self.view(*key), level);
-            let next = if before_level == level {
-                let before = own_states(before_view, level);
-                let hint = if rule == MaterialRule::Nearest && old.is_none() { self.neighbour_hint(*key) } else { 0 };
-                next_materials(old, &before, &after, level.cells(), rule, hint, &mut ids)
-            } else {
-                // The edit replaced a chunk of another level: resample (see `resample_materials`).
-                self.resampled(*key, before_level, level, &after, &mut ids)
+                _ => self.whole_chunk_materials(*key, old_chunk.as_ref(), rule, &mut ids),
             };
-            if next.as_ref() != old {
+            if next.as_ref() != self.materials.get(key) {
                 updates.push((*key, next));
             }
         }
@@ -610,6 +852,54 @@ impl Volume {
             undo.push((key, was));
         }
         undo
+    }
+
+    /// The materials of chunk `key` (contents before the edit `old_chunk`) under `rule`, from
+    /// every node of the chunk before and after.
+    fn whole_chunk_materials(
+        &self,
+        key: ChunkKey,
+        old_chunk: Option<&crate::chunk::Chunk>,
+        rule: MaterialRule,
+        ids: &mut Vec<MaterialId>,
+    ) -> Option<ChunkMaterials> {
+        let level = self.level_of(key);
+        let before_view = ChunkView::of(old_chunk);
+        let before_level = match before_view {
+            ChunkView::Lists(l) => l.level(),
+            ChunkView::Uniform(_) => level,
+        };
+        let old = self.materials.get(&key);
+        // Cases decided without the previous node states: a chunk of one material that
+        // gains nodes of that material (or only loses or moves nodes), or of material 0
+        // that gains material 0.
+        let keeps = match (old, rule) {
+            (Some(ChunkMaterials::Uniform(u)), MaterialRule::Fill(f)) => (f == *u).then_some(*u),
+            (Some(ChunkMaterials::Uniform(u)), MaterialRule::Nearest) => Some(*u),
+            (None, MaterialRule::Fill(0)) => Some(0),
+            _ => None,
+        };
+        if let (Some(u), true) = (keeps, before_level == level) {
+            return match self.view(key) {
+                ChunkView::Uniform(false) => None,
+                ChunkView::Uniform(true) => (u != 0).then_some(ChunkMaterials::Uniform(u)),
+                // (A list chunk may, rarely, have no solid node of its own.)
+                view => own_states(view, level)
+                    .iter()
+                    .any(|&r| r != 0)
+                    .then_some(ChunkMaterials::Uniform(u))
+                    .filter(|_| u != 0),
+            };
+        }
+        let after = own_states(self.view(key), level);
+        if before_level == level {
+            let before = own_states(before_view, level);
+            let hint = if rule == MaterialRule::Nearest && old.is_none() { self.neighbour_hint(key) } else { 0 };
+            next_materials(old, &before, &after, level.cells(), rule, hint, ids)
+        } else {
+            // The edit replaced a chunk of another level: resample (see `resampled`).
+            self.resampled(key, before_level, level, &after, ids)
+        }
     }
 
     /// An id for new matter in chunk `key` that had no solid node: a face neighbour's (its
@@ -731,7 +1021,12 @@ impl Volume {
                 }
             }
         }
-        let mut report = crate::EditReport::default();
+        // Only nodes inside the brush's box change (a cell of the coarsest level more holds
+        // every edge whose vertex takes a changed node's material).
+        let mut report = crate::EditReport {
+            reach: Some(crate::Reach { min: bounds.min - DVec3::ONE, max: bounds.max + DVec3::ONE }),
+            ..Default::default()
+        };
         for (key, next) in updates {
             let was = self.store_materials(key, next);
             report.changed.push(key);
@@ -875,6 +1170,44 @@ mod tests {
         assert!(ChunkMaterials::try_from(raw).is_err());
         assert!(ChunkMaterials::try_from(RawMaterials::Uniform(0)).is_err());
         assert!(ChunkMaterials::try_from(RawMaterials::Runs(vec![0x80].into())).is_err());
+    }
+
+    #[test]
+    fn reading_rows_in_order_gives_what_decoding_gives() {
+        let n = 16;
+        let nodes = n * n * n;
+        let mut seed = 7u64;
+        let mut next = |m: u64| {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 33) % m
+        };
+        for _ in 0..50 {
+            // Random solid rows and random ids in runs.
+            let rows: Vec<u128> =
+                (0..n * n).map(|_| if next(4) == 0 { 0 } else { (next(1 << 16) as u128) | 1 }).collect();
+            let mut ids = vec![0u8; nodes];
+            let mut id = 0;
+            for v in ids.iter_mut() {
+                if next(40) == 0 {
+                    id = next(4) as u8;
+                }
+                *v = id;
+            }
+            let m = ChunkMaterials::encode(&ids, &rows, n);
+            let mut all = Vec::new();
+            ChunkMaterials::decode_into(m.as_ref(), nodes, &mut all);
+            let mut reader = IdReader::new(m.as_ref());
+            let mut start = 0;
+            while start < nodes {
+                // Runs that follow each other or skip nodes.
+                let len = 1 + next(20) as usize;
+                let len = len.min(nodes - start);
+                let mut got = vec![0u8; len];
+                reader.read(start, &mut got);
+                assert_eq!(got, all[start..start + len]);
+                start += [len, len + 1, len + next(300) as usize][next(3) as usize];
+            }
+        }
     }
 
     #[test]

@@ -37,7 +37,7 @@ impl Volume {
         // Each step's materials follow its chunks (resampled where the level changed); the record
         // keeps the oldest contents of every chunk.
         let mut remember = |volume: &mut Volume, undo: &mut Vec<_>, key: ChunkKey, old: Option<crate::chunk::Chunk>| {
-            for (k, m) in volume.update_materials(&[(key, old.clone())], crate::material::MaterialRule::Nearest) {
+            for (k, m) in volume.update_materials(&[(key, old.clone())], crate::material::MaterialRule::Nearest, &[]) {
                 if !material_undo.iter().any(|(j, _)| *j == k) {
                     material_undo.push((k, m));
                 }

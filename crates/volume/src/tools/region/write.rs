@@ -147,7 +147,7 @@ impl Volume {
         }
         self.settle_uniform(&mut report.changed, &mut report.undo.previous);
         let rule = fill.map_or(crate::material::MaterialRule::Nearest, crate::material::MaterialRule::Fill);
-        report.undo.materials = self.update_materials(&report.undo.previous, rule);
+        report.undo.materials = self.update_materials(&report.undo.previous, rule, &[]);
         report.changed.sort_by_key(|k| k.0.to_array());
         Ok(report)
     }
