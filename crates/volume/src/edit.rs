@@ -11,7 +11,7 @@ use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, WorkLine, line_states, node_mask};
 use crate::coords::{CHUNK_CELLS, ChunkKey, Level, edge_of, quantize_into_edge};
-use crate::material::{MaterialRule, RowChange};
+use crate::material::{MaterialRule, RowChange, note_row};
 use crate::normal::{flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, pack_oriented};
 use crate::volume::Volume;
@@ -223,17 +223,6 @@ struct Scratch {
     x_states: Vec<u128>,
     /// The x lines whose own node states the chunk's edit changed (kept when `EditCtx::rows`).
     rows: Vec<RowChange>,
-}
-
-/// Notes x line `index` in `rows` when its own nodes' states went from `before` to `after`
-/// (what the materials pass reads instead of every node of the chunk). Lines along y and z are
-/// not noted (callers skip computing their states).
-#[inline]
-fn note_row(rows: &mut Vec<RowChange>, axis: Axis, index: usize, before: u128, after: u128, n: usize) {
-    let own = (1u128 << n) - 1;
-    if axis == Axis::X && (before ^ after) & own != 0 {
-        rows.push(RowChange { row: index as u32, before: before & own, after: after & own });
-    }
 }
 
 struct EditCtx<'a> {

@@ -182,8 +182,20 @@ impl<'a> IdReader<'a> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct RowChange {
     pub(crate) row: u32,
-    pub(crate) before: u128,
-    pub(crate) after: u128,
+    pub(crate) before: u64,
+    pub(crate) after: u64,
+}
+
+/// Notes x line `index` in `rows` when its own nodes' states went from `before` to `after`
+/// (what the materials pass reads instead of every node of the chunk). Lines along y and z are
+/// not noted (callers skip computing their states).
+#[inline]
+pub(crate) fn note_row(rows: &mut Vec<RowChange>, axis: Axis, index: usize, before: u128, after: u128, n: usize) {
+    let own = (1u128 << n) - 1;
+    if axis == Axis::X && (before ^ after) & own != 0 {
+        // (A chunk's own nodes are at most 64 a line.)
+        rows.push(RowChange { row: index as u32, before: (before & own) as u64, after: (after & own) as u64 });
+    }
 }
 
 /// The old change points of a chunk, walked forward once: the id in effect at a node, and the
@@ -355,7 +367,7 @@ pub(crate) fn splice_rows(
             let a = bits.trailing_zeros() as usize;
             let stays = kept >> a & 1 == 1;
             let b = a + ((if stays { kept } else { grown }) >> a).trailing_ones() as usize;
-            bits &= !(((1u128 << (b - a)) - 1) << a);
+            bits &= !((u64::MAX >> (64 - (b - a))) << a);
             if stays {
                 w.put(base + a, points.id_at(base + a).unwrap_or(fill));
                 while points.next_at < base + b {

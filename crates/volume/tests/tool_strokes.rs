@@ -34,7 +34,13 @@ fn dab_of(v: &mut Volume, tool: u8, dab: &Dab, dir: DVec3) -> EditReport {
         10 => tools::grab(v, dab, dir * 0.25 * r),
         _ => tools::paint(v, dab),
     };
-    result.unwrap_or_else(|e| panic!("tool {tool} refused a valid dab {dab:?}: {e}"))
+    match result {
+        Ok(report) => report,
+        // A large dab over fine chunks may need a region past the node limit: a clear refusal
+        // that changes nothing (the stroke's undo check sees any change), not a failure.
+        Err(tools::ToolError::Region(tools::RegionError::TooLarge { .. })) => EditReport::default(),
+        Err(e) => panic!("tool {tool} refused a valid dab {dab:?}: {e}"),
+    }
 }
 
 /// The scene: two or three shapes whose centres and sizes are in quarter cells (on nodes, on

@@ -8,6 +8,7 @@ use crate::axis::{Axis, compose};
 use crate::chunk::{Built, ChunkBuilder, ChunkView, WorkLine};
 use crate::coords::{ChunkKey, Level, quantize_into_edge};
 use crate::edit::{EditReport, UndoRecord};
+use crate::material::{RowChange, note_row};
 use crate::normal::pack_normal;
 use crate::volume::Volume;
 
@@ -127,27 +128,39 @@ impl Volume {
         }
         // Chunks are rewritten independently; on several cores, a dab's chunks in parallel
         // (the results, in the same order, are the same whatever the thread count).
+        // The x lines whose node states change are noted for the materials where there are any
+        // to keep or give.
+        let note = self.has_materials() || fill.is_some_and(|f| f != 0);
         let this = &*self;
-        let rewrite = |b: &mut ChunkBuilder, &(key, at): &(ChunkKey, Stride)| {
-            rewrite_chunk(this.view(key), at, &written, (lo, hi), b).map(|built| (key, built))
+        type Scratch = (ChunkBuilder, Vec<RowChange>);
+        let rewrite = |(b, rows): &mut Scratch, &(key, at): &(ChunkKey, Stride)| {
+            rows.clear();
+            let built = rewrite_chunk(this.view(key), at, &written, (lo, hi), b, note.then_some(&mut *rows))?;
+            Some((key, built, note.then(|| rows.clone())))
         };
-        let results: Vec<(ChunkKey, Built)> = if jobs.len() >= PARALLEL_CHUNKS && rayon::current_num_threads() > 1 {
-            jobs.par_iter().map_init(ChunkBuilder::default, rewrite).flatten().collect()
-        } else {
-            let mut builder = ChunkBuilder::default();
-            jobs.iter().filter_map(|job| rewrite(&mut builder, job)).collect()
-        };
-        for (key, built) in results {
+        let results: Vec<(ChunkKey, Built, Option<Vec<RowChange>>)> =
+            if jobs.len() >= PARALLEL_CHUNKS && rayon::current_num_threads() > 1 {
+                jobs.par_iter().map_init(Scratch::default, rewrite).flatten().collect()
+            } else {
+                let mut scratch = Scratch::default();
+                jobs.iter().filter_map(|job| rewrite(&mut scratch, job)).collect()
+            };
+        let mut rows = Vec::with_capacity(results.len());
+        for (key, built, changes) in results {
             let previous = match built.into_chunk() {
                 Some(c) => self.chunks.insert(key, c),
                 None => self.chunks.remove(&key),
             };
             report.changed.push(key);
             report.undo.previous.push((key, previous));
+            rows.push(changes);
         }
-        self.settle_uniform(&mut report.changed, &mut report.undo.previous);
+        if self.settle_uniform(&mut report.changed, &mut report.undo.previous) {
+            // Settled chunks were rewritten after their lines: their materials are found whole.
+            rows.clear();
+        }
         let rule = fill.map_or(crate::material::MaterialRule::Nearest, crate::material::MaterialRule::Fill);
-        report.undo.materials = self.update_materials(&report.undo.previous, rule, &[]);
+        report.undo.materials = self.update_materials(&report.undo.previous, rule, &rows);
         report.changed.sort_by_key(|k| k.0.to_array());
         Ok(report)
     }
@@ -163,13 +176,14 @@ struct Stride {
 }
 
 /// The chunk at `at` with the region's owned nodes (box `owned`) written in, or `None` if
-/// nothing in it changes.
+/// nothing in it changes; the x lines whose node states change are noted in `rows`, if given.
 fn rewrite_chunk(
     old: ChunkView<'_>,
     at: Stride,
     written: &Written<'_>,
     owned: (I64Vec3, I64Vec3),
     b: &mut ChunkBuilder,
+    mut rows: Option<&mut Vec<RowChange>>,
 ) -> Option<Built> {
     let Stride { base, level, stride } = at;
     let region = written.region;
@@ -233,6 +247,9 @@ fn rewrite_chunk(
                 if !any {
                     b.push_stored(line);
                     continue;
+                }
+                if let Some(rows) = rows.as_deref_mut() {
+                    note_row(rows, axis, index, old_line.states, new_line.states, n);
                 }
                 let old_changes = old_line.changes(n);
                 let mut c = new_line.changes(n);
