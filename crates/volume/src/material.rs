@@ -125,58 +125,6 @@ impl Iterator for Entries<'_> {
     }
 }
 
-/// Reads the ids of a chunk's nodes at indices that never go back (x-major order), walking the
-/// change points once: what a block that needs a few rows of a chunk reads instead of decoding
-/// all `n³` nodes.
-pub(crate) struct IdReader<'a> {
-    entries: Entries<'a>,
-    /// The id of the run the last index read lies in.
-    id: MaterialId,
-    /// The next change point (`usize::MAX`: none) and its id.
-    next_at: usize,
-    next_id: MaterialId,
-}
-
-impl<'a> IdReader<'a> {
-    pub(crate) fn new(this: Option<&'a ChunkMaterials>) -> Self {
-        let (bytes, id): (&[u8], MaterialId) = match this {
-            None => (&[], 0),
-            Some(ChunkMaterials::Uniform(id)) => (&[], *id),
-            Some(ChunkMaterials::Runs(bytes)) => (bytes, 0),
-        };
-        let mut r = IdReader { entries: Entries::new(bytes), id, next_at: 0, next_id: id };
-        r.advance();
-        r
-    }
-
-    /// Moves to the next change point (as decoding does, a malformed tail ends the runs).
-    fn advance(&mut self) {
-        match self.entries.next() {
-            Some(Ok((delta, id))) => {
-                self.next_at = self.next_at.saturating_add(delta);
-                self.next_id = id;
-            }
-            _ => self.next_at = usize::MAX,
-        }
-    }
-
-    /// The ids of the nodes `start..start + out.len()`, into `out`. `start` is at least the end
-    /// of the run read before.
-    pub(crate) fn read(&mut self, start: usize, out: &mut [MaterialId]) {
-        let end = start + out.len();
-        let mut i = start;
-        while i < end {
-            while self.next_at <= i {
-                self.id = self.next_id;
-                self.advance();
-            }
-            let stop = end.min(self.next_at);
-            out[i - start..stop - start].fill(self.id);
-            i = stop;
-        }
-    }
-}
-
 /// One x line of a chunk whose own node states an edit changed: its index (`y + n z`, the row
 /// of the materials' x-major order) and its own nodes' states before and after (bit `x`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -198,9 +146,10 @@ pub(crate) fn note_row(rows: &mut Vec<RowChange>, axis: Axis, index: usize, befo
     }
 }
 
-/// The old change points of a chunk, walked forward once: the id in effect at a node, and the
-/// points of a stretch to copy.
-struct OldPoints<'a> {
+/// The change points of a chunk, walked forward once (x-major order, never going back): the id in
+/// effect at a node, the ids of a run of nodes (what a block that needs a few rows of a chunk
+/// reads instead of decoding all `n³` nodes), and the points of a stretch to copy.
+pub(crate) struct IdReader<'a> {
     bytes: &'a [u8],
     entries: Entries<'a>,
     /// Where the next point's entry starts in `bytes`.
@@ -213,14 +162,14 @@ struct OldPoints<'a> {
     next_id: MaterialId,
 }
 
-impl<'a> OldPoints<'a> {
-    fn new(this: Option<&'a ChunkMaterials>) -> Self {
+impl<'a> IdReader<'a> {
+    pub(crate) fn new(this: Option<&'a ChunkMaterials>) -> Self {
         let (bytes, id): (&[u8], _) = match this {
             None => (&[], Some(0)),
             Some(ChunkMaterials::Uniform(id)) => (&[], Some(*id)),
             Some(ChunkMaterials::Runs(bytes)) => (bytes, None),
         };
-        let mut p = OldPoints { bytes, entries: Entries::new(bytes), next_start: 0, id, next_at: 0, next_id: 0 };
+        let mut p = IdReader { bytes, entries: Entries::new(bytes), next_start: 0, id, next_at: 0, next_id: 0 };
         p.fetch();
         p
     }
@@ -248,6 +197,20 @@ impl<'a> OldPoints<'a> {
     fn id_at(&mut self, i: usize) -> Option<MaterialId> {
         self.skip_below(i + 1);
         self.id
+    }
+
+    /// The ids of the nodes `start..start + out.len()`, into `out` (empty nodes before the first
+    /// point read 0, as decoding gives them). `start` is at least the end of the nodes read
+    /// before.
+    pub(crate) fn read(&mut self, start: usize, out: &mut [MaterialId]) {
+        let end = start + out.len();
+        let mut i = start;
+        while i < end {
+            self.skip_below(i + 1);
+            let stop = end.min(self.next_at);
+            out[i - start..stop - start].fill(self.id.unwrap_or(0));
+            i = stop;
+        }
     }
 }
 
@@ -300,7 +263,7 @@ pub(crate) fn splice_rows(
 ) -> Option<ChunkMaterials> {
     let n = level.cells();
     let nodes = n * n * n;
-    let mut points = OldPoints::new(old);
+    let mut points = IdReader::new(old);
     let mut w = PointWriter { out: Vec::with_capacity(points.bytes.len() + 8 * rows.len()), ..Default::default() };
     // The rows after the edit, read forward where a stretch needs its first solid node.
     let mut cursor = view.cursor(Axis::X, 0);
@@ -311,7 +274,7 @@ pub(crate) fn splice_rows(
         crate::chunk::line_states(cursor.next_line(), level) & own
     };
     // Copies the old points of the unchanged nodes `a..b` (whole rows).
-    let mut stretch = |a: usize, b: usize, points: &mut OldPoints<'_>, w: &mut PointWriter| {
+    let mut stretch = |a: usize, b: usize, points: &mut IdReader<'_>, w: &mut PointWriter| {
         if a >= b {
             return;
         }
