@@ -792,13 +792,17 @@ impl Volume {
                 Some(crate::chunk::Chunk::Lists(l)) => l.level() == level,
                 _ => true,
             };
-            let fill = |changes: &[RowChange]| match rule {
-                MaterialRule::Fill(f) => Some(f),
-                MaterialRule::Nearest => changes.iter().all(|c| c.after & !c.before == 0).then_some(0),
-            };
-            let next = match rows.get(i) {
-                Some(Some(changes)) if same_level && fill(changes).is_some() => {
-                    let f = fill(changes).unwrap_or(0);
+            // The rows the writer noted, and the id nodes made solid take, where the rows alone
+            // decide the chunk's materials.
+            let spliced = rows.get(i).and_then(Option::as_ref).filter(|_| same_level).and_then(|changes| {
+                let fill = match rule {
+                    MaterialRule::Fill(f) => Some(f),
+                    MaterialRule::Nearest => changes.iter().all(|c| c.after & !c.before == 0).then_some(0),
+                };
+                fill.map(|f| (changes, f))
+            });
+            let next = match spliced {
+                Some((changes, f)) => {
                     if changes.is_empty() {
                         // No own node changed state: the materials stay.
                         debug_assert_eq!(

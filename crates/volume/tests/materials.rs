@@ -74,6 +74,21 @@ fn nodes() -> impl Iterator<Item = I64Vec3> {
     (0..SIDE).flat_map(|z| (0..SIDE).flat_map(move |y| (0..SIDE).map(move |x| I64Vec3::new(x, y, z))))
 }
 
+/// What `o` (its brush `b`) does to the dense reference of node materials: an add gives its
+/// material to the nodes it makes solid, a subtraction or intersection empties nodes and keeps
+/// the survivors' materials.
+fn apply_to_reference(reference: &mut [Option<u8>], o: &Op, b: &dyn Brush) {
+    for n in nodes() {
+        let inside = brush_contains_node(b, n, Level::BASE);
+        let r = &mut reference[index(n)];
+        *r = match (o.op, inside) {
+            (CsgOp::Add, true) => Some(r.unwrap_or(o.material)),
+            (CsgOp::Subtract, true) | (CsgOp::Intersect, false) => None,
+            _ => *r,
+        };
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
 
@@ -86,15 +101,7 @@ proptest! {
         for o in &ops {
             let b = brush(o);
             checked(&mut v, |v| v.apply(o.op, b.as_ref(), &settings(o.material)).unwrap());
-            for n in nodes() {
-                let inside = brush_contains_node(b.as_ref(), n, Level::BASE);
-                let r = &mut reference[index(n)];
-                *r = match (o.op, inside) {
-                    (CsgOp::Add, true) => Some(r.unwrap_or(o.material)),
-                    (CsgOp::Subtract, true) | (CsgOp::Intersect, false) => None,
-                    _ => *r,
-                };
-            }
+            apply_to_reference(&mut reference, o, b.as_ref());
         }
         for n in nodes() {
             prop_assert_eq!(v.node_material_at(n), reference[index(n)], "node {}", n);
@@ -336,15 +343,7 @@ proptest! {
         for o in &ops {
             let b = brush(o);
             checked(&mut v, |v| v.apply(o.op, b.as_ref(), &settings(o.material)).unwrap());
-            for n in nodes() {
-                let inside = brush_contains_node(b.as_ref(), n, Level::BASE);
-                let r = &mut reference[index(n)];
-                *r = match (o.op, inside) {
-                    (CsgOp::Add, true) => Some(r.unwrap_or(o.material)),
-                    (CsgOp::Subtract, true) | (CsgOp::Intersect, false) => None,
-                    _ => *r,
-                };
-            }
+            apply_to_reference(&mut reference, o, b.as_ref());
         }
         // Nodes of chunks that stayed at the base level, away from the raised ones (whose
         // nodes between base nodes a shape may reach differently).
