@@ -18,5 +18,15 @@ for core in strata-volume strata-editor strata-terrain; do
   fi
 done
 
+echo "== layering: the CLI links no GUI, the renderer no volume or mesh crate"
+if cargo tree -p strata -e normal | grep -E '(eframe|egui|winit|rfd) v'; then
+  echo "strata (the CLI) must not depend on the crates above" >&2
+  exit 1
+fi
+if cargo tree -p strata-render -e normal | grep -E 'strata-(volume|mesh) v'; then
+  echo "strata-render must not depend on the crates above (it is fed plain meshes)" >&2
+  exit 1
+fi
+
 echo "== tests"
 cargo test --workspace

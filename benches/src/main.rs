@@ -405,10 +405,15 @@ fn stroke(seconds: f64) {
         if let (Some(g), Some(r)) = (&gpu, &mut renderer) {
             for &(layer, key) in &report.remeshed {
                 match editor.mesh_cache(layer).and_then(|c| c.mesh(key)) {
-                    Some(mesh) => {
-                        r.upload_chunk(&g.device, &g.queue, layer as u32, key, mesh, Mat4::IDENTITY, [0.5, 0.4, 0.3])
-                    }
-                    None => r.remove_chunk(layer as u32, key),
+                    Some(mesh) => r.upload_mesh(
+                        &g.device,
+                        &g.queue,
+                        strata_viewport::chunk_id(layer as u32, key),
+                        strata_viewport::mesh_ref(mesh),
+                        strata_viewport::chunk_placement(Mat4::IDENTITY, key),
+                        [0.5, 0.4, 0.3],
+                    ),
+                    None => r.remove_mesh(strata_viewport::chunk_id(layer as u32, key)),
                 }
             }
             g.queue.submit([]);

@@ -425,16 +425,26 @@ pub fn info(path: &Path) -> Result<String> {
     Ok(r)
 }
 
-/// Renders the scene at `scene` offscreen into the PNG at `out` (the studio's headless
-/// renderer: a GPU or a software Vulkan driver). Returns a report.
+/// Renders the scene at `scene` offscreen into the PNG at `out` (the studio's headless path,
+/// [`strata_viewport::render_scene`], on a GPU or a software Vulkan driver; no GUI is linked).
+/// Returns a report.
 pub fn render(scene: &Path, out: &Path, size: (u32, u32), wireframe: bool) -> Result<String> {
     check_input(scene, &SCENE_EXTENSIONS, "scene file")?;
     check_output(out, &["png"], "PNG file")?;
     if size.0 == 0 || size.1 == 0 || size.0 > 8192 || size.1 > 8192 {
         bail!("--size must be between 1x1 and 8192x8192, got {}x{}", size.0, size.1);
     }
-    let adapter = strata_studio::screenshot(Some(scene), out, size, wireframe)?;
-    Ok(format!("{}: rendered {}x{} on {adapter}\n  wrote {}\n", scene.display(), size.0, size.1, out.display()))
+    let loaded = file::load(scene).with_context(|| format!("could not open {}", scene.display()))?;
+    let repaired =
+        if loaded.report.is_clean() { String::new() } else { format!("  repaired while loading: {}\n", loaded.report) };
+    let adapter = strata_viewport::render_scene(loaded.scene, out, size, wireframe)?;
+    Ok(format!(
+        "{}: rendered {}x{} on {adapter}\n{repaired}  wrote {}\n",
+        scene.display(),
+        size.0,
+        size.1,
+        out.display()
+    ))
 }
 
 /// Parses `WxH`.

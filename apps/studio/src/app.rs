@@ -8,13 +8,12 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 use glam::Mat4;
 use strata_editor::{BrushShape, Buttons, ToolKind};
-use strata_render::{DEPTH_FORMAT, FrameSettings, Preview, Renderer};
+use strata_render::{DEPTH_FORMAT, FrameSettings, MeshId, Placement, Preview, Renderer};
 
 /// Where the falloff `3t⁴ − 4t³ + 1` is one half, as a fraction of the radius: the preview's
 /// core, inside which a field tool acts at half its strength or more.
 pub const FALLOFF_HALF: f64 = 0.6135;
 
-use crate::headless::{layer_model, upload_all};
 use crate::recovery::Autosave;
 use crate::studio::{Action, Studio};
 
@@ -1247,7 +1246,7 @@ impl StudioApp {
                 Ok(scene) => {
                     let _ = self.studio.act(Action::New);
                     self.studio.editor.set_scene(scene);
-                    self.studio.camera = crate::studio::camera_of(&self.studio.editor.scene.view);
+                    self.studio.camera = strata_viewport::camera_of(&self.studio.editor.scene.view);
                     self.studio.full_upload = true;
                     self.studio.path = found.origin.clone();
                     // Recovered work is not in any file yet.
@@ -1665,31 +1664,35 @@ impl StudioApp {
             // Terrain mode draws the world's chunk meshes and the debris instead of the scene.
             if !vp.terrain_shown {
                 vp.renderer.clear();
-                vp.renderer.set_palette(&rs.queue, &crate::headless::palette(&self.studio.editor.scene));
+                vp.renderer.set_palette(&rs.queue, &strata_viewport::palette(&self.studio.editor.scene));
                 vp.terrain_shown = true;
                 t.uploads.extend(t.meshes().map(|(k, _)| k).collect::<Vec<_>>());
             }
             for key in std::mem::take(&mut t.uploads) {
                 match t.mesh(key) {
-                    Some(mesh) => vp.renderer.upload_chunk(
+                    Some(mesh) => strata_viewport::upload_chunk(
+                        &mut vp.renderer,
                         &rs.device,
                         &rs.queue,
                         TERRAIN_LAYER,
                         key,
                         mesh,
                         Mat4::IDENTITY,
-                        [1.0; 3],
                     ),
-                    None => vp.renderer.remove_chunk(TERRAIN_LAYER, key),
+                    None => vp.renderer.remove_mesh(strata_viewport::chunk_id(TERRAIN_LAYER, key)),
                 }
             }
             let debris = t.particle_mesh();
-            let key = strata_volume::ChunkKey::new(0, 0, 0);
-            if debris.indices.is_empty() {
-                vp.renderer.remove_chunk(DEBRIS_LAYER, key);
-            } else {
-                vp.renderer.upload_chunk(&rs.device, &rs.queue, DEBRIS_LAYER, key, &debris, Mat4::IDENTITY, [1.0; 3]);
-            }
+            // An empty mesh drops the debris.
+            let id = MeshId { group: DEBRIS_LAYER, key: [0; 3] };
+            vp.renderer.upload_mesh(
+                &rs.device,
+                &rs.queue,
+                id,
+                strata_viewport::mesh_ref(&debris),
+                Placement::default(),
+                [1.0; 3],
+            );
             let settings = FrameSettings { camera: t.camera(), wireframe: self.studio.wireframe, ..Default::default() };
             vp.present(ui, rs, rect, size, &settings);
             return;
@@ -1701,13 +1704,13 @@ impl StudioApp {
         }
         // Upload what the editor remeshed.
         if self.studio.full_upload {
-            upload_all(&self.studio, &rs.device, &rs.queue, &mut vp.renderer);
+            strata_viewport::upload_scene(&self.studio.editor, &rs.device, &rs.queue, &mut vp.renderer);
             self.studio.full_upload = false;
             self.studio.palette_changed = false;
             self.studio.uploads.clear();
         } else {
             if self.studio.palette_changed {
-                vp.renderer.set_palette(&rs.queue, &crate::headless::palette(&self.studio.editor.scene));
+                vp.renderer.set_palette(&rs.queue, &strata_viewport::palette(&self.studio.editor.scene));
                 self.studio.palette_changed = false;
             }
             for (layer, key) in std::mem::take(&mut self.studio.uploads) {
@@ -1715,18 +1718,16 @@ impl StudioApp {
                 let Some(l) = scene.layers.get(layer) else { continue };
                 let mesh = self.studio.editor.chunk_mesh(layer, key);
                 match mesh.filter(|_| l.visible) {
-                    Some(mesh) => {
-                        vp.renderer.upload_chunk(
-                            &rs.device,
-                            &rs.queue,
-                            layer as u32,
-                            key,
-                            mesh,
-                            layer_model(l),
-                            [1.0; 3],
-                        );
-                    }
-                    None => vp.renderer.remove_chunk(layer as u32, key),
+                    Some(mesh) => strata_viewport::upload_chunk(
+                        &mut vp.renderer,
+                        &rs.device,
+                        &rs.queue,
+                        layer as u32,
+                        key,
+                        mesh,
+                        strata_viewport::layer_model(l),
+                    ),
+                    None => vp.renderer.remove_mesh(strata_viewport::chunk_id(layer as u32, key)),
                 }
             }
         }
@@ -1737,7 +1738,7 @@ impl StudioApp {
         let wireframe = self.studio.wireframe;
         let camera = self.studio.camera;
         let dabs = self.studio.preview_dabs();
-        let preview_mesh = self.studio.preview_mesh();
+        let preview_mesh = strata_viewport::mesh_ref(self.studio.preview_mesh());
         let rgb = if erase { [1.0, 0.35, 0.3] } else { [0.35, 0.65, 1.0] };
         let mut previews = Vec::with_capacity(dabs.len() * 2);
         for (k, (p, q)) in dabs.into_iter().enumerate() {

@@ -17,10 +17,12 @@ pub struct Recent {
 }
 
 impl Recent {
-    /// The list stored at `file` (empty if it cannot be read; paths that no longer exist are
-    /// dropped).
+    /// The list stored at `file` (empty if it cannot be read, is not text or is over 64 KiB;
+    /// paths that no longer exist are dropped).
     pub fn load(file: PathBuf) -> Self {
-        let paths = std::fs::read_to_string(&file)
+        let paths = strata_files::read_limited(&file, 64 << 10)
+            .ok()
+            .and_then(|bytes| String::from_utf8(bytes).ok())
             .map(|text| text.lines().filter(|l| !l.is_empty()).map(PathBuf::from).filter(|p| p.is_file()).collect())
             .unwrap_or_default();
         let mut r = Recent { file, paths };
@@ -44,10 +46,9 @@ impl Recent {
             let _ = std::fs::create_dir_all(dir);
         }
         let text: String = self.paths.iter().map(|p| format!("{}\n", p.display())).collect();
-        let tmp = self.file.with_extension("txt.tmp");
-        if std::fs::write(&tmp, text).is_ok() {
-            let _ = std::fs::rename(&tmp, &self.file);
-        }
+        let _ = strata_files::write_atomically::<std::io::Error>(&self.file, |f| {
+            std::io::Write::write_all(f, text.as_bytes())
+        });
     }
 }
 

@@ -11,7 +11,8 @@ use std::time::{Duration, Instant, SystemTime};
 use strata_editor::Scene;
 use strata_editor::file;
 
-use crate::studio::{Studio, view_of};
+use crate::studio::Studio;
+use strata_viewport::view_of;
 
 /// Where recovery files live: `$XDG_STATE_HOME/strata`, `~/.local/state/strata`, or a folder in
 /// the temporary directory.

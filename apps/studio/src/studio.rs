@@ -229,7 +229,7 @@ pub struct Studio {
 impl Studio {
     /// A studio on `scene`, with the camera the scene was saved with.
     pub fn new(scene: Scene) -> Self {
-        let camera = camera_of(&scene.view);
+        let camera = strata_viewport::camera_of(&scene.view);
         let mut s = Studio {
             editor: Editor::new(scene),
             terrain: None,
@@ -644,7 +644,7 @@ impl Studio {
     }
 
     fn save_to(&mut self, path: &Path) -> Result<(), String> {
-        self.editor.scene.view = view_of(&self.camera);
+        self.editor.scene.view = strata_viewport::view_of(&self.camera);
         let report = file::save(&self.editor.scene, path)
             .map_err(|e: SceneFileError| format!("Could not save {}: {e}", path.display()))?;
         if report.is_clean() {
@@ -664,7 +664,7 @@ impl Studio {
     }
 
     fn replace_scene(&mut self, scene: Scene) {
-        self.camera = camera_of(&scene.view);
+        self.camera = strata_viewport::camera_of(&scene.view);
         self.editor.set_scene(scene);
         self.full_upload = true;
         self.uploads.clear();
@@ -1046,20 +1046,6 @@ fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String> {
     let offset = tl.to_grid(tu.translation).round().as_ivec3();
     lower.volume.merge_from(&upper.volume, offset, &Default::default()).map_err(|e| format!("Could not merge: {e}"))?;
     Ok(())
-}
-
-pub(crate) fn camera_of(v: &View) -> Camera {
-    Camera {
-        target: v.target.as_vec3(),
-        distance: v.distance as f32,
-        yaw: v.yaw as f32,
-        pitch: v.pitch as f32,
-        ..Camera::default()
-    }
-}
-
-pub(crate) fn view_of(c: &Camera) -> View {
-    View { target: c.target.as_dvec3(), distance: c.distance as f64, yaw: c.yaw as f64, pitch: c.pitch as f64 }
 }
 
 #[cfg(test)]

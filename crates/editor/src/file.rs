@@ -36,7 +36,7 @@
 //!   uniform chunk's materials are per node of the layer's level, so runs that reach past that
 //!   count are dropped; runs written for a coarser level fit and cannot be told apart.
 //! - **Bounded reads.** Only regular files of at most [`MAX_SCENE_BYTES`] are read; anything else
-//!   is refused before a byte is read ([`strata_mesh::import::read_limited`]), and decoding never
+//!   is refused before a byte is read ([`strata_files::read_limited`]), and decoding never
 //!   allocates more than the file's size for the payload.
 //! - **Safe saves.** [`save`] writes a temporary file with a name unique to the save (process,
 //!   counter and time) in the target's folder, syncs it, renames it over the target and syncs
@@ -699,7 +699,7 @@ fn resolve_chunks(
 /// Reads the scene at `path` (a regular file of at most [`MAX_SCENE_BYTES`]), repairing what it
 /// can. On error nothing else changes.
 pub fn load(path: &Path) -> Result<Loaded, SceneFileError> {
-    let bytes = strata_mesh::import::read_limited(path, MAX_SCENE_BYTES)?;
+    let bytes = strata_files::read_limited(path, MAX_SCENE_BYTES)?;
     decode(&bytes)
 }
 
@@ -736,15 +736,15 @@ pub fn is_valid(scene: &Scene) -> bool {
         && v.pitch.is_finite()
 }
 
-pub use strata_mesh::atomic::{stale_temp_files, temp_path};
+pub use strata_files::{stale_temp_files, temp_path};
 
 /// Writes through `write` into a temporary file beside `path`, syncs it, renames it over `path`
-/// and syncs the folder ([`strata_mesh::atomic::write_atomically`], which every file Strata
-/// writes goes through). If anything fails, the temporary file is removed and `path` is
+/// and syncs the folder ([`strata_files::write_atomically`], which every file Strata writes
+/// goes through). If anything fails, the temporary file is removed and `path` is
 /// untouched.
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut fs::File) -> io::Result<()>,
 ) -> Result<(), SceneFileError> {
-    Ok(strata_mesh::atomic::write_atomically::<io::Error>(path, write)?)
+    Ok(strata_files::write_atomically::<io::Error>(path, write)?)
 }

@@ -153,12 +153,12 @@ pub fn save_mesh_with(mesh: &Mesh, path: &Path, palette: &[ExportMaterial]) -> R
     })
 }
 
-/// Writes through `write` atomically (see [`crate::atomic`]), buffered.
+/// Writes through `write` atomically ([`strata_files::write_atomically`]), buffered.
 fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), ExportError>,
 ) -> Result<(), ExportError> {
-    crate::atomic::write_atomically(path, |f| {
+    strata_files::write_atomically(path, |f| {
         let mut w = BufWriter::new(f);
         write(&mut w)?;
         w.flush()?;

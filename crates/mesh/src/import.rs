@@ -14,7 +14,7 @@
 //! 80-byte header of a binary file with `solid`.
 
 use std::collections::HashMap;
-use std::io::{self, Cursor, Read};
+use std::io::{self, Cursor};
 use std::path::Path;
 
 use glam::DVec3;
@@ -22,31 +22,6 @@ use thiserror::Error;
 
 /// The largest mesh file read (2 GiB: about 40 million binary STL triangles).
 pub const MAX_MESH_BYTES: u64 = 2 << 30;
-
-/// Reads the whole regular file at `path`, refusing (with [`io::ErrorKind::InvalidInput`])
-/// anything that is not a regular file or holds more than `limit` bytes, before reading it and
-/// again while reading it (a file that grows meanwhile).
-pub fn read_limited(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
-    let meta = std::fs::metadata(path)?;
-    if !meta.is_file() {
-        return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
-    }
-    let too_large = || io::Error::new(io::ErrorKind::InvalidInput, format!("larger than the limit of {limit} bytes"));
-    if meta.len() > limit {
-        return Err(too_large());
-    }
-    let f = std::fs::File::open(path)?;
-    // Checked again on the open file: the path may have been replaced since.
-    if !f.metadata()?.is_file() {
-        return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    f.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limit {
-        return Err(too_large());
-    }
-    Ok(bytes)
-}
 
 /// Vertices and triangles read from a file.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -119,7 +94,7 @@ fn read_gltf(bytes: &[u8], base: Option<&Path>) -> Result<TriangleMesh, String> 
             let dir = base.ok_or("a glTF in memory cannot read external buffers")?;
             // External buffers go through the same bounded read as the file itself.
             let path = dir.join(uri);
-            read_limited(&path, MAX_MESH_BYTES).map_err(|e| format!("buffer {}: {e}", path.display()))?;
+            strata_files::read_limited(&path, MAX_MESH_BYTES).map_err(|e| format!("buffer {}: {e}", path.display()))?;
         }
     }
     let buffers = gltf::import_buffers(&document, base, gltf.blob).map_err(|e| e.to_string())?;
@@ -178,7 +153,7 @@ pub fn load_mesh(path: &Path) -> Result<TriangleMesh, ImportError> {
     if !ext.as_deref().is_some_and(|e| MESH_EXTENSIONS.contains(&e)) {
         return Err(ImportError::UnknownFormat(name));
     }
-    let bytes = read_limited(path, MAX_MESH_BYTES)
+    let bytes = strata_files::read_limited(path, MAX_MESH_BYTES)
         .map_err(|e| ImportError::Io(io::Error::new(e.kind(), format!("{name}: {e}"))))?;
     let mesh = match ext.as_deref() {
         Some("gltf" | "glb") => read_gltf(&bytes, Some(path.parent().unwrap_or(Path::new(".")))),

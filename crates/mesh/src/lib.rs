@@ -29,7 +29,6 @@
 //! ```
 #![warn(missing_docs)]
 
-pub mod atomic;
 mod cache;
 mod cases;
 pub mod checks;

@@ -2,7 +2,10 @@
 
 /// Up to four materials of one vertex and their weights (0..=255, summing to 255), taken only
 /// from solid nodes: weights from empty nodes would blend in materials that are not there.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+/// Laid out as two `[u8; 4]` (`repr(C)`, `Pod`), so a renderer can borrow a mesh's materials as
+/// bytes without copying them.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct VertexMaterial {
     /// Material ids, heaviest first (unused slots repeat the first id with weight 0).
     pub ids: [u8; 4],

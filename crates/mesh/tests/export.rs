@@ -114,3 +114,63 @@ fn bad_paths_and_meshes_are_errors_and_keep_the_old_file() {
     assert!(save_mesh(&Mesh::default(), &temp("empty.glb")).is_err(), "an empty mesh is refused");
     assert!(!temp("empty.glb").exists());
 }
+
+/// Two threads export different meshes to one path 100 times each while a third reads it: every
+/// read is one whole mesh, never a mix or a partial file, and no temporary file is left.
+#[test]
+fn two_threads_exporting_to_one_path_never_leave_a_corrupt_or_partial_file() {
+    let path = temp("race.stl");
+    let dir = path.parent().unwrap().to_path_buf();
+    let a = scene();
+    let b = {
+        let mut v = Volume::new();
+        v.add(&Sphere::new(DVec3::new(1.0, 2.0, 3.0), 5.0).unwrap()).unwrap();
+        mesh_volume(&v)
+    };
+    assert_ne!(a.triangle_count(), b.triangle_count());
+    save_mesh(&a, &path).unwrap();
+    let counts = [a.triangle_count(), b.triangle_count()];
+    let read = |p: &std::path::Path| -> Option<usize> {
+        let bytes = std::fs::read(p).ok()?;
+        let stl = stl_io::read_stl(&mut std::io::Cursor::new(bytes)).ok()?;
+        Some(stl.faces.len())
+    };
+    let done = std::sync::atomic::AtomicBool::new(false);
+    let (reads, bad) = std::thread::scope(|s| {
+        let writers: Vec<_> = [&a, &b]
+            .into_iter()
+            .map(|mesh| {
+                let path = &path;
+                s.spawn(move || {
+                    for _ in 0..100 {
+                        save_mesh(mesh, path).unwrap();
+                    }
+                })
+            })
+            .collect();
+        let reader = s.spawn(|| {
+            let (mut reads, mut bad) = (0u32, 0u32);
+            while !done.load(std::sync::atomic::Ordering::Relaxed) {
+                match read(&path) {
+                    Some(n) if counts.contains(&n) => reads += 1,
+                    _ => bad += 1,
+                }
+            }
+            (reads, bad)
+        });
+        for w in writers {
+            w.join().unwrap();
+        }
+        done.store(true, std::sync::atomic::Ordering::Relaxed);
+        reader.join().unwrap()
+    });
+    assert_eq!(bad, 0, "{bad} corrupt or partial reads of {}", reads + bad);
+    assert!(counts.contains(&read(&path).expect("the last export reads")));
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("race.stl."))
+        .collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+}

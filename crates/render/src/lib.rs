@@ -1,9 +1,11 @@
 //! # strata-render
 //!
-//! A wgpu renderer for chunk meshes, used on screen (inside the egui desktop app) and headless
-//! (an offscreen texture read back to a PNG). GPU buffers live per chunk and are replaced only
-//! for the chunks a remesh touched. Lighting is a key light over a hemispheric ambient; a ground
-//! grid gives scale, a translucent brush preview shows where the tool will act, and a wireframe
+//! A wgpu renderer for meshes, used on screen (inside the egui desktop app) and headless (an
+//! offscreen texture read back to a PNG: [`screenshot`]). GPU buffers live per mesh, named by
+//! an opaque [`MeshId`] the caller chooses, and are replaced only for the meshes a remesh
+//! touched; the renderer knows nothing of volumes or chunks, only meshes and where they are
+//! placed ([`Placement`]). Lighting is a key light over a hemispheric ambient; a ground grid
+//! gives scale, a translucent brush preview shows where the tool will act, and a wireframe
 //! overlay shows the triangles. Meshes are textured by material: each vertex blends up to four
 //! entries of a palette ([`Renderer::set_palette`]: colour, procedural detail texture, scale,
 //! roughness), projected triplanar (see [`textures`]). The WGSL source is `shaders/mesh.wgsl`,
@@ -16,8 +18,11 @@ mod renderer;
 pub mod textures;
 
 pub use camera::{AxisView, Camera};
-pub use gpu::{Gpu, Image, RenderError, render_offscreen};
-pub use renderer::{DEPTH_FORMAT, FrameSettings, PALETTE_SIZE, PaletteEntry, Preview, Renderer, Vertex};
+pub use gpu::{DrawMesh, Gpu, Image, RenderError, render_offscreen, screenshot};
+pub use renderer::{
+    DEPTH_FORMAT, FrameSettings, MaterialBlend, MeshId, MeshRef, PALETTE_SIZE, PaletteEntry, Placement, Preview,
+    Renderer, Vertex,
+};
 
 /// The WGSL source of every pipeline.
 pub const SHADER: &str = include_str!("../../../shaders/mesh.wgsl");

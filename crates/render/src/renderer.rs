@@ -1,14 +1,74 @@
-//! Pipelines, per-chunk GPU buffers and drawing.
+//! Pipelines, per-mesh GPU buffers and drawing.
 
 use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat3, Mat4, Vec3};
-use strata_mesh::Mesh;
-use strata_volume::ChunkKey;
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
+
+/// Up to four materials of one vertex and their weights in 255ths (summing to 255), heaviest
+/// first: the layout of `strata_mesh::VertexMaterial`, so a mesh's materials are lent as they
+/// are stored (`bytemuck::cast_slice`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct MaterialBlend {
+    /// Palette entries.
+    pub ids: [u8; 4],
+    /// Their weights.
+    pub weights: [u8; 4],
+}
+
+/// A triangle mesh as the renderer reads it: plain slices a caller lends (the renderer depends
+/// on no mesh or volume crate).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MeshRef<'a> {
+    /// Vertex positions.
+    pub positions: &'a [[f32; 3]],
+    /// Unit normals, one per position.
+    pub normals: &'a [[f32; 3]],
+    /// Materials, one per position, or empty for material 0 throughout.
+    pub materials: &'a [MaterialBlend],
+    /// Three indices per triangle, counter-clockwise seen from outside.
+    pub indices: &'a [u32],
+}
+
+impl MeshRef<'_> {
+    /// The materials of vertex `i`.
+    fn material(&self, i: usize) -> MaterialBlend {
+        self.materials.get(i).copied().unwrap_or(MaterialBlend { ids: [0; 4], weights: [255, 0, 0, 0] })
+    }
+}
+
+/// Names one mesh the renderer holds. The renderer reads nothing from it but equality: the
+/// caller chooses what a group and a key mean (the studio: a scene layer and a chunk's
+/// coordinates, the streamed terrain, the debris), and drops a whole group at once with
+/// [`Renderer::clear_group`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MeshId {
+    /// A set of meshes dropped together.
+    pub group: u32,
+    /// The mesh within its group.
+    pub key: [i32; 3],
+}
+
+/// Where a mesh's vertices are drawn: `model · (origin + position)`, the sum taken in `f64` and
+/// rounded to `f32` once, so two meshes whose positions are relative to different origins put
+/// a shared point on one world position bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    /// The mesh's frame to the world (a layer's grid placed in the world).
+    pub model: Mat4,
+    /// Added to every position before `model` (a chunk's origin on its layer's grid).
+    pub origin: DVec3,
+}
+
+impl Default for Placement {
+    fn default() -> Self {
+        Placement { model: Mat4::IDENTITY, origin: DVec3::ZERO }
+    }
+}
 
 /// The depth buffer's format.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -78,7 +138,7 @@ struct FrameUniforms {
 #[derive(Clone, Copy, Debug)]
 pub struct Preview<'a> {
     /// The brush's surface.
-    pub mesh: &'a Mesh,
+    pub mesh: MeshRef<'a>,
     /// Its placement in the world.
     pub model: Mat4,
     /// Linear RGBA (alpha is the opacity).
@@ -134,7 +194,7 @@ pub struct Renderer {
     detail: wgpu::Texture,
     detail_filled: bool,
     bind_group: wgpu::BindGroup,
-    chunks: HashMap<(u32, ChunkKey), GpuChunk>,
+    meshes: HashMap<MeshId, GpuChunk>,
     grid_vertices: wgpu::Buffer,
     grid_count: u32,
     preview_buffers: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
@@ -143,7 +203,7 @@ pub struct Renderer {
 
 impl std::fmt::Debug for Renderer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Renderer").field("chunks", &self.chunks.len()).field("uploads", &self.uploads).finish()
+        f.debug_struct("Renderer").field("meshes", &self.meshes.len()).field("uploads", &self.uploads).finish()
     }
 }
 
@@ -281,7 +341,7 @@ impl Renderer {
             detail: detail.2,
             detail_filled: false,
             bind_group,
-            chunks: HashMap::new(),
+            meshes: HashMap::new(),
             grid_vertices,
             grid_count: grid_lines.len() as u32,
             preview_buffers: None,
@@ -289,39 +349,36 @@ impl Renderer {
         }
     }
 
-    /// Replaces the GPU data of chunk `key` of `layer` with `mesh` (relative to the chunk's
-    /// origin, as the mesh caches store it; the layer's grid is placed in the world by `model`),
-    /// tinted `color` (multiplying the colours of its vertices' materials, see
-    /// [`Renderer::set_palette`]; white shows them as they are). An empty mesh removes the chunk. The chunk's buffers are rewritten in
+    /// Replaces the GPU data of mesh `id` with `mesh`, placed by `placement` and tinted `color`
+    /// (multiplying the colours of its vertices' materials, see [`Renderer::set_palette`];
+    /// white shows them as they are). An empty mesh removes it. Its buffers are rewritten in
     /// place when the new mesh fits them (a remeshed chunk rarely grows much) and reallocated
     /// half as large again as needed otherwise, so a stroke mostly writes, not allocates.
-    #[allow(clippy::too_many_arguments)]
-    pub fn upload_chunk(
+    pub fn upload_mesh(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        layer: u32,
-        key: ChunkKey,
-        mesh: &Mesh,
-        model: Mat4,
+        id: MeshId,
+        mesh: MeshRef<'_>,
+        placement: Placement,
         color: [f32; 3],
     ) {
         if mesh.indices.is_empty() {
-            self.chunks.remove(&(layer, key));
+            self.meshes.remove(&id);
             return;
         }
         let vertices =
-            world_vertices(mesh, model, key.origin_grid().as_dvec3(), [color[0], color[1], color[2], 1.0], true);
-        let edges = edge_indices(&mesh.indices);
+            world_vertices(&mesh, placement.model, placement.origin, [color[0], color[1], color[2], 1.0], true);
+        let edges = edge_indices(mesh.indices);
         let data: [(&[u8], wgpu::BufferUsages); 3] = [
             (bytemuck::cast_slice(&vertices), wgpu::BufferUsages::VERTEX),
-            (bytemuck::cast_slice(&mesh.indices), wgpu::BufferUsages::INDEX),
+            (bytemuck::cast_slice(mesh.indices), wgpu::BufferUsages::INDEX),
             (bytemuck::cast_slice(&edges), wgpu::BufferUsages::INDEX),
         ];
         let create = |(bytes, usage): (&[u8], wgpu::BufferUsages)| {
             let size = ((bytes.len() * 3 / 2).div_ceil(4) * 4) as u64;
             let b = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("chunk buffer"),
+                label: Some("mesh buffer"),
                 size,
                 usage: usage | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
@@ -329,7 +386,7 @@ impl Renderer {
             queue.write_buffer(&b, 0, bytes);
             b
         };
-        match self.chunks.get_mut(&(layer, key)) {
+        match self.meshes.get_mut(&id) {
             Some(c) => {
                 for (buffer, d) in [&mut c.vertices, &mut c.triangles, &mut c.edges].into_iter().zip(data) {
                     if buffer.size() >= d.0.len() as u64 {
@@ -350,38 +407,38 @@ impl Renderer {
                     triangle_indices: mesh.indices.len() as u32,
                     edge_indices: edges.len() as u32,
                 };
-                self.chunks.insert((layer, key), chunk);
+                self.meshes.insert(id, chunk);
             }
         }
         self.uploads += 1;
     }
 
-    /// Drops the buffers of one chunk.
-    pub fn remove_chunk(&mut self, layer: u32, key: ChunkKey) {
-        self.chunks.remove(&(layer, key));
+    /// Drops the buffers of one mesh.
+    pub fn remove_mesh(&mut self, id: MeshId) {
+        self.meshes.remove(&id);
     }
 
-    /// Drops every chunk of `layer`.
-    pub fn clear_layer(&mut self, layer: u32) {
-        self.chunks.retain(|(l, _), _| *l != layer);
+    /// Drops every mesh of `group`.
+    pub fn clear_group(&mut self, group: u32) {
+        self.meshes.retain(|id, _| id.group != group);
     }
 
-    /// Drops every chunk.
+    /// Drops every mesh.
     pub fn clear(&mut self) {
-        self.chunks.clear();
+        self.meshes.clear();
     }
 
-    /// Chunks with buffers.
-    pub fn chunk_count(&self) -> usize {
-        self.chunks.len()
+    /// Meshes with buffers.
+    pub fn mesh_count(&self) -> usize {
+        self.meshes.len()
     }
 
     /// Triangles drawn per frame.
     pub fn triangle_count(&self) -> usize {
-        self.chunks.values().map(|c| c.triangle_indices as usize / 3).sum()
+        self.meshes.values().map(|c| c.triangle_indices as usize / 3).sum()
     }
 
-    /// Chunk uploads since creation.
+    /// Mesh uploads since creation.
     pub fn uploads(&self) -> u64 {
         self.uploads
     }
@@ -433,7 +490,7 @@ impl Renderer {
         let (mut vertices, mut indices) = (Vec::new(), Vec::new());
         for p in settings.previews.iter().filter(|p| !p.mesh.indices.is_empty()) {
             let base = vertices.len() as u32;
-            vertices.extend(world_vertices(p.mesh, p.model, DVec3::ZERO, p.color, false));
+            vertices.extend(world_vertices(&p.mesh, p.model, DVec3::ZERO, p.color, false));
             indices.extend(p.mesh.indices.iter().map(|i| i + base));
         }
         self.preview_buffers = (!indices.is_empty()).then(|| {
@@ -455,14 +512,14 @@ impl Renderer {
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, settings: &FrameSettings<'_>) {
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&self.fill);
-        for c in self.chunks.values() {
+        for c in self.meshes.values() {
             pass.set_vertex_buffer(0, c.vertices.slice(..));
             pass.set_index_buffer(c.triangles.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..c.triangle_indices, 0, 0..1);
         }
         if settings.wireframe {
             pass.set_pipeline(&self.wire);
-            for c in self.chunks.values() {
+            for c in self.meshes.values() {
                 pass.set_vertex_buffer(0, c.vertices.slice(..));
                 pass.set_index_buffer(c.edges.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..c.edge_indices, 0, 0..1);
@@ -575,12 +632,18 @@ fn detail_texture(device: &wgpu::Device) -> (wgpu::TextureView, wgpu::Sampler, w
 /// Composing `model · translate(origin)` in f32 per chunk instead rounds each chunk's product
 /// differently, and under a rotated or scaled layer the shared vertices of neighbours differed
 /// by an ulp or so.
-fn world_vertices(mesh: &Mesh, model: Mat4, origin: DVec3, color: [f32; 4], with_materials: bool) -> Vec<Vertex> {
+fn world_vertices(
+    mesh: &MeshRef<'_>,
+    model: Mat4,
+    origin: DVec3,
+    color: [f32; 4],
+    with_materials: bool,
+) -> Vec<Vertex> {
     let normal_matrix = Mat3::from_mat4(model).inverse().transpose();
     let world_from_grid = model.as_dmat4();
     mesh.positions
         .iter()
-        .zip(&mesh.normals)
+        .zip(mesh.normals)
         .enumerate()
         .map(|(i, (p, n))| {
             let m = mesh.material(i);
@@ -633,10 +696,10 @@ mod tests {
 
     #[test]
     fn vertices_move_into_the_world_with_normals_kept_unit() {
-        let mesh = Mesh {
-            positions: vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            normals: vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            indices: vec![0, 1, 2],
+        let mesh = MeshRef {
+            positions: &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            normals: &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            indices: &[0, 1, 2],
             ..Default::default()
         };
         let model =
@@ -646,7 +709,7 @@ mod tests {
         for x in &v {
             assert!((Vec3::from(x.normal).length() - 1.0).abs() < 1e-5);
         }
-        assert_eq!(edge_indices(&mesh.indices), vec![0, 1, 1, 2, 2, 0]);
+        assert_eq!(edge_indices(mesh.indices), vec![0, 1, 1, 2, 2, 0]);
         // The grid's axis lines are coloured, the others translucent grey.
         assert!(grid_vertices().iter().any(|g| g.color == [0.85, 0.25, 0.25, 0.9]));
     }
@@ -660,18 +723,20 @@ mod tests {
             glam::Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 0.2),
             Vec3::new(123.4, -56.7, 88.9),
         );
-        let cells = strata_volume::coords::CHUNK_CELLS as f32;
+        let cells = 16.0f32;
         let mut differ = 0;
         for i in 0..400 {
             // A vertex on the face x = 16 of chunk (k, 2, -3), which is x = 0 of chunk (k + 1, 2, -3):
             // marching cubes places both copies from the same crossing.
             let k = i % 20 - 10;
             let (y, z) = ((i as f32 * 0.137).fract() * cells, (i as f32 * 0.291).fract() * cells);
-            let chunk =
-                |x: f32| Mesh { positions: vec![[x, y, z]], normals: vec![[1.0, 0.0, 0.0]], ..Default::default() };
-            let (lower, upper) = (ChunkKey::new(k, 2, -3), ChunkKey::new(k + 1, 2, -3));
-            let a = world_vertices(&chunk(cells), model, lower.origin_grid().as_dvec3(), [1.0; 4], false);
-            let b = world_vertices(&chunk(0.0), model, upper.origin_grid().as_dvec3(), [1.0; 4], false);
+            let (low, high) = ([[cells, y, z]], [[0.0, y, z]]);
+            fn chunk(p: &[[f32; 3]]) -> MeshRef<'_> {
+                MeshRef { positions: p, normals: &[[1.0, 0.0, 0.0]], ..Default::default() }
+            }
+            let origin = |kx: i32| DVec3::new(f64::from(kx), 2.0, -3.0) * f64::from(cells);
+            let a = world_vertices(&chunk(&low), model, origin(k), [1.0; 4], false);
+            let b = world_vertices(&chunk(&high), model, origin(k + 1), [1.0; 4], false);
             differ += usize::from(a[0].position.map(f32::to_bits) != b[0].position.map(f32::to_bits));
         }
         assert_eq!(differ, 0, "{differ} of 400 shared vertices land on different world positions (a crack)");

@@ -7,11 +7,13 @@
 
 use glam::{DVec3, Mat4, Vec3};
 use strata_mesh::{Mesh, MeshCache};
-use strata_render::{AxisView, Camera, FrameSettings, Gpu, Image, Preview, Renderer, render_offscreen};
+use strata_render::{
+    AxisView, Camera, FrameSettings, Gpu, Image, MeshId, MeshRef, Placement, Preview, Renderer, render_offscreen,
+};
 
-use strata_volume::Volume;
 use strata_volume::brush::{Capsule, Cuboid, Sphere, Torus};
 use strata_volume::tools::{Dab, grab};
+use strata_volume::{ChunkKey, Volume};
 
 fn gpu() -> Option<Gpu> {
     match Gpu::headless() {
@@ -26,6 +28,22 @@ fn gpu() -> Option<Gpu> {
     }
 }
 
+/// `mesh` as the renderer reads it.
+fn lend(mesh: &Mesh) -> MeshRef<'_> {
+    MeshRef {
+        positions: &mesh.positions,
+        normals: &mesh.normals,
+        materials: bytemuck::cast_slice(&mesh.materials),
+        indices: &mesh.indices,
+    }
+}
+
+/// Draws the chunk `key`'s mesh (relative to the chunk's origin, as mesh caches keep it).
+fn upload(r: &mut Renderer, gpu: &Gpu, key: ChunkKey, mesh: &Mesh, color: [f32; 3]) {
+    let placement = Placement { model: Mat4::IDENTITY, origin: key.origin_grid().as_dvec3() };
+    r.upload_mesh(&gpu.device, &gpu.queue, MeshId { group: 0, key: key.0.to_array() }, lend(mesh), placement, color);
+}
+
 const W: u32 = 320;
 const H: u32 = 240;
 const CENTRE: Vec3 = Vec3::new(24.0, 24.0, 24.0);
@@ -37,7 +55,7 @@ fn scene(gpu: &Gpu) -> Renderer {
     let cache = MeshCache::build(&volume);
     let mut r = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
     for (key, mesh) in cache.iter() {
-        r.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [0.72, 0.62, 0.52]);
+        upload(&mut r, gpu, key, mesh, [0.72, 0.62, 0.52]);
     }
     assert_eq!(r.triangle_count(), cache.triangle_count());
     r
@@ -101,7 +119,7 @@ fn a_sphere_renders_where_the_camera_puts_it() {
         v
     });
     let preview = Preview {
-        mesh: &brush,
+        mesh: lend(&brush),
         model: Mat4::from_translation(CENTRE + Vec3::new(0.0, 0.0, RADIUS)),
         color: [0.3, 0.6, 1.0, 0.4],
     };
@@ -133,15 +151,15 @@ fn a_sphere_renders_where_the_camera_puts_it() {
 fn chunk_buffers_are_replaced_and_removed() {
     let Some(gpu) = gpu() else { return };
     let mut r = scene(&gpu);
-    let n = r.chunk_count();
+    let n = r.mesh_count();
     assert!(n > 0);
     let uploads = r.uploads();
-    let key = strata_volume::ChunkKey::new(1, 1, 1);
-    r.upload_chunk(&gpu.device, &gpu.queue, 0, key, &strata_mesh::Mesh::default(), Mat4::IDENTITY, [1.0; 3]);
+    let key = ChunkKey::new(1, 1, 1);
+    upload(&mut r, &gpu, key, &Mesh::default(), [1.0; 3]);
     assert_eq!(r.uploads(), uploads, "an empty mesh uploads nothing");
-    assert!(r.chunk_count() < n);
-    r.clear_layer(0);
-    assert_eq!(r.chunk_count(), 0);
+    assert!(r.mesh_count() < n);
+    r.clear_group(0);
+    assert_eq!(r.mesh_count(), 0);
     let img = render_offscreen(&gpu, &mut r, 64, 48, &FrameSettings { grid: false, ..Default::default() }).unwrap();
     let bg = img.pixel(0, 0);
     assert!((0..48).all(|y| (0..64).all(|x| img.pixel(x, y) == bg)), "nothing left to draw");
@@ -164,7 +182,7 @@ fn painted_materials_show_in_their_palette_colours() {
     let entry = |color: [f32; 3]| strata_render::PaletteEntry { color, texture: 2, scale: 8.0, roughness: 0.9 };
     r.set_palette(&gpu.queue, &[entry([0.5; 3]), entry([0.8, 0.05, 0.05]), entry([0.05, 0.05, 0.8])]);
     for (key, mesh) in cache.iter() {
-        r.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [1.0; 3]);
+        upload(&mut r, &gpu, key, mesh, [1.0; 3]);
     }
     // Looking along -z at the sphere: x grows to the right of the image.
     let cam = Camera { target: CENTRE, distance: 60.0, yaw: 0.0, pitch: 0.0, fov_y: 0.8, orthographic: false };
@@ -195,7 +213,7 @@ fn the_grid_does_not_show_through_a_box_seen_from_above() {
     let cache = MeshCache::build(&volume);
     let mut r = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
     for (key, mesh) in cache.iter() {
-        r.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [0.72, 0.62, 0.52]);
+        upload(&mut r, &gpu, key, mesh, [0.72, 0.62, 0.52]);
     }
     // From above at distance 150: lines pulled a fixed 0.0004 in clip space towards the camera
     // came about 6 units nearer, above the box's top at 3.5.
@@ -290,10 +308,10 @@ fn thin_features_render_without_black_specks() {
     );
     let mut flat = 0;
     for (key, mesh) in cache.iter() {
-        smooth.upload_chunk(&gpu.device, &gpu.queue, 0, key, mesh, Mat4::IDENTITY, [1.0; 3]);
+        upload(&mut smooth, &gpu, key, mesh, [1.0; 3]);
         let (fixed, n) = disagreeing_triangles_flat(mesh);
         flat += n;
-        reference.upload_chunk(&gpu.device, &gpu.queue, 0, key, &fixed, Mat4::IDENTITY, [1.0; 3]);
+        upload(&mut reference, &gpu, key, &fixed, [1.0; 3]);
     }
     // The model has the feature: triangles whose vertex normals disagree.
     assert!(flat > 50, "{flat} triangles with disagreeing vertex normals");

@@ -1,7 +1,7 @@
-//! Atomic file writes, one way for every file Strata writes (scenes, meshes, PNGs): into a
-//! temporary file beside the target with a name unique to the write, synced, renamed over the
-//! target, the folder synced. A crash or an error mid-write keeps the old file; two writes to
-//! one path, from one process or several, never share a temporary file.
+//! Atomic, durable writes: into a temporary file beside the target with a name unique to the
+//! write, synced, renamed over the target, the folder synced. A crash or an error mid-write keeps
+//! the old file; two writes to one path, from one process or several, never share a temporary
+//! file.
 
 use std::fs;
 use std::io;
