@@ -48,7 +48,9 @@ pub fn recipe(source: &RecipeSource<'_>) -> Result<Recipe> {
         RecipeSource::Seed(s) => Ok(Recipe::with_seed(*s)),
         RecipeSource::File(p) => {
             check_input(p, &["json"], "recipe file")?;
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            // A recipe is a few hundred bytes of JSON; a megabyte is surely not one.
+            let bytes = strata_files::read_limited(p, 1 << 20).with_context(|| format!("reading {}", p.display()))?;
+            let text = String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("{}: not UTF-8 text", p.display()))?;
             Recipe::from_json(&text).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))
         }
     }

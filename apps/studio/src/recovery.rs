@@ -164,7 +164,11 @@ pub fn find(dir: &Path) -> Option<Found> {
             continue;
         }
         let Ok(modified) = e.metadata().and_then(|m| m.modified()) else { continue };
-        let origin = std::fs::read_to_string(origin_file(dir, pid)).ok().filter(|s| !s.is_empty()).map(PathBuf::from);
+        let origin = strata_files::read_limited(&origin_file(dir, pid), 64 << 10)
+            .ok()
+            .and_then(|b| String::from_utf8(b).ok())
+            .filter(|s| !s.is_empty())
+            .map(PathBuf::from);
         if best.as_ref().is_none_or(|b| modified > b.modified) {
             best = Some(Found { path: e.path(), origin, modified });
         }
