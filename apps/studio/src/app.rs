@@ -14,6 +14,7 @@ use strata_render::{DEPTH_FORMAT, FrameSettings, MeshId, Placement, Preview, Ren
 /// core, inside which a field tool acts at half its strength or more.
 pub const FALLOFF_HALF: f64 = 0.6135;
 
+use crate::keymap::{Command, command_for, keys_of, labelled};
 use crate::recovery::Autosave;
 use crate::studio::{Action, Studio};
 
@@ -477,7 +478,7 @@ impl StudioApp {
                 .collect()
         });
         for (mods, key) in presses {
-            let Some(command) = crate::keymap::command_for(mods, key) else { continue };
+            let Some(command) = command_for(mods, key) else { continue };
             // Letters typed into a field are the field's; commands with Ctrl still work there.
             if (ctx.egui_wants_keyboard_input() && !command.works_while_typing()) || self.modal_open() {
                 continue;
@@ -489,8 +490,8 @@ impl StudioApp {
     }
 
     /// Carries out a keyboard command.
-    fn run_command(&mut self, ctx: &egui::Context, command: crate::keymap::Command) {
-        use crate::keymap::Command as C;
+    fn run_command(&mut self, ctx: &egui::Context, command: Command) {
+        use Command as C;
         match command {
             C::Undo => {
                 let _ = self.studio.act(Action::Undo);
@@ -544,8 +545,8 @@ impl StudioApp {
     /// Terrain mode's keys (WASD, Q and E fly, read as held keys in the viewport): B (the
     /// scene's next-shape key) bombs,
     /// [ and ] size the dig.
-    fn terrain_command(&mut self, command: crate::keymap::Command) {
-        use crate::keymap::Command as C;
+    fn terrain_command(&mut self, command: Command) {
+        use Command as C;
         match command {
             C::NextShape => {
                 let _ = self.studio.act(Action::Bomb);
@@ -568,10 +569,10 @@ impl StudioApp {
         let ctx = ui.ctx().clone();
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
-                if ui.button("New (Ctrl+N)").clicked() {
+                if ui.button(labelled("New", Command::New)).clicked() {
                     self.guard(&ctx, Then::New);
                 }
-                if ui.button("Open… (Ctrl+O)").clicked() {
+                if ui.button(labelled("Open…", Command::Open)).clicked() {
                     self.guard(&ctx, Then::Open);
                 }
                 ui.menu_button("Open recent", |ui| {
@@ -592,10 +593,10 @@ impl StudioApp {
                 {
                     self.ask_path(&ctx, Prompt::Import, None);
                 }
-                if ui.button("Save (Ctrl+S)").clicked() {
+                if ui.button(labelled("Save", Command::Save)).clicked() {
                     self.save(&ctx, None);
                 }
-                if ui.button("Save as… (Ctrl+Shift+S)").clicked() {
+                if ui.button(labelled("Save as…", Command::SaveAs)).clicked() {
                     self.ask_path(&ctx, Prompt::SaveAs, None);
                 }
                 ui.separator();
@@ -625,34 +626,35 @@ impl StudioApp {
                 }
             });
             ui.menu_button("Edit", |ui| {
-                if ui.button("Undo (Ctrl+Z)").clicked() {
+                if ui.button(labelled("Undo", Command::Undo)).clicked() {
                     let _ = self.studio.act(Action::Undo);
                 }
-                if ui.button("Redo (Ctrl+Shift+Z)").clicked() {
+                if ui.button(labelled("Redo", Command::Redo)).clicked() {
                     let _ = self.studio.act(Action::Redo);
                 }
             });
             ui.menu_button("View", |ui| {
-                if ui.checkbox(&mut self.studio.wireframe, "Wireframe (W)").changed() {
+                if ui.checkbox(&mut self.studio.wireframe, labelled("Wireframe", Command::Wireframe)).changed() {
                     ui.close();
                 }
-                let views: [(&str, Action); 7] = [
-                    ("Frame the model (Home, .)", Action::FrameAll),
-                    ("Front (1)", Action::AxisView(strata_render::AxisView::Front, false)),
-                    ("Back (Ctrl+1)", Action::AxisView(strata_render::AxisView::Front, true)),
-                    ("Right (3)", Action::AxisView(strata_render::AxisView::Right, false)),
-                    ("Left (Ctrl+3)", Action::AxisView(strata_render::AxisView::Right, true)),
-                    ("Top (7)", Action::AxisView(strata_render::AxisView::Top, false)),
-                    ("Bottom (Ctrl+7)", Action::AxisView(strata_render::AxisView::Top, true)),
+                use strata_render::AxisView::{Front, Right, Top};
+                let views: [(&str, Action, Command); 7] = [
+                    ("Frame the model", Action::FrameAll, Command::Frame),
+                    ("Front", Action::AxisView(Front, false), Command::View(Front, false)),
+                    ("Back", Action::AxisView(Front, true), Command::View(Front, true)),
+                    ("Right", Action::AxisView(Right, false), Command::View(Right, false)),
+                    ("Left", Action::AxisView(Right, true), Command::View(Right, true)),
+                    ("Top", Action::AxisView(Top, false), Command::View(Top, false)),
+                    ("Bottom", Action::AxisView(Top, true), Command::View(Top, true)),
                 ];
-                for (label, action) in views {
-                    if ui.button(label).clicked() {
+                for (label, action, command) in views {
+                    if ui.button(labelled(label, command)).clicked() {
                         let _ = self.studio.act(action);
                         ui.close();
                     }
                 }
                 let mut ortho = self.studio.camera.orthographic;
-                if ui.checkbox(&mut ortho, "Orthographic (5)").changed() {
+                if ui.checkbox(&mut ortho, labelled("Orthographic", Command::Orthographic)).changed() {
                     let _ = self.studio.act(Action::ToggleOrthographic);
                     ui.close();
                 }
@@ -680,7 +682,7 @@ impl StudioApp {
                     ui.close();
                 }
                 let open = self.studio.terrain.is_some();
-                if ui.add_enabled(open, egui::Button::new("Bomb (B)")).clicked() {
+                if ui.add_enabled(open, egui::Button::new(labelled("Bomb", Command::NextShape))).clicked() {
                     let _ = self.studio.act(Action::Bomb);
                     ui.close();
                 }
@@ -690,7 +692,7 @@ impl StudioApp {
                 }
             });
             ui.menu_button("Help", |ui| {
-                if ui.button("Keyboard shortcuts (F1)").clicked() {
+                if ui.button(labelled("Keyboard shortcuts", Command::Help)).clicked() {
                     self.help_open = true;
                     ui.close();
                 }
@@ -702,33 +704,28 @@ impl StudioApp {
         let tool = &mut self.studio.editor.tool;
         ui.heading("Tool");
         let tips = [
-            (ToolKind::Clay, "C", "Add clay that blends into the surface in a soft fillet (Ctrl/Alt: carve)"),
-            (ToolKind::Add, "A", "Add the brush shape exactly (CSG union; Ctrl/Alt: erase)"),
-            (ToolKind::Erase, "E", "Cut the brush shape away exactly (CSG difference; Ctrl/Alt: add)"),
+            (ToolKind::Clay, "Add clay that blends into the surface in a soft fillet (Ctrl/Alt: carve)"),
+            (ToolKind::Add, "Add the brush shape exactly (CSG union; Ctrl/Alt: erase)"),
+            (ToolKind::Erase, "Cut the brush shape away exactly (CSG difference; Ctrl/Alt: add)"),
             (
                 ToolKind::Smooth,
-                "S",
                 "Smooth the surface, keeping its volume (hold Shift with any tool; Ctrl/Alt: Laplacian)",
             ),
-            (ToolKind::Inflate, "I", "Push the surface out along its normal (Ctrl/Alt: deflate)"),
-            (ToolKind::Flatten, "T", "Pull the surface towards the plane that fits it under the brush"),
-            (ToolKind::Pinch, "P", "Pull the surface towards the stroke into a crease (Ctrl/Alt: push apart)"),
-            (ToolKind::Grab, "G", "Drag the surface under the brush with the pointer"),
+            (ToolKind::Inflate, "Push the surface out along its normal (Ctrl/Alt: deflate)"),
+            (ToolKind::Flatten, "Pull the surface towards the plane that fits it under the brush"),
+            (ToolKind::Pinch, "Pull the surface towards the stroke into a crease (Ctrl/Alt: push apart)"),
+            (ToolKind::Grab, "Drag the surface under the brush with the pointer"),
             (
                 ToolKind::Detail,
-                "D",
                 "Add resolution under the brush for fine detail (Ctrl/Alt: back to the layer's base level)",
             ),
-            (
-                ToolKind::Paint,
-                "V",
-                "Paint the current material without changing the shape (Ctrl/Alt: the first material)",
-            ),
+            (ToolKind::Paint, "Paint the current material without changing the shape (Ctrl/Alt: the first material)"),
         ];
         for row in tips.chunks(3) {
             ui.horizontal(|ui| {
-                for &(kind, key, tip) in row {
-                    ui.selectable_value(&mut tool.kind, kind, format!("{} ({key})", kind.name())).on_hover_text(tip);
+                for &(kind, tip) in row {
+                    ui.selectable_value(&mut tool.kind, kind, labelled(kind.name(), Command::Tool(kind)))
+                        .on_hover_text(tip);
                 }
             });
         }
@@ -797,20 +794,23 @@ impl StudioApp {
                     .on_hover_text("The shape of the add and erase brushes (field tools act in a ball)");
             }
         });
+        let (down, up, drag) =
+            (keys_of(Command::RadiusDown), keys_of(Command::RadiusUp), keys_of(Command::ResizeBrush));
+        let keys = format!("({down} and {up} change it, {drag} drags it)");
         if self.studio.screen_radius {
             ui.add(
                 egui::Slider::new(&mut self.studio.radius_points, 2.0..=400.0)
                     .logarithmic(true)
-                    .text("radius (points) [ ] F"),
+                    .text(format!("radius (points) {down} {up} {drag}")),
             )
-            .on_hover_text("Brush radius on screen: the same size whatever the zoom ([ and ] change it, F drags it)");
+            .on_hover_text(format!("Brush radius on screen: the same size whatever the zoom {keys}"));
         } else {
             ui.add(
                 egui::Slider::new(&mut self.studio.editor.tool.radius, 0.25..=64.0)
                     .logarithmic(true)
-                    .text("radius [ ] F"),
+                    .text(format!("radius {down} {up} {drag}")),
             )
-            .on_hover_text("Brush radius in world units ([ and ] change it, F drags it)");
+            .on_hover_text(format!("Brush radius in world units {keys}"));
         }
         ui.checkbox(&mut self.studio.screen_radius, "Radius on screen")
             .on_hover_text("Keep the brush's size on screen as the view zooms, instead of its size in the world");
@@ -840,7 +840,11 @@ impl StudioApp {
         ui.checkbox(&mut tool.orient_to_normal, "Orient brush to surface")
             .on_hover_text("Turn box, capsule and cylinder brushes onto the surface normal under the pointer");
         ui.separator();
-        ui.label("Ctrl or Alt + drag: the inverse tool. Shift: smooth. L: line tool. X: mirror X.");
+        ui.label(format!(
+            "Ctrl or Alt + drag: the inverse tool. Shift: smooth. {}: line tool. {}: mirror X.",
+            keys_of(Command::Line),
+            keys_of(Command::MirrorX)
+        ));
         ui.separator();
         self.materials(ui);
     }
@@ -1166,12 +1170,14 @@ impl StudioApp {
         }
         let mut open = true;
         egui::Window::new("Keyboard and mouse").open(&mut open).collapsible(false).show(ctx, |ui| {
-            egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                for (keys, what) in crate::SHORTCUTS {
-                    ui.label(*keys);
-                    ui.label(*what);
-                    ui.end_row();
-                }
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
+                    for (keys, what) in crate::keymap::help_rows() {
+                        ui.label(keys);
+                        ui.label(what);
+                        ui.end_row();
+                    }
+                });
             });
         });
         self.help_open = open;

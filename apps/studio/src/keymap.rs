@@ -1,5 +1,9 @@
-//! The keyboard shortcuts: one table from key presses to commands, read in the order the keys
-//! were pressed (see `StudioApp::shortcuts`).
+//! The keyboard: one binding table ([`BINDINGS`]) from which the shortcuts are run
+//! ([`command_for`], read in the order the keys were pressed by `StudioApp::shortcuts`), the F1
+//! help is listed ([`help_rows`]), and the menus, the tool palette and the tooltips name their
+//! keys ([`keys_of`]). The README's controls table is checked against it by a test
+//! (`tests/keymap.rs`). Mouse controls and terrain mode's held fly keys, which are not
+//! commands, are listed beside it ([`POINTER_AND_HELD`]).
 
 use eframe::egui::{Key, Modifiers};
 use strata_editor::ToolKind;
@@ -58,58 +62,161 @@ impl Command {
     }
 }
 
-/// Every binding, the more specific first (Ctrl+Shift+Z before Ctrl+Z).
-const KEYMAP: &[(Modifiers, Key, Command)] = {
-    const C: Modifiers = Modifiers::COMMAND;
-    const CS: Modifiers = Modifiers { shift: true, ..Modifiers::COMMAND };
-    const N: Modifiers = Modifiers::NONE;
-    &[
-        (CS, Key::Z, Command::Redo),
-        (C, Key::Y, Command::Redo),
-        (C, Key::Z, Command::Undo),
-        (CS, Key::S, Command::SaveAs),
-        (C, Key::S, Command::Save),
-        (C, Key::O, Command::Open),
-        (C, Key::N, Command::New),
-        (C, Key::Num1, Command::View(AxisView::Front, true)),
-        (C, Key::Num3, Command::View(AxisView::Right, true)),
-        (C, Key::Num7, Command::View(AxisView::Top, true)),
-        (N, Key::F1, Command::Help),
-        (N, Key::Escape, Command::CloseHelp),
-        (N, Key::OpenBracket, Command::RadiusDown),
-        (N, Key::CloseBracket, Command::RadiusUp),
-        (N, Key::F, Command::ResizeBrush),
-        (N, Key::W, Command::Wireframe),
-        (N, Key::B, Command::NextShape),
-        // Views, in the numpad's conventions (egui does not tell the numpad's digits from the
-        // top row's, so both work): 1 front, 3 right, 7 top; 5 switches orthographic.
-        (N, Key::Num1, Command::View(AxisView::Front, false)),
-        (N, Key::Num3, Command::View(AxisView::Right, false)),
-        (N, Key::Num7, Command::View(AxisView::Top, false)),
-        (N, Key::Num5, Command::Orthographic),
-        (N, Key::Home, Command::Frame),
-        (N, Key::Period, Command::Frame),
-        (N, Key::A, Command::Tool(ToolKind::Add)),
-        (N, Key::E, Command::Tool(ToolKind::Erase)),
-        (N, Key::S, Command::Tool(ToolKind::Smooth)),
-        (N, Key::I, Command::Tool(ToolKind::Inflate)),
-        (N, Key::T, Command::Tool(ToolKind::Flatten)),
-        (N, Key::C, Command::Tool(ToolKind::Clay)),
-        (N, Key::P, Command::Tool(ToolKind::Pinch)),
-        (N, Key::G, Command::Tool(ToolKind::Grab)),
-        (N, Key::D, Command::Tool(ToolKind::Detail)),
-        (N, Key::V, Command::Tool(ToolKind::Paint)),
-        (N, Key::L, Command::Line),
-        (N, Key::X, Command::MirrorX),
-        (N, Key::K, Command::Eyedropper),
-    ]
-};
+/// One command, its keys (the first is the one menus show) and what it does, in the scene and
+/// in terrain mode (`None`: the key does nothing there).
+#[derive(Clone, Copy, Debug)]
+pub struct Binding {
+    /// What the keys ask for.
+    pub command: Command,
+    /// Key chords, any of which runs it.
+    pub keys: &'static [(Modifiers, Key)],
+    /// What it does, for the help.
+    pub does: &'static str,
+    /// What it does in terrain mode, where that differs or is all it does there.
+    pub terrain: Option<&'static str>,
+}
 
-/// The command of a key pressed with `mods` held: the first binding whose modifiers match
-/// (Ctrl is Cmd on a Mac; Shift and Alt held beyond a binding's are ignored, as egui's
-/// `consume_key` does, so Shift, held to smooth, does not stop the tool keys).
+const C: Modifiers = Modifiers::COMMAND;
+const CS: Modifiers = Modifiers { shift: true, ..Modifiers::COMMAND };
+const N: Modifiers = Modifiers::NONE;
+
+const fn bind(command: Command, keys: &'static [(Modifiers, Key)], does: &'static str) -> Binding {
+    Binding { command, keys, does, terrain: None }
+}
+
+const fn both(
+    command: Command,
+    keys: &'static [(Modifiers, Key)],
+    does: &'static str,
+    terrain: &'static str,
+) -> Binding {
+    Binding { command, keys, does, terrain: Some(terrain) }
+}
+
+/// Every key binding, in the order the help lists them.
+pub const BINDINGS: &[Binding] = &[
+    bind(Command::Tool(ToolKind::Clay), &[(N, Key::C)], "clay: adds material that meets the surface in a soft fillet"),
+    bind(Command::Tool(ToolKind::Add), &[(N, Key::A)], "add with the brush shape (exact CSG)"),
+    bind(Command::Tool(ToolKind::Erase), &[(N, Key::E)], "erase with the brush shape (exact CSG)"),
+    bind(Command::Tool(ToolKind::Smooth), &[(N, Key::S)], "smooth"),
+    bind(Command::Tool(ToolKind::Inflate), &[(N, Key::I)], "inflate"),
+    bind(Command::Tool(ToolKind::Flatten), &[(N, Key::T)], "flatten"),
+    bind(Command::Tool(ToolKind::Pinch), &[(N, Key::P)], "pinch: pull the surface towards the stroke"),
+    bind(Command::Tool(ToolKind::Grab), &[(N, Key::G)], "grab: drag the surface with the pointer"),
+    bind(Command::Tool(ToolKind::Detail), &[(N, Key::D)], "detail: raise the chunks' resolution under the brush"),
+    bind(Command::Tool(ToolKind::Paint), &[(N, Key::V)], "paint the current material"),
+    bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
+    both(
+        Command::NextShape,
+        &[(N, Key::B)],
+        "next brush shape (sphere, box, capsule, cylinder)",
+        "launch a bomb along the view: it blasts a crater",
+    ),
+    both(Command::RadiusDown, &[(N, Key::OpenBracket)], "brush radius down", "dig radius down"),
+    both(Command::RadiusUp, &[(N, Key::CloseBracket)], "brush radius up", "dig radius up"),
+    bind(
+        Command::ResizeBrush,
+        &[(N, Key::F)],
+        "size the brush by moving the pointer (click or Enter: keep, Escape or right click: cancel)",
+    ),
+    bind(Command::Line, &[(N, Key::L)], "line tool: click two points"),
+    bind(Command::MirrorX, &[(N, Key::X)], "mirror across the layer's x plane"),
+    bind(Command::Wireframe, &[(N, Key::W)], "wireframe"),
+    // Views, in the numpad's conventions (egui does not tell the numpad's digits from the top
+    // row's, so both work): 1 front, 3 right, 7 top; with Ctrl the opposite; 5 orthographic.
+    bind(Command::View(AxisView::Front, false), &[(N, Key::Num1)], "front view (numpad or top row)"),
+    bind(Command::View(AxisView::Right, false), &[(N, Key::Num3)], "right view"),
+    bind(Command::View(AxisView::Top, false), &[(N, Key::Num7)], "top view"),
+    bind(Command::View(AxisView::Front, true), &[(C, Key::Num1)], "back view"),
+    bind(Command::View(AxisView::Right, true), &[(C, Key::Num3)], "left view"),
+    bind(Command::View(AxisView::Top, true), &[(C, Key::Num7)], "bottom view"),
+    bind(Command::Orthographic, &[(N, Key::Num5)], "perspective / orthographic"),
+    bind(Command::Frame, &[(N, Key::Home), (N, Key::Period)], "frame the model"),
+    both(Command::Undo, &[(C, Key::Z)], "undo a whole stroke", "undo"),
+    both(Command::Redo, &[(CS, Key::Z), (C, Key::Y)], "redo", "redo"),
+    bind(Command::Save, &[(C, Key::S)], "save (asks for a path the first time)"),
+    bind(Command::SaveAs, &[(CS, Key::S)], "save as"),
+    bind(Command::Open, &[(C, Key::O)], "open a scene"),
+    bind(Command::New, &[(C, Key::N)], "new scene"),
+    bind(Command::CloseHelp, &[(N, Key::Escape)], "close the help, a prompt or a question; cancel a long job"),
+    bind(Command::Help, &[(N, Key::F1)], "this help"),
+];
+
+/// Controls that are not key commands: the pointer, held modifiers, dropped files and terrain
+/// mode's fly keys (read as held keys by the viewport). Listed by the help after the bindings.
+pub const POINTER_AND_HELD: &[(&str, &str)] = &[
+    ("Left drag", "sculpt with the current tool"),
+    ("Right drag / middle drag / wheel", "orbit / pan / zoom towards the pointer"),
+    ("Ctrl or Alt held (or Alt + right drag)", "the inverse tool"),
+    ("Shift held", "smooth with any tool"),
+    ("Drop a file on the window", "a scene opens, a mesh is imported as a layer"),
+    ("Terrain mode: W A S D, Q E (Shift faster)", "fly forward, left, back, right, down, up"),
+    ("Terrain mode: right drag", "look around"),
+    ("Terrain mode: left click / Shift + left click", "dig / raise the ground (hold to repeat)"),
+];
+
+/// The number of modifiers a chord asks for: among the bindings a press matches, the one that
+/// asks for the most wins (Ctrl+Shift+Z is redo, though Ctrl+Z also matches it).
+fn specificity(m: Modifiers) -> u8 {
+    u8::from(m.shift) + u8::from(m.alt) + u8::from(m.command || m.ctrl || m.mac_cmd)
+}
+
+/// The command of a key pressed with `mods` held: of the bindings whose modifiers match (Ctrl
+/// is Cmd on a Mac; Shift and Alt held beyond a binding's are ignored, as egui's `consume_key`
+/// does, so Shift, held to smooth, does not stop the tool keys), the most specific.
 pub fn command_for(mods: Modifiers, key: Key) -> Option<Command> {
-    KEYMAP.iter().find(|(m, k, _)| *k == key && mods.matches_logically(*m)).map(|&(_, _, c)| c)
+    BINDINGS
+        .iter()
+        .flat_map(|b| b.keys.iter().map(move |&(m, k)| (m, k, b.command)))
+        .filter(|&(m, k, _)| k == key && mods.matches_logically(m))
+        .max_by_key(|&(m, _, _)| specificity(m))
+        .map(|(_, _, c)| c)
+}
+
+/// A chord as the help and the menus write it: `Ctrl+Shift+Z`, `[`, `F1`.
+pub fn chord_text((mods, key): (Modifiers, Key)) -> String {
+    let mut s = String::new();
+    if mods.command || mods.ctrl || mods.mac_cmd {
+        s.push_str("Ctrl+");
+    }
+    if mods.alt {
+        s.push_str("Alt+");
+    }
+    if mods.shift {
+        s.push_str("Shift+");
+    }
+    s.push_str(key.symbol_or_name());
+    s
+}
+
+/// The binding of `command`.
+pub fn binding(command: Command) -> Option<&'static Binding> {
+    BINDINGS.iter().find(|b| b.command == command)
+}
+
+/// The keys of `command` as the help writes them (`Ctrl+Shift+Z or Ctrl+Y`), or an empty string
+/// for a command without a key.
+pub fn keys_of(command: Command) -> String {
+    binding(command).map_or(String::new(), |b| b.keys.iter().map(|&c| chord_text(c)).collect::<Vec<_>>().join(" or "))
+}
+
+/// `label (keys)` for a menu entry or a palette button, or `label` for a command without a key.
+pub fn labelled(label: &str, command: Command) -> String {
+    match keys_of(command) {
+        k if k.is_empty() => label.to_string(),
+        k => format!("{label} ({k})"),
+    }
+}
+
+/// The rows of the F1 help: every binding (its keys, what it does), then terrain mode's
+/// meanings of its keys, then the pointer and held controls.
+pub fn help_rows() -> Vec<(String, String)> {
+    let mut rows: Vec<(String, String)> = BINDINGS.iter().map(|b| (keys_of(b.command), b.does.to_string())).collect();
+    rows.extend(
+        BINDINGS.iter().filter_map(|b| b.terrain.map(|t| (format!("Terrain mode: {}", keys_of(b.command)), t.into()))),
+    );
+    rows.extend(POINTER_AND_HELD.iter().map(|&(k, d)| (k.to_string(), d.to_string())));
+    rows
 }
 
 #[cfg(test)]
@@ -126,15 +233,38 @@ mod tests {
         assert_eq!(command_for(Modifiers::NONE, Key::S), Some(Command::Tool(ToolKind::Smooth)));
         assert_eq!(command_for(Modifiers::SHIFT, Key::V), Some(Command::Tool(ToolKind::Paint)));
         assert_eq!(command_for(Modifiers::COMMAND, Key::V), None, "Ctrl+V is not paint");
+        assert_eq!(command_for(Modifiers::COMMAND, Key::Num1), Some(Command::View(AxisView::Front, true)));
+        assert_eq!(command_for(Modifiers::NONE, Key::Num1), Some(Command::View(AxisView::Front, false)));
         assert_eq!(command_for(Modifiers::NONE, Key::Q), None);
     }
 
     #[test]
-    fn every_key_has_one_binding_per_modifier_set() {
-        for (i, a) in KEYMAP.iter().enumerate() {
-            for b in &KEYMAP[i + 1..] {
-                assert!(!(a.0 == b.0 && a.1 == b.1), "{:?} {:?} is bound twice", a.0, a.1);
+    fn every_chord_has_one_binding_and_every_command_one_row() {
+        let chords: Vec<_> = BINDINGS.iter().flat_map(|b| b.keys.iter().copied()).collect();
+        for (i, a) in chords.iter().enumerate() {
+            assert!(!chords[i + 1..].contains(a), "{} is bound twice", chord_text(*a));
+        }
+        for (i, a) in BINDINGS.iter().enumerate() {
+            assert!(!a.keys.is_empty(), "{:?} has no key", a.command);
+            assert!(BINDINGS[i + 1..].iter().all(|b| b.command != a.command), "{:?} has two rows", a.command);
+        }
+    }
+
+    #[test]
+    fn every_chord_runs_its_own_command() {
+        for b in BINDINGS {
+            for &(m, k) in b.keys {
+                assert_eq!(command_for(m, k), Some(b.command), "{}", chord_text((m, k)));
             }
         }
+    }
+
+    #[test]
+    fn chords_are_written_as_people_type_them() {
+        assert_eq!(keys_of(Command::Redo), "Ctrl+Shift+Z or Ctrl+Y");
+        assert_eq!(keys_of(Command::RadiusDown), "[");
+        assert_eq!(keys_of(Command::Frame), "Home or .");
+        assert_eq!(labelled("Save as…", Command::SaveAs), "Save as… (Ctrl+Shift+S)");
+        assert_eq!(keys_of(Command::View(AxisView::Top, true)), "Ctrl+7");
     }
 }
