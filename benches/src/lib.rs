@@ -144,11 +144,39 @@ impl FrameReplay {
         self.frames.iter().map(Duration::as_secs_f64).sum::<f64>() * 1e3 / self.frames.len().max(1) as f64
     }
 
-    /// The `q`-quantile frame time in milliseconds (`q` in `[0, 1]`).
+    /// The `q`-quantile frame time in milliseconds (see [`quantile`]).
     pub fn quantile_ms(&self, q: f64) -> f64 {
-        let mut v: Vec<f64> = self.frames.iter().map(|d| d.as_secs_f64() * 1e3).collect();
-        v.sort_by(f64::total_cmp);
-        v.get(((v.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(0.0)
+        let v: Vec<f64> = self.frames.iter().map(|d| d.as_secs_f64() * 1e3).collect();
+        quantile(&v, q)
+    }
+}
+
+/// The `q`-quantile of `samples` (`q` in `[0, 1]`) by the nearest-rank definition: the smallest
+/// sample with at least a share `q` of the samples at or below it (p99 of 100 frames is the
+/// 99th smallest, of 300 the 297th), `0` for no samples. Every p50, p99 and max of the bench
+/// is this function.
+pub fn quantile(samples: &[f64], q: f64) -> f64 {
+    let mut v = samples.to_vec();
+    v.sort_by(f64::total_cmp);
+    let rank = ((v.len() as f64 * q.clamp(0.0, 1.0)).ceil() as usize).max(1);
+    v.get(rank - 1).copied().unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod quantile_tests {
+    use super::quantile;
+
+    #[test]
+    fn quantiles_are_nearest_ranks() {
+        let v: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        assert_eq!(quantile(&v, 0.99), 99.0);
+        assert_eq!(quantile(&v, 0.5), 50.0);
+        assert_eq!(quantile(&v, 1.0), 100.0);
+        assert_eq!(quantile(&v, 0.0), 1.0);
+        let w: Vec<f64> = (1..=300).map(f64::from).collect();
+        assert_eq!(quantile(&w, 0.99), 297.0);
+        assert_eq!(quantile(&[], 0.99), 0.0);
+        assert_eq!(quantile(&[7.0], 0.99), 7.0);
     }
 }
 

@@ -289,9 +289,8 @@ fn sculpt_frames(volume: &Volume, frames: usize) -> (usize, f64, f64) {
         if std::env::var("STRATA_LOD_TIMES").is_ok() {
             eprintln!("frame times: {times:?}");
         }
-        times.sort_by(f64::total_cmp);
         let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
-        let p99 = times.get(((times.len() as f64 * 0.99).ceil() as usize).saturating_sub(1)).copied().unwrap_or(0.0);
+        let p99 = crate::quantile(&times, 0.99);
         (times.len(), mean, p99)
     })
 }

@@ -421,9 +421,7 @@ fn stroke(seconds: f64) {
         costs.push(t0.elapsed().as_secs_f64() * 1e3);
         dabs += report.dabs;
     }
-    let mut sorted = costs.clone();
-    sorted.sort_by(f64::total_cmp);
-    let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
+    let q = |p: f64| strata_bench::quantile(&costs, p);
     let upload = match &gpu {
         Some(g) => format!("edit + remesh + upload to {}", g.info.name),
         None => "edit + remesh (no GPU adapter: no upload)".to_string(),

@@ -169,9 +169,8 @@ pub(crate) fn mean_ms(d: &[Duration]) -> f64 {
 }
 
 pub(crate) fn p99_ms(d: &[Duration]) -> f64 {
-    let mut s: Vec<f64> = d.iter().map(|x| x.as_secs_f64() * 1e3).collect();
-    s.sort_by(f64::total_cmp);
-    s.get(((s.len() as f64 * 0.99).ceil() as usize).saturating_sub(1)).copied().unwrap_or(0.0)
+    let s: Vec<f64> = d.iter().map(|x| x.as_secs_f64() * 1e3).collect();
+    crate::quantile(&s, 0.99)
 }
 
 /// Runs Table 6: `count` canvas instructions of radius 10, `dabs` dabs per tool and radius.

@@ -43,12 +43,13 @@ pub mod normals;
 pub mod qef;
 pub mod simplify;
 pub mod tetra;
+mod weld;
 mod workers;
 
 pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, dual_contour_volume};
-pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks, tetra_volume};
+pub use marching::{mesh_block, mesh_volume, mesh_volume_capped, surface_chunks};
 pub use mesh::{Mesh, VertexMaterial};
 pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_reported, mesh_volume_with};
-pub use tetra::{TetraScratch, mesh_block_tetra};
+pub use tetra::{TetraScratch, mesh_block_tetra, tetra_volume};
 pub use workers::MeshWorkers;

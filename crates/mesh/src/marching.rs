@@ -10,6 +10,7 @@ use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
 
 use crate::cases::cases;
+use crate::weld::{EdgeKey, weld};
 use crate::{Mesh, VertexMaterial};
 
 /// Meshes the cells `0..n` of one block into `out` (cleared first). Positions are grid units
@@ -204,9 +205,6 @@ pub fn surface_chunks(volume: &Volume) -> Vec<ChunkKey> {
     crate::MeshCache::dependents(&stored)
 }
 
-/// A crossing's identity in the whole volume (see [`vertex_key`]).
-pub(crate) type EdgeKey = (u8, I64Vec3);
-
 /// One welded mesh of the whole volume (grid units, absolute; f32 positions lose precision far
 /// from the origin, so prefer per-chunk meshes there).
 pub fn mesh_volume(volume: &Volume) -> Mesh {
@@ -236,52 +234,4 @@ fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + S
         })
         .collect();
     weld(parts)
-}
-
-/// One mesh of chunk meshes (chunk-local positions), welding vertices with equal identities
-/// (`ids[i]` for vertex `i`; vertices after the ids belong to their chunk alone).
-pub(crate) fn weld(parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)>) -> Mesh {
-    weld_traced(&parts).0
-}
-
-/// [`weld`], also returning where each welded vertex came from: (part, vertex in the part).
-pub(crate) fn weld_traced(parts: &[(ChunkKey, Mesh, Vec<EdgeKey>)]) -> (Mesh, Vec<(u32, u32)>) {
-    let mut out = Mesh::default();
-    let mut source: Vec<(u32, u32)> = Vec::new();
-    let mut welded: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
-    for (part, (key, m, ids)) in parts.iter().enumerate() {
-        let origin = key.origin_grid().as_vec3().to_array();
-        let mut place = |out: &mut Mesh, i: usize| {
-            source.push((part as u32, i as u32));
-            out.push_vertex_from(m, i, origin)
-        };
-        let mut remap: Vec<u32> = Vec::with_capacity(m.positions.len());
-        for (i, id) in ids.iter().enumerate() {
-            let v = match welded.get(id) {
-                Some(&v) => v,
-                None => {
-                    let v = place(&mut out, i);
-                    welded.insert(*id, v);
-                    v
-                }
-            };
-            remap.push(v);
-        }
-        // Centroids of split seam triangles belong to this chunk alone.
-        for i in ids.len()..m.positions.len() {
-            remap.push(place(&mut out, i));
-        }
-        out.indices.extend(m.indices.iter().map(|&i| remap[i as usize]));
-    }
-    (out, source)
-}
-
-/// One welded marching-tetrahedra mesh of the whole volume (grid units, absolute), with the
-/// integrated clustering when `cluster`. `None` for a volume whose chunks mix levels: tetrahedra
-/// do not patch the seams between levels (marching cubes does).
-pub fn tetra_volume(volume: &Volume, cluster: bool) -> Option<Mesh> {
-    if !volume.single_level() {
-        return None;
-    }
-    Some(crate::tetra::tetra_volume_impl(volume, cluster))
 }

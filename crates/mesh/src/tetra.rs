@@ -36,8 +36,9 @@ use smallvec::SmallVec;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, VoxelBlock};
 
-use crate::marching::{EdgeKey, edge_material};
+use crate::marching::edge_material;
 use crate::qef::Qef;
+use crate::weld::EdgeKey;
 use crate::{Mesh, VertexMaterial};
 
 /// The seven lattice edge directions as corner bit masks (bit 0 x, 1 y, 2 z), axes first.
@@ -716,6 +717,16 @@ fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart,
         .collect()
 }
 
+/// One welded marching-tetrahedra mesh of the whole volume (grid units, absolute), with the
+/// integrated clustering when `cluster`. `None` for a volume whose chunks mix levels: tetrahedra
+/// do not patch the seams between levels (marching cubes does).
+pub fn tetra_volume(volume: &strata_volume::Volume, cluster: bool) -> Option<Mesh> {
+    if !volume.single_level() {
+        return None;
+    }
+    Some(tetra_volume_impl(volume, cluster))
+}
+
 /// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
 /// viewport (vertices on chunk faces never merged), welded into one mesh (grid units,
 /// absolute). `None` for a volume whose chunks mix levels.
@@ -723,7 +734,7 @@ pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
     if !volume.single_level() {
         return None;
     }
-    Some(crate::marching::weld(chunk_parts(volume, true).into_iter().map(|(p, _)| p).collect()))
+    Some(crate::weld::weld(chunk_parts(volume, true).into_iter().map(|(p, _)| p).collect()))
 }
 
 /// One welded marching-tetrahedra mesh of the whole volume, clustered over the whole mesh when
@@ -732,7 +743,7 @@ pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -
     // One level throughout (checked by the callers): its spacing scales the short edges.
     let spacing = volume.chunks().next().map_or(1.0, |(k, _)| volume.mesh_level(k).spacing() as f32);
     let (parts, near): (Vec<_>, Vec<_>) = chunk_parts(volume, false).into_iter().unzip();
-    let (mut out, source) = crate::marching::weld_traced(&parts);
+    let (mut out, source) = crate::weld::weld_traced(&parts);
     if cluster {
         let tris: Vec<[u32; 3]> = out.triangles().collect();
         let mut c = Clusterer::new(&out, tris, spacing);

@@ -9,8 +9,10 @@
 mod deform;
 mod endpoints;
 mod ops;
+mod paint;
 mod region;
 
 pub use deform::{MAX_STEP, MAX_STEPS, grab, pinch};
-pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, paint, smooth};
+pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, smooth};
+pub use paint::paint;
 pub use region::{BAND, FAR, MAX_REGION_NODES, Reach, Region, RegionCrossing, RegionError};

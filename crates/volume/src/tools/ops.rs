@@ -323,16 +323,6 @@ pub fn clay(volume: &mut Volume, dab: &Dab, fillet: f64, erase: bool) -> Result<
     Ok(volume.write_region_with(&region, (!erase).then_some(dab.material))?)
 }
 
-/// Paints the solid nodes within the dab with `dab.material`, leaving node states and crossings
-/// bit for bit: a node is painted where the dab's weight (strength × falloff) beats the node's
-/// dither threshold (a fixed hash of its position), so the falloff shows as a share of painted
-/// nodes, the same ones on every dab, and a dab of strength 1 paints its centre solidly.
-pub fn paint(volume: &mut Volume, dab: &Dab) -> Result<EditReport, ToolError> {
-    let ball = crate::brush::Sphere::new(dab.center, dab.radius)
-        .map_err(|_| ToolError::BadParameter { what: "the dab radius", positive: true })?;
-    Ok(volume.paint_where(&ball, dab.material, &|p| dab.weight(p))?)
-}
-
 /// The polynomial smooth minimum of `a` and `b` with blend radius `k` (`min` for `k = 0`).
 fn smooth_min(a: f32, b: f32, k: f32) -> f32 {
     if k <= 0.0 {
