@@ -1241,19 +1241,14 @@ fn chunks_in_ball(volume: &Volume, center: DVec3, radius: f64) -> Vec<ChunkKey> 
     else {
         return Vec::new();
     };
-    let mut keys = Vec::new();
-    for z in lo.0.z..=hi.0.z {
-        for y in lo.0.y..=hi.0.y {
-            for x in lo.0.x..=hi.0.x {
-                let k = ChunkKey::new(x, y, z);
-                let min = k.origin_grid().as_dvec3();
-                let nearest = center.clamp(min, min + DVec3::splat(c));
-                if volume.stored_level(k).is_some() && (nearest - center).length() <= radius {
-                    keys.push(k);
-                }
-            }
-        }
-    }
+    let keys: Vec<ChunkKey> = strata_volume::ChunkBox::between(lo, hi)
+        .keys()
+        .filter(|&k| {
+            let min = k.origin_grid().as_dvec3();
+            let nearest = center.clamp(min, min + DVec3::splat(c));
+            volume.stored_level(k).is_some() && (nearest - center).length() <= radius
+        })
+        .collect();
     keys
 }
 

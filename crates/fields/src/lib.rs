@@ -119,15 +119,9 @@ pub(crate) fn edit_targets(
     (lo, hi): (glam::IVec3, glam::IVec3),
     margin: f64,
 ) -> impl Iterator<Item = (ChunkKey, ([usize; 3], [usize; 3]))> {
-    (lo.z..=hi.z).flat_map(move |z| {
-        (lo.y..=hi.y).flat_map(move |y| {
-            (lo.x..=hi.x).filter_map(move |x| {
-                let key = ChunkKey::new(x, y, z);
-                let range =
-                    if op == CsgOp::Intersect { Some(([0; 3], [N; 3])) } else { local_range(key, &bounds, margin) };
-                range.map(|r| (key, r))
-            })
-        })
+    strata_volume::ChunkBox::new(lo, hi).keys().filter_map(move |key| {
+        let range = if op == CsgOp::Intersect { Some(([0; 3], [N; 3])) } else { local_range(key, &bounds, margin) };
+        range.map(|r| (key, r))
     })
 }
 

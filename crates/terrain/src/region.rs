@@ -3,7 +3,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use glam::{DVec3, I64Vec3, IVec3};
+use glam::{DVec3, I64Vec3};
 use rayon::prelude::*;
 use strata_volume::coords::CHUNK_CELLS;
 use strata_volume::{Axis, ChunkKey, Level, MaterialId, NodeField, Volume, generate_chunk};
@@ -36,15 +36,7 @@ impl<'a> Clipped<'a> {
         let c = CHUNK_CELLS;
         let lo = (self.lo - I64Vec3::ONE).div_euclid(I64Vec3::splat(c)).as_ivec3();
         let hi = self.hi.div_euclid(I64Vec3::splat(c)).as_ivec3();
-        let mut keys = Vec::new();
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    keys.push(ChunkKey(IVec3::new(x, y, z)));
-                }
-            }
-        }
-        keys
+        strata_volume::ChunkBox::new(lo, hi).keys().collect()
     }
 }
 

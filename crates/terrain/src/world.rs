@@ -638,15 +638,7 @@ impl World {
         let c = CHUNK_CELLS as f64;
         let lo = (bounds.min / c).floor().as_ivec3() - IVec3::ONE;
         let hi = (bounds.max / c).floor().as_ivec3() + IVec3::ONE;
-        let mut keys = Vec::new();
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    keys.push(ChunkKey::new(x, y, z));
-                }
-            }
-        }
-        keys
+        strata_volume::ChunkBox::new(lo, hi).keys().collect()
     }
 
     /// Runs an edit on the loaded volume after loading every chunk near `bounds`; the chunks it

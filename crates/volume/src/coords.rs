@@ -68,6 +68,52 @@ impl ChunkKey {
     }
 }
 
+/// A box of chunk keys, both corners included: the chunks an edit, a region or a load reaches.
+/// Its keys come in storage order (z, then y, then x), as [`ChunkKey`]'s `Ord` sorts them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChunkBox {
+    /// The lowest corner.
+    pub lo: IVec3,
+    /// The highest corner (included).
+    pub hi: IVec3,
+}
+
+impl ChunkBox {
+    /// The keys from `lo` to `hi`, both included (empty where `hi` is below `lo` on an axis).
+    pub fn new(lo: IVec3, hi: IVec3) -> Self {
+        ChunkBox { lo, hi }
+    }
+
+    /// The box from chunk `lo` to chunk `hi`.
+    pub fn between(lo: ChunkKey, hi: ChunkKey) -> Self {
+        ChunkBox { lo: lo.0, hi: hi.0 }
+    }
+
+    /// How many keys it holds (`u64::MAX` for a box of more).
+    pub fn len(&self) -> u64 {
+        let span = (self.hi.as_i64vec3() - self.lo.as_i64vec3() + glam::I64Vec3::ONE).max(glam::I64Vec3::ZERO);
+        let n = span.x as u128 * span.y as u128 * span.z as u128;
+        u64::try_from(n).unwrap_or(u64::MAX)
+    }
+
+    /// Whether it holds no key.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether `k` is inside.
+    pub fn contains(&self, k: ChunkKey) -> bool {
+        k.0.cmpge(self.lo).all() && k.0.cmple(self.hi).all()
+    }
+
+    /// Every key, in storage order.
+    pub fn keys(self) -> impl Iterator<Item = ChunkKey> {
+        let ChunkBox { lo, hi } = self;
+        (lo.z..=hi.z)
+            .flat_map(move |z| (lo.y..=hi.y).flat_map(move |y| (lo.x..=hi.x).map(move |x| ChunkKey::new(x, y, z))))
+    }
+}
+
 /// A per-chunk resolution level: level `k` has `16 << k` cells along each side of the chunk.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(try_from = "u8", into = "u8")]
@@ -190,6 +236,21 @@ pub fn edge_of(q: LocalPos, level: Level) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_chunk_box_lists_its_keys_in_storage_order_and_counts_them() {
+        let b = ChunkBox::new(IVec3::new(-1, 0, 2), IVec3::new(0, 2, 3));
+        let keys: Vec<ChunkKey> = b.keys().collect();
+        assert_eq!(keys.len() as u64, b.len());
+        assert_eq!(b.len(), 2 * 3 * 2);
+        assert!(keys.windows(2).all(|w| w[0] < w[1]), "storage order");
+        assert!(keys.iter().all(|&k| b.contains(k)));
+        assert!(!b.contains(ChunkKey::new(1, 0, 2)) && !b.contains(ChunkKey::new(-1, 0, 4)));
+        let empty = ChunkBox::new(IVec3::ONE, IVec3::ZERO);
+        assert!(empty.is_empty() && empty.keys().next().is_none());
+        let huge = ChunkBox::new(IVec3::splat(i32::MIN), IVec3::splat(i32::MAX));
+        assert_eq!(huge.len(), u64::MAX, "2⁹⁶ keys saturate");
+    }
 
     #[test]
     fn quantised_positions_stay_strictly_inside_their_edge() {

@@ -52,7 +52,7 @@ mod volume;
 pub use axis::Axis;
 pub use block::{EdgeCrossing, SeamPoint, SeamSplit, VoxelBlock};
 pub use chunk::{Chunk, ChunkLists, LineRef};
-pub use coords::{ChunkKey, Level};
+pub use coords::{ChunkBox, ChunkKey, Level};
 pub use edit::{CsgOp, EditControl, EditError, EditReport, EditSettings, Reach, UndoRecord};
 pub use generate::{GeneratedChunk, NodeField, generate_chunk};
 pub use invariants::InvariantViolation;

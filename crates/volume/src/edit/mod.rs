@@ -15,7 +15,7 @@ use crate::axis::Axis;
 use crate::axis::compose;
 use crate::brush::{Aabb, Brush, SNAP_DISTANCE, Span};
 use crate::chunk::{Built, Chunk, ChunkBuilder, ChunkView, LAST, LineRef, WorkLine, line_states, node_mask};
-use crate::coords::{CHUNK_CELLS, ChunkKey, Level, edge_of, quantize_into_edge};
+use crate::coords::{CHUNK_CELLS, ChunkBox, ChunkKey, Level, edge_of, quantize_into_edge};
 use crate::material::{MaterialRule, RowChange, note_row};
 use crate::normal::{flip_normal, pack_normal, unpack_normal};
 use crate::sample::{LineAt, LineSampler, pack_oriented};
@@ -277,13 +277,13 @@ impl Volume {
         let bounds = bounds.expand(SNAP_DISTANCE);
         let (cmin, cmax) = chunk_range(&bounds, settings.max_chunks)?;
         let keys: Vec<ChunkKey> = match op {
-            CsgOp::Add => keys_in(cmin, cmax).collect(),
+            CsgOp::Add => ChunkBox::new(cmin, cmax).keys().collect(),
             CsgOp::Subtract => {
-                let span = (cmax - cmin + IVec3::ONE).as_i64vec3();
-                if (span.x * span.y * span.z) as usize <= self.chunks.len() {
-                    keys_in(cmin, cmax).filter(|k| self.chunks.contains_key(k)).collect()
+                let reach = ChunkBox::new(cmin, cmax);
+                if reach.len() <= self.chunks.len() as u64 {
+                    reach.keys().filter(|k| self.chunks.contains_key(k)).collect()
                 } else {
-                    self.chunks.keys().copied().filter(|k| in_range(*k, cmin, cmax)).collect()
+                    self.chunks.keys().copied().filter(|k| reach.contains(*k)).collect()
                 }
             }
             CsgOp::Intersect => self.chunks.keys().copied().collect(),
@@ -330,7 +330,7 @@ impl Volume {
                 c.done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             }
             let view = self.view(key);
-            if op == CsgOp::Intersect && !in_range(key, cmin, cmax) {
+            if op == CsgOp::Intersect && !ChunkBox::new(cmin, cmax).contains(key) {
                 return Some((key, Built::Uniform(false), 0, None));
             }
             let level = self.level_of(key);
@@ -413,12 +413,4 @@ pub(crate) fn chunk_range(bounds: &Aabb, limit: u64) -> Result<(IVec3, IVec3), E
         return Err(EditError::TooLarge { chunks: chunks.min(u64::MAX as f64) as u64, limit });
     }
     Ok((lo.as_ivec3(), hi.as_ivec3()))
-}
-
-fn keys_in(lo: IVec3, hi: IVec3) -> impl Iterator<Item = ChunkKey> {
-    (lo.z..=hi.z).flat_map(move |z| (lo.y..=hi.y).flat_map(move |y| (lo.x..=hi.x).map(move |x| ChunkKey::new(x, y, z))))
-}
-
-fn in_range(k: ChunkKey, lo: IVec3, hi: IVec3) -> bool {
-    k.0.cmpge(lo).all() && k.0.cmple(hi).all()
 }

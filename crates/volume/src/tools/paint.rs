@@ -5,7 +5,7 @@
 use glam::{DVec3, I64Vec3};
 
 use super::ops::{Dab, ToolError};
-use crate::coords::ChunkKey;
+use crate::coords::{ChunkBox, ChunkKey};
 use crate::edit::EditReport;
 use crate::material::{ChunkMaterials, MaterialId, own_states};
 use crate::volume::Volume;
@@ -37,17 +37,7 @@ impl Volume {
             return Err(crate::EditError::BadBounds);
         }
         let (cmin, cmax) = crate::edit::chunk_range(&bounds, crate::EditSettings::default().max_chunks)?;
-        let mut keys: Vec<ChunkKey> = Vec::new();
-        for z in cmin.z..=cmax.z {
-            for y in cmin.y..=cmax.y {
-                for x in cmin.x..=cmax.x {
-                    let k = ChunkKey::new(x, y, z);
-                    if self.chunks.contains_key(&k) {
-                        keys.push(k);
-                    }
-                }
-            }
-        }
+        let keys: Vec<ChunkKey> = ChunkBox::new(cmin, cmax).keys().filter(|k| self.chunks.contains_key(k)).collect();
         let mut ids = Vec::new();
         let mut updates = Vec::new();
         for key in keys {

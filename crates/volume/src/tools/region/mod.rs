@@ -29,7 +29,7 @@ use glam::{DVec3, I64Vec3, IVec3};
 use thiserror::Error;
 
 use crate::axis::Axis;
-use crate::coords::{ChunkKey, Level};
+use crate::coords::{ChunkBox, ChunkKey, Level};
 use crate::volume::Volume;
 
 mod band;
@@ -256,16 +256,6 @@ impl Volume {
             let top = counts.iter().rposition(|&c| c > 0).unwrap_or(0);
             return self.level.max(Level::new(top as u8).expect("a stored level"));
         }
-        let mut level = self.level;
-        for z in lo.0.z..=hi.0.z {
-            for y in lo.0.y..=hi.0.y {
-                for x in lo.0.x..=hi.0.x {
-                    if let Some(l) = self.stored_level(ChunkKey::new(x, y, z)) {
-                        level = level.max(l);
-                    }
-                }
-            }
-        }
-        level
+        ChunkBox::between(lo, hi).keys().filter_map(|k| self.stored_level(k)).fold(self.level, Level::max)
     }
 }
