@@ -1,5 +1,7 @@
 //! Shared helpers for the cross-crate scenarios (also used by other crates' tests).
 
+pub mod files;
+
 use glam::DVec3;
 
 /// The box `[min, min + size]` as twelve triangles over its eight corners, counter-clockwise

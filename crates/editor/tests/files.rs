@@ -4,12 +4,12 @@
 
 use std::path::{Path, PathBuf};
 
-use std::time::Duration;
 
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use strata_editor::file::{self, SceneFileError, decode, encode, load, save, write_atomically};
 use strata_editor::{Layer, LayerTransform, Material, Scene};
+use strata_tests::files::{kill_at_random_moments, race_writers_with_reader};
 use strata_volume::brush::{Cuboid, Sphere, Torus};
 use strata_volume::{Chunk, ChunkKey, ChunkMaterials, Level, Volume};
 
@@ -384,31 +384,16 @@ fn saves_interrupted_by_a_kill_leave_the_old_or_the_new_file() {
     let path = dir.join("scene.strata");
     let (a, b) = big_scenes();
     save(&a, &path).unwrap();
-    let exe = std::env::current_exe().unwrap();
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
     let mut killed_mid_save = 0;
-    for round in 0..60 {
-        let mut child = std::process::Command::new(&exe)
-            .args(["save_child_process", "--exact", "--ignored", "--test-threads=1"])
-            .env("STRATA_SAVE_CHILD", &path)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        // Give it time to start (tens of milliseconds), then kill it at a random moment.
-        std::thread::sleep(Duration::from_micros(20_000 + seed % 60_000));
-        child.kill().unwrap();
-        child.wait().unwrap();
+    // Give the child time to start (tens of milliseconds), then kill it at a random moment.
+    kill_at_random_moments("save_child_process", "STRATA_SAVE_CHILD", &path, 60, 20_000..80_000, |round| {
         let loaded = load(&path).unwrap_or_else(|e| panic!("round {round}: the file is corrupt: {e}"));
         assert!(loaded.report.is_clean());
         assert!(loaded.scene == a || loaded.scene == b, "round {round}: the file is neither scene");
         let temps = temp_files(&path);
         killed_mid_save += temps.len();
         assert!(temps.len() <= 1, "round {round}: temporary files accumulate: {temps:?}");
-    }
+    });
     // The next save cleans up what the last killed save left.
     save(&a, &path).unwrap();
     assert!(temp_files(&path).is_empty());
@@ -424,35 +409,18 @@ fn two_threads_saving_one_path_with_a_reader_never_show_a_corrupt_file() {
     let path = dir.join("scene.strata");
     let (a, b) = big_scenes();
     save(&a, &path).unwrap();
-    let done = std::sync::atomic::AtomicBool::new(false);
-    let (reads, corrupt) = std::thread::scope(|s| {
-        let savers: Vec<_> = [&a, &b]
-            .into_iter()
-            .map(|scene| {
-                let path = &path;
-                s.spawn(move || {
-                    for _ in 0..200 {
-                        save(scene, path).unwrap();
-                    }
-                })
-            })
-            .collect();
-        let reader = s.spawn(|| {
-            let (mut reads, mut corrupt) = (0u32, 0u32);
-            while !done.load(std::sync::atomic::Ordering::Relaxed) {
-                match load(&path) {
-                    Ok(l) if l.report.is_clean() && (l.scene == a || l.scene == b) => reads += 1,
-                    _ => corrupt += 1,
-                }
+    let saver = |scene| -> Box<dyn FnOnce() + Send + '_> {
+        let path = &path;
+        Box::new(move || {
+            for _ in 0..200 {
+                save(scene, path).unwrap();
             }
-            (reads, corrupt)
-        });
-        for saver in savers {
-            saver.join().unwrap();
-        }
-        done.store(true, std::sync::atomic::Ordering::Relaxed);
-        reader.join().unwrap()
-    });
+        })
+    };
+    let (reads, corrupt) = race_writers_with_reader(
+        vec![saver(&a), saver(&b)],
+        || matches!(load(&path), Ok(l) if l.report.is_clean() && (l.scene == a || l.scene == b)),
+    );
     assert_eq!(corrupt, 0, "{corrupt} corrupt reads of {}", reads + corrupt);
     assert!(reads > 0);
     let last = load(&path).unwrap().scene;

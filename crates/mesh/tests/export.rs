@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use glam::DVec3;
 use strata_mesh::export::{MeshFormat, save_mesh};
 use strata_mesh::{Mesh, mesh_volume};
+use strata_tests::files::race_writers_with_reader;
 use strata_volume::Volume;
 use strata_volume::brush::{Sphere, Torus};
 
@@ -135,35 +136,16 @@ fn two_threads_exporting_to_one_path_never_leave_a_corrupt_or_partial_file() {
         let stl = stl_io::read_stl(&mut std::io::Cursor::new(bytes)).ok()?;
         Some(stl.faces.len())
     };
-    let done = std::sync::atomic::AtomicBool::new(false);
-    let (reads, bad) = std::thread::scope(|s| {
-        let writers: Vec<_> = [&a, &b]
-            .into_iter()
-            .map(|mesh| {
-                let path = &path;
-                s.spawn(move || {
-                    for _ in 0..100 {
-                        save_mesh(mesh, path).unwrap();
-                    }
-                })
-            })
-            .collect();
-        let reader = s.spawn(|| {
-            let (mut reads, mut bad) = (0u32, 0u32);
-            while !done.load(std::sync::atomic::Ordering::Relaxed) {
-                match read(&path) {
-                    Some(n) if counts.contains(&n) => reads += 1,
-                    _ => bad += 1,
-                }
+    let writer = |mesh| -> Box<dyn FnOnce() + Send + '_> {
+        let path = &path;
+        Box::new(move || {
+            for _ in 0..100 {
+                save_mesh(mesh, path).unwrap();
             }
-            (reads, bad)
-        });
-        for w in writers {
-            w.join().unwrap();
-        }
-        done.store(true, std::sync::atomic::Ordering::Relaxed);
-        reader.join().unwrap()
-    });
+        })
+    };
+    let (reads, bad) =
+        race_writers_with_reader(vec![writer(&a), writer(&b)], || read(&path).is_some_and(|n| counts.contains(&n)));
     assert_eq!(bad, 0, "{bad} corrupt or partial reads of {}", reads + bad);
     assert!(counts.contains(&read(&path).expect("the last export reads")));
     let left: Vec<_> = std::fs::read_dir(&dir)

@@ -3,9 +3,9 @@
 //! the CPU and written by [`Image::save_png`], the writer of every screenshot.
 
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use strata_render::Image;
+use strata_tests::files::kill_at_random_moments;
 
 const SIZE: u32 = 1024;
 
@@ -67,31 +67,16 @@ fn png_writes_killed_midway_leave_the_old_or_the_new_image() {
     let path = dir.join("shot.png");
     let [a, b] = images();
     a.save_png(&path).unwrap();
-    let exe = std::env::current_exe().unwrap();
-    let mut seed = 0x2545_f491_4f6c_dd1du64;
     let mut left_temporary = 0;
-    for round in 0..30 {
-        let mut child = std::process::Command::new(&exe)
-            .args(["png_child_process", "--exact", "--ignored", "--test-threads=1"])
-            .env("STRATA_PNG_CHILD", &path)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        // The child needs tens of milliseconds to start and make its images; kill it later, at
-        // a random moment of its writes.
-        std::thread::sleep(Duration::from_micros(60_000 + seed % 200_000));
-        child.kill().unwrap();
-        child.wait().unwrap();
+    // The child needs tens of milliseconds to start and make its images; kill it later, at a
+    // random moment of its writes.
+    kill_at_random_moments("png_child_process", "STRATA_PNG_CHILD", &path, 30, 60_000..260_000, |round| {
         let pixels = decode(&path).unwrap_or_else(|e| panic!("round {round}: the PNG does not decode: {e}"));
         assert!(pixels == a.rgba || pixels == b.rgba, "round {round}: the PNG is neither image");
         let temps = temp_files(&path);
         left_temporary += temps.len();
         assert!(temps.len() <= 1, "round {round}: temporary files accumulate: {temps:?}");
-    }
+    });
     // The next write removes what a killed write left.
     a.save_png(&path).unwrap();
     assert!(temp_files(&path).is_empty());

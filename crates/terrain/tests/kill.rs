@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use glam::DVec3;
 use strata_terrain::{Recipe, StoredChunk, World, WorldSettings, WorldStore};
+use strata_tests::files::kill_at_random_moments;
 use strata_volume::brush::{Brush, Sphere};
 use strata_volume::{ChunkKey, CsgOp, EditSettings};
 
@@ -72,23 +73,8 @@ fn worlds_killed_mid_flush_reopen_as_the_last_committed_state() {
     let mut reference = World::in_memory(&recipe, settings()).unwrap();
     let mut replayed = 0u64;
     let mut touched = std::collections::BTreeSet::<ChunkKey>::new();
-    let exe = std::env::current_exe().unwrap();
-    let mut seed = 0x2545_F491_4F6C_DD1Du64;
     let mut progress = Vec::new();
-    for round in 0..50 {
-        let mut child = std::process::Command::new(&exe)
-            .args(["world_child_process", "--exact", "--ignored", "--test-threads=1"])
-            .env("STRATA_WORLD_CHILD", &path)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        std::thread::sleep(Duration::from_micros(40_000 + seed % 160_000));
-        child.kill().unwrap();
-        child.wait().unwrap();
+    kill_at_random_moments("world_child_process", "STRATA_WORLD_CHILD", &path, 50, 40_000..200_000, |round| {
         let store = WorldStore::open(&path).unwrap_or_else(|e| panic!("round {round}: the world does not open: {e}"));
         store.verify().unwrap_or_else(|e| panic!("round {round}: a damaged chunk: {e}"));
         let k = edits_done(&store);
@@ -117,7 +103,7 @@ fn worlds_killed_mid_flush_reopen_as_the_last_committed_state() {
             };
             assert!(got == want, "round {round}: chunk {key:?} is not the state after {k} edits");
         }
-    }
+    });
     assert!(replayed > 5, "the child made progress: {progress:?}");
     eprintln!("committed edits after each kill: {progress:?}");
     let _ = std::fs::remove_dir_all(&dir);
