@@ -893,7 +893,6 @@ impl StudioApp {
             }
         });
         if changed {
-            self.studio.palette_changed = true;
             self.studio.editor.touch();
         }
     }
@@ -955,7 +954,7 @@ impl StudioApp {
                 let (_, pitch, roll) = t.rotation.to_euler(glam::EulerRot::YXZ);
                 t.rotation = glam::DQuat::from_euler(glam::EulerRot::YXZ, yaw.to_radians(), pitch, roll);
                 match self.studio.editor.set_layer_transform(active, t, dragging) {
-                    Ok(()) => self.studio.full_upload = true,
+                    Ok(()) => {}
                     Err(e) => self.studio.message = e.to_string(),
                 }
             }
@@ -1000,9 +999,6 @@ impl StudioApp {
                 let _ = self.studio.act(Action::MergeDown);
             }
         });
-        if changed {
-            self.studio.full_upload = true;
-        }
         if changed || edited {
             self.studio.editor.touch();
         }
@@ -1253,7 +1249,6 @@ impl StudioApp {
                     let _ = self.studio.act(Action::New);
                     self.studio.editor.set_scene(scene);
                     self.studio.camera = strata_viewport::camera_of(&self.studio.editor.scene.view);
-                    self.studio.full_upload = true;
                     self.studio.path = found.origin.clone();
                     // Recovered work is not in any file yet.
                     self.studio.editor.touch();
@@ -1705,38 +1700,11 @@ impl StudioApp {
         }
         if vp.terrain_shown {
             vp.terrain_shown = false;
-            vp.renderer.clear();
-            self.studio.full_upload = true;
+            self.studio.editor.redraw_all();
         }
-        // Upload what the editor remeshed.
-        if self.studio.full_upload {
-            strata_viewport::upload_scene(&self.studio.editor, &rs.device, &rs.queue, &mut vp.renderer);
-            self.studio.full_upload = false;
-            self.studio.palette_changed = false;
-            self.studio.uploads.clear();
-        } else {
-            if self.studio.palette_changed {
-                vp.renderer.set_palette(&rs.queue, &strata_viewport::palette(&self.studio.editor.scene));
-                self.studio.palette_changed = false;
-            }
-            for (layer, key) in std::mem::take(&mut self.studio.uploads) {
-                let scene = &self.studio.editor.scene;
-                let Some(l) = scene.layers.get(layer) else { continue };
-                let mesh = self.studio.editor.chunk_mesh(layer, key);
-                match mesh.filter(|_| l.visible) {
-                    Some(mesh) => strata_viewport::upload_chunk(
-                        &mut vp.renderer,
-                        &rs.device,
-                        &rs.queue,
-                        layer as u32,
-                        key,
-                        mesh,
-                        strata_viewport::layer_model(l),
-                    ),
-                    None => vp.renderer.remove_mesh(strata_viewport::chunk_id(layer as u32, key)),
-                }
-            }
-        }
+        // What the editor's meshes changed since the last frame, applied by the one mirror.
+        let changes = self.studio.editor.take_changes();
+        strata_viewport::apply_changes(&self.studio.editor, &changes, &rs.device, &rs.queue, &mut vp.renderer);
         let inverse = self.studio.inverse_held;
         let kind = self.studio.editor.tool.kind;
         let erase = matches!((kind, inverse), (ToolKind::Erase, false) | (ToolKind::Add | ToolKind::Clay, true));

@@ -8,7 +8,6 @@ use strata_editor::file::{self, SceneFileError};
 use strata_editor::{Buttons, Editor, Layer, Scene, ToolKind, ToolPose, View};
 use strata_mesh::Mesh;
 use strata_render::Camera;
-use strata_volume::ChunkKey;
 use strata_volume::brush::Sphere;
 
 /// What a menu item, a key or a button asks for.
@@ -171,10 +170,6 @@ pub struct Studio {
     pub last_edit_ms: f64,
     /// Last frame's remesh time (ms).
     pub last_remesh_ms: f64,
-    /// Chunks remeshed but not yet uploaded to the GPU.
-    pub uploads: Vec<(usize, ChunkKey)>,
-    /// Every chunk must be uploaded again (new scene, layer change).
-    pub full_upload: bool,
     /// Where the tool would act (world), for the brush preview.
     pub hover: Option<DVec3>,
     /// The surface normal (world) under the pointer, when the pointer is over the model: what
@@ -204,8 +199,6 @@ pub struct Studio {
     /// The eyedropper is armed: the next click on the model makes the material under it the
     /// current material.
     pub eyedropper: bool,
-    /// The palette changed (a material added or edited): the renderer needs it again.
-    pub palette_changed: bool,
     /// A button was held in the previous frame (to see presses).
     prev_held: bool,
     /// A mesh waiting for its import resolution.
@@ -254,10 +247,7 @@ impl Studio {
             viewport_points: 720.0,
             last_edit_ms: 0.0,
             last_remesh_ms: 0.0,
-            uploads: Vec::new(),
-            full_upload: true,
             eyedropper: false,
-            palette_changed: true,
             hover: None,
             hover_normal: None,
             inverse_held: false,
@@ -390,8 +380,6 @@ impl Studio {
                     let written = t.save().map_err(|e| format!("Could not write the world: {e}"))?;
                     self.message = format!("World written ({written} chunks); back to the scene");
                 }
-                self.full_upload = true;
-                self.palette_changed = true;
                 return Ok(());
             }
             Action::Bomb => {
@@ -449,8 +437,6 @@ impl Studio {
                 }
             }
             Action::Undo | Action::Redo => {
-                let structure = self.editor.structure_revision();
-                let transforms: Vec<_> = self.editor.scene.layers.iter().map(|l| l.transform).collect();
                 let undo = action == Action::Undo;
                 let done = if undo { self.editor.undo() } else { self.editor.redo() };
                 self.message = match (undo, done) {
@@ -459,12 +445,6 @@ impl Studio {
                     (false, true) => "Redone".into(),
                     (false, false) => "Nothing to redo".into(),
                 };
-                // A layer moved back or forth: its chunks are drawn with the new placement.
-                if self.editor.scene.layers.iter().map(|l| l.transform).ne(transforms)
-                    || self.editor.structure_revision() != structure
-                {
-                    self.full_upload = true;
-                }
             }
             Action::ScaleRadius(f) => {
                 if self.screen_radius {
@@ -482,7 +462,6 @@ impl Studio {
                 self.view_draft = options;
                 self.editor.set_view_mesher(options).map_err(|e| format!("Could not change the mesher: {e}"))?;
                 self.editor.finish_meshing();
-                self.full_upload = true;
                 self.message = match options.simplify {
                     Some(e) => format!("Viewport: {}, chunks simplified to {e} cells", options.mesher),
                     None => format!("Viewport: {}", options.mesher),
@@ -502,7 +481,6 @@ impl Studio {
                 layer.volume.set_cell_size(cell).expect("the default cell size is valid");
                 layers.push(layer);
                 self.editor.replace_layers(layers, n - 1);
-                self.full_upload = true;
             }
             Action::DeleteLayer | Action::DuplicateLayer | Action::MoveLayer(_) | Action::MergeDown => {
                 self.layer_op(action)?;
@@ -576,7 +554,6 @@ impl Studio {
         };
         // One undo step that restores the whole list.
         self.editor.replace_layers(layers, active);
-        self.full_upload = true;
         self.message = what;
         Ok(())
     }
@@ -632,7 +609,6 @@ impl Studio {
                 self.editor.tool.radius = 10.0 * cell;
                 self.camera.target = v.target.as_vec3();
                 self.camera.distance = v.distance as f32;
-                self.full_upload = true;
                 self.message = format!("Imported {:?} as a new layer in {secs:.1} s", job.name);
             }
             Err(strata_editor::import::ConvertError::Edit(strata_volume::EditError::Cancelled)) => {
@@ -666,8 +642,6 @@ impl Studio {
     fn replace_scene(&mut self, scene: Scene) {
         self.camera = strata_viewport::camera_of(&scene.view);
         self.editor.set_scene(scene);
-        self.full_upload = true;
-        self.uploads.clear();
     }
 
     /// One frame of pointer input over the viewport: `ndc` the pointer in normalised device
@@ -752,7 +726,6 @@ impl Studio {
         palette.push(strata_editor::Material { name: format!("{} {}", base.name, palette.len()), ..base });
         let id = (palette.len() - 1) as u8;
         self.editor.tool.material = id;
-        self.palette_changed = true;
         self.editor.touch();
         Some(id)
     }
@@ -781,7 +754,6 @@ impl Studio {
                 match self.editor.line_stroke(a, p, pressure, buttons.secondary && !buttons.primary) {
                     Ok(report) => {
                         self.message = format!("Line: {} dabs", report.dabs);
-                        self.uploads.extend(report.remeshed);
                     }
                     Err(e) => self.fail(e.to_string()),
                 }
@@ -876,7 +848,6 @@ impl Studio {
                 if !report.remeshed.is_empty() {
                     self.last_remesh_ms = report.remesh_time.as_secs_f64() * 1e3;
                 }
-                self.uploads.extend(report.remeshed);
             }
             Err(e) => self.fail(e.to_string()),
         }
@@ -1074,7 +1045,12 @@ mod tests {
         s.pointer(Some((0.1, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
         assert!(s.editor.scene.layers[0].volume != before, "the stroke changed the volume: {}", s.message);
         assert_eq!(s.editor.history().undo_len(), 1);
-        assert!(!s.uploads.is_empty(), "remeshed chunks are queued for upload");
+        let _ = s.editor.take_changes();
+        s.pointer(Some((0.2, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        s.pointer(Some((0.3, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        let changes = s.editor.take_changes();
+        assert!(!changes.full && !changes.meshes.is_empty(), "remeshed chunks are listed for upload");
+        s.act(Action::Undo).unwrap();
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].volume, before);
         s.act(Action::Redo).unwrap();
@@ -1226,7 +1202,7 @@ mod tests {
         // Undo takes the merge back, then the move; redo merges again.
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers.len(), 2);
-        assert!(s.full_upload);
+        assert!(s.editor.take_changes().full, "the layer list changed: everything is drawn anew");
         assert_eq!(s.editor.scene.layers[0].volume, upper.volume);
         s.act(Action::Redo).unwrap();
         assert_eq!(s.editor.scene.layers.len(), 1);
@@ -1289,14 +1265,18 @@ mod tests {
     #[test]
     fn moving_a_layer_undoes_and_redraws() {
         let mut s = Studio::new(default_scene());
-        s.full_upload = false;
+        let _ = s.editor.take_changes();
         let t0 = s.editor.scene.layers[0].transform;
         let moved = strata_editor::LayerTransform { translation: DVec3::new(3.0, 0.0, 0.0), ..t0 };
         s.editor.set_layer_transform(0, moved, false).unwrap();
         assert!(s.is_modified());
+        assert_eq!(s.editor.take_changes().layers, vec![0], "the moved layer is drawn where it went");
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.scene.layers[0].transform, t0);
-        assert!(s.full_upload, "the layer is drawn where it is now");
+        let changes = s.editor.take_changes();
+        assert_eq!(changes.layers, vec![0], "the layer is drawn where it is now");
+        assert!(!changes.full && changes.meshes.iter().all(|(l, _)| *l != 0));
+        assert_eq!(s.editor.take_changes(), strata_editor::ChangeList::default(), "then nothing more");
     }
 
     #[test]

@@ -1,21 +1,22 @@
 //! The editor: a scene, the tool, the stroke in progress, history and mesh caches.
 
-use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use std::sync::Arc;
 use strata_mesh::islands::IslandReport;
-use strata_mesh::{DualCache, Mesh, MeshCache, MeshOptions, Mesher, MesherError, dual_contour_volume};
+use strata_mesh::{Mesh, MeshCache, MeshOptions, Mesher, MesherError, dual_contour_volume};
 use strata_volume::brush::BrushError;
 
 use strata_volume::{ChunkKey, EditControl, EditError, EditReport, EditSettings, Level, Volume};
 use thiserror::Error;
 
 use crate::history::{History, HistoryEntry};
+use crate::lod::LodView;
 use crate::pose::ToolPose;
 use crate::scene::{Layer, Scene};
 use crate::tool::{ToolKind, ToolSettings};
+use crate::view_meshes::{ChangeList, ViewMeshes};
 
 /// Why the editor refused something. The scene is unchanged.
 #[derive(Debug, Error)]
@@ -72,79 +73,6 @@ pub struct FrameReport {
     pub remeshed: Vec<(usize, ChunkKey)>,
     /// Chunks still waiting for a remesh after this frame.
     pub pending: usize,
-}
-
-/// Where the viewer is, for level of detail: a chunk is meshed at the coarsest level whose cell,
-/// seen from `eye` at the chunk's nearest point, spans at most `pixel_error` pixels.
-/// Hysteresis: a chunk goes coarser only once the coarser level looks at most
-/// `pixel_error / 1.5`, so a camera resting near a threshold does not make chunks flicker.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LodView {
-    /// The eye, in world units.
-    pub eye: DVec3,
-    /// Pixels per radian of view (the viewport's height in pixels over the vertical field of
-    /// view in radians).
-    pub pixels_per_radian: f64,
-    /// The largest cell a chunk may show, in pixels.
-    pub pixel_error: f64,
-}
-
-impl LodView {
-    /// Whether every field is finite and positive where it must be.
-    pub fn is_valid(&self) -> bool {
-        self.eye.is_finite()
-            && self.pixels_per_radian.is_finite()
-            && self.pixels_per_radian > 0.0
-            && self.pixel_error.is_finite()
-            && self.pixel_error > 0.0
-    }
-
-    /// The level for a chunk stored at `stored`, now meshed at `current`, whose base cell is
-    /// `cell` world units, `distance` world units from the eye: where `current` shows cells
-    /// larger than the pixel error, the coarsest level that does not; else the coarsest level
-    /// that shows at most two thirds of it, if coarser than `current`.
-    pub fn level_for(&self, stored: Level, current: Level, cell: f64, distance: f64) -> Level {
-        let pixels = |l: Level| cell * l.spacing() / distance * self.pixels_per_radian;
-        let current = current.min(stored);
-        // The coarsest level at or above `from` whose cells look at most `limit` pixels.
-        let coarsest = |limit: f64| -> Option<Level> {
-            (0..=stored.get()).map(|k| Level::new(k).expect("a level")).find(|&l| pixels(l) <= limit)
-        };
-        if pixels(current) > self.pixel_error {
-            return coarsest(self.pixel_error).unwrap_or(stored).max(current);
-        }
-        match coarsest(self.pixel_error / 1.5) {
-            Some(l) if l < current => l,
-            _ => current,
-        }
-    }
-}
-
-/// The level-of-detail caps of the list chunks of `volume` (placed by `transform`) seen from
-/// `view`, given the caps they have now (`current`, for the hysteresis): chunks to be meshed below
-/// their stored level, and that level. Each chunk counts from its nearest point to the eye
-/// (its centre's distance less half its diagonal).
-pub fn lod_levels(
-    volume: &Volume,
-    transform: &crate::scene::LayerTransform,
-    view: &LodView,
-    current: &HashMap<ChunkKey, Level>,
-) -> HashMap<ChunkKey, Level> {
-    let mut next = HashMap::new();
-    let world_cell = volume.cell_size() * transform.scale;
-    let half_diagonal = 8.0 * 3f64.sqrt() * world_cell;
-    for (key, _) in volume.chunks() {
-        let Some(stored) = volume.stored_level(key) else { continue };
-        let centre = key.origin_grid().as_dvec3() + DVec3::splat(8.0);
-        let distance = (transform.to_world(centre * volume.cell_size()) - view.eye).length();
-        let near = (distance - half_diagonal).max(1e-9);
-        let now = current.get(&key).copied().unwrap_or(stored);
-        let level = view.level_for(stored, now, world_cell, near);
-        if level < stored {
-            next.insert(key, level);
-        }
-    }
-    next
 }
 
 /// One dab applied on a worker thread ([`Editor::start_dab_job`]), for edits too large for a
@@ -255,19 +183,8 @@ pub struct Editor {
     pub active_layer: usize,
     history: History,
     stroke: Option<Stroke>,
-    caches: Vec<MeshCache>,
-    /// Dual-contouring chunk meshes by layer, used instead of `caches` while the viewport's
-    /// mesher is dual contouring.
-    duals: Vec<DualCache>,
-    /// The viewport's mesher and per-chunk simplification.
-    view_mesher: MeshOptions,
-    dirty: Vec<BTreeSet<ChunkKey>>,
-    /// Meshes computed but not yet shown: a chunk's new mesh is committed only together with
-    /// every neighbour's, so no seam is ever drawn between a new mesh and a stale one.
-    staged: Vec<HashMap<ChunkKey, std::sync::Arc<Mesh>>>,
-    /// Level-of-detail caps by layer (chunks missing are meshed at their stored level).
-    lod: Vec<HashMap<ChunkKey, Level>>,
-    view: Option<LodView>,
+    /// The viewport's meshes of every layer.
+    meshes: ViewMeshes,
     settings: EditSettings,
     revision: u64,
     /// Counts changes of the layer list (see [`Editor::structure_revision`]).
@@ -300,13 +217,7 @@ impl Editor {
             active_layer: 0,
             history: History::default(),
             stroke: None,
-            caches: Vec::new(),
-            duals: Vec::new(),
-            view_mesher: MeshOptions::default(),
-            dirty: Vec::new(),
-            staged: Vec::new(),
-            lod: Vec::new(),
-            view: None,
+            meshes: ViewMeshes::new(MeshOptions::default(), &[]),
             settings: EditSettings::default(),
             revision: 0,
             structure: 0,
@@ -327,37 +238,7 @@ impl Editor {
 
     /// Rebuilds the per-layer caches and queues every chunk (after layers are added or removed).
     pub fn reset_caches(&mut self) {
-        let options = self.view_mesher;
-        let block = options.mesher.block().unwrap_or_default();
-        self.caches = self
-            .scene
-            .layers
-            .iter()
-            .map(|_| {
-                let mut c = MeshCache::with_mesher(block);
-                // Bounds are checked by `set_view_mesher`.
-                let _ = c.set_simplify(options.simplify);
-                c
-            })
-            .collect();
-        let single = options.mesher == Mesher::SingleVertexDualContouring;
-        self.duals = self
-            .scene
-            .layers
-            .iter()
-            .map(|_| if single { DualCache::single_vertex() } else { DualCache::new() })
-            .collect();
-        self.staged = self.scene.layers.iter().map(|_| HashMap::new()).collect();
-        self.lod = self.scene.layers.iter().map(|_| HashMap::new()).collect();
-        self.dirty = self
-            .scene
-            .layers
-            .iter()
-            .map(|l| {
-                let keys: Vec<ChunkKey> = l.volume.chunks().map(|(k, _)| k).collect();
-                MeshCache::dependents(&keys).into_iter().collect()
-            })
-            .collect();
+        self.meshes.reset(&self.scene.layers, false);
     }
 
     /// A number that changes whenever the scene does through the editor (edits, undo, redo, a
@@ -833,79 +714,17 @@ impl Editor {
     /// Queues the meshes an edit of `layer` that changed `changed` within `reach` (`None`:
     /// anywhere in them) affects.
     fn queue(&mut self, layer: usize, changed: &[ChunkKey], reach: Option<strata_volume::Reach>) {
-        let keys = self.caches[layer].note(&self.scene.layers[layer].volume, changed, reach);
-        self.dirty[layer].extend(keys);
+        self.meshes.queue(layer, &self.scene.layers[layer].volume, changed, reach);
     }
 
-    /// Remeshes queued chunks, in batches, until `budget` is spent (at least one batch), then
-    /// shows the new meshes that can be shown without a crack (see [`Editor::commit_staged`]).
+    /// Remeshes queued chunks until `budget` is spent and shows what can be shown without a
+    /// crack (see [`crate::view_meshes`]).
     fn remesh(&mut self, budget: Duration, report: &mut FrameReport) {
         let t0 = Instant::now();
-        const BATCH: usize = 16;
-        let mut computed = false;
-        if self.view_mesher.mesher.block().is_none() {
-            // Dual contouring: its cache finds and rebuilds what the queued chunks affect, in
-            // one parallel pass per layer (no time budget, no level-of-detail cap).
-            for layer in 0..self.dirty.len() {
-                if self.dirty[layer].is_empty() {
-                    continue;
-                }
-                let queued: Vec<ChunkKey> = std::mem::take(&mut self.dirty[layer]).into_iter().collect();
-                let rebuilt = self.duals[layer].update(&self.scene.layers[layer].volume, &queued);
-                report.remeshed.extend(rebuilt.into_iter().map(|k| (layer, k)));
-            }
-            report.remesh_time = t0.elapsed();
-            report.pending = 0;
-            return;
-        }
-        // Level of detail caps only marching cubes (tetrahedra do not patch seams between levels).
-        let lod_on = self.view_mesher.mesher == Mesher::MarchingCubes;
-        for layer in 0..self.dirty.len() {
-            while !self.dirty[layer].is_empty() {
-                if computed && t0.elapsed() >= budget {
-                    break;
-                }
-                let batch: Vec<ChunkKey> = std::iter::from_fn(|| self.dirty[layer].pop_first()).take(BATCH).collect();
-                let lod = &self.lod[layer];
-                let cap = |k: ChunkKey| lod.get(&k).copied().unwrap_or(Level::FINEST);
-                let capped: Option<strata_mesh::LevelCap<'_>> =
-                    if lod.is_empty() || !lod_on { None } else { Some(&cap) };
-                let fresh = self.caches[layer].compute(&self.scene.layers[layer].volume, &batch, capped);
-                self.staged[layer].extend(fresh);
-                computed = true;
-            }
-            self.commit_staged(layer, report);
-        }
+        let (shown, pending) = self.meshes.remesh(&self.scene.layers, budget);
+        report.remeshed.extend(shown);
         report.remesh_time = t0.elapsed();
-        report.pending =
-            self.dirty.iter().map(BTreeSet::len).sum::<usize>() + self.staged.iter().map(HashMap::len).sum::<usize>();
-    }
-
-    /// Shows the staged meshes of `layer` that no queued chunk can still change the seams of: a
-    /// staged chunk waits while a neighbour (across a face, edge or corner) is queued, or is
-    /// itself waiting; all the others are committed at once, in this frame.
-    fn commit_staged(&mut self, layer: usize, report: &mut FrameReport) {
-        if self.staged[layer].is_empty() {
-            return;
-        }
-        let dirty = &self.dirty[layer];
-        let staged = &self.staged[layer];
-        let around = |k: ChunkKey| k.around();
-        let mut waiting: BTreeSet<ChunkKey> =
-            staged.keys().copied().filter(|&k| around(k).any(|n| dirty.contains(&n))).collect();
-        let mut frontier: Vec<ChunkKey> = waiting.iter().copied().collect();
-        while let Some(k) = frontier.pop() {
-            for n in around(k) {
-                if staged.contains_key(&n) && waiting.insert(n) {
-                    frontier.push(n);
-                }
-            }
-        }
-        let ready: Vec<ChunkKey> = staged.keys().copied().filter(|k| !waiting.contains(k)).collect();
-        let fresh: Vec<(ChunkKey, std::sync::Arc<Mesh>)> =
-            ready.iter().map(|k| (*k, self.staged[layer].remove(k).expect("staged"))).collect();
-        self.caches[layer].commit(fresh);
-        report.remeshed.extend(ready.into_iter().map(|k| (layer, k)));
+        report.pending = pending;
     }
 
     /// Level of detail by camera distance: with a view, every list chunk of every layer is
@@ -913,35 +732,12 @@ impl Editor {
     /// the eye (see [`LodView`]); chunks whose level changes are queued with their neighbours.
     /// `None` meshes everything at its stored level.
     pub fn set_view(&mut self, view: Option<LodView>) {
-        self.view = view;
-        for layer in 0..self.scene.layers.len() {
-            let l = &self.scene.layers[layer];
-            let next = match view.filter(|v| v.is_valid()) {
-                Some(v) => lod_levels(&l.volume, &l.transform, &v, &self.lod[layer]),
-                None => HashMap::new(),
-            };
-            let old = std::mem::replace(&mut self.lod[layer], next);
-            let mut moved: Vec<ChunkKey> = Vec::new();
-            for (k, l) in &old {
-                if self.lod[layer].get(k) != Some(l) {
-                    moved.push(*k);
-                }
-            }
-            for (k, l) in &self.lod[layer] {
-                if old.get(k) != Some(l) {
-                    moved.push(*k);
-                }
-            }
-            if !moved.is_empty() {
-                let keys: Vec<ChunkKey> = moved.iter().flat_map(|k| k.around()).collect();
-                self.dirty[layer].extend(keys);
-            }
-        }
+        self.meshes.set_view(&self.scene.layers, view);
     }
 
     /// The level-of-detail cap of a chunk of a layer (`None`: meshed at its stored level).
     pub fn lod_level(&self, layer: usize, key: ChunkKey) -> Option<Level> {
-        self.lod.get(layer)?.get(&key).copied()
+        self.meshes.lod_level(layer, key)
     }
 
     /// Remeshes everything queued, whatever it takes (before a screenshot or an export).
@@ -953,23 +749,23 @@ impl Editor {
 
     /// Chunks waiting for a remesh, or remeshed and waiting for their neighbours to be shown.
     pub fn pending(&self) -> usize {
-        self.dirty.iter().map(BTreeSet::len).sum::<usize>() + self.staged.iter().map(HashMap::len).sum::<usize>()
+        self.meshes.pending()
     }
 
     /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown.
     pub fn is_pending(&self, layer: usize, key: ChunkKey) -> bool {
-        self.dirty.get(layer).is_some_and(|d| d.contains(&key))
-            || self.staged.get(layer).is_some_and(|s| s.contains_key(&key))
+        self.meshes.is_pending(layer, key)
     }
 
-    /// The marching-cubes mesh cache of a layer.
+    /// The block mesh cache of a layer (marching cubes or tetrahedra; `None` while the viewport
+    /// dual-contours).
     pub fn mesh_cache(&self, layer: usize) -> Option<&MeshCache> {
-        self.caches.get(layer)
+        self.meshes.mesh_cache(layer)
     }
 
     /// The viewport's mesher and per-chunk simplification.
     pub fn view_mesher(&self) -> MeshOptions {
-        self.view_mesher
+        self.meshes.options()
     }
 
     /// Meshes the viewport with `options` from now on (every chunk is queued again). Per-chunk
@@ -986,44 +782,38 @@ impl Editor {
                 return Err(MesherError::ChunkSimplify(options.mesher).into());
             }
         }
-        if options != self.view_mesher {
-            self.view_mesher = options;
-            self.staged.iter_mut().for_each(HashMap::clear);
-            let lod = std::mem::take(&mut self.lod);
-            self.reset_caches();
-            self.lod = lod;
-        }
+        self.meshes.set_options(options, &self.scene.layers);
         Ok(())
     }
 
     /// The mesher a layer's viewport meshes are made with now: the one asked for, or marching
     /// cubes where tetrahedra were asked for and the layer's chunks mix levels.
     pub fn view_mesher_used(&self, layer: usize) -> Option<Mesher> {
-        if self.view_mesher.mesher.block().is_none() {
-            return self.duals.get(layer).map(|_| self.view_mesher.mesher);
-        }
-        Some(match self.caches.get(layer)?.mesher_used() {
-            strata_mesh::BlockMesher::MarchingCubes => Mesher::MarchingCubes,
-            strata_mesh::BlockMesher::Tetrahedra => Mesher::Tetrahedra,
-            strata_mesh::BlockMesher::ClusteredTetrahedra => Mesher::ClusteredTetrahedra,
-        })
+        self.meshes.mesher_used(layer)
     }
 
     /// The viewport mesh of chunk `key` of a layer (chunk-local positions), by the viewport's
     /// mesher.
     pub fn chunk_mesh(&self, layer: usize, key: ChunkKey) -> Option<&Mesh> {
-        if self.view_mesher.mesher.block().is_none() {
-            return self.duals.get(layer)?.mesh(key).map(|m| &m.mesh);
-        }
-        self.caches.get(layer)?.mesh(key)
+        self.meshes.mesh(layer, key)
     }
 
     /// Every viewport chunk mesh of a layer.
     pub fn chunk_meshes(&self, layer: usize) -> Vec<(ChunkKey, &Mesh)> {
-        if self.view_mesher.mesher.block().is_none() {
-            return self.duals.get(layer).map(|d| d.iter().map(|(k, m)| (k, &m.mesh)).collect()).unwrap_or_default();
-        }
-        self.caches.get(layer).map(|c| c.iter().collect()).unwrap_or_default()
+        self.meshes.meshes(layer)
+    }
+
+    /// What a renderer must do to show the viewport's meshes as they are now, since the last
+    /// call (see [`ChangeList`]): the first call, and the first after the layer list or the
+    /// mesher changed, or after [`Editor::redraw_all`], is a full list.
+    pub fn take_changes(&mut self) -> ChangeList {
+        self.meshes.take_changes(&self.scene.layers, &self.scene.materials)
+    }
+
+    /// Makes the next [`Editor::take_changes`] a full list (the renderer showed something else
+    /// meanwhile).
+    pub fn redraw_all(&mut self) {
+        self.meshes.redraw_all();
     }
 
     /// The box of a layer's viewport surface in its grid coordinates (from the mesh cache:
@@ -1042,10 +832,7 @@ impl Editor {
 
     /// Triangles in all layers' caches.
     pub fn triangle_count(&self) -> usize {
-        if self.view_mesher.mesher.block().is_none() {
-            return self.duals.iter().map(DualCache::triangle_count).sum();
-        }
-        self.caches.iter().map(MeshCache::triangle_count).sum()
+        self.meshes.triangle_count()
     }
 
     /// A dual-contoured, welded mesh of a layer in world coordinates (sharp features; on request,

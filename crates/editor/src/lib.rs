@@ -12,12 +12,16 @@ mod editor;
 pub mod file;
 mod history;
 pub mod import;
+mod lod;
 mod pose;
 mod scene;
 mod tool;
+mod view_meshes;
 
-pub use editor::{DabJob, Editor, EditorError, FrameReport, LodView, PICK_CHUNK_STEPS, Pick, lod_levels, to_world};
+pub use editor::{DabJob, Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pick, to_world};
 pub use history::{History, HistoryEntry, Restored};
+pub use lod::{LodView, lod_levels};
 pub use pose::{Buttons, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View};
 pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};
+pub use view_meshes::ChangeList;

@@ -4,7 +4,6 @@
 
 use std::path::{Path, PathBuf};
 
-
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use strata_editor::file::{self, SceneFileError, decode, encode, load, save, write_atomically};

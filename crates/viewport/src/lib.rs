@@ -14,9 +14,12 @@
 use std::path::Path;
 
 use glam::Mat4;
-use strata_editor::{Editor, Layer, Scene, View};
+use strata_editor::{ChangeList, Editor, Layer, Scene, View};
 use strata_mesh::Mesh;
-use strata_render::{Camera, DrawMesh, FrameSettings, MeshId, MeshRef, PaletteEntry, Placement, RenderError, Renderer};
+use strata_render::{
+    Camera, DrawMesh, FrameSettings, Gpu, MeshId, MeshRef, PaletteEntry, Placement, RenderError, Renderer,
+    render_offscreen,
+};
 use strata_volume::ChunkKey;
 
 /// Lends `mesh` to the renderer as plain slices (its materials cast in place:
@@ -109,6 +112,41 @@ pub fn scene_meshes(editor: &Editor) -> Vec<DrawMesh<'_>> {
     out
 }
 
+/// Brings `renderer` up to date with `editor`'s viewport meshes by the change list `changes`
+/// (from [`Editor::take_changes`]): the one road from the editor's meshes to the GPU, for the
+/// studio's window and for headless renders alike. Meshes are group `i` for layer `i`.
+pub fn apply_changes(
+    editor: &Editor,
+    changes: &ChangeList,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    renderer: &mut Renderer,
+) {
+    if changes.full {
+        upload_scene(editor, device, queue, renderer);
+        return;
+    }
+    if changes.palette {
+        renderer.set_palette(queue, &palette(&editor.scene));
+    }
+    let layers = &editor.scene.layers;
+    for &i in &changes.layers {
+        renderer.clear_group(i as u32);
+        let Some(layer) = layers.get(i).filter(|l| l.visible) else { continue };
+        let model = layer_model(layer);
+        for (key, mesh) in editor.chunk_meshes(i) {
+            upload_chunk(renderer, device, queue, i as u32, key, mesh, model);
+        }
+    }
+    for &(i, key) in &changes.meshes {
+        let layer = layers.get(i).filter(|l| l.visible);
+        match layer.and_then(|l| editor.chunk_mesh(i, key).map(|m| (l, m))) {
+            Some((l, mesh)) => upload_chunk(renderer, device, queue, i as u32, key, mesh, layer_model(l)),
+            None => renderer.remove_mesh(chunk_id(i as u32, key)),
+        }
+    }
+}
+
 /// Replaces everything `renderer` holds with `editor`'s scene: its palette and every chunk
 /// mesh of every visible layer.
 pub fn upload_scene(editor: &Editor, device: &wgpu::Device, queue: &wgpu::Queue, renderer: &mut Renderer) {
@@ -120,11 +158,18 @@ pub fn upload_scene(editor: &Editor, device: &wgpu::Device, queue: &wgpu::Queue,
 }
 
 /// Meshes `scene` (every chunk, no time budget) and renders it from its saved view at `size`
-/// into the PNG at `out`, headless. Returns the adapter's name.
+/// into the PNG at `out`, headless, through the same change list and [`apply_changes`] as the
+/// studio's window. Returns the adapter's name.
 pub fn render_scene(scene: Scene, out: &Path, size: (u32, u32), wireframe: bool) -> Result<String, RenderError> {
     let camera = camera_of(&scene.view);
     let mut editor = Editor::new(scene);
     editor.finish_meshing();
+    let gpu = Gpu::headless()?;
+    let mut renderer = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    let changes = editor.take_changes();
+    apply_changes(&editor, &changes, &gpu.device, &gpu.queue, &mut renderer);
     let settings = FrameSettings { camera, wireframe, ..Default::default() };
-    strata_render::screenshot(scene_meshes(&editor), &palette(&editor.scene), &settings, size, out)
+    let image = render_offscreen(&gpu, &mut renderer, size.0, size.1, &settings)?;
+    image.save_png(out)?;
+    Ok(gpu.info.name.clone())
 }

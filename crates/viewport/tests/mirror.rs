@@ -1,0 +1,133 @@
+//! The change lists keep a renderer equal to one that uploads the whole scene anew: after
+//! strokes, undo and redo, hidden and moved layers, new materials, another mesher and frames
+//! whose remesh budget leaves work for later, the mirrored renderer holds the same meshes and
+//! draws the same image as a fresh upload.
+//!
+//! Without a GPU adapter (not even lavapipe) the test skips with a message, unless
+//! `STRATA_REQUIRE_GPU=1` is set (CI sets it).
+
+use std::time::Duration;
+
+use glam::{DQuat, DVec3};
+use strata_editor::{Buttons, Editor, Layer, LayerTransform, Material, Scene, ToolPose};
+use strata_mesh::{MeshOptions, Mesher};
+use strata_render::{Camera, FrameSettings, Gpu, Renderer, render_offscreen};
+use strata_viewport::{apply_changes, upload_scene};
+use strata_volume::brush::Sphere;
+
+fn gpu() -> Option<Gpu> {
+    match Gpu::headless() {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var("STRATA_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("STRATA_REQUIRE_GPU=1 but no adapter: {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping the mirror test: {e}");
+            None
+        }
+    }
+}
+
+fn scene() -> Scene {
+    let mut scene = Scene::default();
+    let mut a = Layer::new("a");
+    a.volume.add(&Sphere::new(DVec3::new(20.0, 20.0, 20.0), 12.0).unwrap()).unwrap();
+    let mut b = Layer::new("b");
+    b.volume.add(&Sphere::new(DVec3::new(50.0, 20.0, 20.0), 8.0).unwrap()).unwrap();
+    scene.layers = vec![a, b];
+    scene
+}
+
+fn image(gpu: &Gpu, r: &mut Renderer) -> Vec<u8> {
+    let camera = Camera { target: glam::Vec3::new(35.0, 20.0, 20.0), distance: 90.0, ..Camera::default() };
+    let settings = FrameSettings { camera, grid: false, ..Default::default() };
+    render_offscreen(gpu, r, 96, 64, &settings).unwrap().rgba
+}
+
+#[test]
+fn change_lists_keep_a_renderer_equal_to_a_fresh_upload() {
+    let Some(gpu) = gpu() else { return };
+    let mut e = Editor::new(scene());
+    let mut mirror = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = |n: u64| {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x % n
+    };
+    let mut kinds = [0usize; 8];
+    for step in 0..40 {
+        let op = if step == 0 { 0 } else { next(8) as usize };
+        kinds[op] += 1;
+        match op {
+            // A short stroke on one of the balls, with a budget that may leave chunks queued.
+            0 | 1 => {
+                let c = if next(2) == 0 { DVec3::new(20.0, 32.0, 20.0) } else { DVec3::new(50.0, 28.0, 20.0) };
+                e.active_layer = usize::from(c.x > 35.0);
+                let budget = Duration::from_micros(if op == 0 { 50_000 } else { 1 });
+                for i in 0..4 {
+                    let p = c + DVec3::new(i as f64, 0.0, 0.0);
+                    let buttons = Buttons { primary: true, secondary: false };
+                    let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+                    e.frame(&pose, budget).unwrap();
+                }
+                e.frame(&ToolPose::at(c, false), budget).unwrap();
+            }
+            2 => {
+                e.undo();
+            }
+            3 => {
+                e.redo();
+            }
+            4 => {
+                let l = next(2) as usize;
+                e.scene.layers[l].visible = !e.scene.layers[l].visible;
+            }
+            5 => {
+                let t = LayerTransform { translation: DVec3::new(next(5) as f64, 0.0, 0.0), ..Default::default() };
+                e.set_layer_transform(next(2) as usize, t, false).unwrap();
+            }
+            6 => {
+                // A new material, and the one every vertex shows recoloured.
+                e.scene.materials.push(Material { color: [0.2, 0.5, 0.9], ..e.scene.materials[0].clone() });
+                e.scene.materials[0].color = [0.3 + next(7) as f32 * 0.1, 0.4, 0.5];
+            }
+            _ => {
+                let mesher = if e.view_mesher().mesher == Mesher::MarchingCubes {
+                    Mesher::DualContouring
+                } else {
+                    Mesher::MarchingCubes
+                };
+                e.set_view_mesher(MeshOptions { mesher, ..Default::default() }).unwrap();
+                e.frame(&ToolPose::at(DVec3::ZERO, false), Duration::from_micros(1)).unwrap();
+            }
+        }
+        let changes = e.take_changes();
+        apply_changes(&e, &changes, &gpu.device, &gpu.queue, &mut mirror);
+        let mut fresh = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+        upload_scene(&e, &gpu.device, &gpu.queue, &mut fresh);
+        assert_eq!(mirror.mesh_count(), fresh.mesh_count(), "step {step} (op {op}): {changes:?}");
+        assert_eq!(mirror.triangle_count(), fresh.triangle_count(), "step {step} (op {op})");
+        if step % 4 == 3 || op == 6 {
+            assert!(image(&gpu, &mut mirror) == image(&gpu, &mut fresh), "step {step} (op {op}): the images differ");
+        }
+    }
+    assert!(kinds.iter().all(|&k| k > 0), "every kind of change was tried: {kinds:?}");
+    // Finishing the meshing lists the rest.
+    e.finish_meshing();
+    let changes = e.take_changes();
+    apply_changes(&e, &changes, &gpu.device, &gpu.queue, &mut mirror);
+    let mut fresh = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    upload_scene(&e, &gpu.device, &gpu.queue, &mut fresh);
+    assert!(image(&gpu, &mut mirror) == image(&gpu, &mut fresh), "after the last remesh");
+    assert_eq!(mirror.triangle_count(), e.triangle_count() - hidden_triangles(&e));
+}
+
+/// Triangles of the layers that are hidden (the editor counts them, the renderer does not).
+fn hidden_triangles(e: &Editor) -> usize {
+    (0..e.scene.layers.len())
+        .filter(|&i| !e.scene.layers[i].visible)
+        .map(|i| e.chunk_meshes(i).iter().map(|(_, m)| m.triangle_count()).sum::<usize>())
+        .sum()
+}
