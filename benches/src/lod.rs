@@ -280,7 +280,13 @@ fn sculpt_frames(volume: &Volume, frames: usize) -> (usize, f64, f64) {
             let x = lo.x + (hi.x - lo.x) * (0.2 + 0.6 * s);
             let from = DVec3::new(x, centre.y, hi.z + 4.0);
             let p = e.pick(from, -DVec3::Z, 1e6).map(|h| h.point).unwrap_or(DVec3::new(x, centre.y, centre.z));
-            let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: down };
+            let pose = ToolPose {
+                position: p,
+                orientation: DQuat::IDENTITY,
+                pressure: 1.0,
+                buttons: down,
+                ..ToolPose::default()
+            };
             let t = Instant::now();
             let _ = e.frame(&pose, Duration::from_millis(8));
             times.push(t.elapsed().as_secs_f64() * 1e3);

@@ -399,6 +399,7 @@ fn stroke(seconds: f64) {
             orientation: DQuat::IDENTITY,
             pressure: 1.0,
             buttons: Buttons { primary: down, secondary: false },
+            ..ToolPose::default()
         };
         let t0 = Instant::now();
         let report = editor.frame(&pose, Duration::from_millis(8)).expect("valid stroke");

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use glam::{DQuat, DVec3};
 use strata_editor::file::{self, SceneFileError};
-use strata_editor::{Buttons, Editor, Layer, Scene, ToolKind, ToolPose, View};
+use strata_editor::{Buttons, Editor, Layer, Modifiers, Scene, ToolKind, ToolPose, View};
 use strata_mesh::Mesh;
 use strata_render::Camera;
 use strata_volume::brush::Sphere;
@@ -650,23 +650,17 @@ impl Studio {
     /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
     pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
         self.update_lod();
-        // Holding Shift smooths, whatever the tool; Ctrl or Alt turns the primary button into
-        // the inverse tool (the sculptors' conventions).
-        let kind = self.editor.tool.kind;
-        if self.smooth_held {
-            self.editor.tool.kind = ToolKind::Smooth;
-        }
-        let buttons =
-            if self.inverse_held && buttons.primary { Buttons { primary: false, secondary: true } } else { buttons };
+        // Holding Shift smooths, whatever the tool; Ctrl or Alt inverts it (the sculptors'
+        // conventions): the pose says so, the tool and the buttons stay as they are.
+        let modifiers = Modifiers { inverted: self.inverse_held, smooth: self.smooth_held };
         if self.eyedropper && self.job.is_none() {
             self.eyedropper_click(ndc, buttons, aspect);
         } else if self.line_mode && self.job.is_none() {
-            self.line_click(ndc, buttons, pressure, aspect);
+            self.line_click(ndc, buttons, modifiers, pressure, aspect);
         } else {
-            self.pointer_with_tool(ndc, buttons, pressure, aspect, budget);
+            self.pointer_with_tool(ndc, buttons, modifiers, pressure, aspect, budget);
         }
         self.prev_held = buttons.primary || buttons.secondary;
-        self.editor.tool.kind = kind;
     }
 
     /// Tells the editor where the camera is, for level of detail (when the view changed).
@@ -740,7 +734,14 @@ impl Studio {
 
     /// A frame of the armed line tool: the first click picks the line's start, the second its end
     /// and applies the stroke (one undo step).
-    fn line_click(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32) {
+    fn line_click(
+        &mut self,
+        ndc: Option<(f32, f32)>,
+        buttons: Buttons,
+        modifiers: Modifiers,
+        pressure: f64,
+        aspect: f32,
+    ) {
         let target = ndc.and_then(|(x, y)| self.surface_point(x, y, aspect));
         self.hover = target;
         let held = buttons.primary || buttons.secondary;
@@ -751,7 +752,8 @@ impl Studio {
                 self.message = "Line: click the other end".into();
             }
             Some(a) => {
-                match self.editor.line_stroke(a, p, pressure, buttons.secondary && !buttons.primary) {
+                let modifiers = Modifiers { inverted: modifiers.inverted || !buttons.primary, ..modifiers };
+                match self.editor.line_stroke(a, p, pressure, modifiers) {
                     Ok(report) => {
                         self.message = format!("Line: {} dabs", report.dabs);
                     }
@@ -766,6 +768,7 @@ impl Studio {
         &mut self,
         ndc: Option<(f32, f32)>,
         buttons: Buttons,
+        modifiers: Modifiers,
         pressure: f64,
         aspect: f32,
         budget: Duration,
@@ -790,8 +793,10 @@ impl Studio {
                 Some(o + d * depth)
             }
             (Some((o, d)), None) => {
-                let p = self.ray_target(o, d);
-                self.hover_normal = self.editor.pick(o, d, 1.0e4).map(|h| h.normal);
+                // One pick: the point under the pointer and its normal (for oriented brushes).
+                let hit = self.editor.pick(o, d, 1.0e4);
+                self.hover_normal = hit.map(|h| h.normal);
+                let p = hit.map(|h| h.point).or_else(|| ground_point(o, d));
                 if held {
                     self.stroke_depth = p.map(|p| (p - o).length());
                 }
@@ -812,7 +817,7 @@ impl Studio {
             self.last_background_dab = None;
         }
         if let Some(p) = target.filter(|_| held) {
-            let pose = ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons };
+            let pose = ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons, modifiers };
             if self.editor.dab_chunks(&pose).is_ok_and(|c| c > self.background_chunks) {
                 // Like a stroke's dabs: the next large dab waits until the pointer has moved by
                 // the dab spacing (holding still does not repeat it).
@@ -832,12 +837,15 @@ impl Studio {
             }
         }
         let pose = match target {
-            Some(p) if held => ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons },
+            Some(p) if held => {
+                ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons, modifiers }
+            }
             _ => ToolPose {
                 position: target.unwrap_or_default(),
                 orientation: self.brush_orientation(),
                 pressure,
                 buttons: Buttons::default(),
+                ..ToolPose::default()
             },
         };
         match self.editor.frame(&pose, budget) {
@@ -903,10 +911,7 @@ impl Studio {
     }
 
     fn ray_target(&self, o: DVec3, d: DVec3) -> Option<DVec3> {
-        if let Some(hit) = self.editor.pick(o, d, 1.0e4) {
-            return Some(hit.point);
-        }
-        (d.y < -1e-6).then(|| o + d * (-o.y / d.y))
+        self.editor.pick(o, d, 1.0e4).map(|hit| hit.point).or_else(|| ground_point(o, d))
     }
 
     /// The brush preview mesh for the current shape and radius (rebuilt when they change),
@@ -1008,6 +1013,11 @@ impl Studio {
 /// Merges `upper` into `lower`: the union of `upper`'s solid, carried into `lower`'s grid, with
 /// `lower`'s. The layers must share rotation and cell size; `upper`'s offset is rounded to whole
 /// cells of `lower`'s grid (so the merge is exact on the grid).
+/// Where the ray `o + t·d` meets the ground plane y = 0 in front of the eye, if it does.
+fn ground_point(o: DVec3, d: DVec3) -> Option<DVec3> {
+    (d.y < -1e-6).then(|| o + d * (-o.y / d.y))
+}
+
 fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String> {
     let (tu, tl) = (upper.transform, lower.transform);
     let same_turn = (tu.rotation.dot(tl.rotation).abs() - 1.0).abs() < 1e-9;

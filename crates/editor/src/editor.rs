@@ -129,6 +129,8 @@ struct Stroke {
     /// A grab's centre (world): it follows the material it drags.
     anchor: DVec3,
     inverted: bool,
+    /// The tool the stroke applies (the current tool, or smoothing while the pose says so).
+    kind: ToolKind,
     records: Vec<strata_volume::UndoRecord>,
     /// Balls (world centre, radius) holding everything the stroke's dabs built or carved,
     /// mirror images included: the surface inside them is the stroke's own.
@@ -137,8 +139,8 @@ struct Stroke {
 
 impl Stroke {
     /// A stroke starting at `position` (aligned) for a pose at `start` (as given).
-    fn new(layer: usize, position: DVec3, start: DVec3, inverted: bool) -> Self {
-        Stroke { layer, last: position, start, anchor: position, inverted, records: Vec::new(), own: Vec::new() }
+    fn new(layer: usize, position: DVec3, start: DVec3, inverted: bool, kind: ToolKind) -> Self {
+        Stroke { layer, last: position, start, anchor: position, inverted, kind, records: Vec::new(), own: Vec::new() }
     }
 
     /// Whether world point `p` lies in one of the stroke's own balls.
@@ -306,17 +308,19 @@ impl Editor {
         let layer = self.active_layer;
         self.check_editable(layer)?;
         self.check_material()?;
-        let inverted = pose.buttons.secondary && !pose.buttons.primary;
-        let spacing = self.tool.dab_spacing();
+        let inverted = pose.inverted();
+        let tool = self.tool_for(pose);
+        let spacing = tool.dab_spacing();
         let transform = self.scene.layers[layer].transform;
-        let continuing = matches!(&self.stroke, Some(s) if s.layer == layer && s.inverted == inverted);
+        let continuing =
+            matches!(&self.stroke, Some(s) if s.layer == layer && s.inverted == inverted && s.kind == tool.kind);
         if !continuing {
             self.end_stroke();
         }
         let start = self.stroke.as_ref().map(|s| s.start);
-        let position = self.tool.aligned(&transform, pose.position, start);
-        if self.tool.kind == ToolKind::Grab {
-            return self.grab_to(layer, position, pose, report);
+        let position = tool.aligned(&transform, pose.position, start);
+        if tool.kind == ToolKind::Grab {
+            return self.grab_to(layer, position, pose, &tool, report);
         }
         let mut dabs = Vec::new();
         match &self.stroke {
@@ -329,48 +333,40 @@ impl Editor {
                     dabs.push(position);
                 } else {
                     dabs.extend(
-                        (1..=steps)
-                            .map(|k| self.tool.aligned(&transform, s.last + d * (k as f64 * spacing / len), start)),
+                        (1..=steps).map(|k| tool.aligned(&transform, s.last + d * (k as f64 * spacing / len), start)),
                     );
                 }
             }
             None => {
-                self.stroke = Some(Stroke::new(layer, position, pose.position, inverted));
+                self.stroke = Some(Stroke::new(layer, position, pose.position, inverted, tool.kind));
                 dabs.push(position);
             }
         }
-        let op = self.tool.kind.op(inverted);
+        let op = tool.kind.op(inverted);
         for p in dabs {
             let last = self.stroke.as_ref().map_or(p, |s| s.last);
-            let images = self.tool.mirrored(&transform, p, pose.orientation);
+            let images = tool.mirrored(&transform, p, pose.orientation);
             // (The same images, in the same order, each with the stroke's direction.)
-            let directions = self.tool.mirrored_directions(&transform, p, p - last);
+            let directions = tool.mirrored_directions(&transform, p, p - last);
             for (k, (at, orientation)) in images.into_iter().enumerate() {
-                let (edit, reach) = if self.tool.kind.is_field_tool() {
+                let (edit, reach) = if tool.kind.is_field_tool() {
                     let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
                     let l = &mut self.scene.layers[layer];
-                    let edit = field_tool_dab(
-                        &self.tool,
-                        &l.transform,
-                        &mut l.volume,
-                        at,
-                        pose.pressure,
-                        inverted,
-                        direction,
-                    )?;
+                    let edit =
+                        field_tool_dab(&tool, &l.transform, &mut l.volume, at, pose.pressure, inverted, direction)?;
                     // Clay's and inflate's change stays within the ball; a tenth more covers the
                     // surface it moved.
-                    (edit, self.tool.radius_at(pose.pressure) * 1.1)
+                    (edit, tool.radius_at(pose.pressure) * 1.1)
                 } else {
-                    let brush = self.tool.brush(&transform, at, orientation, pose.pressure)?;
-                    let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
+                    let brush = tool.brush(&transform, at, orientation, pose.pressure)?;
+                    let settings = EditSettings { material: tool.material, ..self.settings.clone() };
                     let b = brush.bounds();
                     // The ball around the brush's box (grid units to world).
                     let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
                     (self.scene.layers[layer].volume.apply(op, brush.as_ref(), &settings)?, reach)
                 };
                 self.record(layer, edit);
-                if self.tool.kind.builds_or_carves() {
+                if tool.kind.builds_or_carves() {
                     let s = self.stroke.as_mut().expect("a stroke is in progress");
                     s.own.push((at, reach));
                 }
@@ -389,11 +385,12 @@ impl Editor {
         layer: usize,
         position: DVec3,
         pose: &ToolPose,
+        tool: &ToolSettings,
         report: &mut FrameReport,
     ) -> Result<(), EditorError> {
-        let inverted = pose.buttons.secondary && !pose.buttons.primary;
+        let inverted = pose.inverted();
         let Some(s) = &self.stroke else {
-            self.stroke = Some(Stroke::new(layer, position, pose.position, inverted));
+            self.stroke = Some(Stroke::new(layer, position, pose.position, inverted, tool.kind));
             return Ok(());
         };
         let drag = position - s.last;
@@ -405,9 +402,9 @@ impl Editor {
         // Grab follows the pointer one to one: the material under the anchor moves as far as
         // the pointer (the falloff takes the rest of the ball along less far).
         let strength = 1.0;
-        let radius = self.tool.radius_at(pose.pressure) / transform.scale;
+        let radius = tool.radius_at(pose.pressure) / transform.scale;
         let mut done: Vec<EditReport> = Vec::new();
-        for (at, d) in self.tool.mirrored_with_vector(&transform, anchor, drag) {
+        for (at, d) in tool.mirrored_with_vector(&transform, anchor, drag) {
             let result = strata_volume::tools::Dab::new(transform.to_grid(at), radius, strength).and_then(|dab| {
                 let volume = &mut self.scene.layers[layer].volume;
                 strata_volume::tools::grab(volume, &dab, transform.rotation.inverse() * d / transform.scale)
@@ -431,6 +428,16 @@ impl Editor {
         s.anchor = anchor + drag * strength;
         report.dabs += 1;
         Ok(())
+    }
+
+    /// The tool a pose applies: the current tool, or smoothing with its settings while the
+    /// pose's modifiers say smooth (Shift in the studio).
+    fn tool_for(&self, pose: &ToolPose) -> ToolSettings {
+        let mut tool = self.tool;
+        if pose.modifiers.smooth {
+            tool.kind = ToolKind::Smooth;
+        }
+        tool
     }
 
     /// Refuses a current material the palette does not have.
@@ -467,7 +474,7 @@ impl Editor {
         if !l.transform.is_valid() {
             return Err(EditorError::BadLayerTransform(layer));
         }
-        let brush = self.tool.brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
+        let brush = self.tool_for(pose).brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
         let b = brush.bounds();
         if !b.is_valid() {
             return Err(EditorError::Edit(EditError::BadBounds));
@@ -489,19 +496,20 @@ impl Editor {
         let layer = self.active_layer;
         self.check_editable(layer)?;
         self.check_material()?;
+        let tool = self.tool_for(pose);
         let l = &mut self.scene.layers[layer];
-        let inverted = pose.buttons.secondary && !pose.buttons.primary;
-        let op = self.tool.kind.op(inverted);
+        let inverted = pose.inverted();
+        let op = tool.kind.op(inverted);
         let mut dabs = Vec::new();
-        for (at, orientation) in self.tool.mirrored(&l.transform, pose.position, pose.orientation) {
-            dabs.push((at, self.tool.brush(&l.transform, at, orientation, pose.pressure)?));
+        for (at, orientation) in tool.mirrored(&l.transform, pose.position, pose.orientation) {
+            dabs.push((at, tool.brush(&l.transform, at, orientation, pose.pressure)?));
         }
         let placeholder = Volume::with_level(l.volume.level());
         let mut volume = std::mem::replace(&mut l.volume, placeholder);
         let control = Arc::new(EditControl::default());
         let settings =
-            EditSettings { control: Some(control.clone()), material: self.tool.material, ..self.settings.clone() };
-        let (tool, transform, pressure) = (self.tool, l.transform, pose.pressure);
+            EditSettings { control: Some(control.clone()), material: tool.material, ..self.settings.clone() };
+        let (transform, pressure) = (l.transform, pose.pressure);
         if tool.kind == ToolKind::Grab {
             // A grab drags with the pointer: a single dab has nothing to drag.
             dabs.clear();
@@ -626,27 +634,29 @@ impl Editor {
     }
 
     /// The line tool: a straight stroke of the current tool from world point `a` to `b`, dabs
-    /// evenly spaced by the tool's dab spacing (mirrored under symmetry), as one undo step. The
-    /// secondary button (`inverted`) uses the opposite tool, as in a dragged stroke.
+    /// evenly spaced by the tool's dab spacing (mirrored under symmetry), as one undo step.
+    /// `modifiers` act as in a dragged stroke (the inverse tool, smoothing).
     pub fn line_stroke(
         &mut self,
         a: DVec3,
         b: DVec3,
         pressure: f64,
-        inverted: bool,
+        modifiers: crate::pose::Modifiers,
     ) -> Result<FrameReport, EditorError> {
         let pose = |p: DVec3| ToolPose {
             position: p,
             orientation: glam::DQuat::IDENTITY,
             pressure,
             buttons: Default::default(),
+            ..ToolPose::default()
         };
         if !(pose(a).is_valid() && pose(b).is_valid()) {
             return Err(EditorError::BadPose);
         }
         self.end_stroke();
-        let buttons = crate::pose::Buttons { primary: !inverted, secondary: inverted };
-        let pose = |p: DVec3| ToolPose { position: p, orientation: glam::DQuat::IDENTITY, pressure, buttons };
+        let buttons = crate::pose::Buttons { primary: true, secondary: false };
+        let pose =
+            |p: DVec3| ToolPose { position: p, orientation: glam::DQuat::IDENTITY, pressure, buttons, modifiers };
         let mut report = self.frame(&pose(a), Duration::ZERO)?;
         let end = self.frame(&pose(b), Duration::ZERO)?;
         report.dabs += end.dabs;

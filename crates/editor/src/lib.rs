@@ -21,7 +21,7 @@ mod view_meshes;
 pub use editor::{DabJob, Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pick, to_world};
 pub use history::{History, HistoryEntry, Restored};
 pub use lod::{LodView, lod_levels};
-pub use pose::{Buttons, ToolPose};
+pub use pose::{Buttons, Modifiers, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View};
 pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};
 pub use view_meshes::ChangeList;

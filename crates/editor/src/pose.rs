@@ -22,6 +22,26 @@ pub struct ToolPose {
     pub pressure: f64,
     /// Buttons held.
     pub buttons: Buttons,
+    /// How the held buttons act (the keyboard's modifiers, a controller's grip).
+    pub modifiers: Modifiers,
+}
+
+/// How a pose's buttons act, said by the device layer once (Ctrl or Alt held: inverted; Shift
+/// held: smooth) instead of being folded into the buttons or the tool.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Modifiers {
+    /// The inverse tool (erase for add, carve for clay, deflate for inflate, …); the secondary
+    /// button alone means the same.
+    pub inverted: bool,
+    /// Smooth, whatever the current tool, for as long as it is held.
+    pub smooth: bool,
+}
+
+impl Default for ToolPose {
+    /// At the origin, no rotation, full pressure, no button, no modifier.
+    fn default() -> Self {
+        ToolPose::at(DVec3::ZERO, false)
+    }
 }
 
 impl ToolPose {
@@ -32,7 +52,13 @@ impl ToolPose {
             orientation: DQuat::IDENTITY,
             pressure: 1.0,
             buttons: Buttons { primary: down, secondary: false },
+            modifiers: Modifiers::default(),
         }
+    }
+
+    /// Whether the inverse tool acts: the modifier, or the secondary button alone.
+    pub fn inverted(&self) -> bool {
+        self.modifiers.inverted || (self.buttons.secondary && !self.buttons.primary)
     }
 
     /// Whether the pose is usable: finite position and orientation, pressure a number.

@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use glam::{DQuat, DVec3, I64Vec3};
-use strata_editor::{BrushShape, Buttons, Editor, Layer, LayerTransform, Scene, ToolKind, ToolPose};
+use strata_editor::{BrushShape, Buttons, Editor, Layer, LayerTransform, Modifiers, Scene, ToolKind, ToolPose};
 use strata_mesh::MeshCache;
 use strata_volume::Volume;
 use strata_volume::brush::Sphere;
@@ -26,7 +26,8 @@ fn states(v: &Volume, lo: i64, hi: i64) -> Vec<bool> {
 fn drag(e: &mut Editor, a: DVec3, b: DVec3, steps: usize, buttons: Buttons) {
     for i in 0..=steps {
         let p = a.lerp(b, i as f64 / steps as f64);
-        let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+        let pose =
+            ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons, ..ToolPose::default() };
         e.frame(&pose, BUDGET).unwrap();
     }
     e.frame(&ToolPose::at(b, false), BUDGET).unwrap();
@@ -365,7 +366,7 @@ fn the_line_tool_places_evenly_spaced_dabs_between_two_points_as_one_step() {
     e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.tool.radius = 2.0;
     let (a, b) = (DVec3::new(4.0, 10.0, 10.0), DVec3::new(28.0, 10.0, 10.0));
-    let report = e.line_stroke(a, b, 1.0, false).unwrap();
+    let report = e.line_stroke(a, b, 1.0, Modifiers::default()).unwrap();
     // Dabs every spacing × radius = 0.5 cells, the first at a.
     assert_eq!(report.dabs, 1 + (24.0 / e.tool.dab_spacing()).floor() as usize);
     assert_eq!(e.history().undo_len(), 1);
@@ -377,10 +378,10 @@ fn the_line_tool_places_evenly_spaced_dabs_between_two_points_as_one_step() {
     assert!(!v.node_inside(I64Vec3::new(31, 10, 10)));
     let before = e.scene.layers[0].volume.clone();
     assert!(
-        e.line_stroke(DVec3::new(40.0, 10.0, 10.0), DVec3::NAN, 1.0, false).is_err(),
+        e.line_stroke(DVec3::new(40.0, 10.0, 10.0), DVec3::NAN, 1.0, Modifiers::default()).is_err(),
         "a bad end point is an error"
     );
-    assert!(e.line_stroke(a, b, f64::INFINITY, false).is_err(), "a bad pressure too");
+    assert!(e.line_stroke(a, b, f64::INFINITY, Modifiers::default()).is_err(), "a bad pressure too");
     assert_eq!(e.history().undo_len(), 1, "and changes nothing");
     assert_eq!(e.scene.layers[0].volume, before);
 }
@@ -418,7 +419,13 @@ fn a_layer_with_a_transform_set_wrongly_through_its_fields_refuses_edits() {
     e.tool.kind = ToolKind::Add; // the exact CSG tool (the default is clay)
     e.scene.layers[0].transform.rotation = DQuat::from_xyzw(0.0, 3.0, 0.0, 4.0);
     let before = e.scene.layers[0].volume.clone();
-    let pose = ToolPose { position: DVec3::splat(8.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
+    let pose = ToolPose {
+        position: DVec3::splat(8.0),
+        orientation: DQuat::IDENTITY,
+        pressure: 1.0,
+        buttons: DOWN,
+        ..ToolPose::default()
+    };
     assert!(matches!(e.frame(&pose, BUDGET), Err(strata_editor::EditorError::BadLayerTransform(0))));
     assert!(e.dab_chunks(&pose).is_err());
     assert!(e.start_dab_job(&pose).is_err());
@@ -513,7 +520,8 @@ fn the_alignment_tool_snaps_locks_and_orients() {
     e.tool.axis_lock = Some(0);
     let path = [DVec3::new(10.0, 10.0, 10.0), DVec3::new(13.0, 12.5, 9.0), DVec3::new(16.0, 7.0, 11.0)];
     for p in path {
-        let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
+        let pose =
+            ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN, ..ToolPose::default() };
         e.frame(&pose, Duration::ZERO).unwrap();
     }
     e.frame(&ToolPose::at(path[2], false), Duration::ZERO).unwrap();
@@ -530,7 +538,8 @@ fn the_alignment_tool_snaps_locks_and_orients() {
     e.tool.kind = ToolKind::Add;
     e.tool.shape = BrushShape::Box;
     e.tool.radius = 3.0;
-    let pose = ToolPose { position: DVec3::splat(12.0), orientation: q, pressure: 1.0, buttons: DOWN };
+    let pose =
+        ToolPose { position: DVec3::splat(12.0), orientation: q, pressure: 1.0, buttons: DOWN, ..ToolPose::default() };
     e.frame(&pose, Duration::ZERO).unwrap();
     let mut direct = Volume::new();
     direct
@@ -584,8 +593,13 @@ fn add_clay_and_paint_use_the_current_material_and_refuse_one_outside_the_palett
     let before = e.scene.layers[0].volume.clone();
     e.tool.kind = ToolKind::Paint;
     e.tool.material = count as u8;
-    let pose =
-        ToolPose { position: DVec3::new(15.0, 10.0, 10.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN };
+    let pose = ToolPose {
+        position: DVec3::new(15.0, 10.0, 10.0),
+        orientation: DQuat::IDENTITY,
+        pressure: 1.0,
+        buttons: DOWN,
+        ..ToolPose::default()
+    };
     let err = e.frame(&pose, BUDGET).unwrap_err();
     assert!(err.to_string().contains("not in the palette"), "{err}");
     assert_eq!(e.scene.layers[0].volume, before);
@@ -618,8 +632,13 @@ fn a_stroke_finds_the_surface_under_the_pointer_but_never_its_own_dabs() {
         // No stroke: the first surface.
         assert!(at(along(&e, 10.0), 20.0) && at(along(&e, 24.0), 8.0));
         // A dab on the near face at x = 10.
-        let pose =
-            ToolPose { position: DVec3::new(10.0, 16.0, 20.0), orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+        let pose = ToolPose {
+            position: DVec3::new(10.0, 16.0, 20.0),
+            orientation: DQuat::IDENTITY,
+            pressure: 1.0,
+            buttons,
+            ..ToolPose::default()
+        };
         e.frame(&pose, BUDGET).unwrap();
         assert!(e.stroking());
         // Over the dab: what the ray meets there is the dab's own work, and the face it sits on
@@ -646,9 +665,65 @@ fn a_stroke_finds_the_surface_under_the_pointer_but_never_its_own_dabs() {
             orientation: DQuat::IDENTITY,
             pressure: 1.0,
             buttons: DOWN,
+            ..ToolPose::default()
         },
         BUDGET,
     )
     .unwrap();
     assert!(at(along(&e, 15.0), 8.0), "past the edge: {:?}", along(&e, 15.0));
+}
+
+/// The pose says how its buttons act: `inverted` erases with the add tool exactly as the
+/// secondary button does, `smooth` smooths with any tool while the current tool stays, and a
+/// change of either mid-stroke starts a new stroke (its own undo step).
+#[test]
+fn modifiers_in_the_pose_invert_and_smooth_without_touching_the_tool() {
+    let base = {
+        let mut e = Editor::default();
+        e.tool.kind = ToolKind::Add;
+        e.tool.radius = 5.0;
+        drag(&mut e, DVec3::new(5.0, 8.0, 8.0), DVec3::new(40.0, 8.0, 8.0), 20, DOWN);
+        e
+    };
+    let pose_drag = |e: &mut Editor, a: DVec3, b: DVec3, modifiers: Modifiers| {
+        for i in 0..=10 {
+            let p = a.lerp(b, i as f64 / 10.0);
+            e.frame(&ToolPose { position: p, buttons: DOWN, modifiers, ..ToolPose::default() }, BUDGET).unwrap();
+        }
+        e.frame(&ToolPose::at(b, false), BUDGET).unwrap();
+    };
+    let (a, b) = (DVec3::new(20.0, 4.0, 8.0), DVec3::new(20.0, 14.0, 8.0));
+    // Inverted by the pose equals inverted by the secondary button.
+    let mut by_button = Editor::new(base.scene.clone());
+    by_button.tool = base.tool;
+    by_button.tool.radius = 3.0;
+    drag(&mut by_button, a, b, 10, ERASE);
+    let mut by_pose = Editor::new(base.scene.clone());
+    by_pose.tool = base.tool;
+    by_pose.tool.radius = 3.0;
+    pose_drag(&mut by_pose, a, b, Modifiers { inverted: true, smooth: false });
+    assert_eq!(by_pose.scene.layers[0].volume, by_button.scene.layers[0].volume);
+    assert_ne!(by_pose.scene.layers[0].volume, base.scene.layers[0].volume, "it erased");
+    assert_eq!(by_pose.tool.kind, ToolKind::Add);
+    // Smooth by the pose equals the smooth tool, and the tool stays add.
+    let mut smooth_tool = Editor::new(base.scene.clone());
+    smooth_tool.tool = base.tool;
+    smooth_tool.tool.kind = ToolKind::Smooth;
+    pose_drag(&mut smooth_tool, a, b, Modifiers::default());
+    let mut smooth_pose = Editor::new(base.scene.clone());
+    smooth_pose.tool = base.tool;
+    pose_drag(&mut smooth_pose, a, b, Modifiers { inverted: false, smooth: true });
+    assert_eq!(smooth_pose.scene.layers[0].volume, smooth_tool.scene.layers[0].volume);
+    assert_ne!(smooth_pose.scene.layers[0].volume, base.scene.layers[0].volume, "it smoothed");
+    assert_eq!(smooth_pose.tool.kind, ToolKind::Add);
+    // Shift pressed mid-stroke: two strokes, two undo steps.
+    let mut e = Editor::new(base.scene.clone());
+    e.tool = base.tool;
+    let modifiers = [Modifiers::default(), Modifiers { inverted: false, smooth: true }];
+    for (i, m) in modifiers.into_iter().enumerate() {
+        let p = DVec3::new(12.0 + 6.0 * i as f64, 12.0, 8.0);
+        e.frame(&ToolPose { position: p, buttons: DOWN, modifiers: m, ..ToolPose::default() }, BUDGET).unwrap();
+    }
+    e.frame(&ToolPose::at(DVec3::new(18.0, 12.0, 8.0), false), BUDGET).unwrap();
+    assert_eq!(e.history().undo_len(), 2, "a modifier change ends the stroke");
 }

@@ -54,7 +54,11 @@ fn the_detail_tool_raises_chunks_under_the_brush_as_one_undo_step() {
     e.tool.detail_level = Level::new(1).unwrap();
     let p = DVec3::new(16.3, 15.8, 28.1);
     let down = Buttons { primary: true, secondary: false };
-    e.frame(&ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: down }, BUDGET).unwrap();
+    e.frame(
+        &ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: down, ..ToolPose::default() },
+        BUDGET,
+    )
+    .unwrap();
     e.frame(&ToolPose::at(p, false), BUDGET).unwrap();
     e.finish_meshing();
     let v = &e.scene.layers[0].volume;
@@ -70,7 +74,11 @@ fn the_detail_tool_raises_chunks_under_the_brush_as_one_undo_step() {
     // The inverse lowers them again.
     assert!(e.redo());
     let ctrl = Buttons { primary: false, secondary: true };
-    e.frame(&ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: ctrl }, BUDGET).unwrap();
+    e.frame(
+        &ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: ctrl, ..ToolPose::default() },
+        BUDGET,
+    )
+    .unwrap();
     e.frame(&ToolPose::at(p, false), BUDGET).unwrap();
     assert_eq!(e.scene.layers[0].volume, before, "raising then lowering gives back the lists");
 }
@@ -280,7 +288,13 @@ fn strokes_on_fine_chunks_remesh_in_parts_to_what_a_fresh_editor_meshes() {
             let from = DVec3::new(x, 16.0 - 0.5 * i as f64, 40.0);
             let p = e.pick(from, -DVec3::Z, 100.0).map(|h| h.point).expect("the ball is under the stroke");
             e.frame(
-                &ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: down },
+                &ToolPose {
+                    position: p,
+                    orientation: DQuat::IDENTITY,
+                    pressure: 1.0,
+                    buttons: down,
+                    ..ToolPose::default()
+                },
                 Duration::ZERO,
             )
             .unwrap();

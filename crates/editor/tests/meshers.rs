@@ -32,6 +32,7 @@ fn stroke(e: &mut Editor) {
             orientation: DQuat::IDENTITY,
             pressure: 1.0,
             buttons: Buttons { primary: true, secondary: false },
+            ..ToolPose::default()
         };
         e.frame(&pose, Duration::from_millis(50)).unwrap();
     }
@@ -40,6 +41,7 @@ fn stroke(e: &mut Editor) {
         orientation: DQuat::IDENTITY,
         pressure: 1.0,
         buttons: Buttons { primary: false, secondary: false },
+        ..ToolPose::default()
     };
     e.frame(&pose, Duration::from_millis(50)).unwrap();
     e.finish_meshing();

@@ -12,7 +12,7 @@ use std::time::Duration;
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use strata_editor::file::{self, load, save};
-use strata_editor::{BrushShape, Buttons, Editor, Layer, LayerTransform, Scene, ToolKind, ToolPose};
+use strata_editor::{BrushShape, Buttons, Editor, Layer, LayerTransform, Modifiers, Scene, ToolKind, ToolPose};
 use strata_volume::brush::{MeshBrush, MeshRule};
 
 #[derive(Clone, Debug)]
@@ -143,7 +143,13 @@ fn run(steps: &[Step]) -> Result<(), TestCaseError> {
                 let buttons = Buttons { primary: !inverted, secondary: inverted };
                 for k in 0..=2 {
                     let at = p(from).lerp(p(to), k as f64 / 2.0);
-                    let pose = ToolPose { position: at, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+                    let pose = ToolPose {
+                        position: at,
+                        orientation: DQuat::IDENTITY,
+                        pressure: 1.0,
+                        buttons,
+                        ..ToolPose::default()
+                    };
                     let _ = e.frame(&pose, Duration::ZERO);
                 }
                 let _ = e.frame(&ToolPose::at(p(to), false), Duration::ZERO);
@@ -156,7 +162,7 @@ fn run(steps: &[Step]) -> Result<(), TestCaseError> {
             Step::Line { from, to } => {
                 e.tool.kind = ToolKind::Add;
                 e.tool.radius = 1.5;
-                let _ = e.line_stroke(p(from), p(to), 1.0, false);
+                let _ = e.line_stroke(p(from), p(to), 1.0, Modifiers::default());
             }
             Step::Stroke { shape, radius, from, to, erase } => {
                 e.tool.shape = [BrushShape::Sphere, BrushShape::Box, BrushShape::Capsule, BrushShape::Cylinder]
@@ -166,7 +172,13 @@ fn run(steps: &[Step]) -> Result<(), TestCaseError> {
                 let buttons = Buttons { primary: true, secondary: false };
                 for k in 0..=3 {
                     let at = p(from).lerp(p(to), k as f64 / 3.0);
-                    let pose = ToolPose { position: at, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+                    let pose = ToolPose {
+                        position: at,
+                        orientation: DQuat::IDENTITY,
+                        pressure: 1.0,
+                        buttons,
+                        ..ToolPose::default()
+                    };
                     // Refusals (a locked layer, a bad transform) leave the scene as it was.
                     let _ = e.frame(&pose, Duration::ZERO);
                 }

@@ -69,7 +69,13 @@ fn change_lists_keep_a_renderer_equal_to_a_fresh_upload() {
                 for i in 0..4 {
                     let p = c + DVec3::new(i as f64, 0.0, 0.0);
                     let buttons = Buttons { primary: true, secondary: false };
-                    let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons };
+                    let pose = ToolPose {
+                        position: p,
+                        orientation: DQuat::IDENTITY,
+                        pressure: 1.0,
+                        buttons,
+                        ..ToolPose::default()
+                    };
                     e.frame(&pose, budget).unwrap();
                 }
                 e.frame(&ToolPose::at(c, false), budget).unwrap();
