@@ -8,19 +8,24 @@
 //! versioned binary scene files (see [`file`]).
 #![warn(missing_docs)]
 
+mod dab_job;
 mod editor;
 pub mod file;
 mod history;
 pub mod import;
 mod lod;
+mod pick;
 mod pose;
 mod scene;
+mod stroke;
 mod tool;
 mod view_meshes;
 
-pub use editor::{DabJob, Editor, EditorError, FrameReport, PICK_CHUNK_STEPS, Pick, to_world};
+pub use dab_job::DabJob;
+pub use editor::{Editor, EditorError, FrameReport, to_world};
 pub use history::{History, HistoryEntry, Restored};
 pub use lod::{LodView, lod_levels};
+pub use pick::{PICK_CHUNK_STEPS, Pick};
 pub use pose::{Buttons, Modifiers, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View};
 pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};

@@ -1,0 +1,344 @@
+//! The stroke engine: poses in, aligned and mirrored dabs out. One frame's pose continues the
+//! stroke in progress (dabs every spacing along the path since the last one), starts one, or
+//! ends it (one undo step per stroke); the pose's modifiers pick the inverse tool or smoothing.
+
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use strata_volume::{ChunkKey, EditReport, EditSettings, Volume};
+
+use crate::editor::{Editor, EditorError, FrameReport};
+use crate::history::HistoryEntry;
+use crate::pose::ToolPose;
+use crate::tool::{ToolKind, ToolSettings};
+
+pub(crate) struct Stroke {
+    layer: usize,
+    /// Where the last dab went (world, aligned).
+    last: DVec3,
+    /// The stroke's first position (world, before alignment): the axis lock's line.
+    start: DVec3,
+    /// A grab's centre (world): it follows the material it drags.
+    anchor: DVec3,
+    inverted: bool,
+    /// The tool the stroke applies (the current tool, or smoothing while the pose says so).
+    kind: ToolKind,
+    records: Vec<strata_volume::UndoRecord>,
+    /// Balls (world centre, radius) holding everything the stroke's dabs built or carved,
+    /// mirror images included: the surface inside them is the stroke's own.
+    own: Vec<(DVec3, f64)>,
+}
+
+impl Stroke {
+    /// A stroke starting at `position` (aligned) for a pose at `start` (as given).
+    fn new(layer: usize, position: DVec3, start: DVec3, inverted: bool, kind: ToolKind) -> Self {
+        Stroke { layer, last: position, start, anchor: position, inverted, kind, records: Vec::new(), own: Vec::new() }
+    }
+
+    /// Whether world point `p` lies in one of the stroke's own balls.
+    pub(crate) fn owns(&self, p: DVec3) -> bool {
+        self.own.iter().any(|&(c, r)| (p - c).length_squared() <= r * r)
+    }
+
+    /// Where the ray `origin + t·dir` (unit `dir`), at `t` in the stroke's own balls, leaves
+    /// their union.
+    pub(crate) fn exit_own(&self, origin: DVec3, dir: DVec3, mut t: f64) -> f64 {
+        // Each pass leaves every ball holding the point; a ball is left at most once, so the
+        // loop ends within as many passes as there are balls.
+        for _ in 0..=self.own.len() {
+            let p = origin + dir * t;
+            let mut next = t;
+            for &(c, r) in &self.own {
+                let off = p - c;
+                if off.length_squared() <= r * r {
+                    // The far root of |origin + s·dir − c| = r.
+                    let b = (origin - c).dot(dir);
+                    let disc = b * b - ((origin - c).length_squared() - r * r);
+                    next = next.max(-b + disc.max(0.0).sqrt());
+                }
+            }
+            if next <= t {
+                return t;
+            }
+            // Just past the boundary, so the next pass does not find the same ball.
+            t = next + 1e-9 * (1.0 + next.abs());
+        }
+        t
+    }
+}
+
+/// One dab of the field tool `tool.kind` at world point `p` on `volume`, placed in its layer's
+/// grid by `transform`: a ball of the tool's radius (at `pressure`), the falloff scaled by
+/// [`ToolSettings::field_strength`]; `inverted` (the secondary button) picks the inverse tool;
+/// `direction` is the stroke's direction (world), the line a pinch pulls towards.
+pub(crate) fn field_tool_dab(
+    tool: &ToolSettings,
+    transform: &crate::scene::LayerTransform,
+    volume: &mut Volume,
+    p: DVec3,
+    pressure: f64,
+    inverted: bool,
+    direction: Option<DVec3>,
+) -> Result<EditReport, strata_volume::tools::ToolError> {
+    use strata_volume::tools::{Dab, Smoothing, clay, flatten, inflate, paint, pinch, smooth};
+    let radius = tool.radius_at(pressure) / transform.scale;
+    let dab =
+        Dab { material: tool.material, ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))? };
+    match tool.kind {
+        ToolKind::Paint => paint(volume, &Dab { material: if inverted { 0 } else { tool.material }, ..dab }),
+        ToolKind::Clay => clay(volume, &dab, tool.fillet.clamp(0.0, 4.0) * radius, inverted),
+        ToolKind::Smooth => {
+            let method = if inverted {
+                Smoothing::Laplacian
+            } else if tool.paper_smoothing {
+                Smoothing::Endpoints
+            } else {
+                Smoothing::VolumePreserving
+            };
+            smooth(volume, &dab, method, 4)
+        }
+        ToolKind::Inflate => inflate(volume, &dab, if inverted { -0.2 } else { 0.2 } * radius),
+        ToolKind::Pinch => {
+            let axis = direction.map(|d| transform.rotation.inverse() * d);
+            pinch(volume, &dab, axis, if inverted { -0.5 } else { 0.5 })
+        }
+        // (Grab drags through `Editor::grab_to`; a dab of it alone has nothing to drag.)
+        ToolKind::Grab => {
+            Ok(EditReport { changed: Vec::new(), undo: Default::default(), repaired_nodes: 0, reach: None })
+        }
+        ToolKind::Detail => {
+            let target = if inverted { volume.level() } else { tool.detail_level.max(volume.level()) };
+            Ok(volume.set_chunk_levels(&chunks_in_ball(volume, dab.center, radius), target))
+        }
+        _ => flatten(volume, &dab),
+    }
+}
+
+/// The list chunks of `volume` that a ball (grid coordinates) reaches.
+fn chunks_in_ball(volume: &Volume, center: DVec3, radius: f64) -> Vec<ChunkKey> {
+    let c = strata_volume::coords::CHUNK_CELLS as f64;
+    let (Some(lo), Some(hi)) =
+        (ChunkKey::containing(center - DVec3::splat(radius)), ChunkKey::containing(center + DVec3::splat(radius)))
+    else {
+        return Vec::new();
+    };
+    let keys: Vec<ChunkKey> = strata_volume::ChunkBox::between(lo, hi)
+        .keys()
+        .filter(|&k| {
+            let min = k.origin_grid().as_dvec3();
+            let nearest = center.clamp(min, min + DVec3::splat(c));
+            volume.stored_level(k).is_some() && (nearest - center).length() <= radius
+        })
+        .collect();
+    keys
+}
+
+impl Editor {
+    /// Whether a stroke is in progress.
+    pub fn stroking(&self) -> bool {
+        self.stroke.is_some()
+    }
+
+    /// One frame: applies the tool along the path from the previous pose (dabs every
+    /// [`ToolSettings::dab_spacing`]), ends the stroke when no button is held (one undo step per
+    /// stroke), then remeshes queued chunks until `remesh_budget` is spent.
+    pub fn frame(&mut self, pose: &ToolPose, remesh_budget: Duration) -> Result<FrameReport, EditorError> {
+        if !pose.is_valid() {
+            return Err(EditorError::BadPose);
+        }
+        let mut report = FrameReport::default();
+        let t0 = Instant::now();
+        let down = pose.buttons.primary || pose.buttons.secondary;
+        let result = if down { self.stroke_to(pose, &mut report) } else { Ok(()) };
+        if !down || result.is_err() {
+            self.end_stroke();
+        }
+        report.edit_time = t0.elapsed();
+        self.remesh(remesh_budget, &mut report);
+        result.map(|_| report)
+    }
+
+    fn stroke_to(&mut self, pose: &ToolPose, report: &mut FrameReport) -> Result<(), EditorError> {
+        let layer = self.active_layer;
+        self.check_editable(layer)?;
+        self.check_material()?;
+        let inverted = pose.inverted();
+        let tool = self.tool_for(pose);
+        let spacing = tool.dab_spacing();
+        let transform = self.scene.layers[layer].transform;
+        let continuing =
+            matches!(&self.stroke, Some(s) if s.layer == layer && s.inverted == inverted && s.kind == tool.kind);
+        if !continuing {
+            self.end_stroke();
+        }
+        let start = self.stroke.as_ref().map(|s| s.start);
+        let position = tool.aligned(&transform, pose.position, start);
+        if tool.kind == ToolKind::Grab {
+            return self.grab_to(layer, position, pose, &tool, report);
+        }
+        let mut dabs = Vec::new();
+        match &self.stroke {
+            Some(s) => {
+                let d = position - s.last;
+                let len = d.length();
+                let steps = (len / spacing).floor() as usize;
+                // A jump of more than 10,000 dabs is a teleport, not a stroke: dab at the end only.
+                if steps > 10_000 {
+                    dabs.push(position);
+                } else {
+                    dabs.extend(
+                        (1..=steps).map(|k| tool.aligned(&transform, s.last + d * (k as f64 * spacing / len), start)),
+                    );
+                }
+            }
+            None => {
+                self.stroke = Some(Stroke::new(layer, position, pose.position, inverted, tool.kind));
+                dabs.push(position);
+            }
+        }
+        let op = tool.kind.op(inverted);
+        for p in dabs {
+            let last = self.stroke.as_ref().map_or(p, |s| s.last);
+            let images = tool.mirrored(&transform, p, pose.orientation);
+            // (The same images, in the same order, each with the stroke's direction.)
+            let directions = tool.mirrored_directions(&transform, p, p - last);
+            for (k, (at, orientation)) in images.into_iter().enumerate() {
+                let (edit, reach) = if tool.kind.is_field_tool() {
+                    let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
+                    let l = &mut self.scene.layers[layer];
+                    let edit =
+                        field_tool_dab(&tool, &l.transform, &mut l.volume, at, pose.pressure, inverted, direction)?;
+                    // Clay's and inflate's change stays within the ball; a tenth more covers the
+                    // surface it moved.
+                    (edit, tool.radius_at(pose.pressure) * 1.1)
+                } else {
+                    let brush = tool.brush(&transform, at, orientation, pose.pressure)?;
+                    let settings = EditSettings { material: tool.material, ..self.settings.clone() };
+                    let b = brush.bounds();
+                    // The ball around the brush's box (grid units to world).
+                    let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
+                    (self.scene.layers[layer].volume.apply(op, brush.as_ref(), &settings)?, reach)
+                };
+                self.record(layer, edit);
+                if tool.kind.builds_or_carves() {
+                    let s = self.stroke.as_mut().expect("a stroke is in progress");
+                    s.own.push((at, reach));
+                }
+            }
+            let s = self.stroke.as_mut().expect("a stroke is in progress");
+            s.last = p;
+            report.dabs += 1;
+        }
+        Ok(())
+    }
+
+    /// A frame of the grab tool: the surface under the stroke's anchor is dragged by the
+    /// pointer's move since the last frame (mirrored under symmetry), and the anchor follows it.
+    fn grab_to(
+        &mut self,
+        layer: usize,
+        position: DVec3,
+        pose: &ToolPose,
+        tool: &ToolSettings,
+        report: &mut FrameReport,
+    ) -> Result<(), EditorError> {
+        let inverted = pose.inverted();
+        let Some(s) = &self.stroke else {
+            self.stroke = Some(Stroke::new(layer, position, pose.position, inverted, tool.kind));
+            return Ok(());
+        };
+        let drag = position - s.last;
+        if drag.length_squared() == 0.0 {
+            return Ok(());
+        }
+        let anchor = s.anchor;
+        let transform = self.scene.layers[layer].transform;
+        // Grab follows the pointer one to one: the material under the anchor moves as far as
+        // the pointer (the falloff takes the rest of the ball along less far).
+        let strength = 1.0;
+        let radius = tool.radius_at(pose.pressure) / transform.scale;
+        let mut done: Vec<EditReport> = Vec::new();
+        for (at, d) in tool.mirrored_with_vector(&transform, anchor, drag) {
+            let result = strata_volume::tools::Dab::new(transform.to_grid(at), radius, strength).and_then(|dab| {
+                let volume = &mut self.scene.layers[layer].volume;
+                strata_volume::tools::grab(volume, &dab, transform.rotation.inverse() * d / transform.scale)
+            });
+            match result {
+                Ok(edit) => done.push(edit),
+                Err(e) => {
+                    // A refused drag changes nothing, mirrored images included.
+                    for edit in done.into_iter().rev() {
+                        self.scene.layers[layer].volume.restore(edit.undo);
+                    }
+                    return Err(e.into());
+                }
+            }
+        }
+        for edit in done {
+            self.record(layer, edit);
+        }
+        let s = self.stroke.as_mut().expect("a stroke is in progress");
+        s.last = position;
+        s.anchor = anchor + drag * strength;
+        report.dabs += 1;
+        Ok(())
+    }
+
+    /// The tool a pose applies: the current tool, or smoothing with its settings while the
+    /// pose's modifiers say smooth (Shift in the studio).
+    pub(crate) fn tool_for(&self, pose: &ToolPose) -> ToolSettings {
+        let mut tool = self.tool;
+        if pose.modifiers.smooth {
+            tool.kind = ToolKind::Smooth;
+        }
+        tool
+    }
+
+    /// Queues an edit of the stroke in progress for meshing and keeps its undo record.
+    fn record(&mut self, layer: usize, edit: EditReport) {
+        self.queue(layer, &edit.changed, edit.reach);
+        self.revision += 1;
+        let s = self.stroke.as_mut().expect("a stroke is in progress");
+        s.records.push(edit.undo);
+    }
+
+    /// The line tool: a straight stroke of the current tool from world point `a` to `b`, dabs
+    /// evenly spaced by the tool's dab spacing (mirrored under symmetry), as one undo step.
+    /// `modifiers` act as in a dragged stroke (the inverse tool, smoothing).
+    pub fn line_stroke(
+        &mut self,
+        a: DVec3,
+        b: DVec3,
+        pressure: f64,
+        modifiers: crate::pose::Modifiers,
+    ) -> Result<FrameReport, EditorError> {
+        let pose = |p: DVec3| ToolPose {
+            position: p,
+            orientation: glam::DQuat::IDENTITY,
+            pressure,
+            buttons: Default::default(),
+            ..ToolPose::default()
+        };
+        if !(pose(a).is_valid() && pose(b).is_valid()) {
+            return Err(EditorError::BadPose);
+        }
+        self.end_stroke();
+        let buttons = crate::pose::Buttons { primary: true, secondary: false };
+        let pose =
+            |p: DVec3| ToolPose { position: p, orientation: glam::DQuat::IDENTITY, pressure, buttons, modifiers };
+        let mut report = self.frame(&pose(a), Duration::ZERO)?;
+        let end = self.frame(&pose(b), Duration::ZERO)?;
+        report.dabs += end.dabs;
+        report.edit_time += end.edit_time;
+        report.remeshed.extend(end.remeshed);
+        self.end_stroke();
+        Ok(report)
+    }
+
+    /// Ends the stroke in progress, making it one undo step.
+    pub fn end_stroke(&mut self) {
+        if let Some(s) = self.stroke.take() {
+            self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None, layers: None });
+        }
+    }
+}
