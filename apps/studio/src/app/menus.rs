@@ -1,0 +1,173 @@
+//! The menu bar: File, Edit, View, Terrain and Help, with the keys of the binding table in
+//! their labels.
+
+use super::*;
+
+/// A mesher picker (one radio button a mesher: menus stay open while one is picked) with a
+/// simplification toggle and error, under `label`; false while the error
+/// slider is being dragged. Dual contouring is simplified on export only, so the viewport's
+/// picker offers it without.
+pub(super) fn mesher_choice(
+    ui: &mut egui::Ui,
+    viewport: bool,
+    label: &str,
+    options: &mut strata_mesh::MeshOptions,
+) -> bool {
+    ui.label(label);
+    for m in strata_mesh::Mesher::ALL {
+        ui.radio_value(&mut options.mesher, m, m.name());
+    }
+    let can_simplify = !viewport || options.mesher.block().is_some();
+    if !can_simplify {
+        options.simplify = None;
+    }
+    let mut on = options.simplify.is_some();
+    let text = if viewport { "Simplify chunks (borders kept)" } else { "Simplify (meshoptimizer)" };
+    if ui.add_enabled(can_simplify, egui::Checkbox::new(&mut on, text)).changed() {
+        options.simplify = on.then_some(0.1);
+    }
+    let mut settled = true;
+    if let Some(e) = options.simplify.as_mut() {
+        let r = ui.add(egui::Slider::new(e, 0.01..=1.0).logarithmic(true).text("error (cells)"));
+        // While the slider is dragged nothing is remeshed; its last value counts.
+        settled = !r.dragged() || r.drag_stopped();
+    }
+    settled
+}
+
+impl StudioApp {
+    pub(super) fn menu(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button(labelled("New", Command::New)).clicked() {
+                    self.guard(&ctx, Then::New);
+                }
+                if ui.button(labelled("Open…", Command::Open)).clicked() {
+                    self.guard(&ctx, Then::Open);
+                }
+                ui.menu_button("Open recent", |ui| {
+                    let recent: Vec<PathBuf> = self.recent.paths().to_vec();
+                    if recent.is_empty() {
+                        ui.label("No recent scenes");
+                    }
+                    for path in recent {
+                        if ui.button(path.display().to_string()).clicked() {
+                            self.open_file(&ctx, path);
+                        }
+                    }
+                });
+                if ui
+                    .button("Import mesh… (PLY, OBJ, STL, glTF)")
+                    .on_hover_text("Convert a mesh into a new layer (or drop the file on the window)")
+                    .clicked()
+                {
+                    self.ask_path(&ctx, Prompt::Import, None);
+                }
+                if ui.button(labelled("Save", Command::Save)).clicked() {
+                    self.save(&ctx, None);
+                }
+                if ui.button(labelled("Save as…", Command::SaveAs)).clicked() {
+                    self.ask_path(&ctx, Prompt::SaveAs, None);
+                }
+                ui.separator();
+                if ui.button("Export mesh… (glb, obj, stl, ply)").clicked() {
+                    self.ask_path(&ctx, Prompt::Export, None);
+                }
+                mesher_choice(ui, false, "Export with", &mut self.studio.export);
+                ui.label("Remove islands");
+                for (choice, name) in [
+                    (crate::studio::Islands::ForStl, "for STL"),
+                    (crate::studio::Islands::Remove, "always"),
+                    (crate::studio::Islands::Keep, "never"),
+                ] {
+                    ui.radio_value(&mut self.studio.islands, choice, name)
+                        .on_hover_text("Drop stray pieces of the surface (isolated solid nodes) from exports");
+                }
+                ui.add(
+                    egui::DragValue::new(&mut self.studio.island_cells)
+                        .range(0.0..=1.0e6)
+                        .speed(0.5)
+                        .prefix("smaller than ")
+                        .suffix(" cells³"),
+                );
+                ui.separator();
+                if ui.button("Quit").clicked() {
+                    self.guard(&ctx, Then::Quit);
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                if ui.button(labelled("Undo", Command::Undo)).clicked() {
+                    let _ = self.studio.act(Action::Undo);
+                }
+                if ui.button(labelled("Redo", Command::Redo)).clicked() {
+                    let _ = self.studio.act(Action::Redo);
+                }
+            });
+            ui.menu_button("View", |ui| {
+                if ui.checkbox(&mut self.studio.wireframe, labelled("Wireframe", Command::Wireframe)).changed() {
+                    ui.close();
+                }
+                use strata_render::AxisView::{Front, Right, Top};
+                let views: [(&str, Action, Command); 7] = [
+                    ("Frame the model", Action::FrameAll, Command::Frame),
+                    ("Front", Action::AxisView(Front, false), Command::View(Front, false)),
+                    ("Back", Action::AxisView(Front, true), Command::View(Front, true)),
+                    ("Right", Action::AxisView(Right, false), Command::View(Right, false)),
+                    ("Left", Action::AxisView(Right, true), Command::View(Right, true)),
+                    ("Top", Action::AxisView(Top, false), Command::View(Top, false)),
+                    ("Bottom", Action::AxisView(Top, true), Command::View(Top, true)),
+                ];
+                for (label, action, command) in views {
+                    if ui.button(labelled(label, command)).clicked() {
+                        let _ = self.studio.act(action);
+                        ui.close();
+                    }
+                }
+                let mut ortho = self.studio.camera.orthographic;
+                if ui.checkbox(&mut ortho, labelled("Orthographic", Command::Orthographic)).changed() {
+                    let _ = self.studio.act(Action::ToggleOrthographic);
+                    ui.close();
+                }
+                let settled = mesher_choice(ui, true, "Viewport mesher", &mut self.studio.view_draft);
+                if settled && self.studio.view_draft != self.studio.editor.view_mesher() {
+                    let _ = self.studio.act(Action::ViewMesher(self.studio.view_draft));
+                }
+                ui.checkbox(&mut self.studio.lod, "Level of detail")
+                    .on_hover_text("Mesh far chunks that were given more detail at a coarser level (marching cubes)");
+                ui.add(egui::Slider::new(&mut self.studio.lod_pixels, 0.5..=8.0).text("largest cell (px)"))
+                    .on_hover_text("How large a cell level of detail may show on screen");
+            });
+            ui.menu_button("Terrain", |ui| {
+                ui.horizontal(|ui| {
+                    let label = ui.label("Seed");
+                    ui.add(egui::DragValue::new(&mut self.world_seed)).labelled_by(label.id);
+                });
+                if ui.button("New world…").on_hover_text("Create a world file from the seed and fly in it").clicked()
+                {
+                    self.ask_path(&ctx, Prompt::NewWorld, None);
+                    ui.close();
+                }
+                if ui.button("Open world…").clicked() {
+                    self.ask_path(&ctx, Prompt::OpenWorld, None);
+                    ui.close();
+                }
+                let open = self.studio.terrain.is_some();
+                if ui.add_enabled(open, egui::Button::new(labelled("Bomb", Command::NextShape))).clicked() {
+                    let _ = self.studio.act(Action::Bomb);
+                    ui.close();
+                }
+                if ui.add_enabled(open, egui::Button::new("Close world")).clicked() {
+                    let _ = self.studio.act(Action::CloseWorld);
+                    ui.close();
+                }
+            });
+            ui.menu_button("Help", |ui| {
+                if ui.button(labelled("Keyboard shortcuts", Command::Help)).clicked() {
+                    self.help_open = true;
+                    ui.close();
+                }
+            });
+        });
+    }
+}

@@ -1,0 +1,203 @@
+//! The tool panel: the tools, their options, the brush (shape, radius, pressure, spacing),
+//! alignment and mirroring, and the material palette.
+
+use super::*;
+
+impl StudioApp {
+    pub(super) fn palette(&mut self, ui: &mut egui::Ui) {
+        let tool = &mut self.studio.editor.tool;
+        ui.heading("Tool");
+        let tips = [
+            (ToolKind::Clay, "Add clay that blends into the surface in a soft fillet (Ctrl/Alt: carve)"),
+            (ToolKind::Add, "Add the brush shape exactly (CSG union; Ctrl/Alt: erase)"),
+            (ToolKind::Erase, "Cut the brush shape away exactly (CSG difference; Ctrl/Alt: add)"),
+            (
+                ToolKind::Smooth,
+                "Smooth the surface, keeping its volume (hold Shift with any tool; Ctrl/Alt: Laplacian)",
+            ),
+            (ToolKind::Inflate, "Push the surface out along its normal (Ctrl/Alt: deflate)"),
+            (ToolKind::Flatten, "Pull the surface towards the plane that fits it under the brush"),
+            (ToolKind::Pinch, "Pull the surface towards the stroke into a crease (Ctrl/Alt: push apart)"),
+            (ToolKind::Grab, "Drag the surface under the brush with the pointer"),
+            (
+                ToolKind::Detail,
+                "Add resolution under the brush for fine detail (Ctrl/Alt: back to the layer's base level)",
+            ),
+            (ToolKind::Paint, "Paint the current material without changing the shape (Ctrl/Alt: the first material)"),
+        ];
+        for row in tips.chunks(3) {
+            ui.horizontal(|ui| {
+                for &(kind, tip) in row {
+                    ui.selectable_value(&mut tool.kind, kind, labelled(kind.name(), Command::Tool(kind)))
+                        .on_hover_text(tip);
+                }
+            });
+        }
+        // The tool's own options in a box of fixed height (the tallest tool's), so that nothing
+        // below moves under the pointer when the tool changes (a mis-click once landed in the
+        // material name field that way).
+        let row = ui.spacing().interact_size.y + ui.spacing().item_spacing.y;
+        ui.allocate_ui_with_layout(
+            egui::vec2(ui.available_width(), 2.0 * row),
+            egui::Layout::top_down(egui::Align::Min),
+            |ui| {
+                ui.set_min_height(2.0 * row);
+                let tool = &mut self.studio.editor.tool;
+                if tool.kind.is_field_tool() && tool.kind != ToolKind::Grab {
+                    ui.add(egui::Slider::new(&mut tool.field_strength, 0.0..=1.0).text("tool strength"))
+                        .on_hover_text("How strongly a dab acts at its centre; the falloff takes it to 0 at the rim");
+                }
+                if tool.kind == ToolKind::Grab {
+                    ui.label("Grab moves the surface as far as the pointer");
+                }
+                if tool.kind == ToolKind::Clay {
+                    ui.add(egui::Slider::new(&mut tool.fillet, 0.0..=2.0).text("fillet (× radius)"))
+                        .on_hover_text("How softly clay blends into the surface: 0 is a plain union");
+                }
+                if tool.kind == ToolKind::Detail {
+                    ui.horizontal(|ui| {
+                        ui.label("raise to");
+                        for k in 1..=strata_volume::coords::MAX_LEVEL {
+                            let level = strata_volume::Level::new(k).expect("a level");
+                            ui.selectable_value(&mut tool.detail_level, level, format!("{}³ cells", 16 << k))
+                                .on_hover_text("Cells per chunk side the chunks under the brush get");
+                        }
+                    });
+                }
+                if tool.kind == ToolKind::Smooth {
+                    ui.checkbox(&mut tool.paper_smoothing, "Paper's smoothing (Eq. 1)").on_hover_text(
+                        "Move crossings towards their neighbours' mean instead of smoothing the field (shrinks a little)",
+                    );
+                }
+            },
+        );
+        let mut toggle = None;
+        ui.horizontal(|ui| {
+            ui.label("Mirror");
+            for (axis, name) in ["X (X)", "Y", "Z"].into_iter().enumerate() {
+                let mut on = self.studio.editor.tool.symmetry[axis];
+                if ui.checkbox(&mut on, name).on_hover_text("Mirror every dab across this plane of the layer").changed()
+                {
+                    toggle = Some(axis);
+                }
+            }
+        });
+        if let Some(axis) = toggle {
+            self.studio.toggle_symmetry(axis);
+        }
+        let tool = &mut self.studio.editor.tool;
+        ui.label("Shape (B cycles; add and erase)");
+        ui.horizontal(|ui| {
+            for (shape, name) in [
+                (BrushShape::Sphere, "Sphere"),
+                (BrushShape::Box, "Box"),
+                (BrushShape::Capsule, "Capsule"),
+                (BrushShape::Cylinder, "Cylinder"),
+            ] {
+                ui.selectable_value(&mut tool.shape, shape, name)
+                    .on_hover_text("The shape of the add and erase brushes (field tools act in a ball)");
+            }
+        });
+        let (down, up, drag) =
+            (keys_of(Command::RadiusDown), keys_of(Command::RadiusUp), keys_of(Command::ResizeBrush));
+        let keys = format!("({down} and {up} change it, {drag} drags it)");
+        if self.studio.screen_radius {
+            ui.add(
+                egui::Slider::new(&mut self.studio.radius_points, 2.0..=400.0)
+                    .logarithmic(true)
+                    .text(format!("radius (points) {down} {up} {drag}")),
+            )
+            .on_hover_text(format!("Brush radius on screen: the same size whatever the zoom {keys}"));
+        } else {
+            ui.add(
+                egui::Slider::new(&mut self.studio.editor.tool.radius, 0.25..=64.0)
+                    .logarithmic(true)
+                    .text(format!("radius {down} {up} {drag}")),
+            )
+            .on_hover_text(format!("Brush radius in world units {keys}"));
+        }
+        ui.checkbox(&mut self.studio.screen_radius, "Radius on screen")
+            .on_hover_text("Keep the brush's size on screen as the view zooms, instead of its size in the world");
+        let tool = &mut self.studio.editor.tool;
+        ui.checkbox(&mut tool.follow_surface, "Follow the surface").on_hover_text(
+            "Strokes follow the surface under the pointer; off, a stroke keeps the depth where it started",
+        );
+        ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"))
+            .on_hover_text("How much a pen's pressure scales the radius (0: not at all)");
+        ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"))
+            .on_hover_text("Distance between a stroke's dabs, as a fraction of the radius");
+        ui.separator();
+        ui.label("Alignment");
+        ui.horizontal(|ui| {
+            ui.label("snap to grid");
+            ui.add(egui::DragValue::new(&mut tool.grid_snap).range(0.0..=64.0).speed(0.25).suffix(" cells"))
+                .on_hover_text("Place dabs on multiples of this many cells of the layer's grid (0: off)");
+        });
+        ui.horizontal(|ui| {
+            ui.label("lock stroke");
+            ui.selectable_value(&mut tool.axis_lock, None, "off");
+            for (axis, name) in ["along X", "along Y", "along Z"].into_iter().enumerate() {
+                ui.selectable_value(&mut tool.axis_lock, Some(axis), name)
+                    .on_hover_text("Keep a stroke on the line through its start along this axis of the layer");
+            }
+        });
+        ui.checkbox(&mut tool.orient_to_normal, "Orient brush to surface")
+            .on_hover_text("Turn box, capsule and cylinder brushes onto the surface normal under the pointer");
+        ui.separator();
+        ui.label(format!(
+            "Ctrl or Alt + drag: the inverse tool. Shift: smooth. {}: line tool. {}: mirror X.",
+            keys_of(Command::Line),
+            keys_of(Command::MirrorX)
+        ));
+        ui.separator();
+        self.materials(ui);
+    }
+
+    /// The material palette: the current material (what add and clay add and paint paints),
+    /// each material's colour, texture, scale and roughness, the eyedropper and a new material.
+    pub(super) fn materials(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Materials");
+        let mut changed = false;
+        let current = &mut self.studio.editor.tool.material;
+        let palette = &mut self.studio.editor.scene.materials;
+        ui.horizontal_wrapped(|ui| {
+            for (i, m) in palette.iter().enumerate() {
+                let [r, g, b] = m.color.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8);
+                let text = egui::RichText::new(&m.name).strong().color(egui::Color32::from_rgb(r, g, b));
+                ui.selectable_value(current, i as u8, text).on_hover_text("Add, clay and paint use this material");
+            }
+        });
+        if let Some(m) = palette.get_mut(*current as usize) {
+            ui.horizontal(|ui| {
+                let label = ui.label("material name");
+                changed |= ui.text_edit_singleline(&mut m.name).labelled_by(label.id).changed();
+            });
+            ui.horizontal(|ui| {
+                ui.label("colour");
+                changed |= ui.color_edit_button_rgb(&mut m.color).changed();
+                egui::ComboBox::from_label("texture").selected_text(m.texture.name()).show_ui(ui, |ui| {
+                    for t in strata_editor::Texture::ALL {
+                        changed |= ui.selectable_value(&mut m.texture, t, t.name()).changed();
+                    }
+                });
+            });
+            changed |= ui
+                .add(egui::Slider::new(&mut m.scale, 1.0..=128.0).logarithmic(true).text("texture scale"))
+                .on_hover_text("World units per repeat of the texture")
+                .changed();
+            changed |= ui.add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness")).changed();
+        }
+        ui.horizontal(|ui| {
+            let dropper = if self.studio.eyedropper { "Eyedropper (armed)" } else { "Eyedropper (K)" };
+            if ui.button(dropper).on_hover_text("Click the model to take the material under the pointer").clicked() {
+                self.studio.toggle_eyedropper();
+            }
+            if ui.button("New material").clicked() {
+                self.studio.add_material();
+            }
+        });
+        if changed {
+            self.studio.editor.touch();
+        }
+    }
+}

@@ -1,0 +1,336 @@
+//! The 3D viewport: pointer input for sculpting and the camera (scene and terrain mode), and
+//! drawing: the editor's change list applied to the renderer through `strata_viewport`, the
+//! brush preview, and the texture egui shows.
+
+use super::*;
+
+/// The GPU side of the viewport.
+pub(super) struct Viewport {
+    pub(super) renderer: Renderer,
+    pub(super) size: (u32, u32),
+    pub(super) color: Option<(wgpu::Texture, wgpu::TextureView, wgpu::TextureView)>,
+    pub(super) texture_id: Option<egui::TextureId>,
+    /// The renderer holds terrain mode's meshes (not the scene's).
+    pub(super) terrain_shown: bool,
+}
+
+impl Viewport {
+    /// Renders a frame into the viewport's texture and shows it in `rect`.
+    fn present(
+        &mut self,
+        ui: &egui::Ui,
+        rs: &egui_wgpu::RenderState,
+        rect: egui::Rect,
+        size: (u32, u32),
+        settings: &FrameSettings<'_>,
+    ) {
+        let (_, cv, dv) = self.color.as_ref().expect("created before the first frame");
+        self.renderer.render(&rs.device, &rs.queue, cv, dv, size, settings);
+        if let Some(id) = self.texture_id {
+            ui.painter().image(
+                id,
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                egui::Color32::WHITE,
+            );
+        }
+    }
+}
+
+/// Renderer layer ids of terrain mode's chunk meshes and its debris (scene layers count from 0).
+pub(super) const TERRAIN_LAYER: u32 = 1 << 20;
+
+pub(super) const DEBRIS_LAYER: u32 = (1 << 20) + 1;
+
+/// Zooms `camera` by `factor` about `towards` (world), which stays where it is on screen: the
+/// eye and the target both move along their lines through it. Without a point, about the target.
+pub(super) fn zoom_towards(camera: &mut strata_render::Camera, towards: Option<glam::Vec3>, factor: f32) {
+    let before = camera.distance;
+    camera.zoom(factor);
+    let Some(p) = towards.filter(|p| p.is_finite()) else { return };
+    // (The zoom clamps the distance: move the target by the factor actually taken.)
+    let f = camera.distance / before;
+    camera.target = p + (camera.target - p) * f;
+}
+
+impl StudioApp {
+    pub(super) fn viewport(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
+        let (rect, response) = ui.allocate_exact_size(ui.available_size(), egui::Sense::click_and_drag());
+        self.viewport_rect = Some(rect);
+        let aspect = rect.width() / rect.height().max(1.0);
+        if self.studio.terrain.is_some() {
+            self.terrain_input(ui, &response, rect, aspect);
+        } else {
+            self.scene_input(ui, &response, rect, aspect);
+        }
+        self.draw(ui, frame, rect);
+    }
+
+    /// Terrain mode: WASD, Q and E fly (Shift faster), right drag looks, left click digs and
+    /// Shift + left click raises (repeating while held), then one frame of streaming.
+    pub(super) fn terrain_input(
+        &mut self,
+        ui: &mut egui::Ui,
+        response: &egui::Response,
+        rect: egui::Rect,
+        aspect: f32,
+    ) {
+        use egui::Key;
+        let typing = ui.ctx().egui_wants_keyboard_input() || self.modal_open();
+        let held = |k: Key| !typing && ui.input(|i| i.key_down(k));
+        let axis = |plus: Key, minus: Key| held(plus) as i32 as f64 - held(minus) as i32 as f64;
+        let delta = ui.input(|i| i.pointer.delta());
+        let look = if response.dragged_by(egui::PointerButton::Secondary) {
+            (-delta.x as f64 * 0.005, delta.y as f64 * 0.005)
+        } else {
+            (0.0, 0.0)
+        };
+        let input = crate::terrain::FlyInput {
+            forward: axis(Key::W, Key::S),
+            right: axis(Key::D, Key::A),
+            up: axis(Key::E, Key::Q),
+            look,
+            fast: ui.input(|i| i.modifiers.shift),
+        };
+        let now = Instant::now();
+        let dt = self.last_frame.map_or(1.0 / 60.0, |t| now.duration_since(t).as_secs_f64());
+        self.last_frame = Some(now);
+        let raise = ui.input(|i| i.modifiers.shift);
+        let dig = response.is_pointer_button_down_on() && ui.input(|i| i.pointer.primary_down());
+        let pointer = response.hover_pos();
+        let Some(t) = self.studio.terrain.as_mut() else { return };
+        t.fly(input, dt);
+        if dig
+            && let Some(p) = pointer
+            && self.last_dig.is_none_or(|d| now.duration_since(d) > Duration::from_millis(90))
+        {
+            self.last_dig = Some(now);
+            let x = (p.x - rect.left()) / rect.width() * 2.0 - 1.0;
+            let y = 1.0 - (p.y - rect.top()) / rect.height() * 2.0;
+            let (o, d) = t.camera().ray(x, y, aspect);
+            if let Err(e) = t.sculpt(o.as_dvec3(), d.as_dvec3(), raise) {
+                self.studio.message = e;
+            }
+        }
+        t.tick(dt, Duration::from_millis(6));
+        // The world streams, bombs fly and debris falls: draw every frame.
+        ui.ctx().request_repaint();
+    }
+
+    pub(super) fn scene_input(&mut self, ui: &mut egui::Ui, response: &egui::Response, rect: egui::Rect, aspect: f32) {
+        self.studio.viewport_points = rect.height();
+        let to_ndc = |p: egui::Pos2| {
+            let x = (p.x - rect.left()) / rect.width() * 2.0 - 1.0;
+            let y = 1.0 - (p.y - rect.top()) / rect.height() * 2.0;
+            (x, y)
+        };
+        if self.resize_input(ui) {
+            return;
+        }
+        // Camera: right drag orbits, middle drag pans, the wheel zooms towards the pointer.
+        let typing = ui.ctx().egui_wants_keyboard_input();
+        self.studio.smooth_held = ui.input(|i| i.modifiers.shift) && !typing;
+        self.studio.inverse_held = ui.input(|i| i.modifiers.command || i.modifiers.alt) && !typing;
+        let (delta, scroll, secondary_drag, middle, primary, secondary) = ui.input(|i| {
+            (
+                i.pointer.delta(),
+                i.smooth_scroll_delta.y,
+                i.pointer.button_down(egui::PointerButton::Secondary) && i.modifiers.alt,
+                i.pointer.button_down(egui::PointerButton::Middle),
+                i.pointer.primary_down(),
+                i.pointer.secondary_down(),
+            )
+        });
+        if response.hovered() {
+            if scroll != 0.0 {
+                let towards = response.hover_pos().map(to_ndc).map(|(x, y)| {
+                    self.studio.surface_point(x, y, aspect).unwrap_or_else(|| {
+                        // Nothing under the pointer: the point at the target's depth.
+                        let cam = &self.studio.camera;
+                        let (o, d) = cam.ray(x, y, aspect);
+                        (o + d * cam.distance).as_dvec3()
+                    })
+                });
+                zoom_towards(&mut self.studio.camera, towards.map(|p| p.as_vec3()), (-scroll * 0.001).exp());
+            }
+            if middle {
+                self.studio.camera.pan(-delta.x / rect.height(), delta.y / rect.height());
+            }
+        }
+        // Right drag orbits unless Alt is held (then it erases like the secondary tool button).
+        let orbit = response.dragged_by(egui::PointerButton::Secondary) && !secondary_drag;
+        if orbit {
+            self.studio.camera.orbit(-delta.x * 0.008, delta.y * 0.008);
+        }
+        // Presses and releases of the primary button in this frame, in order, each where it
+        // happened: a quick click within one slow frame is a dab (or a line end), not lost.
+        let layer = ui.layer_id();
+        let clicks: Vec<(egui::Pos2, bool)> = ui.input(|i| {
+            i.events
+                .iter()
+                .filter_map(|e| match e {
+                    egui::Event::PointerButton { pos, button: egui::PointerButton::Primary, pressed, .. } => {
+                        Some((*pos, *pressed))
+                    }
+                    _ => None,
+                })
+                .collect()
+        });
+        let budget = Duration::from_millis(6);
+        let mut down = self.studio.editor.stroking();
+        for (pos, pressed) in clicks {
+            let on_viewport = rect.contains(pos) && ui.ctx().layer_id_at(pos) == Some(layer);
+            if pressed && on_viewport && !self.modal_open() {
+                let held = Buttons { primary: true, secondary: false };
+                self.studio.pointer(Some(to_ndc(pos)), held, 1.0, aspect, budget);
+                down = true;
+            } else if !pressed && down {
+                self.studio.pointer(Some(to_ndc(pos)), Buttons::default(), 1.0, aspect, budget);
+                down = false;
+            }
+        }
+        let ndc = response.hover_pos().filter(|_| response.hovered() || response.dragged()).map(to_ndc);
+        let buttons = Buttons {
+            primary: primary
+                && (response.dragged_by(egui::PointerButton::Primary) || response.is_pointer_button_down_on()),
+            secondary: secondary && secondary_drag,
+        };
+        self.studio.pointer(ndc, buttons, 1.0, aspect, budget);
+    }
+
+    pub(super) fn draw(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>, rect: egui::Rect) {
+        let Some(rs) = frame.and_then(|f| f.wgpu_render_state()) else {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "No wgpu renderer",
+                egui::FontId::default(),
+                egui::Color32::RED,
+            );
+            return;
+        };
+        let Some(vp) = self.viewport.as_mut() else { return };
+        let ppp = ui.ctx().pixels_per_point();
+        let size = (((rect.width() * ppp) as u32).max(1), ((rect.height() * ppp) as u32).max(1));
+        self.studio.viewport_height = size.1 as f32;
+        if vp.size != size || vp.color.is_none() {
+            let make = |format, usage, label, view_formats: &[wgpu::TextureFormat]| {
+                rs.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats,
+                })
+            };
+            let color = make(
+                wgpu::TextureFormat::Rgba8UnormSrgb,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                "viewport colour",
+                &[wgpu::TextureFormat::Rgba8Unorm],
+            );
+            let depth = make(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT, "viewport depth", &[]);
+            let (cv, dv) = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
+            // The renderer writes sRGB-encoded bytes; egui composites in gamma space, so it reads
+            // them through a plain (non-sRGB) view and shows exactly what the PNG path writes.
+            let egui_view = color.create_view(&wgpu::TextureViewDescriptor {
+                format: Some(wgpu::TextureFormat::Rgba8Unorm),
+                ..Default::default()
+            });
+            let mut egui_renderer = rs.renderer.write();
+            match vp.texture_id {
+                Some(id) => egui_renderer.update_egui_texture_from_wgpu_texture(
+                    &rs.device,
+                    &egui_view,
+                    wgpu::FilterMode::Linear,
+                    id,
+                ),
+                None => {
+                    vp.texture_id =
+                        Some(egui_renderer.register_native_texture(&rs.device, &egui_view, wgpu::FilterMode::Linear))
+                }
+            }
+            vp.color = Some((color, cv, dv));
+            vp.size = size;
+        }
+        if let Some(t) = self.studio.terrain.as_mut() {
+            // Terrain mode draws the world's chunk meshes and the debris instead of the scene.
+            if !vp.terrain_shown {
+                vp.renderer.clear();
+                vp.renderer.set_palette(&rs.queue, &strata_viewport::palette(&self.studio.editor.scene));
+                vp.terrain_shown = true;
+                t.uploads.extend(t.meshes().map(|(k, _)| k).collect::<Vec<_>>());
+            }
+            for key in std::mem::take(&mut t.uploads) {
+                match t.mesh(key) {
+                    Some(mesh) => strata_viewport::upload_chunk(
+                        &mut vp.renderer,
+                        &rs.device,
+                        &rs.queue,
+                        TERRAIN_LAYER,
+                        key,
+                        mesh,
+                        Mat4::IDENTITY,
+                    ),
+                    None => vp.renderer.remove_mesh(strata_viewport::chunk_id(TERRAIN_LAYER, key)),
+                }
+            }
+            let debris = t.particle_mesh();
+            // An empty mesh drops the debris.
+            let id = MeshId { group: DEBRIS_LAYER, key: [0; 3] };
+            vp.renderer.upload_mesh(
+                &rs.device,
+                &rs.queue,
+                id,
+                strata_viewport::mesh_ref(&debris),
+                Placement::default(),
+                [1.0; 3],
+            );
+            let settings = FrameSettings { camera: t.camera(), wireframe: self.studio.wireframe, ..Default::default() };
+            vp.present(ui, rs, rect, size, &settings);
+            return;
+        }
+        if vp.terrain_shown {
+            vp.terrain_shown = false;
+            self.studio.editor.redraw_all();
+        }
+        // What the editor's meshes changed since the last frame, applied by the one mirror.
+        let changes = self.studio.editor.take_changes();
+        strata_viewport::apply_changes(&self.studio.editor, &changes, &rs.device, &rs.queue, &mut vp.renderer);
+        let inverse = self.studio.inverse_held;
+        let kind = self.studio.editor.tool.kind;
+        let erase = matches!((kind, inverse), (ToolKind::Erase, false) | (ToolKind::Add | ToolKind::Clay, true));
+        let field = kind.is_field_tool() || self.studio.smooth_held;
+        let wireframe = self.studio.wireframe;
+        let camera = self.studio.camera;
+        let dabs = self.studio.preview_dabs();
+        let preview_mesh = strata_viewport::mesh_ref(self.studio.preview_mesh());
+        let rgb = if erase { [1.0, 0.35, 0.3] } else { [0.35, 0.65, 1.0] };
+        let mut previews = Vec::with_capacity(dabs.len() * 2);
+        for (k, (p, q)) in dabs.into_iter().enumerate() {
+            // The dab itself brighter than its mirror images.
+            let alpha = if k == 0 { 0.22 } else { 0.12 };
+            let model = Mat4::from_rotation_translation(q.as_quat(), p.as_vec3());
+            previews.push(Preview { mesh: preview_mesh, model, color: [rgb[0], rgb[1], rgb[2], alpha] });
+            if field {
+                // The falloff: a core where the tool acts at half strength or more.
+                let core = Mat4::from_scale(glam::Vec3::splat(FALLOFF_HALF as f32));
+                previews.push(Preview {
+                    mesh: preview_mesh,
+                    model: model * core,
+                    color: [rgb[0], rgb[1], rgb[2], alpha * 1.6],
+                });
+            }
+        }
+        let settings = FrameSettings { camera, wireframe, previews: &previews, ..Default::default() };
+        vp.present(ui, rs, rect, size, &settings);
+        // Repaint on our own only while meshing catches up or a stroke is in progress; pointer
+        // and key events repaint anyway, so an idle editor uses no CPU.
+        if self.studio.editor.pending() > 0 || self.studio.editor.stroking() {
+            ui.ctx().request_repaint();
+        }
+    }
+}

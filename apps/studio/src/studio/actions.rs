@@ -1,0 +1,259 @@
+//! Carrying out an [`Action`]: files (new, open, save, export), undo and redo, the brush's
+//! radius, views, the viewport's mesher, layer operations and terrain worlds.
+
+use super::*;
+
+pub(super) fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String> {
+    let (tu, tl) = (upper.transform, lower.transform);
+    let same_turn = (tu.rotation.dot(tl.rotation).abs() - 1.0).abs() < 1e-9;
+    if !same_turn || (tu.scale / tl.scale - 1.0).abs() > 1e-9 {
+        return Err("Merge down needs two layers with the same rotation and cell size".into());
+    }
+    let offset = tl.to_grid(tu.translation).round().as_ivec3();
+    lower.volume.merge_from(&upper.volume, offset, &Default::default()).map_err(|e| format!("Could not merge: {e}"))?;
+    Ok(())
+}
+
+impl Studio {
+    pub(super) fn try_act(&mut self, action: Action) -> Result<(), String> {
+        if let Some(t) = self.terrain.as_mut() {
+            // Terrain mode: undo and redo act on the world.
+            match action {
+                Action::Undo => {
+                    t.world.undo().map_err(|e| e.to_string())?;
+                    return Ok(());
+                }
+                Action::Redo => {
+                    t.world.redo().map_err(|e| e.to_string())?;
+                    return Ok(());
+                }
+                _ => {}
+            }
+        }
+        match action {
+            Action::NewWorld(path, seed) => {
+                let recipe = strata_terrain::Recipe::with_seed(seed);
+                let mode = crate::terrain::TerrainMode::create(&path, &recipe, self.world_settings.clone())
+                    .map_err(|e| format!("Could not create the world {}: {e}", path.display()))?;
+                self.terrain = Some(mode);
+                self.message = format!("New world {} from seed {seed}", path.display());
+                self.world_path = Some(path);
+                return Ok(());
+            }
+            Action::OpenWorld(path) => {
+                let mode = crate::terrain::TerrainMode::open(&path, self.world_settings.clone())
+                    .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
+                self.terrain = Some(mode);
+                self.message = format!("Opened the world {}", path.display());
+                self.world_path = Some(path);
+                return Ok(());
+            }
+            Action::CloseWorld => {
+                self.world_path = None;
+                if let Some(mut t) = self.terrain.take() {
+                    let written = t.save().map_err(|e| format!("Could not write the world: {e}"))?;
+                    self.message = format!("World written ({written} chunks); back to the scene");
+                }
+                return Ok(());
+            }
+            Action::Bomb => {
+                let t = self.terrain.as_mut().ok_or("Bombs need a world: Terrain > New world")?;
+                t.bomb();
+                return Ok(());
+            }
+            Action::New => {
+                self.replace_scene(default_scene());
+                self.path = None;
+                self.mark_saved();
+                self.message = "New scene".into();
+            }
+            Action::Open(path) => {
+                let loaded = file::load(&path).map_err(|e| format!("Could not open {}: {e}", path.display()))?;
+                self.replace_scene(loaded.scene);
+                self.mark_saved();
+                if !loaded.report.is_clean() {
+                    // What was repaired is not in the file yet.
+                    self.editor.touch();
+                }
+                self.message = if loaded.report.is_clean() {
+                    format!("Opened {}", path.display())
+                } else {
+                    format!("Opened {} with repairs: {}", path.display(), loaded.report)
+                };
+                self.path = Some(path);
+            }
+            Action::Save => {
+                let path = self.path.clone().ok_or("Save as… first: the scene has no file yet")?;
+                self.save_to(&path)?;
+            }
+            Action::SaveAs(path) => {
+                self.save_to(&path)?;
+                self.path = Some(path);
+            }
+            Action::Export(path) => {
+                let stl = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("stl"));
+                let remove = match self.islands {
+                    Islands::Keep => None,
+                    Islands::ForStl if !stl => None,
+                    Islands::ForStl | Islands::Remove => Some(self.island_cells),
+                };
+                let options = strata_mesh::MeshOptions { remove_islands: remove, ..self.export };
+                let (mesh, islands) =
+                    self.editor.export_mesh_reported(options).map_err(|e| format!("Could not export: {e}"))?;
+                strata_mesh::export::save_mesh_with(&mesh, &path, &self.editor.scene.export_palette())
+                    .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
+                self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
+                if let Some(min) = remove {
+                    self.message += &format!(
+                        " (removed {} islands below {min} cells³: {} triangles, {:.2} cells³)",
+                        islands.removed, islands.removed_triangles, islands.removed_volume
+                    );
+                }
+            }
+            Action::Undo | Action::Redo => {
+                let undo = action == Action::Undo;
+                let done = if undo { self.editor.undo() } else { self.editor.redo() };
+                self.message = match (undo, done) {
+                    (true, true) => "Undone".into(),
+                    (true, false) => "Nothing to undo".into(),
+                    (false, true) => "Redone".into(),
+                    (false, false) => "Nothing to redo".into(),
+                };
+            }
+            Action::ScaleRadius(f) => {
+                if self.screen_radius {
+                    let r = (self.radius_points * f as f32).clamp(1.0, 2000.0);
+                    self.radius_points = r;
+                    self.message = format!("Brush radius {r:.0} points on screen");
+                } else {
+                    let r = (self.editor.tool.radius * f).clamp(0.25, 256.0);
+                    self.editor.tool.radius = r;
+                    self.message = format!("Brush radius {r:.2}");
+                }
+            }
+            Action::ToggleWireframe => self.wireframe = !self.wireframe,
+            Action::ViewMesher(options) => {
+                self.view_draft = options;
+                self.editor.set_view_mesher(options).map_err(|e| format!("Could not change the mesher: {e}"))?;
+                self.editor.finish_meshing();
+                self.message = match options.simplify {
+                    Some(e) => format!("Viewport: {}, chunks simplified to {e} cells", options.mesher),
+                    None => format!("Viewport: {}", options.mesher),
+                };
+                let mixed = (0..self.editor.scene.layers.len())
+                    .any(|l| self.editor.view_mesher_used(l).is_some_and(|m| m != options.mesher));
+                if mixed {
+                    self.message += " (layers whose chunks mix resolution levels are shown with marching cubes)";
+                }
+            }
+            Action::AddLayer => {
+                let mut layers = self.editor.scene.layers.clone();
+                let n = layers.len() + 1;
+                let mut layer = Layer::new(format!("Layer {n}"));
+                let cell = layer.volume.cell_size();
+                layer.volume = strata_volume::Volume::with_level(self.new_layer_level);
+                layer.volume.set_cell_size(cell).expect("the default cell size is valid");
+                layers.push(layer);
+                self.editor.replace_layers(layers, n - 1);
+            }
+            Action::DeleteLayer | Action::DuplicateLayer | Action::MoveLayer(_) | Action::MergeDown => {
+                self.layer_op(action)?;
+            }
+            Action::FrameAll => {
+                let layers = self.editor.scene.layers.iter().filter(|l| l.visible);
+                let v = View::framing(layers);
+                self.camera.target = v.target.as_vec3();
+                self.camera.distance = v.distance as f32;
+                self.view_said("Framed the visible layers".into());
+            }
+            Action::AxisView(view, opposite) => {
+                self.camera.axis_view(view, opposite);
+                self.view_said(format!("{}{view:?} view", if opposite { "Opposite of the " } else { "" }));
+            }
+            Action::ToggleOrthographic => {
+                self.camera.orthographic = !self.camera.orthographic;
+                self.view_said(if self.camera.orthographic { "Orthographic" } else { "Perspective" }.into());
+            }
+        }
+        Ok(())
+    }
+
+    /// Deletes, duplicates, moves or merges down the active layer. Layer operations renumber
+    /// layers, which the undo history refers to by number: they clear it (and say so).
+    pub(super) fn layer_op(&mut self, action: Action) -> Result<(), String> {
+        if self.busy() {
+            return Err("Wait for the large dab or the import to finish".into());
+        }
+        self.editor.end_stroke();
+        let mut layers = self.editor.scene.layers.clone();
+        let i = self.editor.active_layer.min(layers.len().saturating_sub(1));
+        let (what, active) = match action {
+            Action::DeleteLayer => {
+                let name = layers[i].name.clone();
+                if layers.len() == 1 {
+                    layers[0] = Layer::new("Layer 1");
+                } else {
+                    layers.remove(i);
+                }
+                (format!("Deleted layer {name:?}"), i.min(layers.len() - 1))
+            }
+            Action::DuplicateLayer => {
+                let mut copy = layers[i].clone();
+                copy.name = format!("{} copy", copy.name);
+                copy.locked = false;
+                layers.insert(i + 1, copy);
+                (format!("Duplicated layer {:?}", layers[i].name), i + 1)
+            }
+            Action::MoveLayer(d) => {
+                let j = i as i64 + d as i64;
+                if j < 0 || j >= layers.len() as i64 {
+                    return Ok(());
+                }
+                layers.swap(i, j as usize);
+                (format!("Moved layer {:?} {}", layers[j as usize].name, if d > 0 { "down" } else { "up" }), j as usize)
+            }
+            Action::MergeDown => {
+                if i + 1 >= layers.len() {
+                    return Err("There is no layer below to merge into".into());
+                }
+                let upper = layers.remove(i);
+                let lower = &mut layers[i];
+                if lower.locked {
+                    return Err(format!("Layer {:?} is locked", lower.name));
+                }
+                merge_into(&upper, lower)?;
+                (format!("Merged {:?} into {:?}", upper.name, lower.name), i)
+            }
+            _ => unreachable!("only layer operations"),
+        };
+        // One undo step that restores the whole list.
+        self.editor.replace_layers(layers, active);
+        self.message = what;
+        Ok(())
+    }
+
+    pub(super) fn save_to(&mut self, path: &Path) -> Result<(), String> {
+        self.editor.scene.view = strata_viewport::view_of(&self.camera);
+        let report = file::save(&self.editor.scene, path)
+            .map_err(|e: SceneFileError| format!("Could not save {}: {e}", path.display()))?;
+        if report.is_clean() {
+            self.message = format!("Saved {}", path.display());
+        } else {
+            // The file holds the repaired scene: show the same (the history, which refers to
+            // the unrepaired volumes, starts anew).
+            let mut scene = self.editor.scene.clone();
+            file::validate_scene(&mut scene);
+            let camera = self.camera;
+            self.replace_scene(scene);
+            self.camera = camera;
+            self.message = format!("Saved {} with repairs (history cleared): {report}", path.display());
+        }
+        self.mark_saved();
+        Ok(())
+    }
+
+    pub(super) fn replace_scene(&mut self, scene: Scene) {
+        self.camera = strata_viewport::camera_of(&scene.view);
+        self.editor.set_scene(scene);
+    }
+}

@@ -1,0 +1,45 @@
+//! The brush preview: where the dab and its mirror images go, and the brush's mesh.
+
+use super::*;
+
+impl Studio {
+    /// Where the brush preview goes: the dab at the pointer and its mirror images, each as
+    /// (world placement, erasing); the shape and radius are [`Studio::preview_mesh`]'s.
+    pub fn preview_dabs(&self) -> Vec<(DVec3, DQuat)> {
+        let Some(p) = self.hover else { return Vec::new() };
+        let Some(layer) = self.editor.scene.layers.get(self.editor.active_layer) else { return Vec::new() };
+        self.editor.tool.mirrored(&layer.transform, p, self.brush_orientation())
+    }
+
+    /// The brush preview mesh for the current shape and radius (rebuilt when they change),
+    /// centred on the origin, in world units.
+    pub fn preview_mesh(&mut self) -> &Mesh {
+        let mut tool = self.editor.tool;
+        if tool.kind.is_field_tool() || self.smooth_held {
+            // Field tools act in a ball of the radius, whatever the CSG shape.
+            tool.shape = strata_editor::BrushShape::Sphere;
+        }
+        let key = (tool.shape, tool.radius.to_bits());
+        if self.preview.as_ref().is_none_or(|(s, r, _)| (*s, *r) != key) {
+            // Meshed 12 cells across its radius, whatever the radius, then scaled to world units.
+            let scale = tool.radius / 12.0;
+            let mut v = strata_volume::Volume::new();
+            let mesh = match strata_editor::LayerTransform::new(DVec3::ZERO, DQuat::IDENTITY, scale) {
+                Ok(t) => match tool.brush(&t, DVec3::ZERO, DQuat::IDENTITY, 1.0).map(|b| v.add(b.as_ref()).map(|_| ()))
+                {
+                    Ok(Ok(())) => {
+                        let mut m = strata_mesh::mesh_volume(&v);
+                        for p in &mut m.positions {
+                            *p = p.map(|c| c * scale as f32);
+                        }
+                        m
+                    }
+                    _ => Mesh::default(),
+                },
+                Err(_) => Mesh::default(),
+            };
+            self.preview = Some((key.0, key.1, mesh));
+        }
+        &self.preview.as_ref().expect("set above").2
+    }
+}
