@@ -13,7 +13,8 @@
 //! Edits ([`World::edit`]) first load, synchronously, every chunk within one chunk of the edit's
 //! box, so an edit never writes into a chunk whose contents are not in memory; the chunks it
 //! changed are marked edited. Undo and redo load the chunks they restore the same way, so they
-//! work across eviction and reload. A crash loses at most the edits of the last flush interval
+//! work across eviction and reload; their records are bounded by
+//! [`WorldSettings::history_budget`] (the oldest steps are forgotten first, as in the editor). A crash loses at most the edits of the last flush interval
 //! ([`WorldSettings::flush_interval`]); a flush is one transaction.
 
 use std::collections::{HashMap, HashSet};
@@ -56,6 +57,9 @@ pub struct WorldSettings {
     pub detail_distance: f64,
     /// The level of the chunks near the viewers (1: 32³ cells a chunk, 2: 64³).
     pub detail_level: Level,
+    /// Heap bytes the undo and redo records may hold together (as the editor's history):
+    /// past it the oldest undo steps are forgotten (their edits stay), the newest always kept.
+    pub history_budget: usize,
 }
 
 impl Default for WorldSettings {
@@ -69,6 +73,7 @@ impl Default for WorldSettings {
             memory_budget: 512 << 20,
             detail_distance: 0.0,
             detail_level: Level::new(1).expect("level 1 exists"),
+            history_budget: 512 << 20,
         }
     }
 }
@@ -661,6 +666,7 @@ impl World {
         self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
         self.undo.push(report.undo.clone());
         self.redo.clear();
+        self.trim_history();
         Ok(report)
     }
 
@@ -695,6 +701,28 @@ impl World {
         let back = self.volume.restore(record);
         self.after_change(&keys, &before);
         Ok(back)
+    }
+
+    /// Heap bytes of the undo and redo records.
+    pub fn history_bytes(&self) -> usize {
+        self.undo.iter().chain(&self.redo).map(UndoRecord::heap_bytes).sum()
+    }
+
+    /// Edits that can be undone.
+    pub fn undo_len(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Forgets the oldest undo steps while the records hold more than the history budget
+    /// (the newest step always stays).
+    fn trim_history(&mut self) {
+        let mut total = self.history_bytes();
+        let mut drop = 0;
+        while total > self.settings.history_budget && self.undo.len() - drop > 1 {
+            total -= self.undo[drop].heap_bytes();
+            drop += 1;
+        }
+        self.undo.drain(..drop);
     }
 
     /// Undoes the last edit; `false` when there is none.

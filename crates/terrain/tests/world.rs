@@ -348,3 +348,38 @@ fn closed_inside(world: &World, loaded: &HashSet<ChunkKey>) {
     }
     assert!(mesh.indices.len() > 3000, "a mesh was made");
 }
+
+/// A long dig session keeps its undo history within the budget: the oldest steps are forgotten
+/// (their edits stay), every step still remembered undoes exactly, and undoing all of them
+/// gives the world as it was after the forgotten ones.
+#[test]
+fn a_long_dig_session_keeps_its_history_within_the_budget() {
+    let budget = 96 << 10;
+    let settings = WorldSettings { history_budget: budget, ..settings(32.0) };
+    let home = DVec3::new(10.0, 0.0, -10.0);
+    let mut world = World::in_memory(&Recipe::with_seed(5), settings.clone()).unwrap();
+    let mut reference = World::in_memory(&Recipe::with_seed(5), settings).unwrap();
+    assert!(world.settle(&[home], SETTLE) && reference.settle(&[home], SETTLE));
+    let hit = world.volume().raycast(home + DVec3::Y * 200.0, -DVec3::Y, 400.0).unwrap().point;
+    let digs = 120;
+    let at = |i: usize| hit + DVec3::new((i % 12) as f64 * 2.5 - 15.0, -((i / 12) as f64), (i % 5) as f64 * 2.0);
+    for i in 0..digs {
+        world.edit(bounds_of(at(i), 3.0), crater(at(i), 3.0)).unwrap();
+        assert!(
+            world.history_bytes() <= budget || world.undo_len() == 1,
+            "dig {i}: {} bytes of history over the {budget}-byte budget",
+            world.history_bytes()
+        );
+    }
+    let kept = world.undo_len();
+    assert!(kept > 1 && kept < digs, "the budget forgot the oldest steps and kept the newest: {kept}");
+    // The reference makes only the edits whose steps were forgotten.
+    for i in 0..digs - kept {
+        reference.edit(bounds_of(at(i), 3.0), crater(at(i), 3.0)).unwrap();
+    }
+    while world.undo().unwrap() {}
+    assert!(!world.can_undo());
+    let keys: Vec<ChunkKey> = world.loaded().collect();
+    reference.load_now(&keys).unwrap();
+    assert_eq!(snapshot(&world, &keys), snapshot(&reference, &keys), "undoing every kept step");
+}
