@@ -331,12 +331,14 @@ impl Editor {
         report.remeshed
     }
 
-    /// Chunks waiting for a remesh, or remeshed and waiting for their neighbours to be shown.
+    /// Chunks waiting for a remesh, or remeshed and waiting for their neighbours to be shown
+    /// (under dual contouring, the chunks edits changed since the last remesh).
     pub fn pending(&self) -> usize {
         self.meshes.pending()
     }
 
-    /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown.
+    /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown (under dual
+    /// contouring: whether an edit changed it since the last remesh).
     pub fn is_pending(&self, layer: usize, key: ChunkKey) -> bool {
         self.meshes.is_pending(layer, key)
     }

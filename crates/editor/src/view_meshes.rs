@@ -236,7 +236,11 @@ impl ViewMeshes {
             }
             shown.extend(s.commit_staged().into_iter().map(|k| (layer, k)));
         }
-        self.unshown.extend(shown.iter().copied());
+        // Only what a renderer already showing these layers needs; otherwise the next list is
+        // full anyway (and nothing accumulates in an editor no renderer follows).
+        if self.shown.as_ref().is_some_and(|s| s.generation == self.generation) {
+            self.unshown.extend(shown.iter().copied());
+        }
         (shown, self.pending())
     }
 
@@ -268,11 +272,14 @@ impl ViewMeshes {
     }
 
     /// Chunks waiting for a remesh, or remeshed and waiting for their neighbours to be shown.
+    /// (Under dual contouring the queue holds the chunks an edit changed; the cache rebuilds
+    /// them and their neighbours, so more chunks change than are counted here.)
     pub(crate) fn pending(&self) -> usize {
         self.surfaces.iter().map(SurfaceMeshes::pending).sum()
     }
 
-    /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown.
+    /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown (under dual
+    /// contouring: whether an edit changed it since the last remesh).
     pub(crate) fn is_pending(&self, layer: usize, key: ChunkKey) -> bool {
         self.surfaces.get(layer).is_some_and(|s| s.queued.contains(&key) || s.staged.contains_key(&key))
     }
@@ -340,5 +347,6 @@ impl ViewMeshes {
     /// Makes the next change list full (the renderer showed something else meanwhile).
     pub(crate) fn redraw_all(&mut self) {
         self.shown = None;
+        self.unshown.clear();
     }
 }

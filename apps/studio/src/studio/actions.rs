@@ -3,6 +3,9 @@
 
 use super::*;
 
+/// Merges `upper` into `lower`: the union of `upper`'s solid, carried into `lower`'s grid, with
+/// `lower`'s. The layers must share rotation and cell size; `upper`'s offset is rounded to whole
+/// cells of `lower`'s grid (so the merge is exact on the grid).
 pub(super) fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String> {
     let (tu, tl) = (upper.transform, lower.transform);
     let same_turn = (tu.rotation.dot(tl.rotation).abs() - 1.0).abs() < 1e-9;

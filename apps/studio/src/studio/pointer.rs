@@ -4,9 +4,6 @@
 
 use super::*;
 
-/// Merges `upper` into `lower`: the union of `upper`'s solid, carried into `lower`'s grid, with
-/// `lower`'s. The layers must share rotation and cell size; `upper`'s offset is rounded to whole
-/// cells of `lower`'s grid (so the merge is exact on the grid).
 /// Where the ray `o + t·d` meets the ground plane y = 0 in front of the eye, if it does.
 pub(super) fn ground_point(o: DVec3, d: DVec3) -> Option<DVec3> {
     (d.y < -1e-6).then(|| o + d * (-o.y / d.y))
@@ -140,7 +137,9 @@ impl Studio {
             let (o, d) = self.camera.ray(x, y, aspect);
             (o.as_dvec3(), d.as_dvec3())
         });
-        let follow = self.editor.tool.follow_surface && self.editor.tool.kind != ToolKind::Grab;
+        // (Shift smooths whatever the tool: a smoothing stroke follows the surface, even with grab
+        // chosen.)
+        let follow = self.editor.tool.follow_surface && (self.editor.tool.kind != ToolKind::Grab || modifiers.smooth);
         let target = match (ray, self.stroke_depth.filter(|_| held)) {
             (Some((o, d)), Some(depth)) => {
                 let depth = if follow && self.editor.stroking() {
