@@ -453,6 +453,50 @@ fn a_stroke_through_the_pointer_sculpts_and_ctrl_z_takes_it_back() {
     assert!(h.state().studio.editor.scene.layers[0].volume == before, "Ctrl+Z undid the stroke");
 }
 
+/// Modifiers held over a drag, as a sculptor holds them: Ctrl turns clay into carving and Shift
+/// smooths, while the tool stays clay (issue 30: the pose carries the modifiers; the tool and
+/// the buttons are left alone). Each drag is one undo step.
+#[test]
+fn ctrl_and_shift_held_over_a_drag_carve_and_smooth_while_the_tool_stays() {
+    let dir = temp("modifiers");
+    let mut h = harness(&dir);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Clay);
+    let solid = |h: &Harness<'static, StudioApp>| {
+        h.state().studio.editor.scene.layers[0].volume.measured_volume(strata_volume::Axis::X)
+    };
+    let held = |h: &mut Harness<'static, StudioApp>, m: egui::Modifiers| {
+        h.event(egui::Event::ModifiersChanged(m));
+        h.run();
+    };
+    let start = solid(&h);
+    drag_over_the_ball(&mut h, 8);
+    let clayed = solid(&h);
+    assert!(clayed > start, "clay adds: {start} -> {clayed}");
+    held(&mut h, egui::Modifiers::COMMAND);
+    assert!(h.state().studio.inverse_held, "Ctrl is seen as held");
+    drag_over_the_ball(&mut h, 8);
+    held(&mut h, egui::Modifiers::NONE);
+    let carved = solid(&h);
+    assert!(carved < clayed, "Ctrl + drag carves with clay: {clayed} -> {carved}");
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Clay, "Ctrl leaves the tool");
+    let before = h.state().studio.editor.scene.layers[0].volume.clone();
+    held(&mut h, egui::Modifiers::SHIFT);
+    assert!(h.state().studio.smooth_held, "Shift is seen as held");
+    drag_over_the_ball(&mut h, 8);
+    held(&mut h, egui::Modifiers::NONE);
+    let smoothed = solid(&h);
+    assert!(h.state().studio.editor.scene.layers[0].volume != before, "Shift + drag smoothed");
+    // Volume-preserving smoothing keeps the volume far closer than a clay stroke changes it.
+    assert!(
+        (smoothed - carved).abs() < 0.25 * (clayed - start),
+        "Shift smooths, it does not add clay: {carved} -> {smoothed} (clay added {})",
+        clayed - start
+    );
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Clay, "Shift leaves the tool");
+    assert_eq!(h.state().studio.editor.history().undo_len(), 3, "three drags, three undo steps");
+}
+
 /// Every tool, picked by its key, strokes the ball at a radius of 20 cells (issue 29: the
 /// radius the frame targets are set for), and each stroke is one undo step.
 #[test]
