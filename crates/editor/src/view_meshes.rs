@@ -321,27 +321,29 @@ impl ViewMeshes {
 
     /// The next change list for a renderer showing `layers`' meshes (see [`ChangeList`]).
     pub(crate) fn take_changes(&mut self, layers: &[Layer], materials: &[Material]) -> ChangeList {
-        let now = Shown {
-            generation: self.generation,
-            materials: materials.to_vec(),
-            placements: layers.iter().map(|l| (l.transform, l.visible)).collect(),
-        };
+        let placements: Vec<(LayerTransform, bool)> = layers.iter().map(|l| (l.transform, l.visible)).collect();
         let unshown = std::mem::take(&mut self.unshown);
-        let list = match &self.shown {
-            Some(was) if was.generation == now.generation && was.placements.len() == now.placements.len() => {
-                let moved: Vec<usize> =
-                    (0..now.placements.len()).filter(|&i| was.placements[i] != now.placements[i]).collect();
+        match &mut self.shown {
+            Some(was) if was.generation == self.generation && was.placements.len() == placements.len() => {
+                let moved: Vec<usize> = (0..placements.len()).filter(|&i| was.placements[i] != placements[i]).collect();
+                was.placements = placements;
+                // The palette is copied only when it changed (a comparison a frame, no clone).
+                let palette = was.materials != materials;
+                if palette {
+                    was.materials = materials.to_vec();
+                }
                 ChangeList {
                     full: false,
                     meshes: unshown.into_iter().filter(|(l, _)| !moved.contains(l)).collect(),
                     layers: moved,
-                    palette: was.materials != now.materials,
+                    palette,
                 }
             }
-            _ => ChangeList { full: true, ..ChangeList::default() },
-        };
-        self.shown = Some(now);
-        list
+            _ => {
+                self.shown = Some(Shown { generation: self.generation, materials: materials.to_vec(), placements });
+                ChangeList { full: true, ..ChangeList::default() }
+            }
+        }
     }
 
     /// Makes the next change list full (the renderer showed something else meanwhile).

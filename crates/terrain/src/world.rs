@@ -184,6 +184,9 @@ pub struct World {
     notes: Vec<(String, Vec<u8>)>,
     undo: Vec<UndoRecord>,
     redo: Vec<UndoRecord>,
+    /// Heap bytes of the records in `undo` and `redo`, kept as they come and go (a sum over
+    /// every record per edit would grow with the session).
+    history_bytes: usize,
     last_flush: Instant,
     shared: Arc<Shared>,
     results: Receiver<Done>,
@@ -277,6 +280,7 @@ impl World {
             notes: Vec::new(),
             undo: Vec::new(),
             redo: Vec::new(),
+            history_bytes: 0,
             last_flush: Instant::now(),
             shared,
             results: rx,
@@ -664,8 +668,10 @@ impl World {
         let before = self.bytes_of(&near);
         let report = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()))?;
         self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
-        self.undo.push(report.undo.clone());
-        self.redo.clear();
+        self.history_bytes -= self.redo.drain(..).map(|r| r.heap_bytes()).sum::<usize>();
+        let record = report.undo.clone();
+        self.history_bytes += record.heap_bytes();
+        self.undo.push(record);
         self.trim_history();
         Ok(report)
     }
@@ -705,7 +711,11 @@ impl World {
 
     /// Heap bytes of the undo and redo records.
     pub fn history_bytes(&self) -> usize {
-        self.undo.iter().chain(&self.redo).map(UndoRecord::heap_bytes).sum()
+        debug_assert_eq!(
+            self.history_bytes,
+            self.undo.iter().chain(&self.redo).map(UndoRecord::heap_bytes).sum::<usize>()
+        );
+        self.history_bytes
     }
 
     /// Edits that can be undone.
@@ -716,10 +726,9 @@ impl World {
     /// Forgets the oldest undo steps while the records hold more than the history budget
     /// (the newest step always stays).
     fn trim_history(&mut self) {
-        let mut total = self.history_bytes();
         let mut drop = 0;
-        while total > self.settings.history_budget && self.undo.len() - drop > 1 {
-            total -= self.undo[drop].heap_bytes();
+        while self.history_bytes > self.settings.history_budget && self.undo.len() - drop > 1 {
+            self.history_bytes -= self.undo[drop].heap_bytes();
             drop += 1;
         }
         self.undo.drain(..drop);
@@ -728,7 +737,9 @@ impl World {
     /// Undoes the last edit; `false` when there is none.
     pub fn undo(&mut self) -> Result<bool, WorldError> {
         let Some(record) = self.undo.pop() else { return Ok(false) };
+        self.history_bytes -= record.heap_bytes();
         let redo = self.restore(record)?;
+        self.history_bytes += redo.heap_bytes();
         self.redo.push(redo);
         Ok(true)
     }
@@ -736,7 +747,9 @@ impl World {
     /// Redoes the last undone edit; `false` when there is none.
     pub fn redo(&mut self) -> Result<bool, WorldError> {
         let Some(record) = self.redo.pop() else { return Ok(false) };
+        self.history_bytes -= record.heap_bytes();
         let undo = self.restore(record)?;
+        self.history_bytes += undo.heap_bytes();
         self.undo.push(undo);
         Ok(true)
     }
