@@ -18,6 +18,10 @@ fn live(region: &Region<'_, System>) -> isize {
 #[test]
 fn memory_reports_equal_the_bytes_the_allocator_holds() {
     let ins = table1_instructions(150, 9.0, 5);
+    // A first replay, not measured: whatever the edit path creates once per process (thread
+    // pools, their threads' own buffers) is made now, not inside a region. Without it a CI run
+    // counted 900 bytes more than the volume holds, once in many runs.
+    drop(replay(&ins, false));
 
     let region = Region::new(GLOBAL);
     // The replay's scratch buffers are freed when it returns; the volume is what stays.
