@@ -5,9 +5,8 @@
 
 use std::path::Path;
 
-use glam::Mat4;
 use strata_editor::{Scene, file};
-use strata_render::{DrawMesh, FrameSettings};
+use strata_render::FrameSettings;
 
 use crate::studio::default_scene;
 
@@ -32,18 +31,16 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
 /// adapter's name.
 pub fn terrain_screenshot(seed: u32, out: &Path, size: (u32, u32)) -> anyhow::Result<String> {
     let settings = strata_terrain::WorldSettings { view_distance: 128.0, detail_distance: 40.0, ..Default::default() };
-    let mut mode = crate::terrain::TerrainMode::in_memory(&strata_terrain::Recipe::with_seed(seed), settings)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    if !mode.settle(std::time::Duration::from_secs(600)) {
+    let recipe = strata_terrain::Recipe::with_seed(seed);
+    let (mut mode, mut editor) =
+        crate::terrain::TerrainMode::in_memory(&recipe, settings, Scene::default().materials)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    if !mode.settle(&mut editor, std::time::Duration::from_secs(600)) {
         anyhow::bail!("the terrain did not finish streaming in ten minutes");
     }
-    let meshes = mode.meshes().map(|(key, mesh)| DrawMesh {
-        id: strata_viewport::chunk_id(0, key),
-        mesh: strata_viewport::mesh_ref(mesh),
-        placement: strata_viewport::chunk_placement(Mat4::IDENTITY, key),
-        color: [1.0; 3],
-    });
-    let palette = strata_viewport::palette(&Scene::default());
+    // The world's meshes as the studio's window draws them: the editor's, through the viewport.
+    let meshes = strata_viewport::scene_meshes(&editor);
+    let palette = strata_viewport::palette(&editor.scene);
     let settings = FrameSettings { camera: mode.camera(), ..Default::default() };
-    Ok(strata_render::screenshot(meshes, &palette, &settings, size, out)?)
+    Ok(strata_render::screenshot(meshes.into_iter(), &palette, &settings, size, out)?)
 }

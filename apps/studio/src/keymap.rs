@@ -93,17 +93,20 @@ const fn both(
     Binding { command, keys, does, terrain: Some(terrain) }
 }
 
+/// What the fly keys do in terrain mode, where the viewport reads them as held keys.
+const FLY: &str = "fly (held: W S forward, back; A D left, right; E Q up, down)";
+
 /// Every key binding, in the order the help lists them.
 pub const BINDINGS: &[Binding] = &[
     bind(Command::Tool(ToolKind::Clay), &[(N, Key::C)], "clay: adds material that meets the surface in a soft fillet"),
-    bind(Command::Tool(ToolKind::Add), &[(N, Key::A)], "add with the brush shape (exact CSG)"),
-    bind(Command::Tool(ToolKind::Erase), &[(N, Key::E)], "erase with the brush shape (exact CSG)"),
-    bind(Command::Tool(ToolKind::Smooth), &[(N, Key::S)], "smooth"),
+    both(Command::Tool(ToolKind::Add), &[(N, Key::A)], "add with the brush shape (exact CSG)", FLY),
+    both(Command::Tool(ToolKind::Erase), &[(N, Key::E)], "erase with the brush shape (exact CSG)", FLY),
+    both(Command::Tool(ToolKind::Smooth), &[(N, Key::S)], "smooth", FLY),
     bind(Command::Tool(ToolKind::Inflate), &[(N, Key::I)], "inflate"),
     bind(Command::Tool(ToolKind::Flatten), &[(N, Key::T)], "flatten"),
     bind(Command::Tool(ToolKind::Pinch), &[(N, Key::P)], "pinch: pull the surface towards the stroke"),
     bind(Command::Tool(ToolKind::Grab), &[(N, Key::G)], "grab: drag the surface with the pointer"),
-    bind(Command::Tool(ToolKind::Detail), &[(N, Key::D)], "detail: raise the chunks' resolution under the brush"),
+    both(Command::Tool(ToolKind::Detail), &[(N, Key::D)], "detail: raise the chunks' resolution under the brush", FLY),
     bind(Command::Tool(ToolKind::Paint), &[(N, Key::V)], "paint the current material"),
     bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
     both(
@@ -112,8 +115,8 @@ pub const BINDINGS: &[Binding] = &[
         "next brush shape (sphere, box, capsule, cylinder)",
         "launch a bomb along the view: it blasts a crater",
     ),
-    both(Command::RadiusDown, &[(N, Key::OpenBracket)], "brush radius down", "dig radius down"),
-    both(Command::RadiusUp, &[(N, Key::CloseBracket)], "brush radius up", "dig radius up"),
+    bind(Command::RadiusDown, &[(N, Key::OpenBracket)], "brush radius down"),
+    bind(Command::RadiusUp, &[(N, Key::CloseBracket)], "brush radius up"),
     bind(
         Command::ResizeBrush,
         &[(N, Key::F)],
@@ -121,7 +124,7 @@ pub const BINDINGS: &[Binding] = &[
     ),
     bind(Command::Line, &[(N, Key::L)], "line tool: click two points"),
     bind(Command::MirrorX, &[(N, Key::X)], "mirror across the layer's x plane"),
-    bind(Command::Wireframe, &[(N, Key::W)], "wireframe"),
+    both(Command::Wireframe, &[(N, Key::W)], "wireframe", FLY),
     // Views, in the numpad's conventions (egui does not tell the numpad's digits from the top
     // row's, so both work): 1 front, 3 right, 7 top; with Ctrl the opposite; 5 orthographic.
     bind(Command::View(AxisView::Front, false), &[(N, Key::Num1)], "front view (numpad or top row)"),
@@ -132,9 +135,9 @@ pub const BINDINGS: &[Binding] = &[
     bind(Command::View(AxisView::Top, true), &[(C, Key::Num7)], "bottom view"),
     bind(Command::Orthographic, &[(N, Key::Num5)], "perspective / orthographic"),
     bind(Command::Frame, &[(N, Key::Home), (N, Key::Period)], "frame the model"),
-    both(Command::Undo, &[(C, Key::Z)], "undo a whole stroke", "undo"),
-    both(Command::Redo, &[(CS, Key::Z), (C, Key::Y)], "redo", "redo"),
-    bind(Command::Save, &[(C, Key::S)], "save (asks for a path the first time)"),
+    bind(Command::Undo, &[(C, Key::Z)], "undo a whole stroke (in terrain mode: a stroke or a crater)"),
+    bind(Command::Redo, &[(CS, Key::Z), (C, Key::Y)], "redo"),
+    both(Command::Save, &[(C, Key::S)], "save (asks for a path the first time)", "write the world's edits now"),
     bind(Command::SaveAs, &[(CS, Key::S)], "save as"),
     bind(Command::Open, &[(C, Key::O)], "open a scene"),
     bind(Command::New, &[(C, Key::N)], "new scene"),
@@ -152,7 +155,7 @@ pub const POINTER_AND_HELD: &[(&str, &str)] = &[
     ("Drop a file on the window", "a scene opens, a mesh is imported as a layer"),
     ("Terrain mode: W A S D, Q E (Shift faster)", "fly forward, left, back, right, down, up"),
     ("Terrain mode: right drag", "look around"),
-    ("Terrain mode: left click / Shift + left click", "dig / raise the ground (hold to repeat)"),
+    ("Terrain mode: left drag", "sculpt the world with the current tool (it starts as a dig: erase; Ctrl raises)"),
 ];
 
 /// The number of modifiers a chord asks for: among the bindings a press matches, the one that

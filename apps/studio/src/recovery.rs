@@ -76,8 +76,8 @@ impl Autosave {
             return;
         }
         self.last = Instant::now();
-        let mut scene: Scene = studio.editor.scene.clone();
-        scene.view = view_of(&studio.camera);
+        let mut scene: Scene = studio.scene_editor().scene.clone();
+        scene.view = view_of(&studio.scene_camera());
         let (dir, origin) = (self.dir.clone(), studio.path.clone());
         let job = std::thread::spawn(move || write(&dir, &scene, origin.as_deref()));
         self.job = Some((revision, job));

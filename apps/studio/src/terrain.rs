@@ -1,19 +1,22 @@
-//! Terrain mode: a streamed world flown through with a fly camera, dug, raised and bombed.
+//! Terrain mode: a streamed world flown through with a fly camera, sculpted with the editor's
+//! tools and bombed.
 //!
-//! Independent of egui and wgpu, like [`crate::Studio`]: the window feeds it held keys, mouse
-//! motion and clicks, and uploads the chunk meshes it lists in [`TerrainMode::uploads`] and the
-//! debris mesh of [`TerrainMode::particle_mesh`].
+//! The world is edited by an [`Editor`] made by [`Editor::on_world`]: digging and raising are
+//! the editor's strokes (every sculpting tool, mirror images, the line tool) and a bomb's crater
+//! is one of its edits, all in its budgeted undo history; its meshes reach the renderer through
+//! the same change list as a scene's. This room keeps what only terrain mode has: the fly
+//! camera, the bombs and the debris. Independent of egui and wgpu, like [`crate::Studio`].
 
-use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
-use strata_mesh::{Mesh, MeshWorkers};
+use strata_editor::{Editor, Material, ToolKind, ToolPose};
+use strata_mesh::Mesh;
 use strata_render::Camera;
 use strata_terrain::{Recipe, World, WorldSettings};
-use strata_volume::brush::{Aabb, Brush, SdfBrush, Sphere};
-use strata_volume::{ChunkKey, CsgOp, EditSettings};
+use strata_volume::CsgOp;
+use strata_volume::brush::{Aabb, SdfBrush};
 
 /// A bomb in flight.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,11 +64,9 @@ pub const BOMB_LIFE: f64 = 4.0;
 /// Gravity on bombs and debris (grid units a second²).
 pub const GRAVITY: f64 = 30.0;
 
-/// What the window needs to draw and the world to stream.
+/// Terrain mode's own state: the fly camera, bombs and debris (the world is in its editor).
 #[derive(Debug)]
 pub struct TerrainMode {
-    /// The world.
-    pub world: World,
     /// The eye (grid units; a terrain cell is one world unit).
     pub eye: DVec3,
     /// Radians about +y.
@@ -76,65 +77,56 @@ pub struct TerrainMode {
     pub speed: f64,
     /// Crater radius (grid units).
     pub crater_radius: f64,
-    /// Radius of the dig and raise brush.
-    pub brush_radius: f64,
     /// Bombs in flight.
     pub projectiles: Vec<Projectile>,
     /// Debris.
     pub particles: Vec<Particle>,
     /// Craters blasted.
     pub craters: usize,
-    meshes: HashMap<ChunkKey, Mesh>,
-    to_mesh: HashSet<ChunkKey>,
-    mesher: MeshWorkers,
-    /// Chunks whose mesh changed since the window last uploaded (`None` in [`Self::mesh`]: remove).
-    pub uploads: Vec<ChunkKey>,
+    /// The scene's editor and camera, waiting while the world is open (the studio's).
+    pub scene: Option<Box<(Editor, Camera)>>,
     seed: u64,
 }
 
 /// The note under which a world remembers where its viewer was.
 const VIEWER_NOTE: &str = "viewer";
 
+/// The radius the tools start with in a world (grid units: a world's cell is one unit).
+pub const WORLD_BRUSH_RADIUS: f64 = 4.0;
+
 impl TerrainMode {
-    /// A new world file at `path` from `recipe`.
-    pub fn create(path: &Path, recipe: &Recipe, settings: WorldSettings) -> Result<Self, String> {
+    /// A new world file at `path` from `recipe`, and the editor on it (coloured by `materials`).
+    pub fn create(
+        path: &Path,
+        recipe: &Recipe,
+        settings: WorldSettings,
+        materials: Vec<Material>,
+    ) -> Result<(Self, Editor), String> {
         let world = World::create(path, recipe, settings).map_err(|e| e.to_string())?;
-        Ok(Self::around(world, None))
+        Ok(Self::around(world, None, materials))
     }
 
-    /// A world of `recipe` in memory only (previews, screenshots).
-    pub fn in_memory(recipe: &Recipe, settings: WorldSettings) -> Result<Self, String> {
+    /// A world of `recipe` in memory only (previews, screenshots, tests), and its editor.
+    pub fn in_memory(
+        recipe: &Recipe,
+        settings: WorldSettings,
+        materials: Vec<Material>,
+    ) -> Result<(Self, Editor), String> {
         let world = World::in_memory(recipe, settings).map_err(|e| e.to_string())?;
-        Ok(Self::around(world, None))
+        Ok(Self::around(world, None, materials))
     }
 
-    /// Streams and meshes until everything in view is loaded and meshed, or `timeout` passes;
-    /// returns whether it all was.
-    pub fn settle(&mut self, timeout: Duration) -> bool {
-        let start = Instant::now();
-        let eye = self.eye;
-        let streamed = self.world.settle(&[eye], timeout);
-        loop {
-            self.tick(0.0, Duration::from_millis(50));
-            if self.remesh_pending() == 0 || start.elapsed() > timeout {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(1));
-        }
-        streamed && self.remesh_pending() == 0
-    }
-
-    /// Opens the world file at `path`, where its viewer last was.
-    pub fn open(path: &Path, settings: WorldSettings) -> Result<Self, String> {
+    /// Opens the world file at `path`, where its viewer last was, and its editor.
+    pub fn open(path: &Path, settings: WorldSettings, materials: Vec<Material>) -> Result<(Self, Editor), String> {
         let world = World::open(path, settings).map_err(|e| e.to_string())?;
         let viewer = world.store().and_then(|s| s.note(VIEWER_NOTE).ok().flatten()).and_then(|b| {
             let v: [f64; 5] = postcard::from_bytes(&b).ok()?;
             v.iter().all(|x| x.is_finite()).then_some(v)
         });
-        Ok(Self::around(world, viewer))
+        Ok(Self::around(world, viewer, materials))
     }
 
-    fn around(world: World, viewer: Option<[f64; 5]>) -> Self {
+    fn around(world: World, viewer: Option<[f64; 5]>, materials: Vec<Material>) -> (Self, Editor) {
         let (eye, yaw, pitch) = match viewer {
             Some([x, y, z, yaw, pitch]) => (DVec3::new(x, y, z), yaw, pitch),
             None => {
@@ -144,28 +136,45 @@ impl TerrainMode {
                 (DVec3::new(0.0, ground + 24.0, 0.0), -std::f64::consts::FRAC_PI_2, 0.25)
             }
         };
-        TerrainMode {
-            world,
+        let mut editor = Editor::on_world(world, materials);
+        // The tools start as a dig: erase with a ball (Ctrl raises, Shift smooths).
+        editor.tool.kind = ToolKind::Erase;
+        editor.tool.radius = WORLD_BRUSH_RADIUS;
+        let mode = TerrainMode {
             eye,
             yaw,
             pitch,
             speed: 40.0,
             crater_radius: 9.0,
-            brush_radius: 4.0,
             projectiles: Vec::new(),
             particles: Vec::new(),
             craters: 0,
-            meshes: HashMap::new(),
-            to_mesh: HashSet::new(),
-            mesher: MeshWorkers::new(1),
-            uploads: Vec::new(),
+            scene: None,
             seed: 0x9E37_79B9_7F4A_7C15,
-        }
+        };
+        (mode, editor)
     }
 
-    /// The world file.
-    pub fn path(&self) -> Option<PathBuf> {
-        self.world.store().map(|s| s.path().to_path_buf())
+    /// Streams and meshes until everything in view is loaded and meshed, or `timeout` passes;
+    /// returns whether it all was.
+    pub fn settle(&mut self, editor: &mut Editor, timeout: Duration) -> bool {
+        let start = Instant::now();
+        let eye = self.eye;
+        let streamed = editor.world_mut().is_some_and(|w| w.settle(&[eye], timeout));
+        loop {
+            self.tick(editor, 0.0);
+            let _ = editor.frame(&ToolPose::default(), Duration::from_millis(50));
+            if editor.pending() == 0 || start.elapsed() > timeout {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        streamed && editor.pending() == 0
+    }
+
+    /// The world file of `editor`'s world.
+    pub fn path(editor: &Editor) -> Option<PathBuf> {
+        editor.world()?.store().map(|s| s.path().to_path_buf())
     }
 
     /// The direction the eye looks along.
@@ -211,51 +220,13 @@ impl TerrainMode {
         }
     }
 
-    /// One frame: stream around the eye, hand changed chunks to the mesher thread nearest first
-    /// (snapshots of their neighbourhoods, until `budget` has passed), take the meshes it
-    /// finished, fly the bombs (blasting a crater where one hits) and the debris.
-    pub fn tick(&mut self, dt: f64, budget: Duration) {
-        let start = Instant::now();
+    /// One frame of what terrain mode adds to the editor's: stream the world around the eye
+    /// (its chunks are meshed by the editor's next frame, nearest the eye first), fly the bombs
+    /// (blasting a crater where one hits) and the debris.
+    pub fn tick(&mut self, editor: &mut Editor, dt: f64) {
         let dt = if dt.is_finite() { dt.clamp(0.0, 0.25) } else { 0.0 };
-        self.world.update(&[self.eye]);
-        for k in self.world.take_changed() {
-            for d in MeshWorkers::readers(self.world.volume(), k) {
-                if self.world.is_loaded(d) {
-                    self.to_mesh.insert(d);
-                } else {
-                    self.to_mesh.remove(&d);
-                    self.mesher.cancel(d);
-                    if self.meshes.remove(&d).is_some() {
-                        self.uploads.push(d);
-                    }
-                }
-            }
-        }
-        let eye = self.eye;
-        let dist = |k: &ChunkKey| (k.origin_grid().as_dvec3() + DVec3::splat(8.0)).distance_squared(eye);
-        let mut order: Vec<(f64, ChunkKey)> = self.to_mesh.iter().map(|k| (dist(k), *k)).collect();
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        for (_, k) in order {
-            if start.elapsed() >= budget {
-                break;
-            }
-            self.to_mesh.remove(&k);
-            self.mesher.submit(self.world.volume(), k);
-        }
-        for (k, mesh) in self.mesher.finished() {
-            if !self.world.is_loaded(k) {
-                continue;
-            }
-            if mesh.indices.is_empty() {
-                if self.meshes.remove(&k).is_some() {
-                    self.uploads.push(k);
-                }
-            } else {
-                self.meshes.insert(k, mesh);
-                self.uploads.push(k);
-            }
-        }
-        self.fly_bombs(dt);
+        editor.stream(self.eye);
+        self.fly_bombs(editor, dt);
         for p in &mut self.particles {
             p.velocity.y -= GRAVITY * dt;
             p.position += p.velocity * dt;
@@ -264,13 +235,14 @@ impl TerrainMode {
         self.particles.retain(|p| p.life > 0.0);
     }
 
-    fn fly_bombs(&mut self, dt: f64) {
+    fn fly_bombs(&mut self, editor: &mut Editor, dt: f64) {
+        let Some(world) = editor.world() else { return };
         let mut hits = Vec::new();
         for b in &mut self.projectiles {
             let step = b.velocity * dt;
             let len = step.length();
             if len > 0.0
-                && let Some(hit) = self.world.volume().raycast(b.position, step / len, len)
+                && let Some(hit) = world.volume().raycast(b.position, step / len, len)
             {
                 hits.push(hit.point);
                 b.age = f64::INFINITY;
@@ -283,7 +255,7 @@ impl TerrainMode {
         self.projectiles.retain(|b| b.age < BOMB_LIFE);
         for at in hits {
             // A crater that cannot be blasted (its chunks unreadable) leaves the world as it is.
-            let _ = self.blast(at);
+            let _ = self.blast(editor, at);
         }
     }
 
@@ -301,8 +273,9 @@ impl TerrainMode {
     }
 
     /// Blasts a crater at `at`: a rough ball (a sphere whose radius wobbles with direction)
-    /// subtracted from the world, and a burst of debris in the materials it took.
-    pub fn blast(&mut self, at: DVec3) -> Result<(), String> {
+    /// subtracted from the world as one step of the editor's history, and a burst of debris in
+    /// the materials it took.
+    pub fn blast(&mut self, editor: &mut Editor, at: DVec3) -> Result<(), String> {
         let r = self.crater_radius;
         let (a, b, c) = (self.random() * 6.0, self.random() * 6.0, self.random() * 6.0);
         let rough = move |p: DVec3| {
@@ -316,10 +289,9 @@ impl TerrainMode {
         // The field is a distance to a star-shaped surface: its gradient grows with the wobble's
         // angular frequency over the radius, bounded by 1 + 0.18 · 7.
         let brush = SdfBrush::new(rough, bounds, 2.3).map_err(|e| e.to_string())?;
-        let material = self.world.volume().material_near(at).unwrap_or(1);
-        self.world
-            .edit(bounds, |v| v.apply(CsgOp::Subtract, &brush, &EditSettings::default()))
-            .map_err(|e| e.to_string())?;
+        let world = editor.world().ok_or("bombs need a world")?;
+        let material = world.volume().material_near(at).unwrap_or(1);
+        editor.apply(editor.active_surface(), CsgOp::Subtract, &brush).map_err(|e| e.to_string())?;
         self.craters += 1;
         for _ in 0..60 {
             let dir =
@@ -329,33 +301,6 @@ impl TerrainMode {
             self.particles.push(Particle { position: at + dir * r * 0.5, velocity: dir * speed, life, material });
         }
         Ok(())
-    }
-
-    /// Digs (`raise` false) or raises a ball of the brush radius where `ray` meets the ground.
-    pub fn sculpt(&mut self, origin: DVec3, dir: DVec3, raise: bool) -> Result<bool, String> {
-        let Some(hit) = self.world.volume().raycast(origin, dir, 2000.0) else { return Ok(false) };
-        let ball = Sphere::new(hit.point, self.brush_radius).map_err(|e| e.to_string())?;
-        let op = if raise { CsgOp::Add } else { CsgOp::Subtract };
-        let material = self.world.volume().material_near(hit.point).unwrap_or(1);
-        self.world
-            .edit(ball.bounds(), |v| v.apply(op, &ball, &EditSettings { material, ..EditSettings::default() }))
-            .map_err(|e| e.to_string())?;
-        Ok(true)
-    }
-
-    /// The mesh of chunk `key`, if it has one.
-    pub fn mesh(&self, key: ChunkKey) -> Option<&Mesh> {
-        self.meshes.get(&key)
-    }
-
-    /// Every chunk mesh.
-    pub fn meshes(&self) -> impl Iterator<Item = (ChunkKey, &Mesh)> {
-        self.meshes.iter().map(|(k, m)| (*k, m))
-    }
-
-    /// Chunks waiting for a remesh (not yet handed to the mesher, or not back from it).
-    pub fn remesh_pending(&self) -> usize {
-        self.to_mesh.len() + self.mesher.pending()
     }
 
     /// The debris (and the bombs in flight) as one mesh of small cubes, in their materials.
@@ -393,32 +338,30 @@ impl TerrainMode {
         mesh
     }
 
-    /// Remembers where the viewer is and writes every edit (also done on drop by the world).
-    pub fn save(&mut self) -> Result<usize, String> {
+    /// Remembers where the viewer is and writes every edit of `editor`'s world (also done on
+    /// drop by the world, without the viewer).
+    pub fn save(&self, editor: &mut Editor) -> Result<usize, String> {
         let v = [self.eye.x, self.eye.y, self.eye.z, self.yaw, self.pitch];
-        self.world.set_note(VIEWER_NOTE, postcard::to_allocvec(&v).expect("five numbers serialise"));
-        self.world.flush().map_err(|e| e.to_string())
+        let world = editor.world_mut().ok_or("no world is open")?;
+        world.set_note(VIEWER_NOTE, postcard::to_allocvec(&v).expect("five numbers serialise"));
+        world.flush().map_err(|e| e.to_string())
     }
 
     /// A line for the status bar.
-    pub fn status(&self) -> String {
+    pub fn status(&self, editor: &Editor) -> String {
+        let Some(world) = editor.world() else { return String::new() };
         format!(
-            "Terrain {}: at ({:.0}, {:.0}, {:.0}); {} chunks loaded, {} meshed, {} waiting; {} craters; {} edits not yet written",
-            self.path().map_or("(in memory)".into(), |p| p.display().to_string()),
+            "Terrain {}: at ({:.0}, {:.0}, {:.0}); {} chunks loaded, {} triangles, {} waiting; {} craters; history {} steps; {} edits not yet written",
+            Self::path(editor).map_or("(in memory)".into(), |p| p.display().to_string()),
             self.eye.x,
             self.eye.y,
             self.eye.z,
-            self.world.loaded_count(),
-            self.meshes.len(),
-            self.remesh_pending(),
+            world.loaded_count(),
+            editor.triangle_count(),
+            editor.pending(),
             self.craters,
-            self.world.unflushed()
+            editor.history().undo_len(),
+            world.unflushed()
         )
-    }
-}
-
-impl Drop for TerrainMode {
-    fn drop(&mut self) {
-        let _ = self.save();
     }
 }

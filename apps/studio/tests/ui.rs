@@ -616,12 +616,14 @@ fn paint_an_eyedropper_and_a_new_material_from_the_palette() {
     assert!(!h.state().studio.editor.scene.layers[0].volume.has_materials(), "Ctrl+Z undid the paint");
 }
 
-/// Terrain mode as a user meets it: Terrain > New world with a typed path, WASD flies, B
-/// launches a bomb that blasts a crater with debris, Ctrl+Z takes the crater back and Ctrl+Y
-/// brings it again, Close world writes it, and Open world finds the crater and the viewer where
-/// they were.
+/// Terrain mode as a user meets it: Terrain > New world with a typed path, WASD flies; a left
+/// drag digs with the editor's tools (the world's own stroke, one step of the editor's history:
+/// Ctrl+Z gives the generated ground back exactly, Ctrl+Y the dig); B launches a bomb that blasts
+/// a crater with debris, another step of the same history; scene commands wait and say so; Close
+/// world writes it and gives the scene back untouched, and Open world finds the crater and the
+/// viewer where they were.
 #[test]
-fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
+fn a_new_world_is_flown_through_dug_bombed_undone_closed_and_reopened() {
     let dir = temp("terrain");
     let mut h = harness(&dir);
     h.state_mut().studio.world_settings.view_distance = 40.0;
@@ -629,6 +631,7 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     h.state_mut().studio.world_settings.vertical_ratio = 1.5;
     h.state_mut().studio.world_settings.detail_distance = 16.0;
     h.run();
+    let scene_before = h.state().studio.editor.scene.clone();
     h.get_by_label("Terrain").click();
     h.run();
     h.get_by_label("New world…").click();
@@ -638,8 +641,9 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     h.key_press(egui::Key::Enter);
     h.run_steps(3);
     assert!(h.state().studio.terrain.is_some(), "{}", h.state().studio.message);
+    assert!(h.state().studio.editor.world().is_some(), "the tools edit the world");
     let start = h.state().studio.terrain.as_ref().unwrap().eye;
-    // Fly forward for a moment, W held.
+    // Fly forward for a moment, W held (W is the wireframe key in a scene: not here).
     h.key_down(egui::Key::W);
     for _ in 0..5 {
         std::thread::sleep(Duration::from_millis(10));
@@ -647,24 +651,39 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     }
     h.key_up(egui::Key::W);
     h.step();
+    assert!(!h.state().studio.wireframe, "W flies in terrain mode");
     let eye = h.state().studio.terrain.as_ref().unwrap().eye;
     assert!(eye.distance(start) > 0.5, "W flew from {start} to {eye}");
-    // Let the ground stream in, then look down at it and bomb.
+    // Let the ground stream in, then look down at it.
+    let world = |h: &Harness<'static, StudioApp>| h.state().studio.editor.world().unwrap().volume().clone();
     let settle = std::time::Instant::now();
-    while h.state().studio.terrain.as_ref().unwrap().world.loaded_count() < 50
-        && settle.elapsed() < Duration::from_secs(60)
-    {
+    while h.state().studio.editor.world().unwrap().loaded_count() < 50 && settle.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(10));
         h.step();
     }
     h.state_mut().studio.terrain.as_mut().unwrap().pitch = 1.2;
-    for _ in 0..200 {
+    for _ in 0..400 {
         std::thread::sleep(Duration::from_millis(5));
         h.step();
-        if h.state().studio.terrain.as_ref().unwrap().world.pending_count() == 0 {
+        let s = &h.state().studio;
+        if s.editor.world().unwrap().pending_count() == 0 && s.editor.pending() == 0 {
             break;
         }
     }
+    assert!(h.state().studio.editor.triangle_count() > 0, "the world's meshes come through the editor");
+    // Dig: a left drag with the tool terrain mode starts with (erase).
+    let generated = world(&h);
+    drag_over_the_ball(&mut h, 6);
+    let dug = world(&h);
+    assert_ne!(dug, generated, "the drag dug: {}", h.state().studio.message);
+    assert_eq!(h.state().studio.editor.history().undo_len(), 1, "one stroke, one step");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(world(&h), generated, "Ctrl+Z gave the generated ground back");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
+    h.step();
+    assert_eq!(world(&h), dug, "Ctrl+Y dug again");
+    // Bomb.
     h.key_press(egui::Key::B);
     h.step();
     assert_eq!(h.state().studio.terrain.as_ref().unwrap().projectiles.len(), 1, "B launched a bomb");
@@ -677,18 +696,25 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     assert_eq!(t.craters, 1, "the bomb hit the ground");
     assert!(!t.particles.is_empty(), "debris flies");
     assert!(!t.particle_mesh().indices.is_empty(), "debris is drawn");
-    assert!(t.world.can_undo());
+    assert_eq!(h.state().studio.editor.history().undo_len(), 2, "the crater is a step of the editor's history");
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.step();
-    assert!(h.state().studio.terrain.as_ref().unwrap().world.can_redo(), "Ctrl+Z undid the crater");
+    assert_eq!(world(&h), dug, "Ctrl+Z undid the crater");
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
     h.step();
+    assert_ne!(world(&h), dug, "Ctrl+Y blasted it again");
+    // A scene command waits for the world, and says so.
+    h.key_press(egui::Key::Num1);
+    h.step();
+    assert!(h.state().studio.message.contains("Close world"), "{}", h.state().studio.message);
     let eye = h.state().studio.terrain.as_ref().unwrap().eye;
     h.get_by_label("Terrain").click();
     h.run_steps(3);
     h.get_by_label("Close world").click();
     h.run_steps(3);
     assert!(h.state().studio.terrain.is_none(), "{}", h.state().studio.message);
+    assert!(h.state().studio.editor.world().is_none());
+    assert!(h.state().studio.editor.scene == scene_before, "the scene came back untouched");
     // Reopened: the crater is in the file, the viewer where it was.
     h.get_by_label("Terrain").click();
     h.run_steps(3);
@@ -703,7 +729,8 @@ fn a_new_world_is_flown_through_bombed_closed_and_reopened() {
     h.run_steps(3);
     let t = h.state().studio.terrain.as_ref().expect("the world opened");
     assert!(t.eye.distance(eye) < 1e-9, "the viewer is back at {eye}, not {}", t.eye);
-    assert!(!t.world.store().unwrap().edited_keys().unwrap().is_empty(), "the crater was written");
+    let store = h.state().studio.editor.world().unwrap().store().unwrap();
+    assert!(!store.edited_keys().unwrap().is_empty(), "the crater was written");
     h.get_by_label("Terrain").click();
     h.run_steps(3);
     h.get_by_label("Close world").click();

@@ -48,12 +48,12 @@ impl Editor {
     /// Chunks the dab of the current tool at `pose` would visit (its brush box in chunks, or
     /// the whole volume for an intersection): what the studio compares with its frame budget.
     pub fn dab_chunks(&self, pose: &ToolPose) -> Result<u64, EditorError> {
-        let layer = self.active_layer;
-        let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
-        if !l.transform.is_valid() {
+        let layer = self.active_surface();
+        let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
+        if !transform.is_valid() {
             return Err(EditorError::BadLayerTransform(layer));
         }
-        let brush = self.tool_for(pose).brush(&l.transform, pose.position, pose.orientation, pose.pressure)?;
+        let brush = self.tool_for(pose).brush(&transform, pose.position, pose.orientation, pose.pressure)?;
         let b = brush.bounds();
         if !b.is_valid() {
             return Err(EditorError::Edit(EditError::BadBounds));
@@ -66,10 +66,14 @@ impl Editor {
     /// Starts the dab of the current tool at `pose` (the opposite tool with the secondary
     /// button) on a worker thread, as its own undo step; the stroke in progress ends first. The
     /// active layer's volume goes with the worker, so nothing else may edit or mesh that layer
-    /// until [`Editor::finish_dab_job`].
+    /// until [`Editor::finish_dab_job`]. A world's volume cannot leave it (it streams): on a
+    /// world this is refused with a message that says so.
     pub fn start_dab_job(&mut self, pose: &ToolPose) -> Result<DabJob, EditorError> {
         if !pose.is_valid() {
             return Err(EditorError::BadPose);
+        }
+        if self.world.is_some() {
+            return Err(EditorError::DabTooLargeForWorld(self.dab_chunks(pose)?));
         }
         self.end_stroke();
         let layer = self.active_layer;

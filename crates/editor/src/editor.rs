@@ -12,9 +12,11 @@ use thiserror::Error;
 
 use crate::history::{History, HistoryEntry};
 use crate::lod::LodView;
-use crate::scene::{Layer, Scene};
+use crate::scene::{Layer, Material, Scene};
+use crate::target::EditTarget;
 use crate::tool::ToolSettings;
 use crate::view_meshes::{ChangeList, ViewMeshes};
+use strata_terrain::World;
 
 pub(crate) use crate::stroke::Stroke;
 
@@ -50,6 +52,16 @@ pub enum EditorError {
     /// simplification bound).
     #[error(transparent)]
     Mesher(#[from] MesherError),
+    /// The world could not load a chunk an edit or an undo needs (its database is unreadable):
+    /// nothing changed.
+    #[error(transparent)]
+    World(strata_terrain::WorldError),
+    /// A dab too large for a frame, on a world (whose volume cannot go to a worker thread while
+    /// it streams): nothing changed.
+    #[error(
+        "a dab spanning {0} chunks is too large to sculpt into a streamed world (large dabs run in the background in scenes only): make the brush smaller"
+    )]
+    DabTooLargeForWorld(u64),
     /// The current material is not in the scene's palette.
     #[error("material {id} is not in the palette ({count} materials)")]
     UnknownMaterial {
@@ -81,8 +93,10 @@ pub struct Editor {
     pub scene: Scene,
     /// The current tool.
     pub tool: ToolSettings,
-    /// The layer tools edit.
+    /// The layer tools edit (on a world, the world: see [`Editor::active_surface`]).
     pub active_layer: usize,
+    /// The streamed world the tools edit, for an editor made by [`Editor::on_world`].
+    pub(crate) world: Option<World>,
     pub(crate) history: History,
     pub(crate) stroke: Option<Stroke>,
     /// The viewport's meshes of every layer.
@@ -99,6 +113,7 @@ impl std::fmt::Debug for Editor {
             .field("layers", &self.scene.layers.len())
             .field("tool", &self.tool)
             .field("active_layer", &self.active_layer)
+            .field("world", &self.world)
             .field("history", &self.history)
             .finish()
     }
@@ -118,6 +133,7 @@ impl Editor {
             tool: ToolSettings::default(),
             active_layer: 0,
             history: History::default(),
+            world: None,
             stroke: None,
             meshes: ViewMeshes::new(MeshOptions::default(), &[]),
             settings: EditSettings::default(),
@@ -126,6 +142,61 @@ impl Editor {
         };
         e.reset_caches();
         e
+    }
+
+    /// An editor on a streamed world, coloured by `materials`: the tools, strokes, mirror
+    /// images, line tool and budgeted history of a scene, applied to the world (its only
+    /// surface; the scene has no layers). The world streams around the viewer given to
+    /// [`Editor::stream`] and its chunks are meshed nearest the viewer first.
+    pub fn on_world(world: World, materials: Vec<Material>) -> Self {
+        let scene = Scene { layers: Vec::new(), materials, ..Scene::default() };
+        let mut e = Editor::new(scene);
+        e.world = Some(world);
+        e.reset_caches();
+        e
+    }
+
+    /// The world the editor edits, if it is on one.
+    pub fn world(&self) -> Option<&World> {
+        self.world.as_ref()
+    }
+
+    /// The world, to stream, flush or take notes (edits go through the tools, so that they
+    /// join the history).
+    pub fn world_mut(&mut self) -> Option<&mut World> {
+        self.world.as_mut()
+    }
+
+    /// Streams the world around `eye` (one [`World::update`]) and meshes its chunks nearest
+    /// `eye` first; nothing without a world.
+    pub fn stream(&mut self, eye: DVec3) -> Option<strata_terrain::UpdateReport> {
+        let world = self.world.as_mut()?;
+        let report = world.update(&[eye]);
+        self.meshes.set_focus(eye);
+        Some(report)
+    }
+
+    /// The surface tools edit: the active layer, or on a world the world.
+    pub fn active_surface(&self) -> usize {
+        if self.world.is_some() { self.scene.layers.len() } else { self.active_layer }
+    }
+
+    /// Surfaces: the layers, then the world (see [`crate::target`]).
+    pub fn surface_count(&self) -> usize {
+        self.scene.layers.len() + self.world.is_some() as usize
+    }
+
+    /// Surface `i` (a layer, or after the layers the world).
+    pub fn surface(&self, i: usize) -> Option<&dyn EditTarget> {
+        match self.scene.layers.get(i) {
+            Some(l) => Some(l),
+            None if i == self.scene.layers.len() => self.world.as_ref().map(|w| w as &dyn EditTarget),
+            None => None,
+        }
+    }
+
+    pub(crate) fn surface_mut(&mut self, i: usize) -> Option<&mut dyn EditTarget> {
+        surface_mut(&mut self.scene.layers, self.world.as_mut(), i)
     }
 
     /// Replaces the scene (new or loaded): clears history and remeshes everything.
@@ -140,7 +211,7 @@ impl Editor {
 
     /// Rebuilds the per-layer caches and queues every chunk (after layers are added or removed).
     pub fn reset_caches(&mut self) {
-        self.meshes.reset(&self.scene.layers, false);
+        self.meshes.reset(&surfaces(&self.scene.layers, self.world.as_ref()), false);
     }
 
     /// A number that changes whenever the scene does through the editor (edits, undo, redo, a
@@ -170,11 +241,11 @@ impl Editor {
     /// Whether the tools may edit layer `layer` through its transform: it exists, is not
     /// locked, and its transform is valid.
     pub(crate) fn check_editable(&self, layer: usize) -> Result<(), EditorError> {
-        let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
-        if l.locked {
+        let l = self.surface(layer).ok_or(EditorError::NoLayer(layer))?;
+        if l.locked() {
             return Err(EditorError::Locked(layer));
         }
-        if !l.transform.is_valid() {
+        if !l.transform().is_valid() {
             return Err(EditorError::BadLayerTransform(layer));
         }
         Ok(())
@@ -189,10 +260,11 @@ impl Editor {
         Ok(())
     }
 
-    /// Applies `brush` (grid coordinates of the layer) to layer `layer` as one undo step, with
-    /// its chunks queued for meshing: how imports and scripted edits change a scene. (Edits made
-    /// straight on `scene.layers[i].volume` bypass the history, whose records would then
-    /// restore stale chunks: call [`Editor::clear_history`] after any.)
+    /// Applies `brush` (grid coordinates of the surface) to surface `layer` (a layer, or the
+    /// world: [`Editor::active_surface`]) as one undo step, with its chunks queued for meshing:
+    /// how imports, scripted edits and a world's craters change it. (Edits made straight on
+    /// `scene.layers[i].volume` bypass the history, whose records would then restore stale
+    /// chunks: call [`Editor::clear_history`] after any.)
     pub fn apply(
         &mut self,
         layer: usize,
@@ -200,12 +272,12 @@ impl Editor {
         brush: &dyn strata_volume::brush::Brush,
     ) -> Result<EditReport, EditorError> {
         self.end_stroke();
-        let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
-        if l.locked {
+        let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
+        let l = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+        if l.locked() {
             return Err(EditorError::Locked(layer));
         }
-        let settings = EditSettings { material: self.tool.material, ..self.settings.clone() };
-        let mut edit = l.volume.apply(op, brush, &settings)?;
+        let mut edit = l.edit(&brush.bounds(), &mut |v| Ok(v.apply(op, brush, &settings)?))?;
         self.queue(layer, &edit.changed, edit.reach);
         self.revision += 1;
         // The history keeps the undo record; the report returned has an empty one.
@@ -247,18 +319,30 @@ impl Editor {
         self.history.clear();
     }
 
-    /// Undoes the newest step. Returns whether anything changed.
+    /// Undoes the newest step. Returns whether anything changed (`false` too when a world's
+    /// chunk the step restores cannot be read: [`Editor::try_undo`] says why).
     pub fn undo(&mut self) -> bool {
-        self.end_stroke();
-        let changed = self.history.undo(&mut self.scene.layers, &mut self.active_layer);
-        self.after_history(changed)
+        self.try_undo().unwrap_or(false)
     }
 
-    /// Redoes the newest undone step. Returns whether anything changed.
+    /// Redoes the newest undone step. Returns whether anything changed (see [`Editor::undo`]).
     pub fn redo(&mut self) -> bool {
+        self.try_redo().unwrap_or(false)
+    }
+
+    /// Undoes the newest step; an error (a world's chunk it restores cannot be read) changes
+    /// nothing and keeps the step.
+    pub fn try_undo(&mut self) -> Result<bool, EditorError> {
         self.end_stroke();
-        let changed = self.history.redo(&mut self.scene.layers, &mut self.active_layer);
-        self.after_history(changed)
+        let changed = self.history.undo(&mut self.scene.layers, &mut self.active_layer, self.world.as_mut())?;
+        Ok(self.after_history(changed))
+    }
+
+    /// Redoes the newest undone step (see [`Editor::try_undo`]).
+    pub fn try_redo(&mut self) -> Result<bool, EditorError> {
+        self.end_stroke();
+        let changed = self.history.redo(&mut self.scene.layers, &mut self.active_layer, self.world.as_mut())?;
+        Ok(self.after_history(changed))
     }
 
     fn after_history(&mut self, restored: Option<crate::history::Restored>) -> bool {
@@ -298,14 +382,25 @@ impl Editor {
     /// Queues the meshes an edit of `layer` that changed `changed` within `reach` (`None`:
     /// anywhere in them) affects.
     pub(crate) fn queue(&mut self, layer: usize, changed: &[ChunkKey], reach: Option<strata_volume::Reach>) {
-        self.meshes.queue(layer, &self.scene.layers[layer].volume, changed, reach);
+        if let Some(l) = self.scene.layers.get(layer) {
+            self.meshes.queue(layer, &l.volume, changed, reach);
+        }
+        // (A world's changes reach its meshes through its own list: see `Editor::remesh`.)
     }
 
     /// Remeshes queued chunks until `budget` is spent and shows what can be shown without a
     /// crack (see [`crate::view_meshes`]).
     pub(crate) fn remesh(&mut self, budget: Duration, report: &mut FrameReport) {
         let t0 = Instant::now();
-        let (shown, pending) = self.meshes.remesh(&self.scene.layers, budget);
+        let world_surface = self.scene.layers.len();
+        if let Some(world) = self.world.as_mut() {
+            let changed = world.take_changed();
+            let world = &*world;
+            self.meshes.streamed_changes(world_surface, world.volume(), &changed, &|k| world.is_loaded(k));
+        }
+        let world = self.world.as_ref();
+        let loaded = |k: ChunkKey| world.is_none_or(|w| w.is_loaded(k));
+        let (shown, pending) = self.meshes.remesh(&surfaces(&self.scene.layers, world), &loaded, budget);
         report.remeshed.extend(shown);
         report.remesh_time = t0.elapsed();
         report.pending = pending;
@@ -316,7 +411,7 @@ impl Editor {
     /// the eye (see [`LodView`]); chunks whose level changes are queued with their neighbours.
     /// `None` meshes everything at its stored level.
     pub fn set_view(&mut self, view: Option<LodView>) {
-        self.meshes.set_view(&self.scene.layers, view);
+        self.meshes.set_view(&surfaces(&self.scene.layers, self.world.as_ref()), view);
     }
 
     /// The level-of-detail cap of a chunk of a layer (`None`: meshed at its stored level).
@@ -368,7 +463,7 @@ impl Editor {
                 return Err(MesherError::ChunkSimplify(options.mesher).into());
             }
         }
-        self.meshes.set_options(options, &self.scene.layers);
+        self.meshes.set_options(options, &surfaces(&self.scene.layers, self.world.as_ref()));
         Ok(())
     }
 
@@ -393,7 +488,7 @@ impl Editor {
     /// call (see [`ChangeList`]): the first call, and the first after the layer list or the
     /// mesher changed, or after [`Editor::redraw_all`], is a full list.
     pub fn take_changes(&mut self) -> ChangeList {
-        self.meshes.take_changes(&self.scene.layers, &self.scene.materials)
+        self.meshes.take_changes(&surfaces(&self.scene.layers, self.world.as_ref()), &self.scene.materials)
     }
 
     /// Makes the next [`Editor::take_changes`] a full list (the renderer showed something else
@@ -453,6 +548,27 @@ impl Editor {
             out.indices.extend(m.indices.iter().map(|i| i + base));
         }
         Ok((out, islands))
+    }
+}
+
+/// The surfaces of an editor: `layers`, then `world` (see [`crate::target`]).
+pub(crate) fn surfaces<'a>(layers: &'a [Layer], world: Option<&'a World>) -> Vec<&'a dyn EditTarget> {
+    let mut out: Vec<&dyn EditTarget> = layers.iter().map(|l| l as &dyn EditTarget).collect();
+    out.extend(world.map(|w| w as &dyn EditTarget));
+    out
+}
+
+/// Surface `i` of `layers` and `world`, to edit.
+pub(crate) fn surface_mut<'a>(
+    layers: &'a mut [Layer],
+    world: Option<&'a mut World>,
+    i: usize,
+) -> Option<&'a mut dyn EditTarget> {
+    let n = layers.len();
+    match layers.get_mut(i) {
+        Some(l) => Some(l),
+        None if i == n => world.map(|w| w as &mut dyn EditTarget),
+        None => None,
     }
 }
 

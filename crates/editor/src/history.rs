@@ -1,15 +1,18 @@
 //! Undo/redo over whole strokes, within a memory budget.
 
+use strata_terrain::World;
 use strata_volume::{ChunkKey, UndoRecord};
 
+use crate::editor::{EditorError, surface_mut};
 use crate::scene::{Layer, LayerTransform};
 
-/// One undoable step: the records of every edit of a stroke on one layer, in the order applied,
+/// One undoable step: the records of every edit of a stroke on one surface (a layer, or an
+/// editor's world: see [`crate::target`]), in the order applied,
 /// a change of the layer's transform, or a change of the layer list itself (layers added,
 /// deleted, duplicated, reordered or merged).
 #[derive(Debug, Default)]
 pub struct HistoryEntry {
-    /// The layer the step edited.
+    /// The surface the step edited (a layer's number, or on a world the world's).
     pub layer: usize,
     /// Records in edit order; undoing restores them in reverse.
     pub records: Vec<UndoRecord>,
@@ -45,22 +48,35 @@ impl HistoryEntry {
         keys
     }
 
-    /// Restores the step on `layers` (its records in reverse order and its transform, or the
-    /// layer list); returns the entry that undoes this one and what it restored, or `None` (and
-    /// nothing changed) for a step on a layer that no longer exists.
-    fn apply(self, layers: &mut Vec<Layer>, active: &mut usize) -> Option<(HistoryEntry, Restored)> {
+    /// Restores the step on `layers` and `world` (its records in reverse order and its
+    /// transform, or the layer list); returns the entry that undoes this one and what it
+    /// restored, or `None` (and nothing changed) for a step on a surface that no longer exists.
+    /// When a world cannot load a chunk the step restores, nothing changes and the step comes
+    /// back with the error.
+    fn apply(
+        self,
+        layers: &mut Vec<Layer>,
+        active: &mut usize,
+        world: Option<&mut World>,
+    ) -> Result<Option<(HistoryEntry, Restored)>, (EditorError, HistoryEntry)> {
         if let Some((list, was_active)) = self.layers {
             let now = std::mem::replace(layers, list);
             let now_active = std::mem::replace(active, was_active);
             let entry = HistoryEntry { layers: Some((now, now_active)), ..Default::default() };
-            return Some((entry, Restored::Layers));
+            return Ok(Some((entry, Restored::Layers)));
         }
-        let layer = layers.get_mut(self.layer)?;
-        let records: Vec<UndoRecord> = self.records.into_iter().rev().map(|r| layer.volume.restore(r)).collect();
-        let transform = self.transform.map(|t| std::mem::replace(&mut layer.transform, t));
+        let Some(target) = surface_mut(layers, world, self.layer) else { return Ok(None) };
+        if let Err(e) = target.prepare(&self.keys()) {
+            return Err((e, self));
+        }
+        let records: Vec<UndoRecord> = self.records.into_iter().rev().map(|r| target.restore(r)).collect();
+        let transform = match (self.transform, layers.get_mut(self.layer)) {
+            (Some(t), Some(layer)) => Some(std::mem::replace(&mut layer.transform, t)),
+            _ => None,
+        };
         let entry = HistoryEntry { layer: self.layer, records, transform, layers: None };
         let keys = entry.keys();
-        Some((entry, Restored::Chunks(self.layer, keys)))
+        Ok(Some((entry, Restored::Chunks(self.layer, keys))))
     }
 }
 
@@ -110,23 +126,50 @@ impl History {
         }
     }
 
-    /// Undoes the newest step on `layers` (`active` the active layer, restored with the list).
-    /// Returns what it restored.
-    pub fn undo(&mut self, layers: &mut Vec<Layer>, active: &mut usize) -> Option<Restored> {
-        let entry = self.undo.pop()?;
-        // A step on a layer that no longer exists is dropped.
-        let (redo, restored) = entry.apply(layers, active)?;
-        self.redo.push(redo);
-        Some(restored)
+    /// Undoes the newest step on `layers` (`active` the active layer, restored with the list)
+    /// and `world` (an editor's world, the surface after the layers). Returns what it restored;
+    /// on an error (a world's chunk cannot be read) nothing changed and the step stays.
+    pub fn undo(
+        &mut self,
+        layers: &mut Vec<Layer>,
+        active: &mut usize,
+        world: Option<&mut World>,
+    ) -> Result<Option<Restored>, EditorError> {
+        let Some(entry) = self.undo.pop() else { return Ok(None) };
+        match entry.apply(layers, active, world) {
+            Ok(Some((redo, restored))) => {
+                self.redo.push(redo);
+                Ok(Some(restored))
+            }
+            // A step on a layer that no longer exists is dropped.
+            Ok(None) => Ok(None),
+            Err((e, entry)) => {
+                self.undo.push(entry);
+                Err(e)
+            }
+        }
     }
 
-    /// Redoes the newest undone step. Returns what it restored.
-    pub fn redo(&mut self, layers: &mut Vec<Layer>, active: &mut usize) -> Option<Restored> {
-        let entry = self.redo.pop()?;
-        let (undo, restored) = entry.apply(layers, active)?;
-        self.undo.push(undo);
-        self.trim();
-        Some(restored)
+    /// Redoes the newest undone step (see [`History::undo`]).
+    pub fn redo(
+        &mut self,
+        layers: &mut Vec<Layer>,
+        active: &mut usize,
+        world: Option<&mut World>,
+    ) -> Result<Option<Restored>, EditorError> {
+        let Some(entry) = self.redo.pop() else { return Ok(None) };
+        match entry.apply(layers, active, world) {
+            Ok(Some((undo, restored))) => {
+                self.undo.push(undo);
+                self.trim();
+                Ok(Some(restored))
+            }
+            Ok(None) => Ok(None),
+            Err((e, entry)) => {
+                self.redo.push(entry);
+                Err(e)
+            }
+        }
     }
 
     /// Steps that can be undone.

@@ -5,7 +5,8 @@
 //! of device-neutral [`ToolPose`]s (a mouse, a pen or a VR controller produce the same poses),
 //! strokes that sweep a brush along the pose path with even spacing, undo/redo with a memory
 //! budget, a per-layer mesh cache remeshed within a per-frame time budget, picking, and
-//! versioned binary scene files (see [`file`]).
+//! versioned binary scene files (see [`file`]). The same tools, strokes and history edit a
+//! streamed terrain world ([`Editor::on_world`], through the seam in [`target`]).
 #![warn(missing_docs)]
 
 mod dab_job;
@@ -18,6 +19,7 @@ mod pick;
 mod pose;
 mod scene;
 mod stroke;
+pub mod target;
 mod tool;
 mod view_meshes;
 
@@ -28,5 +30,6 @@ pub use lod::{LodView, lod_levels};
 pub use pick::{PICK_CHUNK_STEPS, Pick};
 pub use pose::{Buttons, Modifiers, ToolPose};
 pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View};
+pub use target::EditTarget;
 pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};
 pub use view_meshes::ChangeList;

@@ -26,13 +26,15 @@ impl Editor {
     /// The material of the solid under a pick (the eyedropper): the nearest solid node of the
     /// cell just inside the picked surface.
     pub fn material_at(&self, pick: &Pick) -> Option<strata_volume::MaterialId> {
-        let l = self.scene.layers.get(pick.layer)?;
-        let inward = l.transform.dir_to_grid(-pick.normal).normalize_or_zero();
-        let p = l.transform.to_grid(pick.point) + inward * 0.25 * l.volume.level().spacing();
-        l.volume.material_near(p)
+        let l = self.surface(pick.layer)?;
+        let (tr, volume) = (l.transform(), l.volume());
+        let inward = tr.dir_to_grid(-pick.normal).normalize_or_zero();
+        let p = tr.to_grid(pick.point) + inward * 0.25 * volume.level().spacing();
+        volume.material_near(p)
     }
 
-    /// The first surface hit of the world ray `origin + t · dir` (`t ≤ max_t`) on a visible layer.
+    /// The first surface hit of the world ray `origin + t · dir` (`t ≤ max_t`) on a visible
+    /// layer or the editor's world (its [`Pick::layer`] the surface's number).
     ///
     /// The work is bounded per pick, whatever the scene: layers whose stored chunks the ray
     /// misses cost one box test (an empty layer nothing), layers are tried in the order the ray
@@ -77,13 +79,12 @@ impl Editor {
         None
     }
 
-    /// Whether world point `p` is inside the solid of a visible layer.
+    /// Whether world point `p` is inside the solid of a visible layer (or the world).
     pub fn solid_at(&self, p: DVec3) -> bool {
-        self.scene
-            .layers
-            .iter()
-            .filter(|l| l.visible && l.transform.is_valid())
-            .any(|l| l.volume.is_inside(l.transform.to_grid(p)))
+        crate::editor::surfaces(&self.scene.layers, self.world.as_ref())
+            .into_iter()
+            .filter(|l| l.shown() && l.transform().is_valid())
+            .any(|l| l.volume().is_inside(l.transform().to_grid(p)))
     }
 
     /// [`Editor::pick`], also returning how many chunks it walked in all.
@@ -92,15 +93,14 @@ impl Editor {
             return (None, 0);
         }
         // (entry parameter, layer) for every visible layer whose chunk box the ray meets.
-        let mut candidates: Vec<(f64, usize)> = self
-            .scene
-            .layers
+        let surfaces = crate::editor::surfaces(&self.scene.layers, self.world.as_ref());
+        let mut candidates: Vec<(f64, usize)> = surfaces
             .iter()
             .enumerate()
-            .filter(|(_, l)| l.visible && l.transform.is_valid())
+            .filter(|(_, l)| l.shown() && l.transform().is_valid())
             .filter_map(|(i, l)| {
-                let (lo, hi) = l.volume.chunk_bounds_grid()?;
-                let tr = &l.transform;
+                let (lo, hi) = l.volume().chunk_bounds_grid()?;
+                let tr = &l.transform();
                 let (t0, t1) = strata_volume::clip_to_box(tr.to_grid(origin), tr.dir_to_grid(dir), lo, hi)?;
                 (t1 >= 0.0 && t0 <= max_t).then_some((t0.max(0.0), i))
             })
@@ -112,10 +112,10 @@ impl Editor {
             if best.is_some_and(|b| b.t <= entry) || steps_left == 0 {
                 break;
             }
-            let l = &self.scene.layers[i];
-            let tr = &l.transform;
+            let l = surfaces[i];
+            let tr = &l.transform();
             let limit = best.map_or(max_t, |b| b.t.min(max_t));
-            let (hit, walked) = l.volume.raycast_limited(tr.to_grid(origin), tr.dir_to_grid(dir), limit, steps_left);
+            let (hit, walked) = l.volume().raycast_limited(tr.to_grid(origin), tr.dir_to_grid(dir), limit, steps_left);
             steps_left = steps_left.saturating_sub(walked);
             if let Some(hit) = hit
                 && best.is_none_or(|b| hit.t < b.t)

@@ -114,6 +114,11 @@ pub(crate) fn field_tool_dab(
     }
 }
 
+/// The box around a ball (grid coordinates): the reach a world loads before a dab.
+fn ball_bounds(centre: DVec3, radius: f64) -> strata_volume::brush::Aabb {
+    strata_volume::brush::Aabb::new(centre - DVec3::splat(radius), centre + DVec3::splat(radius))
+}
+
 /// The list chunks of `volume` that a ball (grid coordinates) reaches.
 fn chunks_in_ball(volume: &Volume, center: DVec3, radius: f64) -> Vec<ChunkKey> {
     let c = strata_volume::coords::CHUNK_CELLS as f64;
@@ -159,13 +164,13 @@ impl Editor {
     }
 
     fn stroke_to(&mut self, pose: &ToolPose, report: &mut FrameReport) -> Result<(), EditorError> {
-        let layer = self.active_layer;
+        let layer = self.active_surface();
         self.check_editable(layer)?;
         self.check_material()?;
         let inverted = pose.inverted();
         let tool = self.tool_for(pose);
         let spacing = tool.dab_spacing();
-        let transform = self.scene.layers[layer].transform;
+        let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
         let continuing =
             matches!(&self.stroke, Some(s) if s.layer == layer && s.inverted == inverted && s.kind == tool.kind);
         if !continuing {
@@ -205,19 +210,23 @@ impl Editor {
             for (k, (at, orientation)) in images.into_iter().enumerate() {
                 let (edit, reach) = if tool.kind.is_field_tool() {
                     let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
-                    let l = &mut self.scene.layers[layer];
-                    let edit =
-                        field_tool_dab(&tool, &l.transform, &mut l.volume, at, pose.pressure, inverted, direction)?;
                     // Clay's and inflate's change stays within the ball; a tenth more covers the
                     // surface it moved.
-                    (edit, tool.radius_at(pose.pressure) * 1.1)
+                    let reach = tool.radius_at(pose.pressure) * 1.1;
+                    let bounds = ball_bounds(transform.to_grid(at), reach / transform.scale);
+                    let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+                    let edit = target.edit(&bounds, &mut |v| {
+                        Ok(field_tool_dab(&tool, &transform, v, at, pose.pressure, inverted, direction)?)
+                    })?;
+                    (edit, reach)
                 } else {
                     let brush = tool.brush(&transform, at, orientation, pose.pressure)?;
                     let settings = EditSettings { material: tool.material, ..self.settings.clone() };
                     let b = brush.bounds();
                     // The ball around the brush's box (grid units to world).
                     let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
-                    (self.scene.layers[layer].volume.apply(op, brush.as_ref(), &settings)?, reach)
+                    let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+                    (target.edit(&b, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?, reach)
                 };
                 self.record(layer, edit);
                 if tool.kind.builds_or_carves() {
@@ -252,25 +261,30 @@ impl Editor {
             return Ok(());
         }
         let anchor = s.anchor;
-        let transform = self.scene.layers[layer].transform;
+        let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
         // Grab follows the pointer one to one: the material under the anchor moves as far as
         // the pointer (the falloff takes the rest of the ball along less far).
         let strength = 1.0;
         let radius = tool.radius_at(pose.pressure) / transform.scale;
         let mut done: Vec<EditReport> = Vec::new();
+        let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
         for (at, d) in tool.mirrored_with_vector(&transform, anchor, drag) {
-            let result = strata_volume::tools::Dab::new(transform.to_grid(at), radius, strength).and_then(|dab| {
-                let volume = &mut self.scene.layers[layer].volume;
-                strata_volume::tools::grab(volume, &dab, transform.rotation.inverse() * d / transform.scale)
+            let centre = transform.to_grid(at);
+            let moved = transform.rotation.inverse() * d / transform.scale;
+            let bounds = ball_bounds(centre, radius + moved.length());
+            let result = target.edit(&bounds, &mut |volume| {
+                let dab = strata_volume::tools::Dab::new(centre, radius, strength)?;
+                Ok(strata_volume::tools::grab(volume, &dab, moved)?)
             });
             match result {
                 Ok(edit) => done.push(edit),
                 Err(e) => {
-                    // A refused drag changes nothing, mirrored images included.
+                    // A refused drag changes nothing, mirrored images included (the chunks
+                    // they changed are in memory: they were just edited).
                     for edit in done.into_iter().rev() {
-                        self.scene.layers[layer].volume.restore(edit.undo);
+                        target.restore(edit.undo);
                     }
-                    return Err(e.into());
+                    return Err(e);
                 }
             }
         }

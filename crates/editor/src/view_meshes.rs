@@ -1,6 +1,7 @@
-//! The viewport's meshes: for every surface (a scene layer) one [`SurfaceMeshes`], made by one
-//! of the mesh back-ends ([`Backend`]), remeshed within a frame's time budget, and the list of
-//! what changed since the renderer was last told ([`ChangeList`]).
+//! The viewport's meshes: for every surface (a scene layer, or a streamed world: see
+//! [`crate::target`]) one [`SurfaceMeshes`], made by one of the mesh back-ends ([`Backend`]),
+//! remeshed within a frame's time budget, and the list of what changed since the renderer was
+//! last told ([`ChangeList`]).
 //!
 //! A surface's chunks go through three states: *queued* (an edit or a level-of-detail change
 //! touched them), *staged* (remeshed, waiting until no queued neighbour can still move a seam
@@ -10,11 +11,13 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use strata_mesh::{BlockMesher, DualCache, Mesh, MeshCache, MeshOptions, Mesher};
+use glam::DVec3;
+use strata_mesh::{BlockMesher, DualCache, Mesh, MeshCache, MeshOptions, MeshWorkers, Mesher};
 use strata_volume::{ChunkKey, Level, Reach, Volume};
 
 use crate::lod::{LodView, lod_levels};
-use crate::scene::{Layer, LayerTransform, Material};
+use crate::scene::{LayerTransform, Material};
+use crate::target::EditTarget;
 
 /// How a surface's viewport meshes are made.
 #[derive(Debug)]
@@ -25,6 +28,19 @@ enum Backend {
     /// Dual contouring: the cache finds and rebuilds what the queued chunks affect, in one
     /// parallel pass (no time budget, no level of detail).
     Dual(DualCache),
+    /// A streamed world's chunks, marching cubes on worker threads from snapshots of each
+    /// chunk's neighbourhood, handed out nearest the focus first within the frame's budget;
+    /// chunks that leave memory lose their meshes.
+    Streamed(Streamed),
+}
+
+/// The streamed back-end's state.
+#[derive(Debug)]
+struct Streamed {
+    workers: MeshWorkers,
+    meshes: HashMap<ChunkKey, Mesh>,
+    /// Where the viewer is (grid units): queued chunks nearest it are meshed first.
+    focus: DVec3,
 }
 
 /// One surface's meshes and the work waiting for them.
@@ -41,10 +57,16 @@ struct SurfaceMeshes {
 }
 
 impl SurfaceMeshes {
-    /// A surface of `volume` meshed by `options`, every chunk queued.
-    fn new(options: MeshOptions, volume: &Volume, lod: HashMap<ChunkKey, Level>) -> Self {
+    /// A surface of `volume` meshed by `options` (a streamed surface by workers whatever the
+    /// options), every chunk queued.
+    fn new(options: MeshOptions, volume: &Volume, lod: HashMap<ChunkKey, Level>, streamed: bool) -> Self {
         let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
         let (backend, queued) = match options.mesher.block() {
+            _ if streamed => {
+                let s = Streamed { workers: MeshWorkers::new(1), meshes: HashMap::new(), focus: DVec3::ZERO };
+                let queued = stored.iter().flat_map(|&k| MeshWorkers::readers(volume, k)).collect();
+                (Backend::Streamed(s), queued)
+            }
             Some(block) => {
                 let mut c = MeshCache::with_mesher(block);
                 // Bounds are checked by `Editor::set_view_mesher`.
@@ -64,6 +86,7 @@ impl SurfaceMeshes {
         match &self.backend {
             Backend::Blocks(c) => c.mesh(key),
             Backend::Dual(d) => d.mesh(key).map(|m| &m.mesh),
+            Backend::Streamed(s) => s.meshes.get(&key),
         }
     }
 
@@ -71,6 +94,7 @@ impl SurfaceMeshes {
         match &self.backend {
             Backend::Blocks(c) => c.iter().collect(),
             Backend::Dual(d) => d.iter().map(|(k, m)| (k, &m.mesh)).collect(),
+            Backend::Streamed(s) => s.meshes.iter().map(|(k, m)| (*k, m)).collect(),
         }
     }
 
@@ -78,11 +102,13 @@ impl SurfaceMeshes {
         match &self.backend {
             Backend::Blocks(c) => c.triangle_count(),
             Backend::Dual(d) => d.triangle_count(),
+            Backend::Streamed(s) => s.meshes.values().map(Mesh::triangle_count).sum(),
         }
     }
 
     fn pending(&self) -> usize {
-        self.queued.len() + self.staged.len()
+        let working = if let Backend::Streamed(s) = &self.backend { s.workers.pending() } else { 0 };
+        self.queued.len() + self.staged.len() + working
     }
 
     /// Shows the staged meshes that no queued chunk can still change the seams of: a staged
@@ -151,8 +177,8 @@ pub(crate) struct ViewMeshes {
 }
 
 impl ViewMeshes {
-    /// Meshes of `layers` by `options`, every chunk queued.
-    pub(crate) fn new(options: MeshOptions, layers: &[Layer]) -> Self {
+    /// Meshes of `surfaces` by `options`, every chunk queued.
+    pub(crate) fn new(options: MeshOptions, surfaces: &[&dyn EditTarget]) -> Self {
         let mut m = ViewMeshes {
             options,
             surfaces: Vec::new(),
@@ -161,18 +187,21 @@ impl ViewMeshes {
             shown: None,
             unshown: BTreeSet::new(),
         };
-        m.reset(layers, false);
+        m.reset(surfaces, false);
         m
     }
 
-    /// Drops every mesh and queues every chunk of `layers` (after layers are added, removed or
+    /// Drops every mesh and queues every chunk of `surfaces` (after layers are added, removed or
     /// replaced), keeping the level-of-detail caps where `keep_lod` (same layers, another mesher).
-    pub(crate) fn reset(&mut self, layers: &[Layer], keep_lod: bool) {
+    pub(crate) fn reset(&mut self, surfaces: &[&dyn EditTarget], keep_lod: bool) {
         let mut lods: Vec<HashMap<ChunkKey, Level>> =
             if keep_lod { self.surfaces.iter_mut().map(|s| std::mem::take(&mut s.lod)).collect() } else { Vec::new() };
-        lods.resize_with(layers.len(), HashMap::new);
-        self.surfaces =
-            layers.iter().zip(lods).map(|(l, lod)| SurfaceMeshes::new(self.options, &l.volume, lod)).collect();
+        lods.resize_with(surfaces.len(), HashMap::new);
+        self.surfaces = surfaces
+            .iter()
+            .zip(lods)
+            .map(|(t, lod)| SurfaceMeshes::new(self.options, t.volume(), lod, t.streamed()))
+            .collect();
         self.generation += 1;
         self.unshown.clear();
     }
@@ -183,10 +212,10 @@ impl ViewMeshes {
     }
 
     /// Meshes with `options` from now on (checked by the caller), every chunk queued again.
-    pub(crate) fn set_options(&mut self, options: MeshOptions, layers: &[Layer]) {
+    pub(crate) fn set_options(&mut self, options: MeshOptions, surfaces: &[&dyn EditTarget]) {
         if options != self.options {
             self.options = options;
-            self.reset(layers, true);
+            self.reset(surfaces, true);
         }
     }
 
@@ -197,25 +226,116 @@ impl ViewMeshes {
         match &mut s.backend {
             Backend::Blocks(c) => s.queued.extend(c.note(volume, changed, reach)),
             Backend::Dual(_) => s.queued.extend(changed.iter().copied()),
+            // A streamed surface learns of its changes from the world ([`ViewMeshes::streamed_changes`]).
+            Backend::Streamed(_) => {}
+        }
+    }
+
+    /// Tells streamed surface `surface` (whose volume is `volume`) that chunks `changed` were
+    /// loaded, evicted or edited: the loaded chunks that read them are queued, the others lose
+    /// their meshes (listed in the next change list).
+    pub(crate) fn streamed_changes(
+        &mut self,
+        surface: usize,
+        volume: &Volume,
+        changed: &[ChunkKey],
+        loaded: &dyn Fn(ChunkKey) -> bool,
+    ) {
+        let Some(s) = self.surfaces.get_mut(surface) else { return };
+        let Backend::Streamed(st) = &mut s.backend else { return };
+        let mut dropped = Vec::new();
+        for &k in changed {
+            for d in MeshWorkers::readers(volume, k) {
+                if loaded(d) {
+                    s.queued.insert(d);
+                } else {
+                    s.queued.remove(&d);
+                    st.workers.cancel(d);
+                    if st.meshes.remove(&d).is_some() {
+                        dropped.push((surface, d));
+                    }
+                }
+            }
+        }
+        self.shown_now(&dropped);
+    }
+
+    /// Meshes a streamed surface's queued chunks nearest `focus` first (grid units).
+    pub(crate) fn set_focus(&mut self, focus: DVec3) {
+        for s in &mut self.surfaces {
+            if let Backend::Streamed(st) = &mut s.backend
+                && focus.is_finite()
+            {
+                st.focus = focus;
+            }
+        }
+    }
+
+    /// Notes chunks shown (or dropped) for the next change list, when a renderer follows.
+    fn shown_now(&mut self, shown: &[(usize, ChunkKey)]) {
+        // Only what a renderer already showing these surfaces needs; otherwise the next list is
+        // full anyway (and nothing accumulates in an editor no renderer follows).
+        if self.shown.as_ref().is_some_and(|s| s.generation == self.generation) {
+            self.unshown.extend(shown.iter().copied());
         }
     }
 
     /// Remeshes queued chunks, in batches, until `budget` is spent (at least one batch), then
     /// shows the new meshes that can be shown without a crack. Returns the chunks shown, and the
     /// chunks still queued or staged.
-    pub(crate) fn remesh(&mut self, layers: &[Layer], budget: Duration) -> (Vec<(usize, ChunkKey)>, usize) {
+    pub(crate) fn remesh(
+        &mut self,
+        surfaces: &[&dyn EditTarget],
+        loaded: &dyn Fn(ChunkKey) -> bool,
+        budget: Duration,
+    ) -> (Vec<(usize, ChunkKey)>, usize) {
         let t0 = Instant::now();
         const BATCH: usize = 16;
         let mut computed = false;
         let mut shown = Vec::new();
         // Level of detail caps only marching cubes (tetrahedra do not patch seams between levels).
         let lod_on = self.options.mesher == Mesher::MarchingCubes;
-        for (layer, (s, l)) in self.surfaces.iter_mut().zip(layers).enumerate() {
+        for (layer, (s, l)) in self.surfaces.iter_mut().zip(surfaces).enumerate() {
+            let volume = l.volume();
             match &mut s.backend {
                 Backend::Dual(d) => {
                     if !s.queued.is_empty() {
                         let queued: Vec<ChunkKey> = std::mem::take(&mut s.queued).into_iter().collect();
-                        shown.extend(d.update(&l.volume, &queued).into_iter().map(|k| (layer, k)));
+                        shown.extend(d.update(volume, &queued).into_iter().map(|k| (layer, k)));
+                    }
+                    continue;
+                }
+                Backend::Streamed(st) => {
+                    let focus = st.focus;
+                    let distance = |k: &ChunkKey| {
+                        let centre = k.origin_grid().as_dvec3() + DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64 / 2.0);
+                        centre.distance_squared(focus)
+                    };
+                    let mut order: Vec<(f64, ChunkKey)> = s.queued.iter().map(|k| (distance(k), *k)).collect();
+                    order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                    for (_, k) in order {
+                        if t0.elapsed() >= budget {
+                            break;
+                        }
+                        s.queued.remove(&k);
+                        if loaded(k) {
+                            st.workers.submit(volume, k);
+                        }
+                    }
+                    for (k, mesh) in st.workers.finished() {
+                        // A chunk that left memory meanwhile keeps no mesh.
+                        if !loaded(k) {
+                            continue;
+                        }
+                        let had = if mesh.indices.is_empty() {
+                            st.meshes.remove(&k).is_some()
+                        } else {
+                            st.meshes.insert(k, mesh);
+                            true
+                        };
+                        if had {
+                            shown.push((layer, k));
+                        }
                     }
                     continue;
                 }
@@ -229,18 +349,14 @@ impl ViewMeshes {
                         let cap = |k: ChunkKey| lod.get(&k).copied().unwrap_or(Level::FINEST);
                         let capped: Option<strata_mesh::LevelCap<'_>> =
                             if lod.is_empty() || !lod_on { None } else { Some(&cap) };
-                        s.staged.extend(cache.compute(&l.volume, &batch, capped));
+                        s.staged.extend(cache.compute(volume, &batch, capped));
                         computed = true;
                     }
                 }
             }
             shown.extend(s.commit_staged().into_iter().map(|k| (layer, k)));
         }
-        // Only what a renderer already showing these layers needs; otherwise the next list is
-        // full anyway (and nothing accumulates in an editor no renderer follows).
-        if self.shown.as_ref().is_some_and(|s| s.generation == self.generation) {
-            self.unshown.extend(shown.iter().copied());
-        }
+        self.shown_now(&shown);
         (shown, self.pending())
     }
 
@@ -248,11 +364,15 @@ impl ViewMeshes {
     /// meshed at the coarsest level whose cell looks no larger than the view's pixel error from
     /// the eye (see [`LodView`]); chunks whose level changes are queued with their neighbours.
     /// `None` meshes everything at its stored level.
-    pub(crate) fn set_view(&mut self, layers: &[Layer], view: Option<LodView>) {
+    pub(crate) fn set_view(&mut self, surfaces: &[&dyn EditTarget], view: Option<LodView>) {
         self.view = view;
-        for (s, l) in self.surfaces.iter_mut().zip(layers) {
+        for (s, l) in self.surfaces.iter_mut().zip(surfaces) {
+            if matches!(s.backend, Backend::Streamed(_)) {
+                // A world chooses its chunks' levels as it streams them.
+                continue;
+            }
             let next = match view.filter(LodView::is_valid) {
-                Some(v) => lod_levels(&l.volume, &l.transform, &v, &s.lod),
+                Some(v) => lod_levels(l.volume(), &l.transform(), &v, &s.lod),
                 None => HashMap::new(),
             };
             let old = std::mem::replace(&mut s.lod, next);
@@ -288,7 +408,7 @@ impl ViewMeshes {
     pub(crate) fn mesh_cache(&self, layer: usize) -> Option<&MeshCache> {
         match &self.surfaces.get(layer)?.backend {
             Backend::Blocks(c) => Some(c),
-            Backend::Dual(_) => None,
+            Backend::Dual(_) | Backend::Streamed(_) => None,
         }
     }
 
@@ -296,6 +416,7 @@ impl ViewMeshes {
     pub(crate) fn mesher_used(&self, layer: usize) -> Option<Mesher> {
         Some(match &self.surfaces.get(layer)?.backend {
             Backend::Dual(_) => self.options.mesher,
+            Backend::Streamed(_) => Mesher::MarchingCubes,
             Backend::Blocks(c) => match c.mesher_used() {
                 BlockMesher::MarchingCubes => Mesher::MarchingCubes,
                 BlockMesher::Tetrahedra => Mesher::Tetrahedra,
@@ -320,8 +441,8 @@ impl ViewMeshes {
     }
 
     /// The next change list for a renderer showing `layers`' meshes (see [`ChangeList`]).
-    pub(crate) fn take_changes(&mut self, layers: &[Layer], materials: &[Material]) -> ChangeList {
-        let placements: Vec<(LayerTransform, bool)> = layers.iter().map(|l| (l.transform, l.visible)).collect();
+    pub(crate) fn take_changes(&mut self, surfaces: &[&dyn EditTarget], materials: &[Material]) -> ChangeList {
+        let placements: Vec<(LayerTransform, bool)> = surfaces.iter().map(|l| (l.transform(), l.shown())).collect();
         let unshown = std::mem::take(&mut self.unshown);
         match &mut self.shown {
             Some(was) if was.generation == self.generation && was.placements.len() == placements.len() => {

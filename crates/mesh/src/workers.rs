@@ -27,7 +27,9 @@ struct Job {
 /// Meshes chunks on worker threads (see the module docs).
 pub struct MeshWorkers {
     jobs: Option<Sender<Job>>,
-    done: Receiver<(ChunkKey, u64, Mesh)>,
+    /// (In a mutex only so that the struct is `Sync`, as an editor holding it is shared by
+    /// reference; it is reached through `&mut self` by `get_mut`, never locked.)
+    done: std::sync::Mutex<Receiver<(ChunkKey, u64, Mesh)>>,
     latest: HashMap<ChunkKey, u64, BuildHasherDefault<KeyHasher>>,
     next: u64,
     workers: Vec<JoinHandle<()>>,
@@ -72,7 +74,7 @@ impl MeshWorkers {
                     .expect("a mesher thread starts")
             })
             .collect();
-        MeshWorkers { jobs: Some(tx), done, latest: HashMap::default(), next: 0, workers }
+        MeshWorkers { jobs: Some(tx), done: std::sync::Mutex::new(done), latest: HashMap::default(), next: 0, workers }
     }
 
     /// The chunks the mesh of `key` reads in `volume`.
@@ -113,7 +115,8 @@ impl MeshWorkers {
     /// Meshes finished since the last call, of the latest request for their chunk.
     pub fn finished(&mut self) -> Vec<(ChunkKey, Mesh)> {
         let mut out = Vec::new();
-        while let Ok((key, ticket, mesh)) = self.done.try_recv() {
+        let done = self.done.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
+        while let Ok((key, ticket, mesh)) = done.try_recv() {
             if self.latest.get(&key) == Some(&ticket) {
                 self.latest.remove(&key);
                 out.push((key, mesh));

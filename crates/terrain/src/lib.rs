@@ -11,7 +11,8 @@
 //!   generates, in an embedded transactional database (`redb`);
 //! - [`World`]: a streamed, editable world: chunks generated or paged in around viewers by worker
 //!   threads in order of distance, integrated under a per-frame budget, evicted beyond the view
-//!   distance, edited with undo, flushed periodically and on eviction.
+//!   distance, edited (each edit's undo record handed to the caller, restored across eviction),
+//!   flushed periodically and on eviction.
 //!
 //! Generation is a pure function of the recipe and the chunk key: the same recipe gives the same
 //! bytes on any number of threads and in any order.

@@ -12,9 +12,10 @@
 //!
 //! Edits ([`World::edit`]) first load, synchronously, every chunk within one chunk of the edit's
 //! box, so an edit never writes into a chunk whose contents are not in memory; the chunks it
-//! changed are marked edited. Undo and redo load the chunks they restore the same way, so they
-//! work across eviction and reload; their records are bounded by
-//! [`WorldSettings::history_budget`] (the oldest steps are forgotten first, as in the editor). A crash loses at most the edits of the last flush interval
+//! changed are marked edited. The world keeps no history: the edit's report carries its undo
+//! record, which the editor's budgeted history keeps (`strata_editor::Editor::on_world`), and
+//! [`World::restore`] loads the chunks a record restores the same way, so undo works across
+//! eviction and reload. A crash loses at most the edits of the last flush interval
 //! ([`WorldSettings::flush_interval`]); a flush is one transaction.
 
 use std::collections::{HashMap, HashSet};
@@ -57,9 +58,6 @@ pub struct WorldSettings {
     pub detail_distance: f64,
     /// The level of the chunks near the viewers (1: 32³ cells a chunk, 2: 64³).
     pub detail_level: Level,
-    /// Heap bytes the undo and redo records may hold together (as the editor's history):
-    /// past it the oldest undo steps are forgotten (their edits stay), the newest always kept.
-    pub history_budget: usize,
 }
 
 impl Default for WorldSettings {
@@ -73,7 +71,6 @@ impl Default for WorldSettings {
             memory_budget: 512 << 20,
             detail_distance: 0.0,
             detail_level: Level::new(1).expect("level 1 exists"),
-            history_budget: 512 << 20,
         }
     }
 }
@@ -182,14 +179,11 @@ pub struct World {
     changed: Vec<ChunkKey>,
     /// Notes written with the next flush.
     notes: Vec<(String, Vec<u8>)>,
-    undo: Vec<UndoRecord>,
-    redo: Vec<UndoRecord>,
-    /// Heap bytes of the records in `undo` and `redo`, kept as they come and go (a sum over
-    /// every record per edit would grow with the session).
-    history_bytes: usize,
     last_flush: Instant,
     shared: Arc<Shared>,
-    results: Receiver<Done>,
+    /// (In a mutex only so that the world is `Sync`, as an editor holding it is shared by
+    /// reference; it is reached through `&mut self` by `get_mut`, never locked.)
+    results: Mutex<Receiver<Done>>,
     workers: Vec<JoinHandle<()>>,
 }
 
@@ -278,12 +272,9 @@ impl World {
             stencil: Arc::new([]),
             changed: Vec::new(),
             notes: Vec::new(),
-            undo: Vec::new(),
-            redo: Vec::new(),
-            history_bytes: 0,
             last_flush: Instant::now(),
             shared,
-            results: rx,
+            results: Mutex::new(rx),
             workers,
         })
     }
@@ -542,7 +533,8 @@ impl World {
             self.shared.wake.notify_all();
         }
         // Integrate finished chunks, nearest first, within the frame budget and memory budget.
-        while let Ok(done) = self.results.try_recv() {
+        let results = self.results.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
+        while let Ok(done) = results.try_recv() {
             if self.pending.get(&done.key) == Some(&done.ticket) {
                 self.ready.push(done);
             }
@@ -651,7 +643,8 @@ impl World {
     }
 
     /// Runs an edit on the loaded volume after loading every chunk near `bounds`; the chunks it
-    /// changed are marked edited and it joins the undo history.
+    /// changed are marked edited. The report's undo record is the caller's to keep (the world
+    /// keeps no history; [`World::restore`] takes a record back).
     pub fn edit<E: std::fmt::Display>(
         &mut self,
         bounds: Aabb,
@@ -668,11 +661,6 @@ impl World {
         let before = self.bytes_of(&near);
         let report = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()))?;
         self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
-        self.history_bytes -= self.redo.drain(..).map(|r| r.heap_bytes()).sum::<usize>();
-        let record = report.undo.clone();
-        self.history_bytes += record.heap_bytes();
-        self.undo.push(record);
-        self.trim_history();
         Ok(report)
     }
 
@@ -700,58 +688,19 @@ impl World {
         }
     }
 
-    fn restore(&mut self, record: UndoRecord) -> Result<UndoRecord, WorldError> {
+    /// Restores an undo record of an edit of this world (loading, first, the chunks it restores
+    /// that left memory: undo works across eviction and reload) and marks them edited. Returns
+    /// the record that takes this back. When a chunk cannot be loaded nothing changes and the
+    /// record is handed back with the error.
+    pub fn restore(&mut self, record: UndoRecord) -> Result<UndoRecord, (WorldError, UndoRecord)> {
         let keys: Vec<ChunkKey> = record.keys().collect();
-        self.load_now(&keys)?;
+        if let Err(e) = self.load_now(&keys) {
+            return Err((e, record));
+        }
         let before = self.bytes_of(&keys);
         let back = self.volume.restore(record);
         self.after_change(&keys, &before);
         Ok(back)
-    }
-
-    /// Heap bytes of the undo and redo records.
-    pub fn history_bytes(&self) -> usize {
-        debug_assert_eq!(
-            self.history_bytes,
-            self.undo.iter().chain(&self.redo).map(UndoRecord::heap_bytes).sum::<usize>()
-        );
-        self.history_bytes
-    }
-
-    /// Edits that can be undone.
-    pub fn undo_len(&self) -> usize {
-        self.undo.len()
-    }
-
-    /// Forgets the oldest undo steps while the records hold more than the history budget
-    /// (the newest step always stays).
-    fn trim_history(&mut self) {
-        let mut drop = 0;
-        while self.history_bytes > self.settings.history_budget && self.undo.len() - drop > 1 {
-            self.history_bytes -= self.undo[drop].heap_bytes();
-            drop += 1;
-        }
-        self.undo.drain(..drop);
-    }
-
-    /// Undoes the last edit; `false` when there is none.
-    pub fn undo(&mut self) -> Result<bool, WorldError> {
-        let Some(record) = self.undo.pop() else { return Ok(false) };
-        self.history_bytes -= record.heap_bytes();
-        let redo = self.restore(record)?;
-        self.history_bytes += redo.heap_bytes();
-        self.redo.push(redo);
-        Ok(true)
-    }
-
-    /// Redoes the last undone edit; `false` when there is none.
-    pub fn redo(&mut self) -> Result<bool, WorldError> {
-        let Some(record) = self.redo.pop() else { return Ok(false) };
-        self.history_bytes -= record.heap_bytes();
-        let undo = self.restore(record)?;
-        self.history_bytes += undo.heap_bytes();
-        self.undo.push(undo);
-        Ok(true)
     }
 
     /// Writes every edited chunk not yet written, in one transaction. A chunk edited back to what
@@ -798,16 +747,6 @@ impl World {
     pub fn set_note(&mut self, name: &str, value: Vec<u8>) {
         self.notes.retain(|(n, _)| n != name);
         self.notes.push((name.to_string(), value));
-    }
-
-    /// Whether an undo is available.
-    pub fn can_undo(&self) -> bool {
-        !self.undo.is_empty()
-    }
-
-    /// Whether a redo is available.
-    pub fn can_redo(&self) -> bool {
-        !self.redo.is_empty()
     }
 
     /// Blocks until every requested chunk is integrated or `timeout` passes (tests, tools);

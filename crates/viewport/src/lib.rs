@@ -14,7 +14,7 @@
 use std::path::Path;
 
 use glam::Mat4;
-use strata_editor::{ChangeList, Editor, Layer, Scene, View};
+use strata_editor::{ChangeList, Editor, Layer, LayerTransform, Scene, View};
 use strata_mesh::Mesh;
 use strata_render::{
     Camera, DrawMesh, FrameSettings, Gpu, MeshId, MeshRef, PaletteEntry, Placement, RenderError, Renderer,
@@ -57,6 +57,10 @@ pub fn upload_chunk(
     renderer.upload_mesh(device, queue, chunk_id(group, key), mesh_ref(mesh), chunk_placement(model, key), [1.0; 3]);
 }
 
+/// The id of a mesh drawn over the surfaces that is not one of them (terrain mode's debris): a
+/// group no surface uses (surfaces are groups from 0 up).
+pub const OVERLAY_ID: MeshId = MeshId { group: u32::MAX, key: [0; 3] };
+
 /// The scene's materials as the renderer's palette.
 pub fn palette(scene: &Scene) -> Vec<PaletteEntry> {
     scene
@@ -68,7 +72,11 @@ pub fn palette(scene: &Scene) -> Vec<PaletteEntry> {
 
 /// A layer's grid-to-world matrix.
 pub fn layer_model(layer: &Layer) -> Mat4 {
-    let t = &layer.transform;
+    transform_model(&layer.transform)
+}
+
+/// The grid-to-world matrix of a surface's transform (a layer's, or a world's identity).
+pub fn transform_model(t: &LayerTransform) -> Mat4 {
     Mat4::from_scale_rotation_translation(
         glam::Vec3::splat(t.scale as f32),
         t.rotation.as_quat(),
@@ -92,14 +100,17 @@ pub fn view_of(c: &Camera) -> View {
     View { target: c.target.as_dvec3(), distance: c.distance as f64, yaw: c.yaw as f64, pitch: c.pitch as f64 }
 }
 
-/// Every chunk mesh of every visible layer of `editor`'s scene, as the renderer draws it.
+/// The visible surface `i` of `editor` (a layer, or its world) and its grid-to-world matrix.
+fn shown_surface(editor: &Editor, i: usize) -> Option<Mat4> {
+    editor.surface(i).filter(|s| s.shown()).map(|s| transform_model(&s.transform()))
+}
+
+/// Every chunk mesh of every visible surface of `editor` (its scene's layers, or its world), as
+/// the renderer draws it.
 pub fn scene_meshes(editor: &Editor) -> Vec<DrawMesh<'_>> {
     let mut out = Vec::new();
-    for (i, layer) in editor.scene.layers.iter().enumerate() {
-        if !layer.visible {
-            continue;
-        }
-        let model = layer_model(layer);
+    for i in 0..editor.surface_count() {
+        let Some(model) = shown_surface(editor, i) else { continue };
         for (key, mesh) in editor.chunk_meshes(i) {
             out.push(DrawMesh {
                 id: chunk_id(i as u32, key),
@@ -114,7 +125,8 @@ pub fn scene_meshes(editor: &Editor) -> Vec<DrawMesh<'_>> {
 
 /// Brings `renderer` up to date with `editor`'s viewport meshes by the change list `changes`
 /// (from [`Editor::take_changes`]): the one road from the editor's meshes to the GPU, for the
-/// studio's window and for headless renders alike. Meshes are group `i` for layer `i`.
+/// studio's window and for headless renders alike, for scenes and worlds. Meshes are group `i`
+/// for surface `i` (layer `i`, or the world after the layers).
 pub fn apply_changes(
     editor: &Editor,
     changes: &ChangeList,
@@ -129,26 +141,23 @@ pub fn apply_changes(
     if changes.palette {
         renderer.set_palette(queue, &palette(&editor.scene));
     }
-    let layers = &editor.scene.layers;
     for &i in &changes.layers {
         renderer.clear_group(i as u32);
-        let Some(layer) = layers.get(i).filter(|l| l.visible) else { continue };
-        let model = layer_model(layer);
+        let Some(model) = shown_surface(editor, i) else { continue };
         for (key, mesh) in editor.chunk_meshes(i) {
             upload_chunk(renderer, device, queue, i as u32, key, mesh, model);
         }
     }
     for &(i, key) in &changes.meshes {
-        let layer = layers.get(i).filter(|l| l.visible);
-        match layer.and_then(|l| editor.chunk_mesh(i, key).map(|m| (l, m))) {
-            Some((l, mesh)) => upload_chunk(renderer, device, queue, i as u32, key, mesh, layer_model(l)),
+        match shown_surface(editor, i).and_then(|model| editor.chunk_mesh(i, key).map(|m| (model, m))) {
+            Some((model, mesh)) => upload_chunk(renderer, device, queue, i as u32, key, mesh, model),
             None => renderer.remove_mesh(chunk_id(i as u32, key)),
         }
     }
 }
 
 /// Replaces everything `renderer` holds with `editor`'s scene: its palette and every chunk
-/// mesh of every visible layer.
+/// mesh of every visible surface.
 pub fn upload_scene(editor: &Editor, device: &wgpu::Device, queue: &wgpu::Queue, renderer: &mut Renderer) {
     renderer.clear();
     renderer.set_palette(queue, &palette(&editor.scene));

@@ -51,7 +51,9 @@ impl StudioApp {
             C::New => self.guard(ctx, Then::New),
             C::Help => self.help_open = !self.help_open,
             C::CloseHelp => self.help_open = false,
-            _ if self.studio.terrain.is_some() => self.terrain_command(command),
+            _ if self.studio.terrain.is_some() && crate::keymap::binding(command).is_some_and(|b| b.terrain.is_some()) => {
+                self.terrain_command(command)
+            }
             C::RadiusDown => {
                 let _ = self.studio.act(Action::ScaleRadius(1.0 / 1.15));
             }
@@ -88,24 +90,16 @@ impl StudioApp {
         }
     }
 
-    /// Terrain mode's keys (WASD, Q and E fly, read as held keys in the viewport): B (the
-    /// scene's next-shape key) bombs,
-    /// [ and ] size the dig.
+    /// The keys whose binding says they mean something else in terrain mode: B (the scene's
+    /// next-shape key) bombs, the fly keys (read as held keys by the viewport) do nothing here;
+    /// every other key works as in a scene.
     pub(super) fn terrain_command(&mut self, command: Command) {
-        use Command as C;
         match command {
-            C::NextShape => {
+            Command::NextShape => {
                 let _ = self.studio.act(Action::Bomb);
             }
-            C::RadiusDown => {
-                if let Some(t) = self.studio.terrain.as_mut() {
-                    t.brush_radius = (t.brush_radius / 1.25).max(1.0);
-                }
-            }
-            C::RadiusUp => {
-                if let Some(t) = self.studio.terrain.as_mut() {
-                    t.brush_radius = (t.brush_radius * 1.25).min(40.0);
-                }
+            Command::Save => {
+                let _ = self.studio.act(Action::Save);
             }
             _ => {}
         }

@@ -6,6 +6,10 @@ use super::*;
 impl StudioApp {
     pub(super) fn layers(&mut self, ui: &mut egui::Ui) {
         ui.heading("Layers");
+        if self.studio.terrain.is_some() {
+            ui.label("Terrain mode: the tools edit the world. Terrain > Close world goes back to the scene's layers.");
+            return;
+        }
         let mut changed = false;
         let mut edited = false;
         let active = self.studio.editor.active_layer;

@@ -130,7 +130,9 @@ impl StudioApp {
                     ui.close();
                 }
                 let settled = mesher_choice(ui, true, "Viewport mesher", &mut self.studio.view_draft);
-                if settled && self.studio.view_draft != self.studio.editor.view_mesher() {
+                // (A world is meshed as it streams: the choice waits for the scene.)
+                if settled && self.studio.terrain.is_none() && self.studio.view_draft != self.studio.editor.view_mesher()
+                {
                     let _ = self.studio.act(Action::ViewMesher(self.studio.view_draft));
                 }
                 ui.checkbox(&mut self.studio.lod, "Level of detail")

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 use glam::Mat4;
 use strata_editor::{BrushShape, Buttons, ToolKind};
-use strata_render::{DEPTH_FORMAT, FrameSettings, MeshId, Placement, Preview, Renderer};
+use strata_render::{DEPTH_FORMAT, FrameSettings, Placement, Preview, Renderer};
 
 /// Where the falloff `3t⁴ − 4t³ + 1` is one half, as a fraction of the radius: the preview's
 /// core, inside which a field tool acts at half its strength or more.
@@ -60,8 +60,6 @@ pub struct StudioApp {
     pub help_open: bool,
     /// The seed of the next new world.
     pub world_seed: u32,
-    /// When terrain mode last sculpted (dig and raise repeat at a fixed rate while held).
-    last_dig: Option<Instant>,
     /// When the last terrain frame ran.
     last_frame: Option<Instant>,
     /// The brush being sized by dragging (F).
@@ -109,7 +107,6 @@ impl StudioApp {
             size: (0, 0),
             color: None,
             texture_id: None,
-            terrain_shown: false,
         });
         let mut app = StudioApp::headless(studio, dialogs, recovery_dir);
         app.viewport = viewport;
@@ -123,7 +120,6 @@ impl StudioApp {
         let recent = crate::recent::Recent::load(recovery_dir.join(crate::recent::FILE_NAME));
         StudioApp {
             world_seed: 1,
-            last_dig: None,
             last_frame: None,
             resize: None,
             title: String::new(),
@@ -237,10 +233,10 @@ impl StudioApp {
     pub fn show(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>) {
         let ctx = ui.ctx().clone();
         if ctx.input(|i| i.viewport().close_requested())
-            && let Some(t) = self.studio.terrain.as_mut()
+            && let Some(t) = self.studio.terrain.as_ref()
         {
             // The world is written as the window closes (its periodic flushes aside).
-            if let Err(e) = t.save() {
+            if let Err(e) = t.save(&mut self.studio.editor) {
                 self.studio.message = format!("Could not write the world: {e}");
             }
         }
@@ -280,7 +276,7 @@ impl StudioApp {
         self.repaint_on_change(&ctx);
         // (Not while a background dab holds a layer's volume: the copy would miss it.)
         if self.studio.is_modified() && !self.studio.busy() {
-            self.autosave.tick(&self.studio, self.studio.editor.revision());
+            self.autosave.tick(&self.studio, self.studio.scene_editor().revision());
             ctx.request_repaint_after(self.autosave.interval);
         }
     }

@@ -10,8 +10,6 @@ pub(super) struct Viewport {
     pub(super) size: (u32, u32),
     pub(super) color: Option<(wgpu::Texture, wgpu::TextureView, wgpu::TextureView)>,
     pub(super) texture_id: Option<egui::TextureId>,
-    /// The renderer holds terrain mode's meshes (not the scene's).
-    pub(super) terrain_shown: bool,
 }
 
 impl Viewport {
@@ -37,11 +35,6 @@ impl Viewport {
     }
 }
 
-/// Renderer layer ids of terrain mode's chunk meshes and its debris (scene layers count from 0).
-pub(super) const TERRAIN_LAYER: u32 = 1 << 20;
-
-pub(super) const DEBRIS_LAYER: u32 = (1 << 20) + 1;
-
 /// Zooms `camera` by `factor` about `towards` (world), which stays where it is on screen: the
 /// eye and the target both move along their lines through it. Without a point, about the target.
 pub(super) fn zoom_towards(camera: &mut strata_render::Camera, towards: Option<glam::Vec3>, factor: f32) {
@@ -66,8 +59,10 @@ impl StudioApp {
         self.draw(ui, frame, rect);
     }
 
-    /// Terrain mode: WASD, Q and E fly (Shift faster), right drag looks, left click digs and
-    /// Shift + left click raises (repeating while held), then one frame of streaming.
+    /// Terrain mode: WASD, Q and E fly (Shift faster), right drag looks; the world streams
+    /// around the eye, bombs fly and debris falls; then the pointer drives the editor's tools on
+    /// the world exactly as on a scene (left drag sculpts with the current tool, Ctrl or Alt the
+    /// inverse tool, Shift smooths).
     pub(super) fn terrain_input(
         &mut self,
         ui: &mut egui::Ui,
@@ -85,34 +80,27 @@ impl StudioApp {
         } else {
             (0.0, 0.0)
         };
+        let shift = ui.input(|i| i.modifiers.shift) && !typing;
         let input = crate::terrain::FlyInput {
             forward: axis(Key::W, Key::S),
             right: axis(Key::D, Key::A),
             up: axis(Key::E, Key::Q),
             look,
-            fast: ui.input(|i| i.modifiers.shift),
+            fast: shift,
         };
         let now = Instant::now();
         let dt = self.last_frame.map_or(1.0 / 60.0, |t| now.duration_since(t).as_secs_f64());
         self.last_frame = Some(now);
-        let raise = ui.input(|i| i.modifiers.shift);
-        let dig = response.is_pointer_button_down_on() && ui.input(|i| i.pointer.primary_down());
-        let pointer = response.hover_pos();
         let Some(t) = self.studio.terrain.as_mut() else { return };
         t.fly(input, dt);
-        if dig
-            && let Some(p) = pointer
-            && self.last_dig.is_none_or(|d| now.duration_since(d) > Duration::from_millis(90))
-        {
-            self.last_dig = Some(now);
-            let x = (p.x - rect.left()) / rect.width() * 2.0 - 1.0;
-            let y = 1.0 - (p.y - rect.top()) / rect.height() * 2.0;
-            let (o, d) = t.camera().ray(x, y, aspect);
-            if let Err(e) = t.sculpt(o.as_dvec3(), d.as_dvec3(), raise) {
-                self.studio.message = e;
-            }
-        }
-        t.tick(dt, Duration::from_millis(6));
+        t.tick(&mut self.studio.editor, dt);
+        self.studio.camera = t.camera();
+        self.studio.viewport_points = rect.height();
+        self.studio.smooth_held = shift;
+        self.studio.inverse_held = ui.input(|i| i.modifiers.command || i.modifiers.alt) && !typing;
+        let (primary, alt) = ui.input(|i| (i.pointer.primary_down(), i.modifiers.alt));
+        let secondary = alt && ui.input(|i| i.pointer.secondary_down());
+        self.tool_pointer(ui, response, rect, aspect, primary, secondary);
         // The world streams, bombs fly and debris falls: draw every frame.
         ui.ctx().request_repaint();
     }
@@ -162,6 +150,25 @@ impl StudioApp {
         if orbit {
             self.studio.camera.orbit(-delta.x * 0.008, delta.y * 0.008);
         }
+        self.tool_pointer(ui, response, rect, aspect, primary, secondary && secondary_drag);
+    }
+
+    /// The pointer driving the tools, in a scene and on a world alike: `primary` and
+    /// `secondary` the buttons held for the tool this frame (the secondary: Alt + right drag).
+    fn tool_pointer(
+        &mut self,
+        ui: &mut egui::Ui,
+        response: &egui::Response,
+        rect: egui::Rect,
+        aspect: f32,
+        primary: bool,
+        secondary: bool,
+    ) {
+        let to_ndc = |p: egui::Pos2| {
+            let x = (p.x - rect.left()) / rect.width() * 2.0 - 1.0;
+            let y = 1.0 - (p.y - rect.top()) / rect.height() * 2.0;
+            (x, y)
+        };
         // Presses and releases of the primary button in this frame, in order, each where it
         // happened: a quick click within one slow frame is a dab (or a line end), not lost.
         let layer = ui.layer_id();
@@ -193,7 +200,7 @@ impl StudioApp {
         let buttons = Buttons {
             primary: primary
                 && (response.dragged_by(egui::PointerButton::Primary) || response.is_pointer_button_down_on()),
-            secondary: secondary && secondary_drag,
+            secondary,
         };
         self.studio.pointer(ndc, buttons, 1.0, aspect, budget);
     }
@@ -256,50 +263,22 @@ impl StudioApp {
             vp.color = Some((color, cv, dv));
             vp.size = size;
         }
-        if let Some(t) = self.studio.terrain.as_mut() {
-            // Terrain mode draws the world's chunk meshes and the debris instead of the scene.
-            if !vp.terrain_shown {
-                vp.renderer.clear();
-                vp.renderer.set_palette(&rs.queue, &strata_viewport::palette(&self.studio.editor.scene));
-                vp.terrain_shown = true;
-                t.uploads.extend(t.meshes().map(|(k, _)| k).collect::<Vec<_>>());
-            }
-            for key in std::mem::take(&mut t.uploads) {
-                match t.mesh(key) {
-                    Some(mesh) => strata_viewport::upload_chunk(
-                        &mut vp.renderer,
-                        &rs.device,
-                        &rs.queue,
-                        TERRAIN_LAYER,
-                        key,
-                        mesh,
-                        Mat4::IDENTITY,
-                    ),
-                    None => vp.renderer.remove_mesh(strata_viewport::chunk_id(TERRAIN_LAYER, key)),
-                }
-            }
+        // What the editor's meshes changed since the last frame (a scene's or a world's),
+        // applied by the one mirror.
+        let changes = self.studio.editor.take_changes();
+        strata_viewport::apply_changes(&self.studio.editor, &changes, &rs.device, &rs.queue, &mut vp.renderer);
+        if let Some(t) = &self.studio.terrain {
+            // Terrain mode's debris and bombs in flight (an empty mesh drops them).
             let debris = t.particle_mesh();
-            // An empty mesh drops the debris.
-            let id = MeshId { group: DEBRIS_LAYER, key: [0; 3] };
             vp.renderer.upload_mesh(
                 &rs.device,
                 &rs.queue,
-                id,
+                strata_viewport::OVERLAY_ID,
                 strata_viewport::mesh_ref(&debris),
                 Placement::default(),
                 [1.0; 3],
             );
-            let settings = FrameSettings { camera: t.camera(), wireframe: self.studio.wireframe, ..Default::default() };
-            vp.present(ui, rs, rect, size, &settings);
-            return;
         }
-        if vp.terrain_shown {
-            vp.terrain_shown = false;
-            self.studio.editor.redraw_all();
-        }
-        // What the editor's meshes changed since the last frame, applied by the one mirror.
-        let changes = self.studio.editor.take_changes();
-        strata_viewport::apply_changes(&self.studio.editor, &changes, &rs.device, &rs.queue, &mut vp.renderer);
         let inverse = self.studio.inverse_held;
         let kind = self.studio.editor.tool.kind;
         let erase = matches!((kind, inverse), (ToolKind::Erase, false) | (ToolKind::Add | ToolKind::Clay, true));

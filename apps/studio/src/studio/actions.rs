@@ -19,49 +19,47 @@ pub(super) fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String>
 
 impl Studio {
     pub(super) fn try_act(&mut self, action: Action) -> Result<(), String> {
-        if let Some(t) = self.terrain.as_mut() {
-            // Terrain mode: undo and redo act on the world.
-            match action {
-                Action::Undo => {
-                    t.world.undo().map_err(|e| e.to_string())?;
-                    return Ok(());
-                }
-                Action::Redo => {
-                    t.world.redo().map_err(|e| e.to_string())?;
-                    return Ok(());
-                }
-                _ => {}
-            }
+        if self.terrain.is_some()
+            && let Some(what) = action.scene_only()
+        {
+            return Err(format!("A world is open: Terrain > Close world first, then {what}"));
         }
         match action {
             Action::NewWorld(path, seed) => {
                 let recipe = strata_terrain::Recipe::with_seed(seed);
-                let mode = crate::terrain::TerrainMode::create(&path, &recipe, self.world_settings.clone())
-                    .map_err(|e| format!("Could not create the world {}: {e}", path.display()))?;
-                self.terrain = Some(mode);
+                let materials = self.scene_editor().scene.materials.clone();
+                let (mode, editor) =
+                    crate::terrain::TerrainMode::create(&path, &recipe, self.world_settings.clone(), materials)
+                        .map_err(|e| format!("Could not create the world {}: {e}", path.display()))?;
+                self.enter_world(mode, editor)?;
                 self.message = format!("New world {} from seed {seed}", path.display());
                 self.world_path = Some(path);
                 return Ok(());
             }
             Action::OpenWorld(path) => {
-                let mode = crate::terrain::TerrainMode::open(&path, self.world_settings.clone())
-                    .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
-                self.terrain = Some(mode);
+                let materials = self.scene_editor().scene.materials.clone();
+                let (mode, editor) =
+                    crate::terrain::TerrainMode::open(&path, self.world_settings.clone(), materials)
+                        .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
+                self.enter_world(mode, editor)?;
                 self.message = format!("Opened the world {}", path.display());
                 self.world_path = Some(path);
                 return Ok(());
             }
             Action::CloseWorld => {
-                self.world_path = None;
-                if let Some(mut t) = self.terrain.take() {
-                    let written = t.save().map_err(|e| format!("Could not write the world: {e}"))?;
-                    self.message = format!("World written ({written} chunks); back to the scene");
-                }
+                let written = self.leave_world()?;
+                self.message = format!("World written ({written} chunks); back to the scene");
                 return Ok(());
             }
             Action::Bomb => {
                 let t = self.terrain.as_mut().ok_or("Bombs need a world: Terrain > New world")?;
                 t.bomb();
+                return Ok(());
+            }
+            Action::Save if self.terrain.is_some() => {
+                let t = self.terrain.as_ref().expect("checked");
+                let written = t.save(&mut self.editor).map_err(|e| format!("Could not write the world: {e}"))?;
+                self.message = format!("World written ({written} chunks)");
                 return Ok(());
             }
             Action::New => {
@@ -115,7 +113,8 @@ impl Studio {
             }
             Action::Undo | Action::Redo => {
                 let undo = action == Action::Undo;
-                let done = if undo { self.editor.undo() } else { self.editor.redo() };
+                let done = if undo { self.editor.try_undo() } else { self.editor.try_redo() }
+                    .map_err(|e| format!("Could not {}: {e}", if undo { "undo" } else { "redo" }))?;
                 self.message = match (undo, done) {
                     (true, true) => "Undone".into(),
                     (true, false) => "Nothing to undo".into(),
@@ -253,6 +252,45 @@ impl Studio {
         }
         self.mark_saved();
         Ok(())
+    }
+
+    /// Opens terrain mode on `editor`'s world: the scene's editor and camera wait in `mode`
+    /// (a world already open is written and closed first).
+    fn enter_world(&mut self, mut mode: crate::terrain::TerrainMode, editor: Editor) -> Result<(), String> {
+        if self.terrain.is_some() {
+            self.leave_world()?;
+        }
+        if self.busy() {
+            return Err("Wait for the large dab or the import to finish".into());
+        }
+        self.editor.end_stroke();
+        let scene = std::mem::replace(&mut self.editor, editor);
+        mode.scene = Some(Box::new((scene, self.camera)));
+        self.camera = mode.camera();
+        self.terrain = Some(mode);
+        self.line_mode = false;
+        self.line_start = None;
+        self.editor.redraw_all();
+        Ok(())
+    }
+
+    /// Writes the open world and goes back to the scene; returns the chunks written. (The
+    /// world's history goes with it.)
+    fn leave_world(&mut self) -> Result<usize, String> {
+        let Some(t) = self.terrain.as_mut() else { return Ok(0) };
+        self.editor.end_stroke();
+        let written = t.save(&mut self.editor).map_err(|e| format!("Could not write the world: {e}"))?;
+        let mut t = self.terrain.take().expect("checked");
+        if let Some(waiting) = t.scene.take() {
+            let (scene, camera) = *waiting;
+            self.editor = scene;
+            self.camera = camera;
+        }
+        self.world_path = None;
+        self.line_mode = false;
+        self.line_start = None;
+        self.editor.redraw_all();
+        Ok(written)
     }
 
     pub(super) fn replace_scene(&mut self, scene: Scene) {

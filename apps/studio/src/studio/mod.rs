@@ -71,6 +71,27 @@ pub enum Action {
     ViewMesher(strata_mesh::MeshOptions),
 }
 
+impl Action {
+    /// For an action on the scene (its file, layers or orbit camera): what it does, for the
+    /// message that refuses it while a world is open.
+    pub fn scene_only(&self) -> Option<&'static str> {
+        Some(match self {
+            Action::New => "start a new scene",
+            Action::Open(_) => "open a scene",
+            Action::SaveAs(_) => "save the scene as",
+            Action::Export(_) => "export the scene",
+            Action::AddLayer
+            | Action::DeleteLayer
+            | Action::DuplicateLayer
+            | Action::MoveLayer(_)
+            | Action::MergeDown => "change the layers",
+            Action::FrameAll | Action::AxisView(..) | Action::ToggleOrthographic => "use the scene's views",
+            Action::ViewMesher(_) => "change the viewport's mesher (a world is meshed by marching cubes as it streams)",
+            _ => return None,
+        })
+    }
+}
+
 /// World units per cell of the default scene's layer: its ball of radius 16 is 64 cells
 /// across its radius, about 100,000 marching-cubes triangles, smooth to the eye.
 pub const DEFAULT_CELL: f64 = 0.25;
@@ -109,9 +130,10 @@ pub enum Islands {
 /// Everything the studio knows besides the GPU.
 #[derive(Debug)]
 pub struct Studio {
-    /// The editor core.
+    /// The editor the tools, the pointer and undo drive: the scene's, or while a world is open
+    /// the world's (the scene's then waits in [`crate::terrain::TerrainMode::scene`]).
     pub editor: Editor,
-    /// Terrain mode's world, when one is open (the scene waits meanwhile).
+    /// Terrain mode's fly camera, bombs and debris, when a world is open.
     pub terrain: Option<crate::terrain::TerrainMode>,
     /// How worlds opened by the studio stream.
     pub world_settings: strata_terrain::WorldSettings,
@@ -254,14 +276,30 @@ impl Studio {
     }
 
     /// Whether the scene has changes that are not in its file (or, for a new scene, changes at
-    /// all).
+    /// all). (A world's edits are written as it goes.)
     pub fn is_modified(&self) -> bool {
-        self.editor.revision() != self.saved_revision
+        self.scene_editor().revision() != self.saved_revision
     }
 
     /// Records that the scene as it is now is safe (saved, or just opened).
     pub fn mark_saved(&mut self) {
-        self.saved_revision = self.editor.revision();
+        self.saved_revision = self.scene_editor().revision();
+    }
+
+    /// The scene's camera: [`Studio::camera`], or while a world is open the one waiting.
+    pub fn scene_camera(&self) -> Camera {
+        match self.terrain.as_ref().and_then(|t| t.scene.as_deref()) {
+            Some((_, camera)) => *camera,
+            None => self.camera,
+        }
+    }
+
+    /// The scene's editor: [`Studio::editor`], or while a world is open the one waiting.
+    pub fn scene_editor(&self) -> &Editor {
+        match self.terrain.as_ref().and_then(|t| t.scene.as_deref()) {
+            Some((editor, _)) => editor,
+            None => &self.editor,
+        }
     }
 
     /// Carries out an action; errors go to the status message and leave the scene unchanged.
@@ -338,7 +376,7 @@ impl Studio {
     /// The status bar's live figures.
     pub fn status(&self) -> String {
         if let Some(t) = &self.terrain {
-            return format!("{} · {}", self.message, t.status());
+            return format!("{} · {}", self.message, t.status(&self.editor));
         }
         let scene = &self.editor.scene;
         let levels = scene
