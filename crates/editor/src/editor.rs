@@ -429,7 +429,8 @@ impl Editor {
     /// Chunks waiting for a remesh, or remeshed and waiting for their neighbours to be shown
     /// (under dual contouring, the chunks edits changed since the last remesh).
     pub fn pending(&self) -> usize {
-        self.meshes.pending()
+        // (A world's changes not yet taken will queue chunks too.)
+        self.meshes.pending() + self.world.as_ref().map_or(0, World::changed_count)
     }
 
     /// Whether chunk `key` of layer `layer` waits for a remesh or to be shown (under dual

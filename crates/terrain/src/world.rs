@@ -339,6 +339,11 @@ impl World {
         self.dirty.len() + self.evicted_dirty.len()
     }
 
+    /// Changes (chunks loaded, evicted or edited) waiting for [`World::take_changed`].
+    pub fn changed_count(&self) -> usize {
+        self.changed.len()
+    }
+
     /// Chunks whose contents changed (loaded, evicted, edited) since the last call.
     pub fn take_changed(&mut self) -> Vec<ChunkKey> {
         std::mem::take(&mut self.changed)
