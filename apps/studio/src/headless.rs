@@ -32,9 +32,8 @@ pub fn screenshot(scene: Option<&Path>, out: &Path, size: (u32, u32), wireframe:
 pub fn terrain_screenshot(seed: u32, out: &Path, size: (u32, u32)) -> anyhow::Result<String> {
     let settings = strata_terrain::WorldSettings { view_distance: 128.0, detail_distance: 40.0, ..Default::default() };
     let recipe = strata_terrain::Recipe::with_seed(seed);
-    let (mut mode, mut editor) =
-        crate::terrain::TerrainMode::in_memory(&recipe, settings, Scene::default().materials)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (mut mode, mut editor) = crate::terrain::TerrainMode::in_memory(&recipe, settings, Scene::default().materials)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     if !mode.settle(&mut editor, std::time::Duration::from_secs(600)) {
         anyhow::bail!("the terrain did not finish streaming in ten minutes");
     }
@@ -42,5 +41,5 @@ pub fn terrain_screenshot(seed: u32, out: &Path, size: (u32, u32)) -> anyhow::Re
     let meshes = strata_viewport::scene_meshes(&editor);
     let palette = strata_viewport::palette(&editor.scene);
     let settings = FrameSettings { camera: mode.camera(), ..Default::default() };
-    Ok(strata_render::screenshot(meshes.into_iter(), &palette, &settings, size, out)?)
+    Ok(strata_render::screenshot(meshes, &palette, &settings, size, out)?)
 }

@@ -23,6 +23,9 @@ pub struct HistoryEntry {
     pub layers: Option<(Vec<Layer>, usize)>,
 }
 
+/// A step that could not be restored (a world's chunk unreadable), with why.
+type Refused = Box<(EditorError, HistoryEntry)>;
+
 /// What an undo or redo restored.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Restored {
@@ -58,7 +61,7 @@ impl HistoryEntry {
         layers: &mut Vec<Layer>,
         active: &mut usize,
         world: Option<&mut World>,
-    ) -> Result<Option<(HistoryEntry, Restored)>, (EditorError, HistoryEntry)> {
+    ) -> Result<Option<(HistoryEntry, Restored)>, Refused> {
         if let Some((list, was_active)) = self.layers {
             let now = std::mem::replace(layers, list);
             let now_active = std::mem::replace(active, was_active);
@@ -67,7 +70,7 @@ impl HistoryEntry {
         }
         let Some(target) = surface_mut(layers, world, self.layer) else { return Ok(None) };
         if let Err(e) = target.prepare(&self.keys()) {
-            return Err((e, self));
+            return Err(Box::new((e, self)));
         }
         let records: Vec<UndoRecord> = self.records.into_iter().rev().map(|r| target.restore(r)).collect();
         let transform = match (self.transform, layers.get_mut(self.layer)) {
@@ -143,7 +146,8 @@ impl History {
             }
             // A step on a layer that no longer exists is dropped.
             Ok(None) => Ok(None),
-            Err((e, entry)) => {
+            Err(failed) => {
+                let (e, entry) = *failed;
                 self.undo.push(entry);
                 Err(e)
             }
@@ -165,7 +169,8 @@ impl History {
                 Ok(Some(restored))
             }
             Ok(None) => Ok(None),
-            Err((e, entry)) => {
+            Err(failed) => {
+                let (e, entry) = *failed;
                 self.redo.push(entry);
                 Err(e)
             }

@@ -308,7 +308,8 @@ impl ViewMeshes {
                 Backend::Streamed(st) => {
                     let focus = st.focus;
                     let distance = |k: &ChunkKey| {
-                        let centre = k.origin_grid().as_dvec3() + DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64 / 2.0);
+                        let centre =
+                            k.origin_grid().as_dvec3() + DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64 / 2.0);
                         centre.distance_squared(focus)
                     };
                     let mut order: Vec<(f64, ChunkKey)> = s.queued.iter().map(|k| (distance(k), *k)).collect();

@@ -46,7 +46,8 @@ fn stroke(e: &mut Editor, x0: f64, x1: f64, z: f64) {
     for i in 0..=steps {
         let x = x0 + (x1 - x0) * i as f64 / steps as f64;
         let p = ground(e, x, z);
-        let pose = ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN, ..ToolPose::default() };
+        let pose =
+            ToolPose { position: p, orientation: DQuat::IDENTITY, pressure: 1.0, buttons: DOWN, ..ToolPose::default() };
         e.frame(&pose, BUDGET).unwrap_or_else(|err| panic!("{:?} at {p}: {err}", e.tool.kind));
     }
     let end = ground(e, x1, z);

@@ -51,7 +51,9 @@ impl StudioApp {
             C::New => self.guard(ctx, Then::New),
             C::Help => self.help_open = !self.help_open,
             C::CloseHelp => self.help_open = false,
-            _ if self.studio.terrain.is_some() && crate::keymap::binding(command).is_some_and(|b| b.terrain.is_some()) => {
+            _ if self.studio.terrain.is_some()
+                && crate::keymap::binding(command).is_some_and(|b| b.terrain.is_some()) =>
+            {
                 self.terrain_command(command)
             }
             C::RadiusDown => {

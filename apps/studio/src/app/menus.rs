@@ -131,7 +131,9 @@ impl StudioApp {
                 }
                 let settled = mesher_choice(ui, true, "Viewport mesher", &mut self.studio.view_draft);
                 // (A world is meshed as it streams: the choice waits for the scene.)
-                if settled && self.studio.terrain.is_none() && self.studio.view_draft != self.studio.editor.view_mesher()
+                if settled
+                    && self.studio.terrain.is_none()
+                    && self.studio.view_draft != self.studio.editor.view_mesher()
                 {
                     let _ = self.studio.act(Action::ViewMesher(self.studio.view_draft));
                 }

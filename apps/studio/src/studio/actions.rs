@@ -38,9 +38,8 @@ impl Studio {
             }
             Action::OpenWorld(path) => {
                 let materials = self.scene_editor().scene.materials.clone();
-                let (mode, editor) =
-                    crate::terrain::TerrainMode::open(&path, self.world_settings.clone(), materials)
-                        .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
+                let (mode, editor) = crate::terrain::TerrainMode::open(&path, self.world_settings.clone(), materials)
+                    .map_err(|e| format!("Could not open the world {}: {e}", path.display()))?;
                 self.enter_world(mode, editor)?;
                 self.message = format!("Opened the world {}", path.display());
                 self.world_path = Some(path);
