@@ -44,6 +44,17 @@ impl DabJob {
     }
 }
 
+/// Chunks a dab whose box is `b` (grid coordinates) visits: its box in chunks, grown by one
+/// chunk on every side (saturating at 10⁷ chunks a side).
+pub(crate) fn chunks_spanned(b: &strata_volume::brush::Aabb) -> Result<u64, EditorError> {
+    if !b.is_valid() {
+        return Err(EditorError::Edit(EditError::BadBounds));
+    }
+    let c = strata_volume::coords::CHUNK_CELLS as f64;
+    let side = |i: usize| ((b.max[i] / c).floor() - (b.min[i] / c).floor() + 3.0).min(1e7);
+    Ok((side(0) * side(1) * side(2)) as u64)
+}
+
 impl Editor {
     /// Chunks the dab of the current tool at `pose` would visit (its brush box in chunks, or
     /// the whole volume for an intersection): what the studio compares with its frame budget.
@@ -54,13 +65,7 @@ impl Editor {
             return Err(EditorError::BadLayerTransform(layer));
         }
         let brush = self.tool_for(pose).brush(&transform, pose.position, pose.orientation, pose.pressure)?;
-        let b = brush.bounds();
-        if !b.is_valid() {
-            return Err(EditorError::Edit(EditError::BadBounds));
-        }
-        let c = strata_volume::coords::CHUNK_CELLS as f64;
-        let side = |i: usize| ((b.max[i] / c).floor() - (b.min[i] / c).floor() + 3.0).min(1e7);
-        Ok((side(0) * side(1) * side(2)) as u64)
+        chunks_spanned(&brush.bounds())
     }
 
     /// Starts the dab of the current tool at `pose` (the opposite tool with the secondary

@@ -56,6 +56,11 @@ pub enum EditorError {
     /// nothing changed.
     #[error(transparent)]
     World(strata_terrain::WorldError),
+    /// A dab of the frame spans more chunks than [`Editor::frame_dab_limit`]: it was not
+    /// applied (the dabs before it in the frame were), so that the caller can run it in the
+    /// background ([`Editor::start_dab_job`]).
+    #[error("a dab spanning {0} chunks is too large for a frame")]
+    DabTooLargeForFrame(u64),
     /// A dab too large for a frame, on a world (whose volume cannot go to a worker thread while
     /// it streams): nothing changed.
     #[error(
@@ -95,6 +100,9 @@ pub struct Editor {
     pub tool: ToolSettings,
     /// The layer tools edit (on a world, the world: see [`Editor::active_surface`]).
     pub active_layer: usize,
+    /// Dabs of [`Editor::frame`] whose box spans more chunks than this are refused with
+    /// [`EditorError::DabTooLargeForFrame`] (`u64::MAX`, the default: none are).
+    pub frame_dab_limit: u64,
     /// The streamed world the tools edit, for an editor made by [`Editor::on_world`].
     pub(crate) world: Option<World>,
     pub(crate) history: History,
@@ -134,6 +142,7 @@ impl Editor {
             active_layer: 0,
             history: History::default(),
             world: None,
+            frame_dab_limit: u64::MAX,
             stroke: None,
             meshes: ViewMeshes::new(MeshOptions::default(), &[]),
             settings: EditSettings::default(),

@@ -214,6 +214,7 @@ impl Editor {
                     // surface it moved.
                     let reach = tool.radius_at(pose.pressure) * 1.1;
                     let bounds = ball_bounds(transform.to_grid(at), reach / transform.scale);
+                    self.check_dab_size(&bounds)?;
                     let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
                     let edit = target.edit(&bounds, &mut |v| {
                         Ok(field_tool_dab(&tool, &transform, v, at, pose.pressure, inverted, direction)?)
@@ -223,6 +224,7 @@ impl Editor {
                     let brush = tool.brush(&transform, at, orientation, pose.pressure)?;
                     let settings = EditSettings { material: tool.material, ..self.settings.clone() };
                     let b = brush.bounds();
+                    self.check_dab_size(&b)?;
                     // The ball around the brush's box (grid units to world).
                     let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
                     let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
@@ -298,6 +300,18 @@ impl Editor {
         Ok(())
     }
 
+    /// Refuses a dab whose box `b` spans more chunks than [`Editor::frame_dab_limit`].
+    fn check_dab_size(&self, b: &strata_volume::brush::Aabb) -> Result<(), EditorError> {
+        if self.frame_dab_limit == u64::MAX {
+            return Ok(());
+        }
+        let chunks = crate::dab_job::chunks_spanned(b)?;
+        if chunks > self.frame_dab_limit {
+            return Err(EditorError::DabTooLargeForFrame(chunks));
+        }
+        Ok(())
+    }
+
     /// The tool a pose applies: the current tool, or smoothing with its settings while the
     /// pose's modifiers say smooth (Shift in the studio).
     pub(crate) fn tool_for(&self, pose: &ToolPose) -> ToolSettings {
@@ -340,8 +354,13 @@ impl Editor {
         let buttons = crate::pose::Buttons { primary: true, secondary: false };
         let pose =
             |p: DVec3| ToolPose { position: p, orientation: glam::DQuat::IDENTITY, pressure, buttons, modifiers };
-        let mut report = self.frame(&pose(a), Duration::ZERO)?;
-        let end = self.frame(&pose(b), Duration::ZERO)?;
+        // A line is applied whole, whatever its dabs' size (the frame limit is for dragging).
+        let limit = std::mem::replace(&mut self.frame_dab_limit, u64::MAX);
+        let first = self.frame(&pose(a), Duration::ZERO);
+        let end = first.as_ref().ok().map(|_| self.frame(&pose(b), Duration::ZERO));
+        self.frame_dab_limit = limit;
+        let mut report = first?;
+        let end = end.expect("the first frame went through")?;
         report.dabs += end.dabs;
         report.edit_time += end.edit_time;
         report.remeshed.extend(end.remeshed);

@@ -727,3 +727,35 @@ fn modifiers_in_the_pose_invert_and_smooth_without_touching_the_tool() {
     e.frame(&ToolPose::at(DVec3::new(18.0, 12.0, 8.0), false), BUDGET).unwrap();
     assert_eq!(e.history().undo_len(), 2, "a modifier change ends the stroke");
 }
+
+/// A dab spanning more chunks than the frame's limit is refused before anything changes (the
+/// studio then runs it in the background); under the limit, and for the line tool, it applies.
+#[test]
+fn dabs_over_the_frame_limit_are_refused_untouched_and_lines_ignore_the_limit() {
+    let mut e = Editor::default();
+    e.scene.layers[0].volume.add(&Sphere::new(DVec3::splat(32.0), 12.0).unwrap()).unwrap();
+    e.clear_history();
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 20.0;
+    let before = e.scene.layers[0].volume.clone();
+    let pose = ToolPose { position: DVec3::new(32.0, 44.0, 32.0), buttons: DOWN, ..ToolPose::default() };
+    let chunks = e.dab_chunks(&pose).unwrap();
+    e.frame_dab_limit = chunks - 1;
+    match e.frame(&pose, BUDGET) {
+        Err(strata_editor::EditorError::DabTooLargeForFrame(n)) => assert_eq!(n, chunks),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    assert_eq!(e.scene.layers[0].volume, before, "nothing changed");
+    assert!(!e.stroking());
+    assert_eq!(e.history().undo_len(), 0);
+    // The line tool applies whole whatever the limit, and leaves it as it was.
+    e.line_stroke(pose.position, pose.position + DVec3::X * 4.0, 1.0, Modifiers::default()).unwrap();
+    assert_ne!(e.scene.layers[0].volume, before);
+    assert_eq!(e.frame_dab_limit, chunks - 1);
+    // At the limit, a dragged dab applies.
+    e.frame_dab_limit = chunks;
+    e.frame(&ToolPose::at(pose.position, false), BUDGET).unwrap();
+    let after_line = e.scene.layers[0].volume.clone();
+    e.frame(&ToolPose { position: pose.position + DVec3::Z * 6.0, ..pose }, BUDGET).unwrap();
+    assert_ne!(e.scene.layers[0].volume, after_line);
+}

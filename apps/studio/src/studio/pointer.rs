@@ -174,26 +174,6 @@ impl Studio {
         if !held {
             self.last_background_dab = None;
         }
-        if let Some(p) = target.filter(|_| held) {
-            let pose = ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons, modifiers };
-            if self.editor.dab_chunks(&pose).is_ok_and(|c| c > self.background_chunks) {
-                // Like a stroke's dabs: the next large dab waits until the pointer has moved by
-                // the dab spacing (holding still does not repeat it).
-                let spacing = self.editor.tool.dab_spacing();
-                if self.last_background_dab.is_some_and(|last| (p - last).length() < spacing) {
-                    return;
-                }
-                self.last_background_dab = Some(p);
-                match self.editor.start_dab_job(&pose) {
-                    Ok(job) => {
-                        self.job = Some(job);
-                        self.message = "Sculpting a large dab…".into();
-                    }
-                    Err(e) => self.fail(e.to_string()),
-                }
-                return;
-            }
-        }
         let pose = match target {
             Some(p) if held => {
                 ToolPose { position: p, orientation: self.brush_orientation(), pressure, buttons, modifiers }
@@ -206,7 +186,26 @@ impl Studio {
                 ..ToolPose::default()
             },
         };
+        // Dabs too large for a frame are refused by the editor (which builds each dab's brush
+        // once) and run in the background instead.
+        self.editor.frame_dab_limit = self.background_chunks;
         match self.editor.frame(&pose, budget) {
+            Err(strata_editor::EditorError::DabTooLargeForFrame(_)) => {
+                // Like a stroke's dabs: the next large dab waits until the pointer has moved by
+                // the dab spacing (holding still does not repeat it).
+                let spacing = self.editor.tool.dab_spacing();
+                if self.last_background_dab.is_some_and(|last| (pose.position - last).length() < spacing) {
+                    return;
+                }
+                self.last_background_dab = Some(pose.position);
+                match self.editor.start_dab_job(&pose) {
+                    Ok(job) => {
+                        self.job = Some(job);
+                        self.message = "Sculpting a large dab…".into();
+                    }
+                    Err(e) => self.fail(e.to_string()),
+                }
+            }
             Ok(report) => {
                 if report.dabs > 0 {
                     self.last_edit_ms = report.edit_time.as_secs_f64() * 1e3;
