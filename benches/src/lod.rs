@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use glam::{DQuat, DVec3};
 use serde::Serialize;
 use strata_editor::{Buttons, Editor, Layer, LayerTransform, LodView, Scene, ToolKind, ToolPose, lod_levels};
-use strata_mesh::{Mesh, checks, mesh_volume, mesh_volume_capped};
+use strata_mesh::{Mesh, checks};
 use strata_volume::brush::{Cuboid, MeshBrush, MeshRule, Sphere};
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Level, Volume};
 
@@ -138,7 +138,8 @@ fn views(name: &str, volume: &Volume) -> Vec<ViewRow> {
     let diagonal = (hi - lo).length();
     let mut rows = Vec::new();
     let t = Instant::now();
-    let full = mesh_volume(volume);
+    let full = strata_mesh::mesh_volume_with(volume, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     let full_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut at = [0usize; 3];
     for (k, _) in volume.chunks() {
@@ -162,7 +163,9 @@ fn views(name: &str, volume: &Volume) -> Vec<ViewRow> {
         let caps = lod_levels(volume, &LayerTransform::default(), &lod, &HashMap::new());
         let cap = |k: ChunkKey| caps.get(&k).copied().unwrap_or(Level::FINEST);
         let t = Instant::now();
-        let m = mesh_volume_capped(volume, &cap);
+        let m = strata_mesh::mesh_volume_reported(volume, strata_mesh::MeshOptions::default(), Some(&cap))
+            .expect("marching cubes meshes every volume")
+            .0;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         let mut at = [0usize; 3];
         for (k, _) in volume.chunks() {

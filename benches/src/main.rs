@@ -364,7 +364,10 @@ fn mesh_speed(seed: u64) {
             cache.triangle_count()
         );
         let t = Instant::now();
-        let dc = pool.install(|| strata_mesh::dual_contour_volume(&volume));
+        let dc = pool.install(|| {
+            strata_mesh::mesh_volume_with(&volume, strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring))
+                .expect("dual contouring meshes every volume")
+        });
         let ms = t.elapsed().as_secs_f64() * 1e3;
         println!(
             "| dual contouring (blocks + QEF + weld) | {label} | {} | {ms:.1} | {:.1} | {} |",

@@ -102,7 +102,9 @@ fn asteroid_brush(res: u32, scale: f64) -> SdfBrush {
 /// same field on a twice finer grid.
 pub fn asteroid(res: u32) -> Shape {
     let volume = asteroid_volume(res);
-    let mut reference = strata_mesh::mesh_volume(&convert(&asteroid_brush(res, 2.0)));
+    let mut reference =
+        strata_mesh::mesh_volume_with(&convert(&asteroid_brush(res, 2.0)), strata_mesh::MeshOptions::default())
+            .expect("marching cubes meshes every volume");
     for p in &mut reference.positions {
         *p = p.map(|c| c / 2.0);
     }
@@ -125,7 +127,8 @@ pub fn canvas(count: usize, seed: u64) -> Shape {
         }
         v
     };
-    let mut reference = strata_mesh::mesh_volume(&build(2.0));
+    let mut reference = strata_mesh::mesh_volume_with(&build(2.0), strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     for p in &mut reference.positions {
         *p = p.map(|c| c / 2.0);
     }
@@ -213,7 +216,11 @@ pub fn mesh_with(volume: &Volume, method: Method) -> anyhow::Result<Mesh> {
         Method::Whole(o) => mesh_volume_with(volume, o)?,
         Method::ChunkedClustered => strata_mesh::tetra::tetra_volume_per_chunk(volume)
             .ok_or_else(|| anyhow::anyhow!("tetrahedra need one level"))?,
-        Method::McSimplifiedPureRust(e) => simplify_pure_rust(&strata_mesh::mesh_volume(volume), e),
+        Method::McSimplifiedPureRust(e) => simplify_pure_rust(
+            &strata_mesh::mesh_volume_with(volume, strata_mesh::MeshOptions::default())
+                .expect("marching cubes meshes every volume"),
+            e,
+        ),
     })
 }
 

@@ -5,16 +5,23 @@
 use strata_bench::quality::{asteroid_volume, bunny, sphere};
 use strata_mesh::checks::{aspect_stats, check_closed_manifold, hausdorff, signed_volume};
 use strata_mesh::tetra::tetra_volume_per_chunk;
-use strata_mesh::tetra_volume;
 use strata_volume::{Axis, Volume};
 
 fn check(name: &str, v: &Volume) {
-    let plain = tetra_volume(v, false).unwrap();
+    let plain =
+        strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::Tetrahedra)).ok().unwrap();
     let lists = v.measured_volume(Axis::X);
     check_closed_manifold(&plain).unwrap();
-    for (how, m, least) in
-        [("whole", tetra_volume(v, true).unwrap(), 0.70), ("per chunk", tetra_volume_per_chunk(v).unwrap(), 0.60)]
-    {
+    for (how, m, least) in [
+        (
+            "whole",
+            strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra))
+                .ok()
+                .unwrap(),
+            0.70,
+        ),
+        ("per chunk", tetra_volume_per_chunk(v).unwrap(), 0.60),
+    ] {
         check_closed_manifold(&m).unwrap_or_else(|e| panic!("{name} {how}: {e}"));
         let reduction = 1.0 - m.triangle_count() as f64 / plain.triangle_count() as f64;
         let volume = signed_volume(&m) / lists;

@@ -3,7 +3,7 @@
 //! edit keeps the invariants and undoes exactly.
 
 use glam::DVec3;
-use strata_mesh::{checks, mesh_volume};
+use strata_mesh::checks;
 use strata_volume::brush::{Cuboid, Sphere};
 use strata_volume::tools::{Dab, ToolError, clay, grab, pinch};
 use strata_volume::{EditReport, Volume};
@@ -24,7 +24,11 @@ fn height(v: &Volume, x: f64, y: f64) -> f64 {
 /// Checks the invariants, the closed marching-cubes mesh, and that undo restores `before`.
 fn check(v: &Volume, before: &Volume, report: EditReport) {
     v.check_invariants().unwrap();
-    checks::check_closed_manifold(&mesh_volume(v)).unwrap();
+    checks::check_closed_manifold(
+        &strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::default())
+            .expect("marching cubes meshes every volume"),
+    )
+    .unwrap();
     let mut undone = v.clone();
     undone.restore(report.undo);
     assert!(undone == *before, "undo restores the volume exactly");

@@ -6,7 +6,7 @@
 
 use glam::DVec3;
 use proptest::prelude::*;
-use strata_mesh::{checks, mesh_volume};
+use strata_mesh::checks;
 use strata_volume::brush::{Cuboid, Sphere};
 use strata_volume::tools::{Dab, Smoothing, clay, flatten, grab, inflate, pinch, smooth};
 use strata_volume::{CsgOp, EditSettings, Volume};
@@ -82,7 +82,11 @@ fn run(
         prop_assert!(undone == before, "undo of dab {} ({:?}) restores the volume", k, t);
     }
     if !far {
-        checks::check_closed_manifold(&mesh_volume(&v)).map_err(|e| TestCaseError::fail(format!("mesh: {e}")))?;
+        checks::check_closed_manifold(
+            &strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+                .expect("marching cubes meshes every volume"),
+        )
+        .map_err(|e| TestCaseError::fail(format!("mesh: {e}")))?;
     }
     Ok(())
 }

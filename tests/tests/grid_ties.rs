@@ -9,7 +9,7 @@
 
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
-use strata_mesh::{checks, mesh_volume};
+use strata_mesh::checks;
 use strata_volume::brush::{Aabb, Brush, Cuboid, MeshBrush, MeshRule, SdfBrush, Transformed};
 use strata_volume::{CsgOp, EditSettings, Volume};
 
@@ -163,7 +163,8 @@ fn run(edits: &[(CsgOp, Shape)], parallel: bool) -> Result<(), TestCaseError> {
             return Err(TestCaseError::fail(format!("edit {i} ({op:?} {shape:?}): {e}")));
         }
     }
-    let mesh = mesh_volume(&volume);
+    let mesh = strata_mesh::mesh_volume_with(&volume, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     checks::check_closed_manifold(&mesh).map_err(|e| TestCaseError::fail(format!("mesh: {e}")))?;
     Ok(())
 }
@@ -194,7 +195,11 @@ fn a_cube_mesh_with_integer_corners_keeps_the_axes_in_agreement() {
     let mut volume = Volume::new();
     volume.add(&m).unwrap();
     volume.check_invariants().unwrap();
-    checks::check_closed_manifold(&mesh_volume(&volume)).unwrap();
+    checks::check_closed_manifold(
+        &strata_mesh::mesh_volume_with(&volume, strata_mesh::MeshOptions::default())
+            .expect("marching cubes meshes every volume"),
+    )
+    .unwrap();
     assert!(volume.node_inside(glam::I64Vec3::new(5, 5, 5)));
 }
 
@@ -207,5 +212,9 @@ fn a_field_with_a_lying_bound_keeps_chunk_borders_in_agreement() {
     let mut volume = Volume::new();
     volume.add(&b).unwrap();
     volume.check_invariants().unwrap();
-    checks::check_closed_manifold(&mesh_volume(&volume)).unwrap();
+    checks::check_closed_manifold(
+        &strata_mesh::mesh_volume_with(&volume, strata_mesh::MeshOptions::default())
+            .expect("marching cubes meshes every volume"),
+    )
+    .unwrap();
 }

@@ -2,7 +2,7 @@
 //! crack patching that makes chunks of different levels mesh into one closed surface.
 
 use glam::{DVec3, IVec3};
-use strata_mesh::{checks, mesh_volume};
+use strata_mesh::checks;
 use strata_volume::brush::Sphere;
 use strata_volume::{ChunkKey, Level, Volume};
 
@@ -17,7 +17,8 @@ fn list_keys(v: &Volume) -> Vec<ChunkKey> {
 }
 
 fn closed(v: &Volume) -> strata_mesh::Mesh {
-    let mesh = mesh_volume(v);
+    let mesh = strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     if let Err(e) = checks::check_closed_manifold(&mesh) {
         panic!("mesh of {} triangles not closed: {e}", mesh.indices.len() / 3);
     }
@@ -191,11 +192,11 @@ proptest! {
             let mut undone = v.clone();
             undone.restore(report.undo);
             prop_assert_eq!(&undone, &before, "undo of {:?}", s);
-            let mesh = mesh_volume(&v);
+            let mesh = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default()).expect("marching cubes meshes every volume");
             if let Err(e) = checks::check_closed_manifold(&mesh) {
                 panic!("after {s:?}: {e}");
             }
-            let dual = strata_mesh::dual_contour_volume(&v);
+            let dual = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring)).expect("dual contouring meshes every volume");
             let unbalanced = unbalanced_edges(&dual);
             prop_assert_eq!(unbalanced, 0, "dual contouring not closed after {:?}", s);
         }
@@ -218,7 +219,7 @@ proptest! {
         v.add(&Sphere::new(c, r as f64 * 0.25).unwrap()).unwrap();
         for s in steps.iter().filter(|s| matches!(s, random::Step::Level { .. })) {
             random::apply(&mut v, s);
-            let mesh = mesh_volume(&v);
+            let mesh = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default()).expect("marching cubes meshes every volume");
             checks::check_closed_manifold(&mesh).unwrap();
             let ball = 4.0 / 3.0 * std::f64::consts::PI * (r as f64 * 0.25).powi(3);
             let enclosed = checks::signed_volume(&mesh);
@@ -284,7 +285,8 @@ fn all_face_cases_on_every_orientation_and_level_pair_mesh_closed() {
                         }
                         v.check_invariants().unwrap();
                         assert_eq!(v.stored_level(a), Some(level(la)));
-                        let mesh = mesh_volume(&v);
+                        let mesh = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+                            .expect("marching cubes meshes every volume");
                         if let Err(e) = checks::check_closed_manifold(&mesh) {
                             panic!("levels {la}/{lb} across {axis:?}, case {case:04b}, radii {radii:?}: {e}");
                         }
@@ -306,7 +308,8 @@ fn a_raised_sphere_keeps_its_volume_and_surface() {
     let r = 20.0;
     let mut v = Volume::new();
     v.add(&Sphere::new(c, r).unwrap()).unwrap();
-    let old = mesh_volume(&v);
+    let old = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     for target in [1u8, 2] {
         let mut w = v.clone();
         for k in list_keys(&w) {
@@ -411,7 +414,9 @@ fn level_of_detail_meshes_stay_within_a_coarse_cell_and_closed() {
         .unwrap();
     let full = closed(&v);
     for cap in [1u8, 0] {
-        let lod = strata_mesh::mesh_volume_capped(&v, &|_| level(cap));
+        let lod = strata_mesh::mesh_volume_reported(&v, strata_mesh::MeshOptions::default(), Some(&|_| level(cap)))
+            .expect("marching cubes meshes every volume")
+            .0;
         checks::check_closed_manifold(&lod).unwrap();
         let h = hausdorff(&full, &lod);
         let coarse_cell = level(cap).spacing();
@@ -420,7 +425,9 @@ fn level_of_detail_meshes_stay_within_a_coarse_cell_and_closed() {
         assert!(lod.indices.len() < full.indices.len());
     }
     let rings = |k: ChunkKey| level(((k.0.x + 2 * k.0.y + k.0.z).rem_euclid(3)) as u8);
-    let mixed = strata_mesh::mesh_volume_capped(&v, &rings);
+    let mixed = strata_mesh::mesh_volume_reported(&v, strata_mesh::MeshOptions::default(), Some(&rings))
+        .expect("marching cubes meshes every volume")
+        .0;
     checks::check_closed_manifold(&mixed).unwrap();
     // Blocks sampled below their stored level, plainly or patched, never need repairs.
     for cap in [&(|_| level(1)) as &(dyn Fn(ChunkKey) -> Level + Sync), &rings] {
@@ -479,7 +486,8 @@ fn seams_against_transvoxel() {
     v.add(&ball).unwrap();
     let _ = v.set_chunk_level(ChunkKey::new(1, 0, 0), level(1));
     v.add(&ball).unwrap();
-    let ours = mesh_volume(&v);
+    let ours = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     let our_open = open_edges(&ours);
     eprintln!(
         "transvoxel: {} triangles, {theirs} open edges; strata: {} triangles, {our_open} open edges",
@@ -521,7 +529,9 @@ fn dual_contouring_of_mixed_levels_is_closed() {
         for k in list_keys(&v) {
             let _ = v.set_chunk_level(k, level(if k.0.x == 0 { a } else { b }));
         }
-        let dual = strata_mesh::dual_contour_volume(&v);
+        let dual =
+            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring))
+                .expect("dual contouring meshes every volume");
         assert!(!dual.indices.is_empty());
         assert_eq!(unbalanced_edges(&dual), 0, "levels {a}/{b}");
         let r = checks::manifold_report(&dual);

@@ -13,9 +13,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use glam::{DQuat, DVec3};
+use strata_mesh::checks;
 use strata_mesh::export::save_mesh;
 use strata_mesh::normals::{DEFAULT_CREASE_DEGREES, crease_normals};
-use strata_mesh::{checks, mesh_volume};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Cylinder, Sphere, Torus};
 use strata_volume::{Axis, CsgOp, EditSettings, Volume};
 
@@ -141,7 +141,7 @@ pub fn demo(scale: f64, outputs: &[PathBuf], scene: Option<&std::path::Path>) ->
     }
     writeln!(out, "  invariants             hold")?;
     let t = Instant::now();
-    let mesh = mesh_volume(&volume);
+    let mesh = strata_mesh::mesh_volume_with(&volume, strata_mesh::MeshOptions::default()).context("meshing")?;
     let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
     progress.finish_and_clear();
     checks::check_closed_manifold(&mesh).context("the marching-cubes mesh")?;

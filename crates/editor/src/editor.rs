@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use strata_mesh::islands::IslandReport;
-use strata_mesh::{Mesh, MeshCache, MeshOptions, Mesher, MesherError, dual_contour_volume};
+use strata_mesh::{Mesh, MeshCache, MeshOptions, Mesher, MesherError};
 use strata_volume::brush::BrushError;
 
 use strata_volume::{ChunkKey, EditError, EditReport, EditSettings, Level};
@@ -530,7 +530,7 @@ impl Editor {
     /// not per frame).
     pub fn dual_contour_layer(&self, layer: usize) -> Result<Mesh, EditorError> {
         let l = self.scene.layers.get(layer).ok_or(EditorError::NoLayer(layer))?;
-        let mut mesh = dual_contour_volume(&l.volume);
+        let mut mesh = strata_mesh::mesh_volume_with(&l.volume, MeshOptions::new(Mesher::DualContouring))?;
         to_world(&mut mesh, &l.transform);
         Ok(mesh)
     }
@@ -548,7 +548,7 @@ impl Editor {
         let mut out = Mesh::default();
         let mut islands = IslandReport::default();
         for l in self.scene.layers.iter().filter(|l| l.visible) {
-            let (mut m, removed) = strata_mesh::mesh_volume_reported(&l.volume, options)?;
+            let (mut m, removed) = strata_mesh::mesh_volume_reported(&l.volume, options, None)?;
             islands = islands.then(removed);
             to_world(&mut m, &l.transform);
             let base = out.positions.len() as u32;

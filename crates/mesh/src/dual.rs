@@ -844,11 +844,6 @@ fn cell_id(key: ChunkKey, level: Level, local: [usize; 3]) -> I64Vec3 {
     I64Vec3::new(corner.x * 4 + level.get() as i64, corner.y, corner.z)
 }
 
-/// One welded dual-contouring mesh of the whole volume (grid units, absolute).
-pub fn dual_contour_volume(volume: &Volume) -> Mesh {
-    DualCache::build(volume).welded()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

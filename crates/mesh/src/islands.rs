@@ -17,12 +17,12 @@
 //! ```
 //! use glam::DVec3;
 //! use strata_volume::{Volume, brush::Sphere};
-//! use strata_mesh::{islands, mesh_volume};
+//! use strata_mesh::{MeshOptions, islands, mesh_volume_with};
 //!
 //! let mut volume = Volume::new();
 //! volume.add(&Sphere::new(DVec3::new(8.0, 8.0, 8.0), 6.0)?)?;
 //! volume.add(&Sphere::new(DVec3::new(24.0, 8.0, 8.0), 0.8)?)?;
-//! let mut mesh = mesh_volume(&volume);
+//! let mut mesh = mesh_volume_with(&volume, MeshOptions::default())?;
 //! let report = islands::remove_islands(&mut mesh, islands::DEFAULT_MIN_ISLAND_CELLS)?;
 //! assert_eq!((report.removed, report.kept), (1, 1));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -194,7 +194,7 @@ pub fn remove_islands(mesh: &mut Mesh, min_volume: f32) -> Result<IslandReport, 
 mod tests {
     use super::*;
     use crate::checks::{check_closed_manifold, signed_volume};
-    use crate::mesh_volume;
+    use crate::marching::mesh_volume;
     use strata_volume::Volume;
     use strata_volume::brush::{Cuboid, Sphere};
 

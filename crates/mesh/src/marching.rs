@@ -207,14 +207,14 @@ pub fn surface_chunks(volume: &Volume) -> Vec<ChunkKey> {
 
 /// One welded mesh of the whole volume (grid units, absolute; f32 positions lose precision far
 /// from the origin, so prefer per-chunk meshes there).
-pub fn mesh_volume(volume: &Volume) -> Mesh {
+pub(crate) fn mesh_volume(volume: &Volume) -> Mesh {
     mesh_volume_impl(volume, None)
 }
 
 /// [`mesh_volume`] with every chunk `k` meshed at no finer than `cap(k)` (level of detail: the
 /// coarser blocks are sampled from the stored lists, and seams between the levels patched, so
 /// the mesh is closed for any map of caps).
-pub fn mesh_volume_capped(volume: &Volume, cap: &(dyn Fn(ChunkKey) -> Level + Sync)) -> Mesh {
+pub(crate) fn mesh_volume_capped(volume: &Volume, cap: &(dyn Fn(ChunkKey) -> Level + Sync)) -> Mesh {
     mesh_volume_impl(volume, Some(cap))
 }
 

@@ -8,7 +8,7 @@ use thiserror::Error;
 
 use crate::islands::{IslandError, IslandReport, remove_islands};
 use crate::simplify::{Simplify, SimplifyError, simplify};
-use crate::{BlockMesher, DualCache, Mesh};
+use crate::{BlockMesher, DualCache, LevelCap, Mesh};
 
 /// A surface extractor.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -103,6 +103,9 @@ pub enum MesherError {
     /// export.
     #[error("the viewport simplifies chunk meshes of marching cubes and tetrahedra only; {0} is simplified on export")]
     ChunkSimplify(Mesher),
+    /// Level-of-detail caps are for marching cubes, which patches the seams between levels.
+    #[error("level-of-detail caps are for marching cubes; {0} meshes every chunk at its stored level")]
+    CapsNeedMarchingCubes(Mesher),
     /// Simplification refused its input.
     #[error(transparent)]
     Simplify(#[from] SimplifyError),
@@ -133,14 +136,26 @@ impl MeshOptions {
     }
 }
 
-/// One welded mesh of the whole volume (grid units, absolute) by `options`.
+/// The door to whole-volume meshing: one welded mesh of the whole volume (grid units,
+/// absolute) by `options` (the mesher, island removal, simplification). Marching cubes and dual
+/// contouring mesh every volume; tetrahedra refuse one whose chunks mix levels.
 pub fn mesh_volume_with(volume: &Volume, options: MeshOptions) -> Result<Mesh, MesherError> {
-    mesh_volume_reported(volume, options).map(|(mesh, _)| mesh)
+    mesh_volume_reported(volume, options, None).map(|(mesh, _)| mesh)
 }
 
 /// [`mesh_volume_with`], also saying what island removal removed (an empty report when
-/// `options.remove_islands` is `None`). Every option is checked before meshing starts.
-pub fn mesh_volume_reported(volume: &Volume, options: MeshOptions) -> Result<(Mesh, IslandReport), MesherError> {
+/// `options.remove_islands` is `None`), and with marching cubes meshing every chunk `k` no finer
+/// than `caps(k)` where given (level of detail: coarser blocks sampled from the stored lists,
+/// seams between levels patched, so the mesh is closed for any caps; other meshers refuse
+/// caps). Every option is checked before meshing starts.
+pub fn mesh_volume_reported(
+    volume: &Volume,
+    options: MeshOptions,
+    caps: Option<LevelCap<'_>>,
+) -> Result<(Mesh, IslandReport), MesherError> {
+    if caps.is_some() && options.mesher != Mesher::MarchingCubes {
+        return Err(MesherError::CapsNeedMarchingCubes(options.mesher));
+    }
     if let Some(e) = options.simplify
         && !(e.is_finite() && e >= 0.0)
     {
@@ -152,11 +167,14 @@ pub fn mesh_volume_reported(volume: &Volume, options: MeshOptions) -> Result<(Me
         return Err(IslandError::BadThreshold(min).into());
     }
     let mut mesh = match options.mesher {
-        Mesher::MarchingCubes => crate::mesh_volume(volume),
+        Mesher::MarchingCubes => match caps {
+            Some(cap) => crate::marching::mesh_volume_capped(volume, cap),
+            None => crate::marching::mesh_volume(volume),
+        },
         Mesher::DualContouring => DualCache::build(volume).welded(),
         Mesher::SingleVertexDualContouring => DualCache::build_single_vertex(volume).welded(),
         m @ (Mesher::Tetrahedra | Mesher::ClusteredTetrahedra) => {
-            crate::tetra_volume(volume, m == Mesher::ClusteredTetrahedra).ok_or(MesherError::MixedLevels(m))?
+            crate::tetra::tetra_volume(volume, m == Mesher::ClusteredTetrahedra).ok_or(MesherError::MixedLevels(m))?
         }
     };
     let islands = match options.remove_islands {

@@ -76,7 +76,12 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{checks, dual_contour_volume, mesh_volume};
+    use crate::checks;
+    use crate::marching::mesh_volume;
+
+    fn dual_contour_volume(v: &strata_volume::Volume) -> crate::Mesh {
+        crate::DualCache::build(v).welded()
+    }
     use glam::DVec3;
     use strata_volume::Volume;
     use strata_volume::brush::{Cuboid, Sphere};

@@ -100,7 +100,7 @@ mod tests {
     fn a_sphere_simplifies_closed_within_its_error() {
         let mut v = Volume::new();
         v.add(&Sphere::new(DVec3::new(9.3, 7.1, 8.4), 12.0).unwrap()).unwrap();
-        let mesh = crate::mesh_volume(&v);
+        let mesh = crate::marching::mesh_volume(&v);
         let simple = simplify(&mesh, Simplify::export(0.1)).unwrap();
         check_closed_manifold(&simple).unwrap();
         assert!(

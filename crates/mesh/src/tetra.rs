@@ -720,7 +720,7 @@ fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart,
 /// One welded marching-tetrahedra mesh of the whole volume (grid units, absolute), with the
 /// integrated clustering when `cluster`. `None` for a volume whose chunks mix levels: tetrahedra
 /// do not patch the seams between levels (marching cubes does).
-pub fn tetra_volume(volume: &strata_volume::Volume, cluster: bool) -> Option<Mesh> {
+pub(crate) fn tetra_volume(volume: &strata_volume::Volume, cluster: bool) -> Option<Mesh> {
     if !volume.single_level() {
         return None;
     }

@@ -4,8 +4,8 @@
 use std::f64::consts::PI;
 
 use glam::{DQuat, DVec3};
+use strata_mesh::DualCache;
 use strata_mesh::checks::{check_closed_manifold, manifold_report, signed_volume};
-use strata_mesh::{DualCache, dual_contour_volume};
 use strata_volume::Volume;
 use strata_volume::brush::{Brush, Capsule, Cuboid, Sphere, Torus};
 
@@ -27,7 +27,11 @@ fn spheres_tori_capsules_and_boxes_give_closed_manifold_meshes_with_their_volume
         ),
         (Box::new(Cuboid::new(c, DVec3::new(20.3, 13.1, 17.7)).unwrap()), 8.0 * 20.3 * 13.1 * 17.7),
     ] {
-        let mesh = dual_contour_volume(&volume_of(brush.as_ref()));
+        let mesh = strata_mesh::mesh_volume_with(
+            &volume_of(brush.as_ref()),
+            strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring),
+        )
+        .expect("dual contouring meshes every volume");
         check_closed_manifold(&mesh).unwrap();
         let m = signed_volume(&mesh);
         assert!((m - exact).abs() / exact < 0.01, "mesh volume {m}, exact {exact}");
@@ -35,7 +39,11 @@ fn spheres_tori_capsules_and_boxes_give_closed_manifold_meshes_with_their_volume
 }
 
 fn assert_corners_sharp(brush: &dyn Brush, corners: &[DVec3], tolerance: f64) {
-    let mesh = dual_contour_volume(&volume_of(brush));
+    let mesh = strata_mesh::mesh_volume_with(
+        &volume_of(brush),
+        strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring),
+    )
+    .expect("dual contouring meshes every volume");
     // Closed always; near the corners of a rotated box a cell can hold two sheets that share
     // the cell's one vertex (a few non-manifold edges, counted in the random-edit test).
     assert_eq!(manifold_report(&mesh).boundary, 0);
@@ -56,7 +64,14 @@ fn box_corners_come_out_sharp() {
         .map(|k| c + h * DVec3::new([-1.0, 1.0][k & 1], [-1.0, 1.0][(k >> 1) & 1], [-1.0, 1.0][k >> 2]))
         .collect();
     assert_corners_sharp(&Cuboid::new(c, h).unwrap(), &corners, 0.05);
-    check_closed_manifold(&dual_contour_volume(&volume_of(&Cuboid::new(c, h).unwrap()))).unwrap();
+    check_closed_manifold(
+        &strata_mesh::mesh_volume_with(
+            &volume_of(&Cuboid::new(c, h).unwrap()),
+            strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring),
+        )
+        .expect("dual contouring meshes every volume"),
+    )
+    .unwrap();
     let rot = DQuat::from_euler(glam::EulerRot::XYZ, 0.5, -0.3, 0.9);
     let rotated: Vec<DVec3> = corners.iter().map(|&p| c + rot * (p - c)).collect();
     assert_corners_sharp(&Cuboid::oriented(c, h, rot, 0.0).unwrap(), &rotated, 0.05);
@@ -88,7 +103,9 @@ fn random_edits_give_closed_meshes_and_the_non_manifold_rate_is_reported() {
             let s = Sphere::new(c, 2.0 + 10.0 * next()).unwrap();
             if i % 3 == 2 { v.subtract(&s) } else { v.add(&s) }.unwrap();
         }
-        let mesh = dual_contour_volume(&v);
+        let mesh =
+            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring))
+                .expect("dual contouring meshes every volume");
         check_closed_manifold(&mesh).unwrap();
         let r = manifold_report(&mesh);
         edges += r.edges;
@@ -144,7 +161,9 @@ fn ten_thousand_random_edit_cases_have_no_non_manifold_edge() {
         if v.is_empty() {
             continue;
         }
-        let mesh = dual_contour_volume(&v);
+        let mesh =
+            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring))
+                .expect("dual contouring meshes every volume");
         if mesh.indices.is_empty() {
             continue;
         }

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use glam::DVec3;
+use strata_mesh::Mesh;
 use strata_mesh::export::{MeshFormat, save_mesh};
-use strata_mesh::{Mesh, mesh_volume};
 use strata_tests::files::race_writers_with_reader;
 use strata_volume::Volume;
 use strata_volume::brush::{Sphere, Torus};
@@ -13,7 +13,7 @@ fn scene() -> Mesh {
     let mut v = Volume::new();
     v.add(&Sphere::new(DVec3::new(5.0, 6.0, 7.0), 9.0).unwrap()).unwrap();
     v.add(&Torus::new(DVec3::new(5.0, 6.0, 7.0), DVec3::Y, 12.0, 3.0).unwrap()).unwrap();
-    mesh_volume(&v)
+    strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default()).expect("marching cubes meshes every volume")
 }
 
 fn bounds(points: impl Iterator<Item = [f32; 3]>) -> ([f32; 3], [f32; 3]) {
@@ -126,7 +126,8 @@ fn two_threads_exporting_to_one_path_never_leave_a_corrupt_or_partial_file() {
     let b = {
         let mut v = Volume::new();
         v.add(&Sphere::new(DVec3::new(1.0, 2.0, 3.0), 5.0).unwrap()).unwrap();
-        mesh_volume(&v)
+        strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+            .expect("marching cubes meshes every volume")
     };
     assert_ne!(a.triangle_count(), b.triangle_count());
     save_mesh(&a, &path).unwrap();

@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use strata_mesh::export::save_mesh;
 use strata_mesh::import::{ImportError, load_mesh};
-use strata_mesh::mesh_volume;
 use strata_volume::Volume;
 use strata_volume::brush::{MeshBrush, MeshRule, Sphere};
 
@@ -24,7 +23,8 @@ fn bunny_path() -> PathBuf {
 fn exports_read_back_in_every_format() {
     let mut v = Volume::new();
     v.add(&Sphere::new(DVec3::new(5.0, 6.0, 7.0), 9.0).unwrap()).unwrap();
-    let mesh = mesh_volume(&v);
+    let mesh = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     for ext in ["obj", "stl", "ply", "glb"] {
         let path = temp(&format!("sphere.{ext}"));
         save_mesh(&mesh, &path).unwrap();

@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 use glam::{DQuat, DVec3, Vec3};
 use proptest::prelude::*;
 use strata_mesh::checks::{aspect_stats, check_closed_manifold, signed_volume, surface_area};
-use strata_mesh::{Mesh, mesh_block, mesh_volume};
+use strata_mesh::{Mesh, mesh_block};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Sphere, Torus};
 use strata_volume::{Axis, ChunkKey, CsgOp, EditSettings, Level, Volume, VoxelBlock};
 
@@ -46,7 +46,8 @@ fn volume_of(brushes: &[&dyn strata_volume::brush::Brush]) -> Volume {
 }
 
 fn assert_mesh_volume(v: &Volume, exact: f64, tolerance: f64) -> Mesh {
-    let mesh = mesh_volume(v);
+    let mesh = strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     check_closed_manifold(&mesh).unwrap();
     let m = signed_volume(&mesh);
     assert!((m - exact).abs() / exact < tolerance, "mesh volume {m}, exact {exact}");
@@ -125,7 +126,7 @@ proptest! {
         if v.is_empty() {
             return Ok(());
         }
-        let mesh = mesh_volume(&v);
+        let mesh = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default()).expect("marching cubes meshes every volume");
         prop_assert!(check_closed_manifold(&mesh).is_ok(), "{:?}", check_closed_manifold(&mesh));
         let lists = v.measured_volume(Axis::X);
         let m = signed_volume(&mesh);

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 use strata_mesh::export::{ExportMaterial, save_mesh_with, vertex_color};
-use strata_mesh::{DualCache, Mesh, checks, dual_contour_volume, mesh_volume};
+use strata_mesh::{DualCache, Mesh, checks};
 use strata_volume::brush::{Cuboid, Sphere};
 use strata_volume::{CsgOp, EditSettings, Volume};
 
@@ -32,7 +32,18 @@ fn weights_sum_to_one(m: &Mesh) {
 #[test]
 fn a_painted_half_space_gives_its_vertices_its_material_alone() {
     let v = two_material_slab();
-    for (name, mesh) in [("marching cubes", mesh_volume(&v)), ("dual contouring", dual_contour_volume(&v))] {
+    for (name, mesh) in [
+        (
+            "marching cubes",
+            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
+                .expect("marching cubes meshes every volume"),
+        ),
+        (
+            "dual contouring",
+            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring))
+                .expect("dual contouring meshes every volume"),
+        ),
+    ] {
         checks::check_closed_manifold(&mesh).unwrap();
         weights_sum_to_one(&mesh);
         let mut painted = 0;
@@ -85,7 +96,8 @@ fn temp(name: &str) -> PathBuf {
 
 #[test]
 fn a_coloured_glb_passes_the_gltf_crates_checks_and_keeps_its_colours() {
-    let mesh = mesh_volume(&two_material_slab());
+    let mesh = strata_mesh::mesh_volume_with(&two_material_slab(), strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     let path = temp("slab.glb");
     save_mesh_with(&mesh, &path, &palette()).unwrap();
     // `gltf::import` validates the document (accessor types, bounds, required attributes).
@@ -119,7 +131,8 @@ fn a_coloured_glb_passes_the_gltf_crates_checks_and_keeps_its_colours() {
 
 #[test]
 fn obj_with_mtl_and_ply_keep_the_colours() {
-    let mesh = mesh_volume(&two_material_slab());
+    let mesh = strata_mesh::mesh_volume_with(&two_material_slab(), strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     let pal = palette();
     let obj = temp("slab.obj");
     save_mesh_with(&mesh, &obj, &pal).unwrap();

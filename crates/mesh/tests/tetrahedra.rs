@@ -8,7 +8,7 @@ use glam::{DQuat, DVec3, IVec3, Vec3};
 use proptest::prelude::*;
 use strata_mesh::checks::{self, check_closed_manifold, hausdorff, signed_volume};
 use strata_mesh::tetra::tetra_volume_per_chunk;
-use strata_mesh::{BlockMesher, Mesh, MeshCache, TetraScratch, mesh_block_tetra, tetra_volume};
+use strata_mesh::{BlockMesher, Mesh, MeshCache, TetraScratch, mesh_block_tetra};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Sphere, Torus};
 use strata_volume::{Axis, ChunkKey, CsgOp, EditSettings, Level, Volume, VoxelBlock};
 
@@ -101,15 +101,22 @@ fn volume_of(brushes: &[&dyn Brush]) -> Volume {
 /// The volume the lists' surface encloses: marching cubes' (its vertices are the stored
 /// crossings). The lists' own measure counts lines lying in a face on the grid as full cells.
 fn lists_volume(v: &Volume) -> f64 {
-    signed_volume(&strata_mesh::mesh_volume(v))
+    signed_volume(
+        &strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::default())
+            .expect("marching cubes meshes every volume"),
+    )
 }
 
 /// Every tetrahedra mesh of `v` (plain, clustered whole, clustered per chunk) is closed and
 /// manifold, encloses the lists' volume within `tolerance`, and the clustered ones stay within
 /// `max_distance` cells of the plain one.
 fn assert_tetrahedra(v: &Volume, tolerance: f64, max_distance: f64) -> [Mesh; 3] {
-    let plain = tetra_volume(v, false).unwrap();
-    let whole = tetra_volume(v, true).unwrap();
+    let plain =
+        strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::Tetrahedra)).ok().unwrap();
+    let whole =
+        strata_mesh::mesh_volume_with(v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra))
+            .ok()
+            .unwrap();
     let chunked = tetra_volume_per_chunk(v).unwrap();
     let lists = lists_volume(v);
     for (name, m) in [("plain", &plain), ("clustered", &whole), ("per chunk", &chunked)] {
@@ -169,7 +176,12 @@ fn analytic_shapes_mesh_closed_with_their_volume_on_and_off_the_grid() {
     let rod = Capsule::new(DVec3::new(2.0, 20.3, 3.1), DVec3::new(28.0, 20.3, 3.1), 0.7).unwrap();
     for b in [&sheet as &dyn Brush, &rod] {
         let v = volume_of(&[b]);
-        for m in [tetra_volume(&v, true).unwrap(), tetra_volume_per_chunk(&v).unwrap()] {
+        for m in [
+            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra))
+                .ok()
+                .unwrap(),
+            tetra_volume_per_chunk(&v).unwrap(),
+        ] {
             check_closed_manifold(&m).unwrap();
             assert!(signed_volume(&m) > 0.3 * lists_volume(&v));
         }
@@ -210,12 +222,21 @@ fn incremental_chunk_meshes_equal_a_full_rebuild_and_meet_across_borders() {
 #[test]
 fn mixed_levels_fall_back_to_marching_cubes_for_the_whole_volume() {
     let mut v = volume_of(&[&Sphere::new(DVec3::new(15.7, 9.4, 16.3), 12.0).unwrap()]);
-    assert!(tetra_volume(&v, true).is_some());
+    assert!(
+        strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra))
+            .ok()
+            .is_some()
+    );
     let mut cache = MeshCache::build_with(&v, BlockMesher::ClusteredTetrahedra);
     assert_eq!(cache.mesher_used(), BlockMesher::ClusteredTetrahedra);
     let key = ChunkKey::new(0, 0, 0);
     let changed = v.set_chunk_level(key, Level::new(1).unwrap()).changed;
-    assert!(tetra_volume(&v, true).is_none(), "tetrahedra refuse mixed levels");
+    assert!(
+        strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra))
+            .ok()
+            .is_none(),
+        "tetrahedra refuse mixed levels"
+    );
     assert!(tetra_volume_per_chunk(&v).is_none());
     let remeshed = cache.update(&v, &changed);
     assert_eq!(cache.mesher_used(), BlockMesher::MarchingCubes);
@@ -265,10 +286,10 @@ proptest! {
         if v.is_empty() {
             return Ok(());
         }
-        let plain = tetra_volume(&v, false).unwrap();
+        let plain = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::Tetrahedra)).ok().unwrap();
         prop_assert!(check_closed_manifold(&plain).is_ok(), "plain: {:?}", check_closed_manifold(&plain));
         let lists = lists_volume(&v);
-        for m in [tetra_volume(&v, true).unwrap(), tetra_volume_per_chunk(&v).unwrap()] {
+        for m in [strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra)).ok().unwrap(), tetra_volume_per_chunk(&v).unwrap()] {
             prop_assert!(check_closed_manifold(&m).is_ok(), "{:?}", check_closed_manifold(&m));
             if lists > 2000.0 {
                 let vol = signed_volume(&m);

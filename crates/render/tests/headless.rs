@@ -113,11 +113,15 @@ fn a_sphere_renders_where_the_camera_puts_it() {
     assert!(darker > 1000, "wireframe lines are drawn over the surface ({darker} pixels darker)");
     let with_grid = render_offscreen(&gpu, &mut r, W, H, &FrameSettings { grid: true, ..settings }).unwrap();
     assert_ne!(with_grid, img, "the grid is drawn");
-    let brush = strata_mesh::mesh_volume(&{
-        let mut v = Volume::new();
-        v.add(&Sphere::new(DVec3::ZERO, 4.0).unwrap()).unwrap();
-        v
-    });
+    let brush = strata_mesh::mesh_volume_with(
+        &{
+            let mut v = Volume::new();
+            v.add(&Sphere::new(DVec3::ZERO, 4.0).unwrap()).unwrap();
+            v
+        },
+        strata_mesh::MeshOptions::default(),
+    )
+    .expect("marching cubes meshes every volume");
     let preview = Preview {
         mesh: lend(&brush),
         model: Mat4::from_translation(CENTRE + Vec3::new(0.0, 0.0, RADIUS)),

@@ -329,7 +329,8 @@ fn chunks_near_the_viewer_are_finer_and_follow_it() {
 /// at the border of what is loaded (where the lists continue in chunks not in memory), seams
 /// between levels included.
 fn closed_inside(world: &World, loaded: &HashSet<ChunkKey>) {
-    let mesh = strata_mesh::mesh_volume(world.volume());
+    let mesh = strata_mesh::mesh_volume_with(world.volume(), strata_mesh::MeshOptions::default())
+        .expect("marching cubes meshes every volume");
     let mut uses: std::collections::HashMap<(u32, u32), i32> = std::collections::HashMap::new();
     for t in mesh.indices.chunks_exact(3) {
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {

@@ -28,7 +28,9 @@ impl Studio {
                 Ok(t) => match tool.brush(&t, DVec3::ZERO, DQuat::IDENTITY, 1.0).map(|b| v.add(b.as_ref()).map(|_| ()))
                 {
                     Ok(Ok(())) => {
-                        let mut m = strata_mesh::mesh_volume(&v);
+                        // (Marching cubes with no options meshes every volume: no preview is the worst.)
+                        let mut m =
+                            strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default()).unwrap_or_default();
                         for p in &mut m.positions {
                             *p = p.map(|c| c * scale as f32);
                         }
