@@ -244,7 +244,7 @@ impl VoxelBlock {
                 let c = d.crossing(axis, lower);
                 let e = lower[axis.index()] as u32;
                 let s = level.steps_per_cell();
-                let q = crate::level::face::pos(c) as u32;
+                let q = crate::level::face::pos(c).0 as u32;
                 ((q - e * s) as f32 * (1.0 / s as f32), crate::level::face::nrm(c))
             },
         );
@@ -581,7 +581,7 @@ impl Volume {
                             out.lookup[a][idx] = out.crossings[a].len() as u32;
                             out.crossings[a].push(EdgeCrossing {
                                 lower: lower.map(|c| c as u8),
-                                t: (q as u32 - e as u32 * s) as f32 * inv_s,
+                                t: (q.0 as u32 - e as u32 * s) as f32 * inv_s,
                                 normal: nr,
                             });
                         }
@@ -633,7 +633,7 @@ fn extract_sampled(map: &crate::level::LevelMap<'_>, key: ChunkKey, out: &mut Vo
                     out.lookup[a][idx] = out.crossings[a].len() as u32;
                     out.crossings[a].push(EdgeCrossing {
                         lower: lower.map(|c| c as u8),
-                        t: (line.pos[e] as u32 - e as u32 * s) as f32 * inv_s,
+                        t: (line.pos[e].0 as u32 - e as u32 * s) as f32 * inv_s,
                         normal: line.nrm[e],
                     });
                 }

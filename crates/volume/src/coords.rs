@@ -177,15 +177,25 @@ impl Level {
     }
 }
 
-/// A position along a chunk's extent: `value / 65536` of the chunk side. Stored positions are
-/// always even (2,048 steps per base cell): chunk storage uses bit 0 to mark the last crossing
-/// of a line.
-pub type LocalPos = u16;
+/// A position along a chunk's extent: `value / 65536` of the chunk side. Positions are always
+/// even (2,048 steps per base cell): chunk storage keeps them as plain 16-bit words in one stream
+/// with the normals ([`crate::normal::PackedNormal`]) and uses bit 0 of a stored word to mark
+/// the last crossing of a line, so a `LocalPos` (what readers see) never has bit 0 set. A type
+/// of its own so that a position is never taken for a normal, a node index or a marked word.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(transparent)]
+pub struct LocalPos(pub u16);
+
+impl std::fmt::Display for LocalPos {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
 
 /// Grid-unit offset (from the chunk's minimum face) of a fixed-point position.
 #[inline]
 pub fn local_pos_to_grid(q: LocalPos) -> f64 {
-    q as f64 * (CHUNK_CELLS as f64 / CHUNK_STEPS as f64)
+    q.0 as f64 * (CHUNK_CELLS as f64 / CHUNK_STEPS as f64)
 }
 
 /// Quantises a grid-unit offset along a chunk line into the open cell `edge` of `level`: the
@@ -214,7 +224,7 @@ pub fn quantize_steps(steps: f64, edge: usize, level: Level) -> LocalPos {
         // On a node of the finest level: one unit towards the inside of the edge.
         q += if q < hi { 1 } else { -1 };
     }
-    (q * 2) as LocalPos
+    LocalPos((q * 2) as u16)
 }
 
 /// Half-steps (units of two fixed-point steps) between nodes of the finest level.
@@ -224,13 +234,13 @@ const FINEST_HALF_STEPS: i64 = (4096 >> MAX_LEVEL) / 2;
 /// resolution levels could be changed hold such positions).
 #[inline]
 pub fn on_finest_node(q: LocalPos) -> bool {
-    (q as i64 / 2) % FINEST_HALF_STEPS == 0
+    (q.0 as i64 / 2) % FINEST_HALF_STEPS == 0
 }
 
 /// The cell (edge index along the line) a fixed-point position lies in.
 #[inline]
 pub fn edge_of(q: LocalPos, level: Level) -> usize {
-    (q as u32 >> (12 - level.0)) as usize
+    (q.0 as u32 >> (12 - level.0)) as usize
 }
 
 #[cfg(test)]
@@ -262,8 +272,8 @@ mod tests {
                 for t in [-5.0, 0.0, edge as f64 * level.spacing(), mid, mid + 0.25, 1e9, f64::NAN] {
                     let q = quantize_into_edge(t, edge, level);
                     assert_eq!(edge_of(q, level), edge);
-                    assert_ne!(q as u32 % s, 0, "a crossing must not sit on a node");
-                    assert_eq!(q % 2, 0, "positions are even");
+                    assert_ne!(q.0 as u32 % s, 0, "a crossing must not sit on a node");
+                    assert_eq!(q.0 % 2, 0, "positions are even");
                     assert!(!on_finest_node(q), "nor on a node of a finer level");
                 }
             }

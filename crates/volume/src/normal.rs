@@ -2,8 +2,25 @@
 
 use glam::DVec3;
 
-/// A unit normal packed into 16 bits.
-pub type PackedNormal = u16;
+/// A unit normal packed into 16 bits (octahedral: 8 bits a coordinate).
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    bytemuck::Pod,
+    bytemuck::Zeroable,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[repr(transparent)]
+#[serde(transparent)]
+pub struct PackedNormal(pub u16);
 
 /// Packs a normal. Zero or non-finite input packs to +z.
 #[inline]
@@ -23,13 +40,13 @@ pub fn pack_normal(n: DVec3) -> PackedNormal {
     // x + 127.5 lies in [0, 255] up to rounding; + 0.5 rounds, `as` truncates and saturates.
     let qx = (x + 128.0).min(255.0) as u16;
     let qy = (y + 128.0).min(255.0) as u16;
-    qx | (qy << 8)
+    PackedNormal(qx | (qy << 8))
 }
 
 /// Unpacks a normal to a unit vector.
 pub fn unpack_normal(p: PackedNormal) -> DVec3 {
-    let x = (p & 0xff) as f64 / 255.0 * 2.0 - 1.0;
-    let y = (p >> 8) as f64 / 255.0 * 2.0 - 1.0;
+    let x = (p.0 & 0xff) as f64 / 255.0 * 2.0 - 1.0;
+    let y = (p.0 >> 8) as f64 / 255.0 * 2.0 - 1.0;
     let z = 1.0 - x.abs() - y.abs();
     let (x, y) = if z < 0.0 { ((1.0 - y.abs()) * sign(x), (1.0 - x.abs()) * sign(y)) } else { (x, y) };
     DVec3::new(x, y, z).normalize()

@@ -55,7 +55,7 @@ impl Volume {
                 // A crossing in cell `e` lies before node `x` exactly when `e < x`, that is when
                 // it lies before the node's position.
                 let x_steps = local.x as u32 * self.level.steps_per_cell();
-                x_line_state(l, self.level, local.y as usize, local.z as usize, |q| (q as u32) < x_steps)
+                x_line_state(l, self.level, local.y as usize, local.z as usize, |q| (q.0 as u32) < x_steps)
             }
         }
     }
@@ -83,7 +83,7 @@ impl Volume {
             ChunkView::Lists(l) => {
                 let t = (p_grid.x - kx * CHUNK_CELLS as f64) * (CHUNK_STEPS as f64 / CHUNK_CELLS as f64);
                 let (u, v) = (ny.rem_euclid(n) as usize, nz.rem_euclid(n) as usize);
-                x_line_state(l, self.level, u, v, |q| (q as f64) < t)
+                x_line_state(l, self.level, u, v, |q| (q.0 as f64) < t)
             }
         }
     }
@@ -200,7 +200,13 @@ pub fn clip_to_box(origin: DVec3, dir: DVec3, lo: DVec3, hi: DVec3) -> Option<(f
 /// `q` lies before the point: the line of row `(y, z)` of level `at` (`0..at.cells()` each), or
 /// where the chunk is stored at a coarser level and has no such line, the line of its own nodes
 /// at or below it on y and z.
-fn x_line_state(lists: &ChunkLists, at: Level, y: usize, z: usize, before: impl Fn(u16) -> bool) -> bool {
+fn x_line_state(
+    lists: &ChunkLists,
+    at: Level,
+    y: usize,
+    z: usize,
+    before: impl Fn(crate::coords::LocalPos) -> bool,
+) -> bool {
     let (stored, at) = (lists.level().get(), at.get());
     let (y, z) =
         if stored >= at { (y << (stored - at), z << (stored - at)) } else { (y >> (at - stored), z >> (at - stored)) };
@@ -433,8 +439,8 @@ fn inside_steps(line: crate::chunk::LineRef<'_>) -> u64 {
     let mut inside_from = line.start_inside.then_some(0u64);
     for q in line.positions() {
         match inside_from.take() {
-            Some(s) => steps += q as u64 - s,
-            None => inside_from = Some(q as u64),
+            Some(s) => steps += q.0 as u64 - s,
+            None => inside_from = Some(q.0 as u64),
         }
     }
     if let Some(s) = inside_from {

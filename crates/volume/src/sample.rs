@@ -43,7 +43,7 @@ pub fn brush_contains_node(brush: &dyn Brush, node: I64Vec3, level: Level) -> bo
 /// Packs a brush's outward normal as stored: flipped for a subtraction, where the brush's
 /// outside becomes the solid's inside.
 #[inline]
-pub(crate) fn pack_oriented(normal: DVec3, flip: bool) -> u16 {
+pub(crate) fn pack_oriented(normal: DVec3, flip: bool) -> crate::normal::PackedNormal {
     pack_normal(if flip { -normal } else { normal })
 }
 
@@ -267,8 +267,8 @@ impl<'a> LineSampler<'a> {
 /// its ends (the common case, taken without a predicate call).
 struct SingleSpan {
     states: u128,
-    enter: Option<(usize, u16, u16)>,
-    exit: Option<(usize, u16, u16)>,
+    enter: Option<(usize, crate::coords::LocalPos, crate::normal::PackedNormal)>,
+    exit: Option<(usize, crate::coords::LocalPos, crate::normal::PackedNormal)>,
 }
 
 impl SingleSpan {

@@ -132,7 +132,7 @@ fn crossings(v: &Volume) -> BTreeMap<(ChunkKey, usize, usize, usize), Vec<u16>> 
                 for u in 0..n {
                     let line = l.line(axis, u, vv);
                     if !line.is_empty() {
-                        out.insert((key, axis.index(), u, vv), line.positions().collect());
+                        out.insert((key, axis.index(), u, vv), line.positions().map(|q| q.0).collect());
                     }
                 }
             }
@@ -143,7 +143,7 @@ fn crossings(v: &Volume) -> BTreeMap<(ChunkKey, usize, usize, usize), Vec<u16>> 
 
 /// The two nodes of the edge a stored crossing lies in (base level).
 fn edge_nodes(key: ChunkKey, axis: usize, u: usize, v: usize, q: u16) -> [I64Vec3; 2] {
-    let e = strata_volume::coords::edge_of(q, Level::BASE) as i64;
+    let e = strata_volume::coords::edge_of(strata_volume::coords::LocalPos(q), Level::BASE) as i64;
     let axis = Axis::ALL[axis];
     let (ua, va) = axis.across();
     let mut p = key.origin_grid();

@@ -12,7 +12,7 @@
 use glam::{DVec3, I64Vec3, IVec3};
 use proptest::prelude::*;
 use strata_volume::brush::{Brush, Cuboid, Sphere};
-use strata_volume::coords::edge_of;
+use strata_volume::coords::{LocalPos, edge_of};
 use strata_volume::{Axis, Chunk, ChunkKey, ChunkLists, CsgOp, EditError, EditSettings, Level, Volume, tools};
 
 fn level(k: u8) -> Level {
@@ -142,7 +142,7 @@ fn check_level_change(
 }
 
 /// Positions of a line with those in cell `skip` left out.
-fn positions_without(l: &ChunkLists, axis: Axis, u: usize, v: usize, skip: Option<usize>) -> (bool, Vec<u16>) {
+fn positions_without(l: &ChunkLists, axis: Axis, u: usize, v: usize, skip: Option<usize>) -> (bool, Vec<LocalPos>) {
     let line = l.line(axis, u, v);
     let level = l.level();
     (line.start_inside, line.positions().filter(|&q| Some(edge_of(q, level)) != skip).collect())
@@ -179,7 +179,8 @@ fn check_round_trip_bound(before: &Volume, after: &Volume, key: ChunkKey) -> Res
                 for v in 0..n {
                     for u in 0..n {
                         let (la, lb) = (a.line(axis, u, v), b.line(axis, u, v));
-                        let (pa, pb): (Vec<u16>, Vec<u16>) = (la.positions().collect(), lb.positions().collect());
+                        let (pa, pb): (Vec<LocalPos>, Vec<LocalPos>) =
+                            (la.positions().collect(), lb.positions().collect());
                         if pa == pb && la.start_inside == lb.start_inside {
                             continue;
                         }
@@ -188,7 +189,7 @@ fn check_round_trip_bound(before: &Volume, after: &Volume, key: ChunkKey) -> Res
                         for (&qa, &qb) in pa.iter().zip(&pb) {
                             prop_assert_eq!(edge_of(qa, level), edge_of(qb, level), "crossing left its cell");
                             prop_assert!(
-                                (qa as i64 - qb as i64).unsigned_abs() as u32 <= bound,
+                                (qa.0 as i64 - qb.0 as i64).unsigned_abs() as u32 <= bound,
                                 "{:?} line {:?} ({}, {}): {} moved to {}",
                                 key,
                                 axis,
@@ -510,7 +511,8 @@ fn a_raise_moves_a_crossing_the_finer_neighbour_contradicts_within_half_a_cell()
     let _ = v.set_chunk_level(pz, level(1));
     v.add(&Sphere::new(DVec3::new(3.0, 5.5, 0.0), 0.3).unwrap()).unwrap();
     v.check_invariants().expect("before");
-    let crossing = |v: &Volume| lists(v, key).unwrap().line(Axis::Y, 0, 3).positions().collect::<Vec<u16>>();
+    let crossing =
+        |v: &Volume| lists(v, key).unwrap().line(Axis::Y, 0, 3).positions().map(|q| q.0).collect::<Vec<u16>>();
     let old = crossing(&v);
     assert_eq!(old.len(), 1);
     assert!(old[0] < 22_528, "the box's top at y = 5.3 is in the edge's lower half");

@@ -34,7 +34,8 @@ pub(crate) struct WorkLine {
 }
 
 impl WorkLine {
-    pub(crate) const EMPTY: WorkLine = WorkLine { states: 0, pos: [0; MAX_NODES - 1], nrm: [0; MAX_NODES - 1] };
+    pub(crate) const EMPTY: WorkLine =
+        WorkLine { states: 0, pos: [LocalPos(0); MAX_NODES - 1], nrm: [PackedNormal(0); MAX_NODES - 1] };
 
     /// Unpacks a stored line.
     pub(crate) fn load(&mut self, line: LineRef<'_>, level: Level) {
@@ -148,7 +149,7 @@ impl ChunkBuilder {
     fn grow(&mut self, need: usize) {
         let len = need.max(2 * self.positions.len()).max(1024);
         self.positions.resize(len, 0);
-        self.normals.resize(len, 0);
+        self.normals.resize(len, PackedNormal(0));
     }
 
     /// Appends stored positions (end marks as they are) and their normals.
@@ -173,8 +174,8 @@ impl ChunkBuilder {
     /// Appends one crossing (room must have been made).
     #[inline]
     fn write_one(&mut self, q: LocalPos, normal: PackedNormal) {
-        debug_assert_eq!(q & LAST, 0, "positions are even");
-        self.positions[self.m] = q;
+        debug_assert_eq!(q.0 & LAST, 0, "positions are even");
+        self.positions[self.m] = q.0;
         self.normals[self.m] = normal;
         self.m += 1;
     }
@@ -287,15 +288,15 @@ impl ChunkBuilder {
         let (dp, dn) = (&mut self.positions[m..m + out], &mut self.normals[m..m + out]);
         let mut i = 0;
         let mut put = |(r, nr): (LocalPos, PackedNormal)| {
-            (dp[i], dn[i]) = (r, nr);
+            (dp[i], dn[i]) = (r.0, nr);
             i += 1;
         };
-        raw[..p].iter().zip(&normals[..p]).for_each(|(&r, &nr)| put((r, nr)));
+        raw[..p].iter().zip(&normals[..p]).for_each(|(&r, &nr)| put((LocalPos(r), nr)));
         mid.iter().for_each(|&c| {
-            debug_assert_eq!(c.0 & LAST, 0, "positions are even");
+            debug_assert_eq!(c.0.0 & LAST, 0, "positions are even");
             put(c);
         });
-        raw[q..].iter().zip(&normals[q..]).for_each(|(&r, &nr)| put((r, nr)));
+        raw[q..].iter().zip(&normals[q..]).for_each(|(&r, &nr)| put((LocalPos(r), nr)));
         if p == k && k > 0 {
             // Stored crossing k - 1 carried the end mark and is no longer last.
             dp[p - 1] &= !LAST;

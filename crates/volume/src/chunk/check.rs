@@ -47,7 +47,7 @@ pub(crate) fn check_lists(lists: &ChunkLists) -> Result<(), String> {
                 if (q as u32).is_multiple_of(s) {
                     return Err(format!("{axis:?} line {index}: crossing {q} sits on a node"));
                 }
-                let e = edge_of(q, level);
+                let e = edge_of(LocalPos(q), level);
                 if last_edge.is_some_and(|l| l >= e) {
                     return Err(format!("{axis:?} line {index}: crossings unsorted or two in one cell"));
                 }

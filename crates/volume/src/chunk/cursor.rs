@@ -11,7 +11,7 @@ pub(crate) struct RawCursor<'a> {
     /// The family's nonempty bits.
     pub(super) nonempty: FamilyBits,
     pub(super) raw: &'a [u16],
-    pub(super) normals: &'a [u16],
+    pub(super) normals: &'a [PackedNormal],
     /// The next line to read.
     pub(super) index: usize,
     /// Its first crossing.

@@ -241,7 +241,7 @@ impl Serialize for ChunkLists {
             family_start: [self.family_start(Axis::Y) as u32, self.family_start(Axis::Z) as u32],
             nonempty: self.nonempty_all().into(),
             positions: self.raw_positions().into(),
-            normals: self.normals().into(),
+            normals: bytemuck::cast_slice::<PackedNormal, u16>(self.normals()).into(),
         }
         .serialize(serializer)
     }
@@ -293,7 +293,7 @@ impl<'a> LineRef<'a> {
     /// Chunk-local fixed-point positions, strictly increasing, at most one per cell.
     #[inline]
     pub fn positions(&self) -> impl ExactSizeIterator<Item = LocalPos> + 'a {
-        self.raw.iter().map(|&q| q & !LAST)
+        self.raw.iter().map(|&q| LocalPos(q & !LAST))
     }
 
     /// Number of crossings.
@@ -317,7 +317,7 @@ impl<'a> LineRef<'a> {
     /// Crossing `i`: its position (without the end mark) and normal.
     #[inline]
     pub(crate) fn crossing(&self, i: usize) -> (LocalPos, PackedNormal) {
-        (self.raw[i] & !LAST, self.normals[i])
+        (LocalPos(self.raw[i] & !LAST), self.normals[i])
     }
 
     /// The state after the line's last cell.
@@ -515,7 +515,8 @@ impl ChunkLists {
     #[inline]
     fn normals(&self) -> &[PackedNormal] {
         let m = self.crossing_count();
-        &self.values()[m..2 * m]
+        // (Positions and normals share one stream of 16-bit words.)
+        bytemuck::cast_slice(&self.values()[m..2 * m])
     }
 
     /// The line `(u, v)` along `axis` (derives the family's start states: for one-off reads;
@@ -667,7 +668,7 @@ impl ChunkLists {
         if ys as usize > m || zs as usize > m || ys > zs {
             return Err("family start offsets out of range".into());
         }
-        let lists = assemble(r.level, r.corner, [ys, zs], &r.nonempty, &r.positions, &r.normals);
+        let lists = assemble(r.level, r.corner, [ys, zs], &r.nonempty, &r.positions, bytemuck::cast_slice(&r.normals));
         check_lists(&lists)?;
         Ok(lists)
     }
@@ -681,7 +682,7 @@ fn assemble(
     family_start: [u32; 2],
     nonempty: &[u64],
     positions: &[u16],
-    normals: &[u16],
+    normals: &[PackedNormal],
 ) -> ChunkLists {
     let m = positions.len();
     let head = ChunkLists::header_words(level);
@@ -713,7 +714,7 @@ fn assemble(
     let values: &mut [u16] = bytemuck::cast_slice_mut(body);
     let values = &mut values[stored.div_ceil(2)..];
     values[..m].copy_from_slice(positions);
-    values[m..2 * m].copy_from_slice(normals);
+    values[m..2 * m].copy_from_slice(bytemuck::cast_slice(normals));
     ChunkLists { words: thin::Words::new(data) }
 }
 

@@ -261,7 +261,7 @@ pub(super) fn splice_piece(b: &mut ChunkBuilder, line: LineRef<'_>, piece: Piece
     let Piece { fill, lo, hi, span, shift } = piece;
     let stored = line.stored();
     let k = stored.len();
-    let cell = |i: usize| edge_of(stored[i], level);
+    let cell = |i: usize| edge_of(crate::coords::LocalPos(stored[i] & !LAST), level);
     // Crossings before cell lo - 1 (none when the piece starts at node 0).
     let mut p = 0;
     if lo > 0 {
@@ -278,19 +278,19 @@ pub(super) fn splice_piece(b: &mut ChunkBuilder, line: LineRef<'_>, piece: Piece
     } else {
         q = k;
     }
-    let mut mid = [(0, 0); 2];
+    let mut mid = [(crate::coords::LocalPos(0), crate::normal::PackedNormal(0)); 2];
     let (mut m, mut kept) = (0, 0);
     // Node lo - 1 keeps its stored state; a crossing is needed where it differs from `fill`.
     if lo > 0 && line.start_inside ^ (p % 2 == 1) != fill {
         let brush = quantize_into_edge(span.enter - shift, lo - 1, level);
-        let old = p < k && cell(p) == lo - 1 && stored[p] & !LAST <= brush;
+        let old = p < k && cell(p) == lo - 1 && crate::coords::LocalPos(stored[p] & !LAST) <= brush;
         mid[m] = if old { line.crossing(p) } else { (brush, pack_oriented(span.enter_normal, !fill)) };
         (m, kept) = (m + 1, kept + old as usize);
     }
     // Node hi + 1 likewise.
     if hi < n && line.start_inside ^ (q % 2 == 1) != fill {
         let brush = quantize_into_edge(span.exit - shift, hi, level);
-        let old = q > 0 && cell(q - 1) == hi && stored[q - 1] & !LAST >= brush;
+        let old = q > 0 && cell(q - 1) == hi && crate::coords::LocalPos(stored[q - 1] & !LAST) >= brush;
         mid[m] = if old { line.crossing(q - 1) } else { (brush, pack_oriented(span.exit_normal, !fill)) };
         (m, kept) = (m + 1, kept + old as usize);
     }

@@ -5,7 +5,7 @@ fn state_at(l: &WorkLine, q: u32, level: Level) -> bool {
     let e = (q / level.steps_per_cell()) as usize;
     let before = (l.states >> e) & 1 == 1;
     let after = (l.states >> (e + 1)) & 1 == 1;
-    if before != after && q > l.pos[e] as u32 { after } else { before }
+    if before != after && q > l.pos[e].0 as u32 { after } else { before }
 }
 
 #[test]
@@ -40,8 +40,8 @@ fn per_cell_csg_equals_continuous_csg_wherever_the_result_changes_once() {
         let mut l = WorkLine::EMPTY;
         l.states = (rnd() as u128 | ((rnd() as u128) << 32)) & node_mask(n);
         for e in 0..n {
-            l.pos[e] = (e as u32 * s + 1 + rnd() % (s - 1)) as u16;
-            l.nrm[e] = rnd() as u16;
+            l.pos[e] = crate::coords::LocalPos((e as u32 * s + 1 + rnd() % (s - 1)) as u16);
+            l.nrm[e] = crate::normal::PackedNormal(rnd() as u16);
         }
         l
     };
@@ -77,7 +77,7 @@ fn per_cell_csg_equals_continuous_csg_wherever_the_result_changes_once() {
                 let lo = e as u32 * s;
                 let switches: Vec<u32> = (lo + 1..lo + s).filter(|&q| f(q) != f(q - 1)).map(|q| q - 1).collect();
                 if switches.len() == 1 {
-                    assert_eq!(out.pos[e] as u32, switches[0], "{op:?} cell {e}");
+                    assert_eq!(out.pos[e].0 as u32, switches[0], "{op:?} cell {e}");
                 }
             }
         }

@@ -274,10 +274,10 @@ fn take_ends_before(volume: &Volume, key: ChunkKey, r: &mut Dense) {
         let (k_lo, k_mid) = (r.index(lo), node);
         let (c_lo, c_mid) = (r.cross[e][k_lo], r.cross[e][k_mid]);
         if c_lo != NONE && c_mid == NONE && s_lo == s_mid && s_mid != s_hi {
-            r.cross[e][k_mid] = pack(quantize_steps(pos(c_lo) as f64, p[e], r.level), nrm(c_lo));
+            r.cross[e][k_mid] = pack(quantize_steps(pos(c_lo).0 as f64, p[e], r.level), nrm(c_lo));
             r.cross[e][k_lo] = NONE;
         } else if c_mid != NONE && c_lo == NONE && s_mid == s_hi && s_lo != s_mid {
-            r.cross[e][k_lo] = pack(quantize_steps(pos(c_mid) as f64, lo[e], r.level), nrm(c_mid));
+            r.cross[e][k_lo] = pack(quantize_steps(pos(c_mid).0 as f64, lo[e], r.level), nrm(c_mid));
             r.cross[e][k_mid] = NONE;
         }
     }
@@ -303,7 +303,7 @@ fn refine_centre(s: &Dense, r: &mut Dense, c: [usize; 3]) {
             mixed = true;
             let sp = s.level.steps_per_cell() as f64;
             let mut p = DVec3::new((lower[0] - c[0]) as f64, (lower[1] - c[1]) as f64, (lower[2] - c[2]) as f64);
-            p[axis.index()] = pos(cr) as f64 / sp - c[axis.index()] as f64;
+            p[axis.index()] = pos(cr).0 as f64 / sp - c[axis.index()] as f64;
             planes.push((p, unpack_normal(nrm(cr))));
         }
     }

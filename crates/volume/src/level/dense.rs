@@ -173,7 +173,7 @@ impl Dense {
 
     /// The mean normal of the crossings on the other edges at the two ends of an edge, or the
     /// edge's direction out of the solid.
-    fn normal_near(&self, axis: Axis, p: [usize; 3], lower_inside: bool) -> u16 {
+    fn normal_near(&self, axis: Axis, p: [usize; 3], lower_inside: bool) -> crate::normal::PackedNormal {
         let n = self.n;
         let mut p1 = p;
         p1[axis.index()] += 1;

@@ -105,7 +105,7 @@ pub(crate) fn extract_patched(map: &LevelMap<'_>, key: ChunkKey, out: &mut Voxel
                                 axis: fine.dir_axis(dir),
                                 level: other_level,
                                 lower: compose(g.normal, side * n * r, fi, fj).map(|c| c as u16),
-                                t: (pos(c) as u32 - e as u32 * s_fine) as f32 * (1.0 / s_fine as f32),
+                                t: (pos(c).0 as u32 - e as u32 * s_fine) as f32 * (1.0 / s_fine as f32),
                                 normal: crate::level::face::nrm(c),
                             }
                         })

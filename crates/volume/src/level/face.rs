@@ -15,7 +15,7 @@
 use glam::DVec3;
 
 use crate::axis::Axis;
-use crate::coords::{Level, quantize_steps};
+use crate::coords::{Level, LocalPos, quantize_steps};
 use crate::normal::{PackedNormal, pack_normal, unpack_normal};
 
 /// A crossing packed as `position << 16 | normal`; [`NONE`]: no crossing (a stored position is
@@ -25,18 +25,18 @@ pub(crate) type Packed = u32;
 pub(crate) const NONE: Packed = 0;
 
 #[inline]
-pub(crate) fn pack(q: u16, normal: PackedNormal) -> Packed {
-    (q as u32) << 16 | normal as u32
+pub(crate) fn pack(q: LocalPos, normal: PackedNormal) -> Packed {
+    (q.0 as u32) << 16 | normal.0 as u32
 }
 
 #[inline]
-pub(crate) fn pos(c: Packed) -> u16 {
-    (c >> 16) as u16
+pub(crate) fn pos(c: Packed) -> LocalPos {
+    LocalPos((c >> 16) as u16)
 }
 
 #[inline]
 pub(crate) fn nrm(c: Packed) -> PackedNormal {
-    c as u16
+    PackedNormal(c as u16)
 }
 
 /// Node states and in-plane crossings of one plane of a chunk at one level. The plane is normal
@@ -186,7 +186,7 @@ impl FaceGrid {
     /// Position in fixed-point steps `(u, v)` of the crossing on `edge`.
     fn point(&self, e: FaceEdge) -> [f64; 2] {
         let s = self.level.steps_per_cell() as f64;
-        let q = pos(self.crossing(e)) as f64;
+        let q = pos(self.crossing(e)).0 as f64;
         let (d, i, j) = e;
         if d == 0 { [q, j as f64 * s] } else { [i as f64 * s, q] }
     }
@@ -217,8 +217,8 @@ impl FaceGrid {
             let mid = (e as f64 + 0.5) * s;
             // A position on the middle node (only in files from before levels could change)
             // moves two steps down.
-            let q = if pos(c) as f64 == mid { pos(c) - 2 } else { pos(c) };
-            let (state, lower) = if (q as f64) < mid { (b, (2 * i, 2 * j)) } else { (a, (mi, mj)) };
+            let q = if pos(c).0 as f64 == mid { LocalPos(pos(c).0 - 2) } else { pos(c) };
+            let (state, lower) = if (q.0 as f64) < mid { (b, (2 * i, 2 * j)) } else { (a, (mi, mj)) };
             f.set_state(mi, mj, state);
             f.set_crossing((d, lower.0, lower.1), pack(q, nrm(c)));
         }
@@ -443,7 +443,7 @@ mod tests {
         let (p, q) = (g.point((1, 0, 0)), g.point((1, 1, 0)));
         for e in [(1u8, 1usize, 0usize), (1, 1, 1)] {
             if f.crossing(e) != NONE {
-                let v = pos(f.crossing(e)) as f64;
+                let v = pos(f.crossing(e)).0 as f64;
                 let u = s; // the middle column
                 let t = (u - p[0]) / (q[0] - p[0]);
                 let expect = p[1] + t * (q[1] - p[1]);

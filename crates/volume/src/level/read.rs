@@ -212,7 +212,7 @@ pub(crate) fn refine_line(coarse: &WorkLine, from: Level, to: Level, out: &mut W
             lower
         } else if (changes >> e) & 1 == 1 {
             let q = adjusted(coarse.pos[e], s_fine);
-            if ((j as u32) * s_fine) < q as u32 { lower } else { !lower }
+            if ((j as u32) * s_fine) < q.0 as u32 { lower } else { !lower }
         } else {
             lower
         };
@@ -234,8 +234,8 @@ pub(crate) fn refine_line(coarse: &WorkLine, from: Level, to: Level, out: &mut W
 /// A position moved two steps down where it sits on a node `steps` apart (positions in files
 /// written before levels could change).
 #[inline]
-fn adjusted(q: u16, steps: u32) -> u16 {
-    if (q as u32).is_multiple_of(steps) { q - 2 } else { q }
+fn adjusted(q: crate::coords::LocalPos, steps: u32) -> crate::coords::LocalPos {
+    if (q.0 as u32).is_multiple_of(steps) { crate::coords::LocalPos(q.0 - 2) } else { q }
 }
 
 /// The `(u, v)` index of the line along `axis` through the block-local point `p`.

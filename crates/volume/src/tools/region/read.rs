@@ -373,7 +373,7 @@ fn read_own_lines(l: &ChunkLists, base: I64Vec3, at: &ReadBox, g: &mut Gathered)
                     states ^= node_mask(n) & !((1u128 << (e + 1)) - 1);
                     let lower = compose(axis, e as i64, u as i64, v as i64);
                     let mut p = (base + I64Vec3::from_array(lower)).as_dvec3();
-                    p[a] += ((q as u32 - e as u32 * s) as f32 * inv_s) as f64;
+                    p[a] += ((q.0 as u32 - e as u32 * s) as f32 * inv_s) as f64;
                     g.crossings.push(RegionCrossing {
                         axis,
                         point: p,
