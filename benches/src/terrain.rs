@@ -9,14 +9,15 @@
 //!   (marching cubes from the lists' blocks, and from a dense padded 19³ field with gradient
 //!   normals).
 //! - **Streaming**: a viewer flying straight at `speed` chunks a second for `seconds` with a
-//!   view distance of `view` cells, 60 frames a second in real time; each frame integrates
-//!   finished chunks (workers generate) and hands changed chunks to a mesher thread nearest
-//!   first, both under budgets. Main-thread frame times, and chunks generated and meshed per second.
+//!   view distance of `view` cells, 60 frames a second in real time, through the studio's road:
+//!   an editor on the world (`Editor::on_world`), whose `stream` integrates finished chunks
+//!   (workers generate) and whose `frame` hands changed chunks to a mesher thread nearest first
+//!   and shows what it finished, both under budgets. Main-thread frame times, and chunks
+//!   generated and shown per second.
 //! - **Paging**: `count` edited chunks written to a fresh world in one transaction and one
 //!   transaction each, read back in random order; bytes of the database per edited chunk. With
 //!   the `sqlite` feature the same workload on SQLite (rusqlite, WAL, synchronous=FULL).
 
-use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -308,62 +309,35 @@ fn streaming(recipe: &Recipe, (view, speed, seconds, detail): (f64, f64, f64, f6
         detail_distance: detail,
         ..WorldSettings::default()
     };
-    let mut world = World::in_memory(recipe, settings)?;
+    // The studio's road: an editor on the world, streamed and meshed by its frames.
+    let world = World::in_memory(recipe, settings)?;
+    let mut editor = strata_editor::Editor::on_world(world, strata_editor::Material::builtin());
     let frame = Duration::from_secs_f64(1.0 / 60.0);
     let frames = (seconds * 60.0).round() as usize;
     let step = speed * 16.0 / 60.0;
-    type Fast = std::hash::BuildHasherDefault<strata_volume::KeyHasher>;
-    let mut meshes: HashMap<ChunkKey, Mesh, Fast> = HashMap::default();
-    let mut to_mesh: HashSet<ChunkKey, Fast> = HashSet::default();
     let mut times = Vec::with_capacity(frames);
     let mut updates = Vec::with_capacity(frames);
     let (mut integrated, mut meshed) = (0usize, 0usize);
-    let mut mesher = strata_mesh::MeshWorkers::new(1);
     let start = Instant::now();
     let mut viewer = DVec3::new(0.0, 0.0, 0.0);
     for f in 0..frames {
         let t = Instant::now();
         viewer.x = f as f64 * step;
-        let r = world.update(&[viewer]);
+        let r = editor.stream(viewer).expect("the editor is on a world");
         updates.push(t.elapsed());
         integrated += r.integrated;
-        for k in world.take_changed() {
-            for d in strata_mesh::MeshWorkers::readers(world.volume(), k) {
-                if world.is_loaded(d) {
-                    to_mesh.insert(d);
-                } else {
-                    meshes.remove(&d);
-                    to_mesh.remove(&d);
-                    mesher.cancel(d);
-                }
-            }
-        }
-        // Hand changed chunks to the mesher thread nearest first (a snapshot of each one's
-        // neighbourhood), until the deadline; take what it finished.
-        let dist = |k: &ChunkKey| (k.origin_grid().as_dvec3() + DVec3::splat(8.0)).distance_squared(viewer);
-        let mut order: Vec<(f64, ChunkKey)> = to_mesh.iter().map(|k| (dist(k), *k)).collect();
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        for (_, k) in order {
-            if t.elapsed() >= MESH_DEADLINE {
-                break;
-            }
-            to_mesh.remove(&k);
-            mesher.submit(world.volume(), k);
-        }
-        for (k, mesh) in mesher.finished() {
-            meshed += 1;
-            if mesh.indices.is_empty() || !world.is_loaded(k) {
-                meshes.remove(&k);
-            } else {
-                meshes.insert(k, mesh);
-            }
-        }
+        // Chunks are handed to the mesher thread nearest the viewer first until the deadline;
+        // what it finished is shown.
+        let idle = strata_editor::ToolPose::at(viewer, false);
+        let report = editor.frame(&idle, MESH_DEADLINE.saturating_sub(t.elapsed()))?;
+        meshed += report.remeshed.len();
         let spent = t.elapsed();
         times.push(spent);
         if let Some(rest) = frame.checked_sub(spent) {
             std::thread::sleep(rest);
         }
     }
+    let world = editor.world().expect("the editor is on a world");
     let elapsed = start.elapsed().as_secs_f64();
     let in_view = world.chunks_in_view(&[viewer]).len();
     Ok(StreamingRow {
