@@ -19,10 +19,8 @@ pub(super) fn merge_into(upper: &Layer, lower: &mut Layer) -> Result<(), String>
 
 impl Studio {
     pub(super) fn try_act(&mut self, action: Action) -> Result<(), String> {
-        if self.terrain.is_some()
-            && let Some(what) = action.scene_only()
-        {
-            return Err(format!("A world is open: Terrain > Close world first, then {what}"));
+        if let Some(what) = action.scene_only() {
+            self.refuse_in_world(what)?;
         }
         match action {
             Action::NewWorld(path, seed) => {
@@ -251,6 +249,14 @@ impl Studio {
         }
         self.mark_saved();
         Ok(())
+    }
+
+    /// Refuses `what` (a scene command) while a world is open, saying how to get back.
+    pub(super) fn refuse_in_world(&self, what: &str) -> Result<(), String> {
+        match self.terrain {
+            Some(_) => Err(format!("A world is open: Terrain > Close world first, then {what}")),
+            None => Ok(()),
+        }
     }
 
     /// Opens terrain mode on `editor`'s world: the scene's editor and camera wait in `mode`

@@ -37,8 +37,10 @@ pub struct ImportJob {
 }
 
 impl Studio {
-    /// Reads the mesh at `path` for import and offers the resolution dialog.
+    /// Reads the mesh at `path` for import and offers the resolution dialog (a mesh becomes a
+    /// scene layer: refused while a world is open).
     pub fn choose_import(&mut self, path: PathBuf) -> Result<(), String> {
+        self.refuse_in_world("import a mesh")?;
         let mesh =
             strata_mesh::import::load_mesh(&path).map_err(|e| format!("Could not import {}: {e}", path.display()))?;
         let closed = strata_editor::import::is_closed(&mesh);
@@ -48,6 +50,7 @@ impl Studio {
 
     /// Starts converting the pending mesh on a worker thread.
     pub fn start_import(&mut self) -> Result<(), String> {
+        self.refuse_in_world("import a mesh")?;
         let pending = self.pending_import.take().ok_or("No mesh is waiting to be imported")?;
         let plan = pending.plan().map_err(|e| format!("Could not import {}: {e}", pending.path.display()))?;
         let name = pending.path.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh").to_string();

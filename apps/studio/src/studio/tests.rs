@@ -1,16 +1,21 @@
 //! The studio's state and actions driven without a window.
 
-mod studio_tests {
+mod studio_tests_shared {
     use super::super::*;
 
-    fn temp(name: &str) -> PathBuf {
+    pub fn temp(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("strata-studio-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         dir.join(name)
     }
 
-    const DOWN: Buttons = Buttons { primary: true, secondary: false };
-    const BUDGET: Duration = Duration::from_millis(20);
+    pub const DOWN: Buttons = Buttons { primary: true, secondary: false };
+    pub const BUDGET: Duration = Duration::from_millis(20);
+}
+
+mod studio_tests {
+    use super::super::*;
+    use super::studio_tests_shared::*;
 
     #[test]
     fn dragging_over_the_clay_sculpts_and_undo_takes_it_back() {
@@ -339,5 +344,72 @@ mod island_tests {
         s.act(Action::Export(obj.clone())).unwrap();
         assert!(s.message.contains("removed 1 islands"), "{}", s.message);
         let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+mod world_tests {
+    use super::super::*;
+    use super::studio_tests_shared::*;
+
+    /// A world opened in the studio becomes what the tools, the pointer and undo edit; scene
+    /// commands wait for it and say so (none silently does nothing); Ctrl+S writes the world;
+    /// closing it gives the scene, its camera and its unsaved state back untouched.
+    #[test]
+    fn a_world_takes_the_tools_while_scene_commands_wait_and_the_scene_comes_back() {
+        let mut s = Studio::new(default_scene());
+        // A view that holds the ground under the eye (as the studio's terrain test).
+        s.world_settings.view_distance = 40.0;
+        s.world_settings.vertical_ratio = 1.5;
+        s.world_settings.detail_distance = 16.0;
+        s.world_settings.threads = 1;
+        // Unsaved work in the scene.
+        s.act(Action::AddLayer).unwrap();
+        assert!(s.is_modified());
+        let (scene, camera) = (s.editor.scene.clone(), s.camera);
+        let path = temp("studio.world");
+        let _ = std::fs::remove_file(&path);
+        s.act(Action::NewWorld(path.clone(), 4)).unwrap();
+        assert!(s.editor.world().is_some(), "the editor is the world's");
+        assert!(s.is_modified(), "the scene's unsaved state is still known");
+        for action in [
+            Action::AddLayer,
+            Action::DeleteLayer,
+            Action::New,
+            Action::Open(temp("x.strata")),
+            Action::SaveAs(temp("x.strata")),
+            Action::Export(temp("x.obj")),
+            Action::FrameAll,
+            Action::ViewMesher(strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring)),
+        ] {
+            let what = format!("{action:?}");
+            let err = s.act(action).expect_err(&what);
+            assert!(err.contains("Close world"), "{what}: {err}");
+        }
+        let err = s.choose_import(temp("bunny.ply")).expect_err("import waits too");
+        assert!(err.contains("Close world"), "{err}");
+        // A stroke through the pointer, looking down at the ground, is a step of the world's
+        // editor; Ctrl+S writes the world.
+        let t = s.terrain.as_mut().unwrap();
+        let mut editor = std::mem::take(&mut s.editor);
+        assert!(t.settle(&mut editor, Duration::from_secs(60)));
+        s.editor = editor;
+        let t = s.terrain.as_mut().unwrap();
+        t.pitch = 1.4;
+        s.camera = t.camera();
+        let before = s.editor.world().unwrap().volume().clone();
+        s.pointer(Some((0.0, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        s.pointer(Some((0.05, 0.0)), DOWN, 1.0, 1.5, BUDGET);
+        s.pointer(Some((0.05, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
+        assert_ne!(s.editor.world().unwrap().volume(), &before, "{}", s.message);
+        assert_eq!(s.editor.history().undo_len(), 1);
+        s.act(Action::Save).unwrap();
+        assert!(s.message.contains("World written"), "{}", s.message);
+        s.act(Action::Undo).unwrap();
+        assert_eq!(s.editor.world().unwrap().volume(), &before);
+        s.act(Action::CloseWorld).unwrap();
+        assert!(s.terrain.is_none() && s.editor.world().is_none());
+        assert!(s.editor.scene == scene && s.camera == camera, "the scene and its camera came back");
+        assert!(s.is_modified(), "still unsaved");
+        let _ = std::fs::remove_file(&path);
     }
 }
