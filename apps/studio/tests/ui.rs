@@ -703,6 +703,10 @@ fn a_new_world_is_flown_through_dug_bombed_undone_closed_and_reopened() {
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
     h.step();
     assert_ne!(world(&h), dug, "Ctrl+Y blasted it again");
+    // Ctrl+S writes the world (the scene is not touched).
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    assert!(h.state().studio.message.contains("World written"), "{}", h.state().studio.message);
     // A scene command waits for the world, and says so.
     h.key_press(egui::Key::Num1);
     h.step();

@@ -432,6 +432,13 @@ impl Editor {
     pub fn finish_meshing(&mut self) -> Vec<(usize, ChunkKey)> {
         let mut report = FrameReport::default();
         self.remesh(Duration::MAX, &mut report);
+        // A world's chunks are meshed on worker threads: wait for them.
+        while self.world.is_some() && self.pending() > 0 {
+            std::thread::sleep(Duration::from_millis(1));
+            let mut more = FrameReport::default();
+            self.remesh(Duration::MAX, &mut more);
+            report.remeshed.extend(more.remeshed);
+        }
         report.remeshed
     }
 

@@ -207,28 +207,37 @@ impl Editor {
             let images = tool.mirrored(&transform, p, pose.orientation);
             // (The same images, in the same order, each with the stroke's direction.)
             let directions = tool.mirrored_directions(&transform, p, p - last);
-            for (k, (at, orientation)) in images.into_iter().enumerate() {
-                let (edit, reach) = if tool.kind.is_field_tool() {
-                    let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
+            // Each image's brush (CSG tools) and box, built once; all are checked against the
+            // frame's limit before any is applied, so a refused dab leaves no image behind.
+            let mut planned = Vec::with_capacity(images.len());
+            for &(at, orientation) in &images {
+                if tool.kind.is_field_tool() {
                     // Clay's and inflate's change stays within the ball; a tenth more covers the
                     // surface it moved.
                     let reach = tool.radius_at(pose.pressure) * 1.1;
-                    let bounds = ball_bounds(transform.to_grid(at), reach / transform.scale);
-                    self.check_dab_size(&bounds)?;
-                    let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
-                    let edit = target.edit(&bounds, &mut |v| {
-                        Ok(field_tool_dab(&tool, &transform, v, at, pose.pressure, inverted, direction)?)
-                    })?;
-                    (edit, reach)
+                    planned.push((None, ball_bounds(transform.to_grid(at), reach / transform.scale), reach));
                 } else {
                     let brush = tool.brush(&transform, at, orientation, pose.pressure)?;
-                    let settings = EditSettings { material: tool.material, ..self.settings.clone() };
                     let b = brush.bounds();
-                    self.check_dab_size(&b)?;
                     // The ball around the brush's box (grid units to world).
                     let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
-                    let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
-                    (target.edit(&b, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?, reach)
+                    planned.push((Some(brush), b, reach));
+                }
+            }
+            for (_, bounds, _) in &planned {
+                self.check_dab_size(bounds)?;
+            }
+            let settings = EditSettings { material: tool.material, ..self.settings.clone() };
+            for (k, ((at, _), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
+                let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+                let edit = match brush {
+                    None => {
+                        let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
+                        target.edit(&bounds, &mut |v| {
+                            Ok(field_tool_dab(&tool, &transform, v, at, pose.pressure, inverted, direction)?)
+                        })?
+                    }
+                    Some(brush) => target.edit(&bounds, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?,
                 };
                 self.record(layer, edit);
                 if tool.kind.builds_or_carves() {

@@ -131,8 +131,10 @@ impl EditTarget for World {
     }
 
     fn restore(&mut self, record: UndoRecord) -> UndoRecord {
-        // `prepare` loaded the chunks, so the load inside cannot fail; were it to, the record is
-        // kept as it was (restoring it again later does what it would have done now).
-        World::restore(self, record).unwrap_or_else(|(_, record)| record)
+        // `prepare` loaded every chunk the record restores and nothing ran since, so the world
+        // loads nothing here: no I/O, nothing that can fail (a failure would be a bug in the
+        // editor's history, not bad input).
+        World::restore(self, record)
+            .unwrap_or_else(|(e, _)| panic!("a world restored a record whose chunks were not prepared: {e}"))
     }
 }

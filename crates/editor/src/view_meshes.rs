@@ -281,7 +281,9 @@ impl ViewMeshes {
     }
 
     /// Remeshes queued chunks, in batches, until `budget` is spent (at least one batch), then
-    /// shows the new meshes that can be shown without a crack. Returns the chunks shown, and the
+    /// shows the new meshes that can be shown without a crack; a streamed surface hands its
+    /// queued chunks to its workers, nearest the focus first, until `budget` is spent and shows
+    /// what they have finished. Returns the chunks shown, and the
     /// chunks still queued or staged.
     pub(crate) fn remesh(
         &mut self,

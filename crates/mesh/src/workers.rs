@@ -9,6 +9,7 @@
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -31,8 +32,14 @@ pub struct MeshWorkers {
     /// reference; it is reached through `&mut self` by `get_mut`, never locked.)
     done: std::sync::Mutex<Receiver<(ChunkKey, u64, Mesh)>>,
     latest: HashMap<ChunkKey, u64, BuildHasherDefault<KeyHasher>>,
+    /// The same requests, for the workers: a job whose request was superseded or cancelled
+    /// before a worker took it is skipped, not meshed (a fast flight or a long stroke queues
+    /// many requests for one chunk).
+    wanted: Arc<Mutex<HashMap<ChunkKey, u64, BuildHasherDefault<KeyHasher>>>>,
     next: u64,
     workers: Vec<JoinHandle<()>>,
+    /// Set when dropped: the workers stop without meshing what is still queued.
+    stop: Arc<AtomicBool>,
 }
 
 impl std::fmt::Debug for MeshWorkers {
@@ -50,9 +57,11 @@ impl MeshWorkers {
         let (tx, rx) = channel::<Job>();
         let rx = Arc::new(Mutex::new(rx));
         let (done_tx, done) = channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let wanted: Arc<Mutex<HashMap<ChunkKey, u64, BuildHasherDefault<KeyHasher>>>> = Arc::default();
         let workers = (0..threads.max(1))
             .map(|i| {
-                let (rx, done_tx) = (rx.clone(), done_tx.clone());
+                let (rx, done_tx, stop, wanted) = (rx.clone(), done_tx.clone(), stop.clone(), wanted.clone());
                 std::thread::Builder::new()
                     .name(format!("mesher-{i}"))
                     .spawn(move || {
@@ -63,6 +72,13 @@ impl MeshWorkers {
                                 Err(_) => return,
                             };
                             let Ok(job) = job else { return };
+                            if stop.load(Ordering::Relaxed) {
+                                return;
+                            }
+                            let current = wanted.lock().map(|w| w.get(&job.key) == Some(&job.ticket)).unwrap_or(true);
+                            if !current {
+                                continue;
+                            }
                             job.snapshot.extract_block_into(job.key, &mut block);
                             let mut mesh = Mesh::default();
                             mesh_block(&block, &mut mesh);
@@ -74,7 +90,15 @@ impl MeshWorkers {
                     .expect("a mesher thread starts")
             })
             .collect();
-        MeshWorkers { jobs: Some(tx), done: std::sync::Mutex::new(done), latest: HashMap::default(), next: 0, workers }
+        MeshWorkers {
+            jobs: Some(tx),
+            done: std::sync::Mutex::new(done),
+            latest: HashMap::default(),
+            wanted,
+            next: 0,
+            workers,
+            stop,
+        }
     }
 
     /// The chunks the mesh of `key` reads in `volume`.
@@ -102,6 +126,9 @@ impl MeshWorkers {
         }
         self.next += 1;
         self.latest.insert(key, self.next);
+        if let Ok(mut w) = self.wanted.lock() {
+            w.insert(key, self.next);
+        }
         if let Some(tx) = &self.jobs {
             let _ = tx.send(Job { key, ticket: self.next, snapshot });
         }
@@ -110,6 +137,9 @@ impl MeshWorkers {
     /// Forgets a request (its chunk left memory): its result will be dropped.
     pub fn cancel(&mut self, key: ChunkKey) {
         self.latest.remove(&key);
+        if let Ok(mut w) = self.wanted.lock() {
+            w.remove(&key);
+        }
     }
 
     /// Meshes finished since the last call, of the latest request for their chunk.
@@ -119,6 +149,11 @@ impl MeshWorkers {
         while let Ok((key, ticket, mesh)) = done.try_recv() {
             if self.latest.get(&key) == Some(&ticket) {
                 self.latest.remove(&key);
+                if let Ok(mut w) = self.wanted.lock()
+                    && w.get(&key) == Some(&ticket)
+                {
+                    w.remove(&key);
+                }
                 out.push((key, mesh));
             }
         }
@@ -133,7 +168,9 @@ impl MeshWorkers {
 
 impl Drop for MeshWorkers {
     fn drop(&mut self) {
-        // Closing the channel ends every worker once the queue is drained.
+        // Nothing queued is wanted any more: each worker ends at its next job, and closing the
+        // channel ends the idle ones.
+        self.stop.store(true, Ordering::Relaxed);
         self.jobs = None;
         for w in self.workers.drain(..) {
             let _ = w.join();

@@ -246,8 +246,10 @@ impl StudioApp {
     pub(super) fn proceed(&mut self, ctx: &egui::Context, then: Then) {
         match then {
             Then::New => {
-                let _ = self.studio.act(Action::New);
-                self.autosave.forget();
+                // (Only a new scene makes the recovery file moot; a refused New keeps it.)
+                if self.studio.act(Action::New).is_ok() {
+                    self.autosave.forget();
+                }
             }
             Then::Open => self.ask_path(ctx, Prompt::Open, None),
             Then::OpenFile => {

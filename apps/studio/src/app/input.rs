@@ -46,6 +46,9 @@ impl StudioApp {
                 let _ = self.studio.act(Action::Redo);
             }
             C::SaveAs => self.ask_path(ctx, Prompt::SaveAs, None),
+            C::Save if self.studio.terrain.is_some() => {
+                let _ = self.studio.act(Action::SaveWorld);
+            }
             C::Save => self.save(ctx, None),
             C::Open => self.guard(ctx, Then::Open),
             C::New => self.guard(ctx, Then::New),
@@ -93,17 +96,11 @@ impl StudioApp {
     }
 
     /// The keys whose binding says they mean something else in terrain mode: B (the scene's
-    /// next-shape key) bombs, the fly keys (read as held keys by the viewport) do nothing here;
-    /// every other key works as in a scene.
+    /// next-shape key) bombs, the fly keys (read as held keys by the viewport) do nothing here
+    /// (Ctrl+S, which writes the world, is taken before); every other key works as in a scene.
     pub(super) fn terrain_command(&mut self, command: Command) {
-        match command {
-            Command::NextShape => {
-                let _ = self.studio.act(Action::Bomb);
-            }
-            Command::Save => {
-                let _ = self.studio.act(Action::Save);
-            }
-            _ => {}
+        if command == Command::NextShape {
+            let _ = self.studio.act(Action::Bomb);
         }
     }
 

@@ -161,6 +161,14 @@ impl StudioApp {
                     let _ = self.studio.act(Action::Bomb);
                     ui.close();
                 }
+                if ui
+                    .add_enabled(open, egui::Button::new(labelled("Write world", Command::Save)))
+                    .on_hover_text("Write the world's edits now (they are also written every 2 s and on Close world)")
+                    .clicked()
+                {
+                    let _ = self.studio.act(Action::SaveWorld);
+                    ui.close();
+                }
                 if ui.add_enabled(open, egui::Button::new("Close world")).clicked() {
                     let _ = self.studio.act(Action::CloseWorld);
                     ui.close();

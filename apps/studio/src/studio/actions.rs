@@ -53,8 +53,8 @@ impl Studio {
                 t.bomb();
                 return Ok(());
             }
-            Action::Save if self.terrain.is_some() => {
-                let t = self.terrain.as_ref().expect("checked");
+            Action::SaveWorld => {
+                let t = self.terrain.as_ref().ok_or("No world is open: Terrain > New world or Open world")?;
                 let written = t.save(&mut self.editor).map_err(|e| format!("Could not write the world: {e}"))?;
                 self.message = format!("World written ({written} chunks)");
                 return Ok(());
@@ -231,20 +231,21 @@ impl Studio {
         Ok(())
     }
 
+    /// Saves the scene (while a world is open, the scene waiting for it) to `path`.
     pub(super) fn save_to(&mut self, path: &Path) -> Result<(), String> {
-        self.editor.scene.view = strata_viewport::view_of(&self.camera);
-        let report = file::save(&self.editor.scene, path)
+        let camera = self.scene_camera();
+        let editor = self.scene_editor_mut();
+        editor.scene.view = strata_viewport::view_of(&camera);
+        let report = file::save(&editor.scene, path)
             .map_err(|e: SceneFileError| format!("Could not save {}: {e}", path.display()))?;
         if report.is_clean() {
             self.message = format!("Saved {}", path.display());
         } else {
             // The file holds the repaired scene: show the same (the history, which refers to
-            // the unrepaired volumes, starts anew).
-            let mut scene = self.editor.scene.clone();
+            // the unrepaired volumes, starts anew; the camera stays).
+            let mut scene = editor.scene.clone();
             file::validate_scene(&mut scene);
-            let camera = self.camera;
-            self.replace_scene(scene);
-            self.camera = camera;
+            editor.set_scene(scene);
             self.message = format!("Saved {} with repairs (history cleared): {report}", path.display());
         }
         self.mark_saved();
@@ -288,8 +289,13 @@ impl Studio {
         let mut t = self.terrain.take().expect("checked");
         if let Some(waiting) = t.scene.take() {
             let (scene, camera) = *waiting;
-            self.editor = scene;
+            let world = std::mem::replace(&mut self.editor, scene);
             self.camera = camera;
+            // Materials added or recoloured on the world are the scene's palette too.
+            if world.scene.materials != self.editor.scene.materials {
+                self.editor.scene.materials = world.scene.materials.clone();
+                self.editor.touch();
+            }
         }
         self.world_path = None;
         self.line_mode = false;

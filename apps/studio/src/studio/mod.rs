@@ -29,9 +29,11 @@ pub enum Action {
     New,
     /// Load a scene file; on failure the open scene stays.
     Open(PathBuf),
-    /// Save to the current path (or fail asking for one).
+    /// Save the scene to its current path (or fail asking for one); while a world is open, the
+    /// scene waiting for it.
     Save,
-    /// Save to a new path and make it current.
+    /// Save the scene to a new path and make it current (the waiting scene while a world is
+    /// open).
     SaveAs(PathBuf),
     /// Export visible layers as a mesh (format from the extension: glb, obj, stl, ply).
     Export(PathBuf),
@@ -65,6 +67,8 @@ pub enum Action {
     OpenWorld(PathBuf),
     /// Write the world and go back to the scene.
     CloseWorld,
+    /// Write the open world's edits now (they are also written every few seconds).
+    SaveWorld,
     /// Launch a bomb along the view (terrain mode).
     Bomb,
     /// Mesh the viewport with this mesher and per-chunk simplification.
@@ -78,7 +82,6 @@ impl Action {
         Some(match self {
             Action::New => "start a new scene",
             Action::Open(_) => "open a scene",
-            Action::SaveAs(_) => "save the scene as",
             Action::Export(_) => "export the scene",
             Action::AddLayer
             | Action::DeleteLayer
@@ -291,6 +294,14 @@ impl Studio {
         match self.terrain.as_ref().and_then(|t| t.scene.as_deref()) {
             Some((_, camera)) => *camera,
             None => self.camera,
+        }
+    }
+
+    /// The scene's editor, to change (see [`Studio::scene_editor`]).
+    pub fn scene_editor_mut(&mut self) -> &mut Editor {
+        match self.terrain.as_mut().and_then(|t| t.scene.as_deref_mut()) {
+            Some((editor, _)) => editor,
+            None => &mut self.editor,
         }
     }
 

@@ -154,7 +154,7 @@ impl Studio {
                 // One pick: the point under the pointer and its normal (for oriented brushes).
                 let hit = self.editor.pick(o, d, 1.0e4);
                 self.hover_normal = hit.map(|h| h.normal);
-                let p = hit.map(|h| h.point).or_else(|| ground_point(o, d));
+                let p = hit.map(|h| h.point).or_else(|| self.ground_fallback(o, d));
                 if held {
                     self.stroke_depth = p.map(|p| (p - o).length());
                 }
@@ -254,7 +254,13 @@ impl Studio {
         self.ray_target(o.as_dvec3(), d.as_dvec3())
     }
 
+    /// Where a ray that meets no surface acts: the ground plane y = 0 in a scene; nowhere on a
+    /// world (whose ground is its surface: a miss looks at the sky or past what is loaded).
+    fn ground_fallback(&self, o: DVec3, d: DVec3) -> Option<DVec3> {
+        if self.editor.world().is_some() { None } else { ground_point(o, d) }
+    }
+
     pub(super) fn ray_target(&self, o: DVec3, d: DVec3) -> Option<DVec3> {
-        self.editor.pick(o, d, 1.0e4).map(|hit| hit.point).or_else(|| ground_point(o, d))
+        self.editor.pick(o, d, 1.0e4).map(|hit| hit.point).or_else(|| self.ground_fallback(o, d))
     }
 }

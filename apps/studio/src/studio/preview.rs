@@ -7,8 +7,8 @@ impl Studio {
     /// (world placement, erasing); the shape and radius are [`Studio::preview_mesh`]'s.
     pub fn preview_dabs(&self) -> Vec<(DVec3, DQuat)> {
         let Some(p) = self.hover else { return Vec::new() };
-        let Some(layer) = self.editor.scene.layers.get(self.editor.active_layer) else { return Vec::new() };
-        self.editor.tool.mirrored(&layer.transform, p, self.brush_orientation())
+        let Some(surface) = self.editor.surface(self.editor.active_surface()) else { return Vec::new() };
+        self.editor.tool.mirrored(&surface.transform(), p, self.brush_orientation())
     }
 
     /// The brush preview mesh for the current shape and radius (rebuilt when they change),

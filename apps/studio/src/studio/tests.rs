@@ -352,8 +352,9 @@ mod world_tests {
     use super::studio_tests_shared::*;
 
     /// A world opened in the studio becomes what the tools, the pointer and undo edit; scene
-    /// commands wait for it and say so (none silently does nothing); Ctrl+S writes the world;
-    /// closing it gives the scene, its camera and its unsaved state back untouched.
+    /// commands wait for it and say so (none silently does nothing); the world is written on
+    /// request; saving the scene saves the scene waiting for the world; closing the world gives
+    /// the scene and its camera back.
     #[test]
     fn a_world_takes_the_tools_while_scene_commands_wait_and_the_scene_comes_back() {
         let mut s = Studio::new(default_scene());
@@ -376,7 +377,6 @@ mod world_tests {
             Action::DeleteLayer,
             Action::New,
             Action::Open(temp("x.strata")),
-            Action::SaveAs(temp("x.strata")),
             Action::Export(temp("x.obj")),
             Action::FrameAll,
             Action::ViewMesher(strata_mesh::MeshOptions::new(strata_mesh::Mesher::DualContouring)),
@@ -402,14 +402,22 @@ mod world_tests {
         s.pointer(Some((0.05, 0.0)), Buttons::default(), 1.0, 1.5, BUDGET);
         assert_ne!(s.editor.world().unwrap().volume(), &before, "{}", s.message);
         assert_eq!(s.editor.history().undo_len(), 1);
-        s.act(Action::Save).unwrap();
+        s.act(Action::SaveWorld).unwrap();
         assert!(s.message.contains("World written"), "{}", s.message);
+        // Saving the scene while the world is open saves the scene waiting for it (the quit
+        // question's Save does this), not the world.
+        let scene_file = temp("waiting.strata");
+        s.act(Action::SaveAs(scene_file.clone())).unwrap();
+        assert!(!s.is_modified(), "{}", s.message);
+        let saved = strata_editor::file::load(&scene_file).unwrap().scene;
+        assert_eq!(saved.layers.len(), scene.layers.len(), "the scene's file holds the scene");
+        s.act(Action::AddLayer).expect_err("the layers still wait");
         s.act(Action::Undo).unwrap();
         assert_eq!(s.editor.world().unwrap().volume(), &before);
         s.act(Action::CloseWorld).unwrap();
         assert!(s.terrain.is_none() && s.editor.world().is_none());
-        assert!(s.editor.scene == scene && s.camera == camera, "the scene and its camera came back");
-        assert!(s.is_modified(), "still unsaved");
+        assert!(s.editor.scene.layers == scene.layers && s.camera == camera, "the scene and its camera came back");
+        assert!(!s.is_modified(), "saved while the world was open");
         let _ = std::fs::remove_file(&path);
     }
 }
