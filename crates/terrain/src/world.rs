@@ -48,7 +48,8 @@ pub struct WorldSettings {
     pub threads: usize,
     /// Main-thread time per [`World::update`] spent integrating finished chunks.
     pub frame_budget: Duration,
-    /// Edited chunks are written at least this often (and when they leave memory).
+    /// Edited chunks are written at least this often, and when the world is dropped (an edited
+    /// chunk that leaves memory meanwhile is kept aside until then).
     pub flush_interval: Duration,
     /// Heap bytes of loaded chunks the world may hold; chunks beyond it wait.
     pub memory_budget: usize,
