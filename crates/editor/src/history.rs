@@ -138,20 +138,7 @@ impl History {
         active: &mut usize,
         world: Option<&mut World>,
     ) -> Result<Option<Restored>, EditorError> {
-        let Some(entry) = self.undo.pop() else { return Ok(None) };
-        match entry.apply(layers, active, world) {
-            Ok(Some((redo, restored))) => {
-                self.redo.push(redo);
-                Ok(Some(restored))
-            }
-            // A step on a layer that no longer exists is dropped.
-            Ok(None) => Ok(None),
-            Err(failed) => {
-                let (e, entry) = *failed;
-                self.undo.push(entry);
-                Err(e)
-            }
-        }
+        Self::step(&mut self.undo, &mut self.redo, layers, active, world)
     }
 
     /// Redoes the newest undone step (see [`History::undo`]).
@@ -161,17 +148,30 @@ impl History {
         active: &mut usize,
         world: Option<&mut World>,
     ) -> Result<Option<Restored>, EditorError> {
-        let Some(entry) = self.redo.pop() else { return Ok(None) };
+        let restored = Self::step(&mut self.redo, &mut self.undo, layers, active, world)?;
+        self.trim();
+        Ok(restored)
+    }
+
+    /// Restores the newest step of `from` and keeps the step that takes it back on `to`. A
+    /// step on a layer that no longer exists is dropped; a refused one goes back on `from`.
+    fn step(
+        from: &mut Vec<HistoryEntry>,
+        to: &mut Vec<HistoryEntry>,
+        layers: &mut Vec<Layer>,
+        active: &mut usize,
+        world: Option<&mut World>,
+    ) -> Result<Option<Restored>, EditorError> {
+        let Some(entry) = from.pop() else { return Ok(None) };
         match entry.apply(layers, active, world) {
-            Ok(Some((undo, restored))) => {
-                self.undo.push(undo);
-                self.trim();
+            Ok(Some((back, restored))) => {
+                to.push(back);
                 Ok(Some(restored))
             }
             Ok(None) => Ok(None),
             Err(failed) => {
                 let (e, entry) = *failed;
-                self.redo.push(entry);
+                from.push(entry);
                 Err(e)
             }
         }
