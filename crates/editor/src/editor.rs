@@ -113,6 +113,8 @@ pub struct Editor {
     pub(crate) revision: u64,
     /// Counts changes of the layer list (see [`Editor::structure_revision`]).
     pub(crate) structure: u64,
+    /// The operations recorded for the network, while it records (see [`Editor::record_ops`]).
+    pub(crate) recorder: Option<crate::op::Recorder>,
 }
 
 impl std::fmt::Debug for Editor {
@@ -148,6 +150,7 @@ impl Editor {
             settings: EditSettings::default(),
             revision: 0,
             structure: 0,
+            recorder: None,
         };
         e.reset_caches();
         e

@@ -9,7 +9,9 @@ use strata_volume::{ChunkKey, EditReport, EditSettings, Volume};
 
 use crate::editor::{Editor, EditorError, FrameReport};
 use crate::history::HistoryEntry;
+use crate::op::DabRecord;
 use crate::pose::ToolPose;
+use crate::scene::LayerTransform;
 use crate::tool::{ToolKind, ToolSettings};
 
 pub(crate) struct Stroke {
@@ -155,6 +157,7 @@ impl Editor {
         let t0 = Instant::now();
         let down = pose.buttons.primary || pose.buttons.secondary;
         let result = if down { self.stroke_to(pose, &mut report) } else { Ok(()) };
+        self.end_op();
         if !down || result.is_err() {
             self.end_stroke();
         }
@@ -201,53 +204,110 @@ impl Editor {
                 dabs.push(position);
             }
         }
-        let op = tool.kind.op(inverted);
+        self.begin_op(layer, &transform, &tool);
         for p in dabs {
             let last = self.stroke.as_ref().map_or(p, |s| s.last);
-            let images = tool.mirrored(&transform, p, pose.orientation);
-            // (The same images, in the same order, each with the stroke's direction.)
-            let directions = tool.mirrored_directions(&transform, p, p - last);
-            // Each image's brush (CSG tools) and box, built once; all are checked against the
-            // frame's limit before any is applied, so a refused dab leaves no image behind.
-            let mut planned = Vec::with_capacity(images.len());
-            for &(at, orientation) in &images {
-                if tool.kind.is_field_tool() {
-                    // Clay's and inflate's change stays within the ball; a tenth more covers the
-                    // surface it moved.
-                    let reach = tool.radius_at(pose.pressure) * 1.1;
-                    planned.push((None, ball_bounds(transform.to_grid(at), reach / transform.scale), reach));
-                } else {
-                    let brush = tool.brush(&transform, at, orientation, pose.pressure)?;
-                    let b = brush.bounds();
-                    // The ball around the brush's box (grid units to world).
-                    let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
-                    planned.push((Some(brush), b, reach));
-                }
-            }
-            for (_, bounds, _) in &planned {
-                self.check_dab_size(bounds)?;
-            }
-            let settings = EditSettings { material: tool.material, ..self.settings.clone() };
-            for (k, ((at, _), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
-                let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
-                let edit = match brush {
-                    None => {
-                        let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
-                        target.edit(&bounds, &mut |v| {
-                            Ok(field_tool_dab(&tool, &transform, v, at, pose.pressure, inverted, direction)?)
-                        })?
-                    }
-                    Some(brush) => target.edit(&bounds, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?,
-                };
+            let dab =
+                DabRecord::Dab { at: p, from: last, orientation: pose.orientation, pressure: pose.pressure, inverted };
+            let mut applied = Vec::new();
+            self.apply_dab(layer, &tool, &transform, &dab, &mut applied)?;
+            for (edit, at, reach) in applied {
                 self.record(layer, edit);
                 if tool.kind.builds_or_carves() {
                     let s = self.stroke.as_mut().expect("a stroke is in progress");
                     s.own.push((at, reach));
                 }
             }
+            self.note_dab(dab);
             let s = self.stroke.as_mut().expect("a stroke is in progress");
             s.last = p;
             report.dabs += 1;
+        }
+        Ok(())
+    }
+
+    /// Applies one recorded dab of `tool` to surface `layer` placed by `transform`: every
+    /// mirror image, each with its edit, where it went (world) and the ball (radius, world)
+    /// holding what it built or carved, pushed to `applied`. All images are checked against the
+    /// frame's limit before any is applied, and an image refused after others were applied
+    /// takes them back: a dab is applied whole or not at all.
+    pub(crate) fn apply_dab(
+        &mut self,
+        layer: usize,
+        tool: &ToolSettings,
+        transform: &LayerTransform,
+        dab: &DabRecord,
+        applied: &mut Vec<(EditReport, DVec3, f64)>,
+    ) -> Result<(), EditorError> {
+        match *dab {
+            DabRecord::Dab { at, from, orientation, pressure, inverted } => {
+                let result =
+                    self.apply_mirrored(layer, tool, transform, (at, from, orientation), pressure, inverted, applied);
+                if result.is_err() {
+                    let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+                    for (edit, _, _) in applied.drain(..).rev() {
+                        target.restore(edit.undo);
+                    }
+                }
+                result
+            }
+            DabRecord::Grab { anchor, drag, pressure } => {
+                let edits = self.apply_grab(layer, tool, transform, anchor, drag, pressure)?;
+                applied.extend(edits.into_iter().map(|e| (e, anchor, 0.0)));
+                Ok(())
+            }
+        }
+    }
+
+    /// The mirror images of a dab at `p` (world, aligned) after one at `last`, turned by
+    /// `orientation` (the `place`), applied in order (see [`Editor::apply_dab`]).
+    fn apply_mirrored(
+        &mut self,
+        layer: usize,
+        tool: &ToolSettings,
+        transform: &LayerTransform,
+        (p, last, orientation): (DVec3, DVec3, glam::DQuat),
+        pressure: f64,
+        inverted: bool,
+        applied: &mut Vec<(EditReport, DVec3, f64)>,
+    ) -> Result<(), EditorError> {
+        let op = tool.kind.op(inverted);
+        let images = tool.mirrored(transform, p, orientation);
+        // (The same images, in the same order, each with the stroke's direction.)
+        let directions = tool.mirrored_directions(transform, p, p - last);
+        // Each image's brush (CSG tools) and box, built once; all are checked against the
+        // frame's limit before any is applied, so a refused dab leaves no image behind.
+        let mut planned = Vec::with_capacity(images.len());
+        for &(at, orientation) in &images {
+            if tool.kind.is_field_tool() {
+                // Clay's and inflate's change stays within the ball; a tenth more covers the
+                // surface it moved.
+                let reach = tool.radius_at(pressure) * 1.1;
+                planned.push((None, ball_bounds(transform.to_grid(at), reach / transform.scale), reach));
+            } else {
+                let brush = tool.brush(transform, at, orientation, pressure)?;
+                let b = brush.bounds();
+                // The ball around the brush's box (grid units to world).
+                let reach = 0.5 * (b.max - b.min).length() * transform.scale * 1.05;
+                planned.push((Some(brush), b, reach));
+            }
+        }
+        for (_, bounds, _) in &planned {
+            self.check_dab_size(bounds)?;
+        }
+        let settings = EditSettings { material: tool.material, ..self.settings.clone() };
+        for (k, ((at, _), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
+            let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+            let edit = match brush {
+                None => {
+                    let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
+                    target.edit(&bounds, &mut |v| {
+                        Ok(field_tool_dab(tool, transform, v, at, pressure, inverted, direction)?)
+                    })?
+                }
+                Some(brush) => target.edit(&bounds, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?,
+            };
+            applied.push((edit, at, reach));
         }
         Ok(())
     }
@@ -273,13 +333,39 @@ impl Editor {
         }
         let anchor = s.anchor;
         let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
+        self.begin_op(layer, &transform, tool);
+        let dab = DabRecord::Grab { anchor, drag, pressure: pose.pressure };
+        let mut applied = Vec::new();
+        self.apply_dab(layer, tool, &transform, &dab, &mut applied)?;
+        for (edit, _, _) in applied {
+            self.record(layer, edit);
+        }
+        self.note_dab(dab);
+        let s = self.stroke.as_mut().expect("a stroke is in progress");
+        s.last = position;
+        s.anchor = anchor + drag;
+        report.dabs += 1;
+        Ok(())
+    }
+
+    /// A grab's drag by `drag` (world) of the surface under `anchor` (world), mirrored: the
+    /// edits of every image, or none when one is refused.
+    fn apply_grab(
+        &mut self,
+        layer: usize,
+        tool: &ToolSettings,
+        transform: &LayerTransform,
+        anchor: DVec3,
+        drag: DVec3,
+        pressure: f64,
+    ) -> Result<Vec<EditReport>, EditorError> {
         // Grab follows the pointer one to one: the material under the anchor moves as far as
         // the pointer (the falloff takes the rest of the ball along less far).
         let strength = 1.0;
-        let radius = tool.radius_at(pose.pressure) / transform.scale;
+        let radius = tool.radius_at(pressure) / transform.scale;
         let mut done: Vec<EditReport> = Vec::new();
         let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
-        for (at, d) in tool.mirrored_with_vector(&transform, anchor, drag) {
+        for (at, d) in tool.mirrored_with_vector(transform, anchor, drag) {
             let centre = transform.to_grid(at);
             let moved = transform.rotation.inverse() * d / transform.scale;
             let bounds = ball_bounds(centre, radius + moved.length());
@@ -299,14 +385,7 @@ impl Editor {
                 }
             }
         }
-        for edit in done {
-            self.record(layer, edit);
-        }
-        let s = self.stroke.as_mut().expect("a stroke is in progress");
-        s.last = position;
-        s.anchor = anchor + drag * strength;
-        report.dabs += 1;
-        Ok(())
+        Ok(done)
     }
 
     /// Refuses a dab whose box `b` spans more chunks than [`Editor::frame_dab_limit`].
@@ -332,9 +411,15 @@ impl Editor {
     }
 
     /// Queues an edit of the stroke in progress for meshing and keeps its undo record.
+    /// (While the editor records operations, the record goes to the frame's operation instead:
+    /// see [`Editor::record_ops`].)
     fn record(&mut self, layer: usize, edit: EditReport) {
         self.queue(layer, &edit.changed, edit.reach);
         self.revision += 1;
+        if let Some(op) = self.recorder.as_mut().and_then(|r| r.current.as_mut()) {
+            op.undo.records.push(edit.undo);
+            return;
+        }
         let s = self.stroke.as_mut().expect("a stroke is in progress");
         s.records.push(edit.undo);
     }
@@ -380,6 +465,10 @@ impl Editor {
     /// Ends the stroke in progress, making it one undo step.
     pub fn end_stroke(&mut self) {
         if let Some(s) = self.stroke.take() {
+            // (While recording operations, the stroke's records went to them.)
+            if self.recorder.is_some() {
+                return;
+            }
             self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None, layers: None });
         }
     }

@@ -1,6 +1,7 @@
 //! Tools: what a pose does to a layer.
 
 use glam::{DQuat, DVec3};
+use serde::{Deserialize, Serialize};
 use strata_volume::CsgOp;
 use strata_volume::brush::{Brush, BrushError, Capsule, Cuboid, Cylinder, Sphere};
 
@@ -9,7 +10,7 @@ use crate::scene::LayerTransform;
 
 /// What the primary button does. The secondary button (or holding Ctrl/Alt in the studio)
 /// uses the inverse tool, as [`ToolKind::inverse_name`] names it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum ToolKind {
     /// Add material that blends into the surface in a soft fillet (a smooth union of a ball
     /// with the field, fillet [`ToolSettings::fillet`] of the radius); inverse: clay erase (a
@@ -113,7 +114,7 @@ impl ToolKind {
 }
 
 /// The brush's shape, sized by the tool radius and oriented by the pose.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BrushShape {
     /// A ball of the radius.
     Sphere,
@@ -126,7 +127,7 @@ pub enum BrushShape {
 }
 
 /// The tool's settings (what the palette edits).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ToolSettings {
     /// Add or erase.
     pub kind: ToolKind,
