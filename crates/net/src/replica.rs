@@ -1,0 +1,335 @@
+//! The client's state machine, free of any transport: local operations are applied at once and
+//! sent; the room's order is applied as it arrives; local operations the room has not ordered
+//! yet are rebased on it (taken back, the room's operation applied, put back), so that the
+//! editor always holds the room's state after the last ordered operation plus the pending local
+//! ones, and converges to the room's bytes when nothing is pending.
+//!
+//! Feed it with [`Replica::step`] once a frame (after [`Editor::frame`]): it takes the
+//! operations the editor recorded, applies what arrived and says what to send.
+
+use std::collections::VecDeque;
+
+use strata_editor::{EditOp, Editor, OpUndo};
+
+use crate::protocol::{ClientId, ClientMsg, Hello, Ordered, PROTOCOL, Peer, Resume, Seq, ServerMsg};
+
+/// A local operation the room has not ordered yet.
+#[derive(Debug)]
+struct Pending {
+    number: u64,
+    op: EditOp,
+    /// What takes it back here; `None` when it could not be applied here (the room decides).
+    undo: Option<OpUndo>,
+}
+
+/// What happened in a [`Replica::step`], for the user.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Event {
+    /// The room welcomed us.
+    Joined {
+        /// Our identity.
+        client: ClientId,
+    },
+    /// The room replaced our scene with its snapshot.
+    Snapshot,
+    /// The room refused one of our operations (it was taken back).
+    Refused(String),
+    /// Our scene's digest differed from the room's: a snapshot was asked for.
+    Diverged,
+    /// Someone joined or moved their brush.
+    Presence(Peer, crate::protocol::Presence),
+    /// Someone left.
+    Left(ClientId),
+    /// The room closed the connection with this reason.
+    Closed(String),
+    /// Something arrived that this state machine cannot follow (a gap in the order, an
+    /// operation that does not apply): a snapshot was asked for.
+    OutOfStep(String),
+}
+
+/// The client's side of a room (see the module docs).
+#[derive(Debug, Default)]
+pub struct Replica {
+    client: Option<ClientId>,
+    /// The last ordered operation applied.
+    seq: Seq,
+    /// Whether the room welcomed this connection (operations wait until it has).
+    welcomed: bool,
+    /// Whether a snapshot is due (asked for): ordered operations wait for it.
+    awaiting_snapshot: bool,
+    next_number: u64,
+    pending: VecDeque<Pending>,
+    /// Numbers already sent on this connection.
+    sent: u64,
+    /// After a welcome: the room's last operation then and the highest of our numbers it had
+    /// handled. Once we have caught up with that operation, our pending operations up to that
+    /// number that did not come back were refused (the refusal went to a connection that
+    /// dropped).
+    catch_up: Option<(Seq, u64)>,
+    /// Whether the pending operations are taken back (while the room's operations of one step
+    /// are applied: they are put back once, at the end of the step).
+    rewound: bool,
+}
+
+impl Replica {
+    /// A replica that has not joined yet.
+    pub fn new() -> Self {
+        Replica { next_number: 1, ..Replica::default() }
+    }
+
+    /// Our identity in the room, once welcomed.
+    pub fn client(&self) -> Option<ClientId> {
+        self.client
+    }
+
+    /// The last ordered operation applied.
+    pub fn seq(&self) -> Seq {
+        self.seq
+    }
+
+    /// Local operations the room has not ordered yet.
+    pub fn pending(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Whether the room welcomed the current connection.
+    pub fn joined(&self) -> bool {
+        self.welcomed
+    }
+
+    /// The hello for a new connection (resuming where this replica is, once it was in the
+    /// room). Operations wait until the room answers.
+    pub fn hello(&mut self, room: &str, token: &str, name: &str, create: Option<Vec<u8>>) -> ClientMsg {
+        self.welcomed = false;
+        self.sent = 0;
+        ClientMsg::Hello(Hello {
+            protocol: PROTOCOL,
+            room: room.to_owned(),
+            token: token.to_owned(),
+            name: name.to_owned(),
+            resume: self.client.map(|client| Resume { client, seq: self.seq }),
+            create,
+        })
+    }
+
+    /// The connection dropped: what was sent may or may not have arrived.
+    pub fn disconnected(&mut self) {
+        self.welcomed = false;
+        self.sent = 0;
+    }
+
+    /// Takes the editor's new operations (pending from now on), applies `incoming` in order
+    /// and returns what to send and what happened.
+    pub fn step(&mut self, editor: &mut Editor, incoming: impl IntoIterator<Item = ServerMsg>) -> Step {
+        let mut step = Step::default();
+        self.capture(editor);
+        for msg in incoming {
+            if !matches!(msg, ServerMsg::Op(_)) {
+                self.unwind(editor);
+            }
+            self.receive(editor, msg, &mut step);
+            self.settle(editor, &mut step);
+        }
+        self.unwind(editor);
+        if self.welcomed {
+            for p in self.pending.iter().filter(|p| p.number > self.sent) {
+                step.send.push(ClientMsg::Submit { number: p.number, op: p.op.clone() });
+            }
+            if let Some(last) = self.pending.back() {
+                self.sent = self.sent.max(last.number);
+            }
+        }
+        step
+    }
+
+    /// Makes the editor's recorded operations pending.
+    fn capture(&mut self, editor: &mut Editor) {
+        for recorded in editor.take_ops() {
+            let number = self.next_number;
+            self.next_number += 1;
+            self.pending.push_back(Pending { number, op: recorded.op, undo: Some(recorded.undo) });
+        }
+    }
+
+    fn receive(&mut self, editor: &mut Editor, msg: ServerMsg, step: &mut Step) {
+        match msg {
+            ServerMsg::Welcome { client, acked, seq, peers } => {
+                if self.client != Some(client) {
+                    // A new identity: nothing of ours was ordered under it; renumber what is
+                    // pending from 1.
+                    self.client = Some(client);
+                    for (k, p) in self.pending.iter_mut().enumerate() {
+                        p.number = k as u64 + 1;
+                    }
+                    self.next_number = self.pending.len() as u64 + 1;
+                }
+                self.welcomed = true;
+                // What the room ordered comes in the tail or is in the snapshot; resend the rest.
+                self.sent = acked;
+                self.catch_up = Some((seq, acked));
+                step.events.push(Event::Joined { client });
+                for peer in peers {
+                    step.events.push(Event::Presence(peer, crate::protocol::Presence { position: None, radius: 0.0 }));
+                }
+            }
+            ServerMsg::Snapshot { seq, acked, scene } => self.snapshot(editor, seq, acked, &scene, step),
+            ServerMsg::Op(ordered) => {
+                if self.awaiting_snapshot {
+                    return;
+                }
+                if ordered.seq != self.seq + 1 {
+                    let why = format!("operation {} arrived after {}", ordered.seq, self.seq);
+                    self.out_of_step(why, step);
+                    return;
+                }
+                if let Err(why) = self.apply_ordered(editor, ordered) {
+                    self.out_of_step(why, step);
+                }
+            }
+            ServerMsg::Refused { number, reason } => {
+                if let Some(i) = self.pending.iter().position(|p| p.number == number) {
+                    // (Taking back from it on takes it back too.)
+                    self.rewind(editor, i);
+                    self.pending.remove(i);
+                    self.replay_from(editor, i);
+                }
+                step.events.push(Event::Refused(reason));
+            }
+            ServerMsg::Hash { seq, hash } => {
+                // Only the room's state can be compared: with nothing pending, ours is it.
+                if seq == self.seq
+                    && self.pending.is_empty()
+                    && !self.awaiting_snapshot
+                    && crate::state_hash(&editor.scene) != Some(hash)
+                {
+                    self.awaiting_snapshot = true;
+                    step.send.push(ClientMsg::Resync);
+                    step.events.push(Event::Diverged);
+                }
+            }
+            ServerMsg::Presence { peer, presence } => step.events.push(Event::Presence(peer, presence)),
+            ServerMsg::Left { client } => step.events.push(Event::Left(client)),
+            ServerMsg::Error { reason } => {
+                self.welcomed = false;
+                step.events.push(Event::Closed(reason));
+            }
+        }
+    }
+
+    /// Drops what the room refused while we were away, once caught up (see `catch_up`).
+    fn settle(&mut self, editor: &mut Editor, step: &mut Step) {
+        let Some((seq, acked)) = self.catch_up else { return };
+        if self.seq < seq || self.awaiting_snapshot {
+            return;
+        }
+        self.unwind(editor);
+        self.catch_up = None;
+        let Some(i) = self.pending.iter().position(|p| p.number <= acked) else { return };
+        self.rewind(editor, i);
+        let before = self.pending.len();
+        let mut k = 0;
+        self.pending.retain(|p| {
+            k += 1;
+            k <= i || p.number > acked
+        });
+        self.replay_from(editor, i);
+        for _ in self.pending.len()..before {
+            step.events.push(Event::Refused("the room refused an operation while we were away".into()));
+        }
+    }
+
+    /// The room's next operation: ours (confirmed: it is already applied here unless it could
+    /// not be) or someone else's (rebased under what is pending).
+    fn apply_ordered(&mut self, editor: &mut Editor, ordered: Ordered) -> Result<(), String> {
+        let ours =
+            Some(ordered.author) == self.client && self.pending.front().is_some_and(|p| p.number == ordered.number);
+        if ours && !self.rewound && self.pending.front().is_some_and(|p| p.undo.is_some()) {
+            self.pending.pop_front();
+            self.seq = ordered.seq;
+            return Ok(());
+        }
+        // Pending work is taken back once for all the room's operations of this step.
+        if !self.rewound {
+            self.rewind(editor, 0);
+            self.rewound = true;
+        }
+        let result = editor.replay(&ordered.op).map(drop).map_err(|e| format!("operation {}: {e}", ordered.seq));
+        if ours {
+            self.pending.pop_front();
+        }
+        self.seq = ordered.seq;
+        result
+    }
+
+    /// Puts pending work back after the room's operations (see `rewound`).
+    fn unwind(&mut self, editor: &mut Editor) {
+        if self.rewound {
+            self.rewound = false;
+            self.replay_from(editor, 0);
+        }
+    }
+
+    /// Takes back the pending operations from `i` on, newest first.
+    fn rewind(&mut self, editor: &mut Editor, i: usize) {
+        for p in self.pending.iter_mut().skip(i).rev() {
+            if let Some(undo) = p.undo.take()
+                && let Err((_, undo)) = editor.revert(undo)
+            {
+                // (Only a world's unreadable chunk refuses; keep the record so the state
+                // stays explained.)
+                p.undo = Some(undo);
+            }
+        }
+    }
+
+    /// Applies the pending operations from `i` on again, in order.
+    fn replay_from(&mut self, editor: &mut Editor, i: usize) {
+        for p in self.pending.iter_mut().skip(i) {
+            if p.undo.is_none() {
+                p.undo = editor.replay(&p.op).ok();
+            }
+        }
+    }
+
+    /// The room's snapshot replaces the scene; pending work the room has not ordered is put
+    /// back on top of it.
+    fn snapshot(&mut self, editor: &mut Editor, seq: Seq, acked: u64, scene: &[u8], step: &mut Step) {
+        let loaded = match strata_editor::file::decode(scene) {
+            Ok(l) => l,
+            Err(e) => {
+                step.events.push(Event::OutOfStep(format!("the room's snapshot cannot be read: {e}")));
+                return;
+            }
+        };
+        // What the room ordered of ours is in the snapshot: only what it has not ordered stays
+        // pending (sent or not, it comes back in the order after the snapshot).
+        self.pending.retain(|p| p.number > acked);
+        let tool = editor.tool;
+        editor.set_scene(loaded.scene);
+        editor.tool = tool;
+        for p in self.pending.iter_mut() {
+            p.undo = None;
+        }
+        self.replay_from(editor, 0);
+        self.seq = seq;
+        self.awaiting_snapshot = false;
+        step.events.push(Event::Snapshot);
+    }
+
+    fn out_of_step(&mut self, why: String, step: &mut Step) {
+        step.events.push(Event::OutOfStep(why));
+        if !self.awaiting_snapshot {
+            self.awaiting_snapshot = true;
+            step.send.push(ClientMsg::Resync);
+        }
+    }
+}
+
+/// What a [`Replica::step`] produced.
+#[derive(Debug, Default)]
+pub struct Step {
+    /// Messages to send, in order.
+    pub send: Vec<ClientMsg>,
+    /// What happened.
+    pub events: Vec<Event>,
+}

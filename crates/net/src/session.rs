@@ -1,0 +1,193 @@
+//! A replica over a link: what the studio (and the tests) hold while in a room. Poll it once a
+//! frame after the editor's frame; it sends the hello on every new connection, resumes where
+//! the replica is, keeps the people in the room and their brushes, and reconnects by itself.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use strata_editor::{Editor, Scene};
+
+use crate::link::{Link, LinkEvent, LinkState};
+use crate::protocol::{ClientId, ClientMsg, Presence};
+use crate::replica::{Event, Replica};
+
+/// Where a session is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SessionState {
+    /// Connecting (or reconnecting) to the server.
+    Connecting,
+    /// Connected; waiting for the room's welcome.
+    Joining,
+    /// In the room.
+    InRoom,
+    /// The connection dropped (why); reconnecting.
+    Retrying(String),
+    /// The room refused us (a wrong token, no such room, another protocol): no more tries.
+    Refused(String),
+}
+
+/// Presence is sent at most this often.
+const PRESENCE_INTERVAL: Duration = Duration::from_millis(33);
+
+/// A replica of a room over a reconnecting link (see the module docs).
+#[derive(Debug)]
+pub struct Session {
+    link: Option<Link>,
+    replica: Replica,
+    room: String,
+    token: String,
+    name: String,
+    create: Option<Vec<u8>>,
+    state: SessionState,
+    peers: BTreeMap<ClientId, (String, Presence)>,
+    last_presence: Option<Instant>,
+}
+
+impl Session {
+    /// Joins room `room` on the server at `url` (`ws://host:port`) with its token, as `name`.
+    pub fn join(url: &str, room: &str, token: &str, name: &str) -> std::io::Result<Session> {
+        Ok(Session {
+            link: Some(Link::open(url)?),
+            replica: Replica::new(),
+            room: room.to_owned(),
+            token: token.to_owned(),
+            name: name.to_owned(),
+            create: None,
+            state: SessionState::Connecting,
+            peers: BTreeMap::new(),
+            last_presence: None,
+        })
+    }
+
+    /// Joins room `room`, creating it with `scene` when the server has no room of that name:
+    /// how a session is hosted.
+    pub fn host(url: &str, room: &str, token: &str, name: &str, scene: &Scene) -> Result<Session, String> {
+        let bytes = strata_editor::file::encode(scene).map_err(|e| e.to_string())?;
+        let mut s = Session::join(url, room, token, name).map_err(|e| e.to_string())?;
+        s.create = Some(bytes);
+        Ok(s)
+    }
+
+    /// Applies what arrived to `editor` and sends its new operations (it records them from
+    /// now on; see [`Editor::record_ops`]); returns what happened.
+    pub fn poll(&mut self, editor: &mut Editor) -> Vec<Event> {
+        let events = self.link.as_mut().map(Link::poll).unwrap_or_default();
+        self.handle(editor, events)
+    }
+
+    /// As [`Session::poll`], after waiting up to `timeout` for something to arrive.
+    pub fn wait(&mut self, editor: &mut Editor, timeout: Duration) -> Vec<Event> {
+        let events = self.link.as_mut().map(|l| l.wait(timeout)).unwrap_or_default();
+        self.handle(editor, events)
+    }
+
+    fn handle(&mut self, editor: &mut Editor, events: Vec<LinkEvent>) -> Vec<Event> {
+        if !editor.records_ops() {
+            editor.record_ops(true);
+            // Local undo records would restore chunks others have changed since.
+            editor.clear_history();
+        }
+        let mut out = Vec::new();
+        let mut incoming = Vec::new();
+        for e in events {
+            match e {
+                LinkEvent::Message(m) => incoming.push(m),
+                LinkEvent::Connected(_) => {
+                    // (What came on the last connection is applied first.)
+                    out.extend(self.flush(editor, std::mem::take(&mut incoming)));
+                    let hello = self.replica.hello(&self.room, &self.token, &self.name, self.create.clone());
+                    self.send(&hello);
+                    self.state = SessionState::Joining;
+                }
+                LinkEvent::Disconnected(why) => {
+                    out.extend(self.flush(editor, std::mem::take(&mut incoming)));
+                    self.replica.disconnected();
+                    if self.link.is_some() {
+                        self.state = SessionState::Retrying(why);
+                    }
+                }
+            }
+        }
+        out.extend(self.flush(editor, incoming));
+        out
+    }
+
+    /// One replica step over `incoming`, its messages sent.
+    fn flush(&mut self, editor: &mut Editor, incoming: Vec<crate::protocol::ServerMsg>) -> Vec<Event> {
+        let step = self.replica.step(editor, incoming);
+        for msg in &step.send {
+            self.send(msg);
+        }
+        self.note(step.events)
+    }
+
+    fn note(&mut self, events: Vec<Event>) -> Vec<Event> {
+        for e in &events {
+            match e {
+                Event::Joined { .. } => self.state = SessionState::InRoom,
+                Event::Presence(peer, presence) => {
+                    self.peers.insert(peer.client, (peer.name.clone(), *presence));
+                }
+                Event::Left(client) => {
+                    self.peers.remove(client);
+                }
+                Event::Closed(reason) if self.state == SessionState::Joining => {
+                    // Refused at the door: trying again would be refused again.
+                    self.state = SessionState::Refused(reason.clone());
+                    self.link = None;
+                }
+                _ => {}
+            }
+        }
+        events
+    }
+
+    fn send(&self, msg: &ClientMsg) {
+        if let Some(l) = &self.link {
+            l.send(msg);
+        }
+    }
+
+    /// Tells the room where our brush is (at most 30 times a second; calls in between are
+    /// dropped).
+    pub fn presence(&mut self, position: Option<DVec3>, radius: f64) {
+        if self.state != SessionState::InRoom || self.last_presence.is_some_and(|t| t.elapsed() < PRESENCE_INTERVAL) {
+            return;
+        }
+        self.last_presence = Some(Instant::now());
+        self.send(&ClientMsg::Presence(Presence { position, radius }));
+    }
+
+    /// Where the session is.
+    pub fn state(&self) -> &SessionState {
+        &self.state
+    }
+
+    /// Where the link is (`None` once the room refused us).
+    pub fn link_state(&self) -> Option<&LinkState> {
+        self.link.as_ref().map(Link::state)
+    }
+
+    /// The others in the room: name and brush.
+    pub fn peers(&self) -> impl Iterator<Item = (ClientId, &str, &Presence)> {
+        self.peers.iter().filter(|(c, _)| Some(**c) != self.replica.client()).map(|(c, (n, p))| (*c, n.as_str(), p))
+    }
+
+    /// The replica (sequence, pending work).
+    pub fn replica(&self) -> &Replica {
+        &self.replica
+    }
+
+    /// The room's name.
+    pub fn room(&self) -> &str {
+        &self.room
+    }
+
+    /// Drops the connection as a network failure would (the session reconnects and resumes).
+    pub fn drop_connection(&self) {
+        if let Some(l) = &self.link {
+            l.drop_connection();
+        }
+    }
+}

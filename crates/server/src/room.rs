@@ -1,0 +1,342 @@
+//! A room's logic, free of sockets and threads: it holds the room's editor (the authoritative
+//! scene), puts every accepted operation in the total order, refuses what it must, and says
+//! what to send to whom and what to store. The server ([`crate::server`]) runs one on its own
+//! thread and stores [`Handled::logged`] durably before it sends anything.
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::hash::{BuildHasher, Hasher};
+
+use sha2::{Digest, Sha256};
+use strata_editor::Editor;
+use strata_net::protocol::{ClientId, ClientMsg, Hello, Ordered, PROTOCOL, Peer, Presence, Seq, ServerMsg, encode};
+use strata_net::{Limits, state_hash, validate};
+
+use crate::store::StoredRoom;
+
+/// A connection's number on the server.
+pub type ConnId = u64;
+
+/// How a room behaves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoomConfig {
+    /// What one operation may do.
+    pub limits: Limits,
+    /// A state digest is sent after every this many operations.
+    pub hash_every: u64,
+    /// Operations kept in memory for resumes (older resumes get a snapshot).
+    pub tail: usize,
+    /// The log is folded into a snapshot after this many operations.
+    pub compact_every: u64,
+}
+
+impl Default for RoomConfig {
+    /// Default limits; a digest every 64 operations; 4,096 operations of tail; compaction every
+    /// 2,048.
+    fn default() -> Self {
+        RoomConfig { limits: Limits::default(), hash_every: 64, tail: 4096, compact_every: 2048 }
+    }
+}
+
+/// What the room wants done.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Out {
+    /// Send these bytes (an encoded [`ServerMsg`]) to a connection.
+    Send(ConnId, std::sync::Arc<[u8]>),
+    /// Send this error and close the connection.
+    Close(ConnId, String),
+}
+
+/// What handling messages produced.
+#[derive(Debug, Default)]
+pub struct Handled {
+    /// Operations newly ordered: store them (durably) before sending `out`.
+    pub logged: Vec<Ordered>,
+    /// Messages and closes, in order.
+    pub out: Vec<Out>,
+}
+
+impl Handled {
+    fn send(&mut self, conn: ConnId, msg: &ServerMsg) {
+        self.out.push(Out::Send(conn, encode(msg).into()));
+    }
+}
+
+/// Why a room could not be opened or created.
+#[derive(Debug, thiserror::Error)]
+pub enum RoomError {
+    /// A stored snapshot or operation does not load.
+    #[error("the room's stored state does not load: {0}")]
+    Damaged(String),
+}
+
+struct Conn {
+    client: ClientId,
+    name: String,
+}
+
+/// A room (see the module docs).
+pub struct Room {
+    name: String,
+    token_hash: [u8; 32],
+    editor: Editor,
+    config: RoomConfig,
+    seq: Seq,
+    /// Every client the room ordered something of (or welcomed since it opened): its highest
+    /// number seen.
+    clients: BTreeMap<ClientId, u64>,
+    conns: HashMap<ConnId, Conn>,
+    /// Recent operations, for resumes.
+    tail: VecDeque<Ordered>,
+    /// The operation the stored snapshot holds up to.
+    snapshot_seq: Seq,
+    /// The scene file at `.0`, while no operation came since.
+    encoded: Option<(Seq, std::sync::Arc<Vec<u8>>)>,
+    ids: std::collections::hash_map::RandomState,
+    id_counter: u64,
+}
+
+impl std::fmt::Debug for Room {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Room").field("name", &self.name).field("seq", &self.seq).finish_non_exhaustive()
+    }
+}
+
+/// SHA-256 of a token.
+pub fn token_hash(token: &str) -> [u8; 32] {
+    Sha256::digest(token.as_bytes()).into()
+}
+
+impl Room {
+    /// The room as stored: its snapshot with the logged operations replayed.
+    pub fn open(name: &str, stored: StoredRoom, config: RoomConfig) -> Result<Room, RoomError> {
+        let loaded = strata_editor::file::decode(&stored.snapshot).map_err(|e| RoomError::Damaged(e.to_string()))?;
+        let mut room = Room {
+            name: name.to_owned(),
+            token_hash: stored.token_hash,
+            editor: Editor::new(loaded.scene),
+            config,
+            seq: stored.snapshot_seq,
+            clients: stored.clients.into_iter().collect(),
+            conns: HashMap::new(),
+            tail: VecDeque::new(),
+            snapshot_seq: stored.snapshot_seq,
+            encoded: None,
+            ids: Default::default(),
+            id_counter: 0,
+        };
+        for op in stored.ops {
+            if op.seq != room.seq + 1 {
+                return Err(RoomError::Damaged(format!("operation {} follows {}", op.seq, room.seq)));
+            }
+            // An operation was applied before it was stored: it applies again.
+            room.editor
+                .replay(&op.op)
+                .map_err(|e| RoomError::Damaged(format!("stored operation {} does not apply: {e}", op.seq)))?;
+            room.order(op);
+        }
+        Ok(room)
+    }
+
+    /// The room's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The last ordered operation.
+    pub fn seq(&self) -> Seq {
+        self.seq
+    }
+
+    /// The room's editor (the authoritative scene).
+    pub fn editor(&self) -> &Editor {
+        &self.editor
+    }
+
+    /// Whether `token` opens the room.
+    pub fn admits(&self, token: &str) -> bool {
+        // (Digests of equal length compared whole: no early exit to time.)
+        token_hash(token).iter().zip(self.token_hash.iter()).fold(0u8, |acc, (a, b)| acc | (a ^ b)) == 0
+    }
+
+    /// Connections in the room.
+    pub fn connections(&self) -> usize {
+        self.conns.len()
+    }
+
+    /// Operations since the stored snapshot.
+    pub fn since_snapshot(&self) -> u64 {
+        self.seq - self.snapshot_seq
+    }
+
+    /// A snapshot to store (after [`RoomConfig::compact_every`] operations): the sequence it
+    /// holds up to, the scene file and the clients' numbers; `None` when none is due.
+    pub fn snapshot_due(&mut self) -> Option<(Seq, std::sync::Arc<Vec<u8>>, Vec<(ClientId, u64)>)> {
+        if self.since_snapshot() < self.config.compact_every {
+            return None;
+        }
+        let scene = self.encoded_scene()?;
+        Some((self.seq, scene, self.clients.iter().map(|(c, n)| (*c, *n)).collect()))
+    }
+
+    /// Records that the snapshot after `seq` is stored.
+    pub fn snapshot_stored(&mut self, seq: Seq) {
+        self.snapshot_seq = self.snapshot_seq.max(seq);
+    }
+
+    fn encoded_scene(&mut self) -> Option<std::sync::Arc<Vec<u8>>> {
+        if let Some((seq, bytes)) = &self.encoded
+            && *seq == self.seq
+        {
+            return Some(bytes.clone());
+        }
+        let bytes = std::sync::Arc::new(strata_editor::file::encode(&self.editor.scene).ok()?);
+        self.encoded = Some((self.seq, bytes.clone()));
+        Some(bytes)
+    }
+
+    fn new_client(&mut self) -> ClientId {
+        loop {
+            self.id_counter += 1;
+            let mut h = self.ids.build_hasher();
+            h.write_u64(self.id_counter);
+            let id = h.finish();
+            if id != 0 && !self.clients.contains_key(&id) {
+                return id;
+            }
+        }
+    }
+
+    /// A connection's hello (the server checked the token with [`Room::admits`]).
+    pub fn join(&mut self, conn: ConnId, hello: Hello) -> Handled {
+        let mut h = Handled::default();
+        if hello.protocol != PROTOCOL {
+            let reason = format!("this server speaks protocol {PROTOCOL}, not {}", hello.protocol);
+            h.out.push(Out::Close(conn, reason));
+            return h;
+        }
+        // A client known to the room resumes; anyone else is someone new.
+        let known = hello.resume.filter(|r| self.clients.contains_key(&r.client));
+        let client = known.map_or_else(|| self.new_client(), |r| r.client);
+        let acked = *self.clients.entry(client).or_insert(0);
+        // The same client on another connection (the old one not yet noticed dead) leaves.
+        let stale: Vec<ConnId> = self.conns.iter().filter(|(_, c)| c.client == client).map(|(id, _)| *id).collect();
+        for old in stale {
+            self.conns.remove(&old);
+            h.out.push(Out::Close(old, "the same client connected again".into()));
+        }
+        let name: String = hello.name.chars().take(64).collect();
+        let peers: Vec<Peer> = self.conns.values().map(|c| Peer { client: c.client, name: c.name.clone() }).collect();
+        h.send(conn, &ServerMsg::Welcome { client, acked, seq: self.seq, peers });
+        let first_in_tail = self.tail.front().map_or(self.seq + 1, |o| o.seq);
+        match known {
+            Some(r) if r.seq <= self.seq && r.seq + 1 >= first_in_tail => {
+                for op in self.tail.iter().filter(|o| o.seq > r.seq) {
+                    h.out.push(Out::Send(conn, encode(&ServerMsg::Op(op.clone())).into()));
+                }
+            }
+            _ => self.send_snapshot(conn, acked, &mut h),
+        }
+        let me = Peer { client, name: name.clone() };
+        for &other in self.conns.keys() {
+            h.send(
+                other,
+                &ServerMsg::Presence { peer: me.clone(), presence: Presence { position: None, radius: 0.0 } },
+            );
+        }
+        self.conns.insert(conn, Conn { client, name });
+        h
+    }
+
+    fn send_snapshot(&mut self, conn: ConnId, acked: u64, h: &mut Handled) {
+        match self.encoded_scene() {
+            Some(scene) => h.send(conn, &ServerMsg::Snapshot { seq: self.seq, acked, scene: scene.to_vec() }),
+            None => h.out.push(Out::Close(conn, "the room's scene cannot be encoded".into())),
+        }
+    }
+
+    /// A message from a joined connection.
+    pub fn handle(&mut self, conn: ConnId, msg: ClientMsg, h: &mut Handled) {
+        let Some(client) = self.conns.get(&conn).map(|c| c.client) else {
+            h.out.push(Out::Close(conn, "not in the room".into()));
+            return;
+        };
+        match msg {
+            ClientMsg::Hello(_) => self.kick(conn, "a second hello".into(), h),
+            ClientMsg::Submit { number, op } => {
+                let acked = self.clients.get(&client).copied().unwrap_or(0);
+                if number <= acked {
+                    // Sent again after a resume: it is already in the order (or refused).
+                    return;
+                }
+                if let Err(e) = validate(&op, &self.editor, &self.config.limits) {
+                    self.kick(conn, format!("operation {number} refused: {e}"), h);
+                    return;
+                }
+                self.clients.insert(client, number);
+                match self.editor.replay(&op) {
+                    Ok(_) => {
+                        let ordered = Ordered { seq: self.seq + 1, author: client, number, op };
+                        self.order(ordered.clone());
+                        let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Op(ordered.clone())).into();
+                        h.logged.push(ordered);
+                        for &c in self.conns.keys() {
+                            h.out.push(Out::Send(c, msg.clone()));
+                        }
+                        if self.seq.is_multiple_of(self.config.hash_every)
+                            && let Some(hash) = state_hash(&self.editor.scene)
+                        {
+                            let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Hash { seq: self.seq, hash }).into();
+                            for &c in self.conns.keys() {
+                                h.out.push(Out::Send(c, msg.clone()));
+                            }
+                        }
+                    }
+                    Err(e) => h.send(conn, &ServerMsg::Refused { number, reason: e.to_string() }),
+                }
+            }
+            ClientMsg::Presence(p) => {
+                if !(p.radius.is_finite() && p.position.is_none_or(|v| v.is_finite())) {
+                    self.kick(conn, "a presence that is not finite".into(), h);
+                    return;
+                }
+                let name = self.conns.get(&conn).map(|c| c.name.clone()).unwrap_or_default();
+                let msg: std::sync::Arc<[u8]> =
+                    encode(&ServerMsg::Presence { peer: Peer { client, name }, presence: p }).into();
+                for (&c, _) in self.conns.iter().filter(|(id, _)| **id != conn) {
+                    h.out.push(Out::Send(c, msg.clone()));
+                }
+            }
+            ClientMsg::Resync => {
+                let acked = self.clients.get(&client).copied().unwrap_or(0);
+                self.send_snapshot(conn, acked, h);
+            }
+        }
+    }
+
+    /// A connection went away.
+    pub fn leave(&mut self, conn: ConnId, h: &mut Handled) {
+        if let Some(c) = self.conns.remove(&conn) {
+            let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Left { client: c.client }).into();
+            for &other in self.conns.keys() {
+                h.out.push(Out::Send(other, msg.clone()));
+            }
+        }
+    }
+
+    fn kick(&mut self, conn: ConnId, reason: String, h: &mut Handled) {
+        self.leave(conn, h);
+        h.out.push(Out::Close(conn, reason));
+    }
+
+    /// Puts an applied operation in the order.
+    fn order(&mut self, op: Ordered) {
+        self.seq = op.seq;
+        let n = self.clients.entry(op.author).or_insert(0);
+        *n = (*n).max(op.number);
+        self.tail.push_back(op);
+        while self.tail.len() > self.config.tail {
+            self.tail.pop_front();
+        }
+        self.encoded = None;
+    }
+}

@@ -1,0 +1,193 @@
+//! A room and its replicas without sockets: messages travel through queues that deliver in
+//! random amounts at random moments, connections drop (whatever was in flight is lost) and
+//! resume, clients sculpt random strokes all the while, and at the end every replica's chunk
+//! digests equal the room's. Run over many seeds, this searches interleavings the loopback
+//! tests cannot steer.
+
+mod common;
+
+use std::collections::VecDeque;
+
+use common::{Rng, ball_scene, digests, random_stroke};
+use strata_editor::Editor;
+use strata_net::protocol::{ClientMsg, ServerMsg, decode};
+use strata_net::{Event, Replica};
+use strata_server::room::{ConnId, Handled, Out, Room, RoomConfig, token_hash};
+use strata_server::store::StoredRoom;
+
+struct Client {
+    editor: Editor,
+    replica: Replica,
+    /// Its connection, while connected.
+    conn: Option<ConnId>,
+    /// Client → room, in flight.
+    up: VecDeque<ClientMsg>,
+    /// Room → client, in flight.
+    down: VecDeque<ServerMsg>,
+    refused: usize,
+}
+
+struct World {
+    room: Room,
+    clients: Vec<Client>,
+    next_conn: ConnId,
+}
+
+impl World {
+    fn deliver(&mut self, h: Handled) {
+        for o in h.out {
+            let (conn, msg) = match o {
+                Out::Send(conn, bytes) => (conn, decode::<ServerMsg>(&bytes, usize::MAX).unwrap()),
+                Out::Close(conn, reason) => (conn, ServerMsg::Error { reason }),
+            };
+            if let Some(c) = self.clients.iter_mut().find(|c| c.conn == Some(conn)) {
+                c.down.push_back(msg);
+            }
+        }
+    }
+
+    fn connect(&mut self, i: usize) {
+        self.next_conn += 1;
+        let conn = self.next_conn;
+        let c = &mut self.clients[i];
+        c.conn = Some(conn);
+        let ClientMsg::Hello(hello) = c.replica.hello("r", "secret", &format!("c{i}"), None) else { unreachable!() };
+        assert!(self.room.admits(&hello.token));
+        let h = self.room.join(conn, hello);
+        self.deliver(h);
+    }
+
+    fn drop_connection(&mut self, i: usize) {
+        let c = &mut self.clients[i];
+        let Some(conn) = c.conn.take() else { return };
+        c.up.clear();
+        c.down.clear();
+        c.replica.disconnected();
+        let mut h = Handled::default();
+        self.room.leave(conn, &mut h);
+        self.deliver(h);
+    }
+
+    /// Up to `n` of client `i`'s messages reach the room.
+    fn pump_up(&mut self, i: usize, n: usize) {
+        let Some(conn) = self.clients[i].conn else { return };
+        let mut h = Handled::default();
+        for _ in 0..n {
+            let Some(msg) = self.clients[i].up.pop_front() else { break };
+            self.room.handle(conn, msg, &mut h);
+        }
+        self.deliver(h);
+    }
+
+    /// Up to `n` of the room's messages reach client `i` (and what it sends is queued).
+    fn pump_down(&mut self, i: usize, n: usize) {
+        let c = &mut self.clients[i];
+        let take = n.min(c.down.len());
+        let incoming: Vec<ServerMsg> = c.down.drain(..take).collect();
+        let step = c.replica.step(&mut c.editor, incoming);
+        for e in &step.events {
+            match e {
+                Event::Closed(r) => panic!("the room closed client {i}: {r}"),
+                Event::OutOfStep(r) => panic!("client {i} out of step: {r}"),
+                Event::Diverged => panic!("client {i} diverged"),
+                Event::Refused(_) => c.refused += 1,
+                _ => {}
+            }
+        }
+        if c.conn.is_some() {
+            c.up.extend(step.send);
+        }
+    }
+
+    fn quiet(&self) -> bool {
+        self.clients.iter().all(|c| c.up.is_empty() && c.down.is_empty() && c.replica.pending() == 0)
+    }
+}
+
+fn run(seed: u64, clients: usize, rounds: usize) {
+    let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let scene = strata_editor::file::encode(&ball_scene()).unwrap();
+    let stored = StoredRoom {
+        token_hash: token_hash("secret"),
+        snapshot_seq: 0,
+        snapshot: scene,
+        clients: Vec::new(),
+        ops: Vec::new(),
+    };
+    // A digest every 8 operations and a short tail, so resumes past it get snapshots.
+    let config = RoomConfig { hash_every: 8, tail: 24, ..RoomConfig::default() };
+    let room = Room::open("r", stored, config).unwrap();
+    let mut w = World { room, clients: Vec::new(), next_conn: 0 };
+    for _ in 0..clients {
+        let mut editor = Editor::default();
+        editor.record_ops(true);
+        w.clients.push(Client {
+            editor,
+            replica: Replica::new(),
+            conn: None,
+            up: VecDeque::new(),
+            down: VecDeque::new(),
+            refused: 0,
+        });
+    }
+    for i in 0..clients {
+        w.connect(i);
+    }
+    for _ in 0..rounds {
+        let i = rng.below(clients as u64) as usize;
+        match rng.below(10) {
+            0..=2 => {
+                random_stroke(&mut w.clients[i].editor, &mut rng);
+                // (The stroke's operations become pending at the next step.)
+                w.pump_down(i, 0);
+            }
+            3..=5 => w.pump_up(i, 1 + rng.below(4) as usize),
+            6..=8 => w.pump_down(i, 1 + rng.below(6) as usize),
+            _ => {
+                if w.clients[i].conn.is_some() {
+                    w.drop_connection(i);
+                } else {
+                    w.connect(i);
+                }
+            }
+        }
+    }
+    // Everyone reconnects and everything in flight arrives.
+    for i in 0..clients {
+        if w.clients[i].conn.is_none() {
+            w.connect(i);
+        }
+    }
+    for _ in 0..10_000 {
+        if w.quiet() {
+            break;
+        }
+        for i in 0..clients {
+            w.pump_down(i, usize::MAX);
+            w.pump_up(i, usize::MAX);
+        }
+    }
+    assert!(w.quiet(), "seed {seed}: messages still in flight");
+    let expected = digests(w.room.editor());
+    for (i, c) in w.clients.iter().enumerate() {
+        assert_eq!(c.replica.seq(), w.room.seq(), "seed {seed}: client {i} is behind");
+        assert!(digests(&c.editor) == expected, "seed {seed}: client {i}'s volume differs from the room's");
+        c.editor.scene.layers[0].volume.check_invariants().unwrap();
+    }
+    assert!(w.room.seq() > 0, "seed {seed}: nothing was ordered");
+}
+
+#[test]
+fn replicas_converge_to_the_room_through_random_delays_drops_and_resumes() {
+    let seeds: u64 = std::env::var("STRATA_ROOM_SEEDS").ok().and_then(|v| v.parse().ok()).unwrap_or(4);
+    for seed in 0..seeds {
+        let t = std::time::Instant::now();
+        run(seed, 4, 160);
+        eprintln!("seed {seed}: {:?}", t.elapsed());
+    }
+}
+
+#[test]
+fn eight_replicas_converge() {
+    run(1234, 8, 400);
+}
