@@ -1,5 +1,6 @@
 //! Shared helpers for the cross-crate scenarios (also used by other crates' tests).
 
+pub mod collab;
 pub mod files;
 
 use glam::DVec3;

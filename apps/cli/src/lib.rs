@@ -4,6 +4,7 @@
 pub mod commands;
 pub mod paths;
 pub mod runtime;
+pub mod serve;
 pub mod terrain;
 
 use std::fmt::Write as _;

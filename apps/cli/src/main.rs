@@ -144,6 +144,23 @@ A recipe is JSON; every field is optional (the defaults are printed by --print-r
         #[arg(long)]
         print_recipe: bool,
     },
+    /// Host rooms where several people sculpt one scene together (the studio's File > Host
+    /// session and Join session connect to it). Runs until stopped.
+    #[command(after_help = "Examples:
+  strata serve --listen 0.0.0.0:7878 --store rooms.redb
+  strata serve --store postgres://strata@db.example:5432/strata
+
+Rooms are kept in an embedded redb file by default, or in PostgreSQL when --store is a
+postgres:// URL (several servers may then serve different rooms against one database). Every
+operation a client saw acknowledged is on disk: a server killed and restarted loses none.")]
+    Serve {
+        /// The address to listen on (port 0: any free port, printed at start).
+        #[arg(long, default_value = "127.0.0.1:7878")]
+        listen: String,
+        /// Where rooms are kept: a redb file, or a postgres:// URL.
+        #[arg(long, default_value = "strata-rooms.redb")]
+        store: String,
+    },
     /// Sculpt a small scene from analytic brushes and print its statistics.
     #[command(after_help = "Example:\n  strata demo --out demo.glb --out demo.stl --scene demo.strata")]
     Demo {
@@ -174,6 +191,7 @@ fn run(command: Command) -> Result<String> {
             commands::export(&scene, &output, mesher, simplify, islands, &layers)
         }
         Command::Info { scene } => commands::info(&scene),
+        Command::Serve { listen, store } => strata::serve::serve(&listen, &store),
         Command::Render { scene, output, size, wireframe } => commands::render(&scene, &output, size, wireframe),
         Command::Demo { scale, outputs, scene } => strata::demo(scale, &outputs, scene.as_deref()),
         Command::Terrain { recipe, seed, size, output, print_recipe } => {

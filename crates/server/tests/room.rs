@@ -4,16 +4,14 @@
 //! digests equal the room's. Run over many seeds, this searches interleavings the loopback
 //! tests cannot steer.
 
-mod common;
-
 use std::collections::VecDeque;
 
-use common::{Rng, ball_scene, digests, random_stroke};
 use strata_editor::Editor;
 use strata_net::protocol::{ClientMsg, ServerMsg, decode};
 use strata_net::{Event, Replica};
 use strata_server::room::{ConnId, Handled, Out, Room, RoomConfig, token_hash};
 use strata_server::store::StoredRoom;
+use strata_tests::collab::{Rng, ball_scene, digests, random_stroke};
 
 struct Client {
     editor: Editor,

@@ -1,6 +1,5 @@
 //! What the collaboration tests share: a seeded generator, a starting scene, random strokes as
 //! a user makes them (every tool, mirroring, pressure), and chunk digests to compare.
-#![allow(dead_code)]
 
 use std::time::Duration;
 
@@ -11,9 +10,11 @@ use strata_volume::CsgOp;
 use strata_volume::brush::Sphere;
 
 /// xorshift64*: seeded, reproducible.
+#[derive(Debug)]
 pub struct Rng(pub u64);
 
 impl Rng {
+    /// The next 64 random bits.
     pub fn next(&mut self) -> u64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
@@ -31,6 +32,7 @@ impl Rng {
         lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
     }
 
+    /// True with probability `p`.
     pub fn chance(&mut self, p: f64) -> bool {
         self.range(0.0, 1.0) < p
     }
@@ -76,6 +78,7 @@ pub fn random_stroke(e: &mut Editor, rng: &mut Rng) {
     let _ = e.frame(&ToolPose::at(end, false), Duration::ZERO);
 }
 
+/// The chunk digests of an editor's scene.
 pub fn digests(e: &Editor) -> Vec<ChunkDigest> {
     chunk_digests(&e.scene).unwrap()
 }
@@ -86,4 +89,71 @@ pub fn temp_dir(name: &str) -> std::path::PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+/// An editor in a room.
+#[derive(Debug)]
+pub struct Member {
+    /// Its editor.
+    pub editor: Editor,
+    /// Its session.
+    pub session: strata_net::Session,
+    /// Events that say something went wrong (divergence, out of step), for the test to check.
+    pub trouble: Vec<strata_net::Event>,
+}
+
+impl Member {
+    /// Joins `room` at `url` (hosting it with `scene` when given).
+    pub fn new(url: &str, room: &str, token: &str, name: &str, scene: Option<&Scene>) -> Member {
+        let session = match scene {
+            Some(s) => strata_net::Session::host(url, room, token, name, s).unwrap(),
+            None => strata_net::Session::join(url, room, token, name).unwrap(),
+        };
+        Member { editor: Editor::default(), session, trouble: Vec::new() }
+    }
+
+    /// Polls once, waiting up to `wait` for something to arrive.
+    pub fn poll(&mut self, wait: Duration) {
+        let events = self.session.wait(&mut self.editor, wait);
+        self.trouble.extend(
+            events.into_iter().filter(|e| matches!(e, strata_net::Event::Diverged | strata_net::Event::OutOfStep(_))),
+        );
+    }
+
+    /// Whether it is in the room with nothing pending.
+    pub fn settled(&self) -> bool {
+        *self.session.state() == strata_net::SessionState::InRoom && self.session.replica().pending() == 0
+    }
+}
+
+/// Polls every member until all are in the room with nothing pending, at the same operation,
+/// and nothing moved for a quarter of a second; panics after `timeout`.
+pub fn converge(members: &mut [Member], timeout: Duration) {
+    let t0 = std::time::Instant::now();
+    let mut stable_since: Option<std::time::Instant> = None;
+    let mut last = Vec::new();
+    loop {
+        for m in members.iter_mut() {
+            m.poll(Duration::from_millis(5));
+        }
+        let seqs: Vec<u64> = members.iter().map(|m| m.session.replica().seq()).collect();
+        let done = members.iter().all(Member::settled) && seqs.iter().all(|s| *s == seqs[0]);
+        if done && seqs == last {
+            let since = *stable_since.get_or_insert_with(std::time::Instant::now);
+            if since.elapsed() > Duration::from_millis(250) {
+                return;
+            }
+        } else {
+            stable_since = None;
+        }
+        last = seqs;
+        assert!(
+            t0.elapsed() < timeout,
+            "no convergence within {timeout:?}: {:?}",
+            members
+                .iter()
+                .map(|m| (m.session.state().clone(), m.session.replica().seq(), m.session.replica().pending()))
+                .collect::<Vec<_>>()
+        );
+    }
 }
