@@ -1,0 +1,268 @@
+//! A hostile client on loopback: 10,000 malformed, oversized, NaN-carrying, out-of-bounds and
+//! out-of-order messages over many connections while two honest clients sculpt. The server
+//! never stops serving, the hostile connections are closed with an error, the honest clients
+//! converge; and a flood of well-formed messages is slowed to the connection's rate limit
+//! while another client is served at once.
+
+use std::net::TcpStream;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use strata_editor::{DabRecord, EditOp, LayerTransform, ToolSettings};
+use strata_net::protocol::{ClientMsg, Hello, PROTOCOL, Presence, ServerMsg, decode, encode};
+use strata_server::{RedbStorage, Server, ServerConfig};
+use strata_tests::collab::{Member, Rng, ball_scene, converge, digests, random_stroke, temp_dir};
+use tungstenite::stream::MaybeTlsStream;
+use tungstenite::{Message, WebSocket};
+
+type Socket = WebSocket<MaybeTlsStream<TcpStream>>;
+
+fn open(url: &str) -> Socket {
+    let (ws, _) = tungstenite::connect(url).unwrap();
+    if let MaybeTlsStream::Plain(s) = ws.get_ref() {
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    }
+    ws
+}
+
+fn hello(room: &str, token: &str) -> ClientMsg {
+    ClientMsg::Hello(Hello {
+        protocol: PROTOCOL,
+        room: room.into(),
+        token: token.into(),
+        name: "mallory".into(),
+        resume: None,
+        create: None,
+    })
+}
+
+fn op(position: DVec3, radius: f64) -> EditOp {
+    EditOp {
+        surface: 0,
+        transform: LayerTransform::default(),
+        tool: ToolSettings { radius, ..ToolSettings::default() },
+        dabs: vec![DabRecord::Dab {
+            at: position,
+            from: position,
+            orientation: glam::DQuat::IDENTITY,
+            pressure: 1.0,
+            inverted: false,
+        }],
+    }
+}
+
+/// Reads until the server closes the connection; whether it said why first.
+fn closed_with_error(ws: &mut Socket) -> bool {
+    let mut said = false;
+    loop {
+        match ws.read() {
+            Ok(Message::Binary(b)) => {
+                if let Ok(ServerMsg::Error { .. }) = decode::<ServerMsg>(&b, usize::MAX) {
+                    said = true;
+                }
+            }
+            Ok(Message::Close(_)) => {}
+            Ok(_) => {}
+            Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                panic!("the server kept a hostile connection open")
+            }
+            Err(_) => return said,
+        }
+    }
+}
+
+/// Bad messages sent at once on each hostile connection.
+const BURST: usize = 4;
+
+/// One hostile connection of kind `kind`; returns the messages it sent.
+fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
+    let mut ws = open(url);
+    // A burst of the bad message: the server closes at the first; the rest may not arrive.
+    let send = |ws: &mut Socket, bytes: Vec<u8>| {
+        for _ in 0..BURST {
+            let _ = ws.send(Message::Binary(bytes.clone().into()));
+        }
+    };
+    let joined = |ws: &mut Socket| {
+        ws.send(Message::Binary(encode(&hello(room, "token")).into())).unwrap();
+    };
+    let sent = match kind {
+        // Bytes that are no message at all.
+        0 => {
+            let n = 1 + rng.below(200) as usize;
+            send(&mut ws, (0..n).map(|_| rng.next() as u8).collect());
+            BURST
+        }
+        // A message over the size limit.
+        1 => {
+            joined(&mut ws);
+            send(&mut ws, vec![7u8; 1_600_000]);
+            1 + BURST
+        }
+        // An operation carrying NaN.
+        2 => {
+            joined(&mut ws);
+            let msg = ClientMsg::Submit { number: 1, op: op(DVec3::new(f64::NAN, 0.0, 0.0), 2.0) };
+            send(&mut ws, encode(&msg));
+            1 + BURST
+        }
+        // A submit before any hello.
+        3 => {
+            send(&mut ws, encode(&ClientMsg::Submit { number: 1, op: op(DVec3::ZERO, 2.0) }));
+            BURST
+        }
+        // Another protocol.
+        4 => {
+            let ClientMsg::Hello(mut h) = hello(room, "token") else { unreachable!() };
+            h.protocol = 999;
+            send(&mut ws, encode(&ClientMsg::Hello(h)));
+            BURST
+        }
+        // Text instead of binary.
+        5 => {
+            joined(&mut ws);
+            let _ = ws.send(Message::Text("hello?".into()));
+            2
+        }
+        // Out of bounds: a huge brush, a material or a surface that does not exist, infinity.
+        6 => {
+            joined(&mut ws);
+            let mut o = op(DVec3::ZERO, 2.0);
+            match rng.below(4) {
+                0 => o.tool.radius = 1e9,
+                1 => o.tool.material = 250,
+                2 => o.surface = 9,
+                _ => o.transform.scale = f64::INFINITY,
+            }
+            send(&mut ws, encode(&ClientMsg::Submit { number: 1 + rng.below(5), op: o }));
+            1 + BURST
+        }
+        // Out of order: a second hello after the first.
+        7 => {
+            joined(&mut ws);
+            send(&mut ws, encode(&hello(room, "token")));
+            1 + BURST
+        }
+        // A presence that is not finite.
+        8 => {
+            joined(&mut ws);
+            let p = Presence { position: Some(DVec3::splat(f64::INFINITY)), radius: 1.0 };
+            send(&mut ws, encode(&ClientMsg::Presence(p)));
+            1 + BURST
+        }
+        // A well-formed message cut short.
+        _ => {
+            joined(&mut ws);
+            let mut bytes = encode(&ClientMsg::Submit { number: 1, op: op(DVec3::ZERO, 2.0) });
+            bytes.truncate(bytes.len() / 2);
+            send(&mut ws, bytes);
+            1 + BURST
+        }
+    };
+    assert!(closed_with_error(&mut ws), "a hostile connection of kind {kind} was closed without a reason");
+    sent
+}
+
+/// Operations sent again, out of order, on a connection that stays open (the server ignores
+/// numbers it has already handled): many messages, no disconnection needed.
+fn replays(url: &str, room: &str, count: usize) -> usize {
+    let mut ws = open(url);
+    ws.send(Message::Binary(encode(&hello(room, "token")).into())).unwrap();
+    let submit = |n: u64| Message::Binary(encode(&ClientMsg::Submit { number: n, op: op(DVec3::ZERO, 1.0) }).into());
+    // One real operation (number 9), then numbers at or below it, backwards.
+    ws.send(submit(9)).unwrap();
+    for k in 0..count {
+        ws.send(submit(9 - (k as u64 % 9))).unwrap();
+    }
+    ws.close(None).ok();
+    count + 2
+}
+
+#[test]
+fn ten_thousand_hostile_messages_leave_the_honest_clients_converging() {
+    let dir = temp_dir("hostile");
+    let storage = Arc::new(RedbStorage::open(&dir.join("rooms.redb")).unwrap());
+    // (A rate that lets the replays through in seconds.)
+    let config = ServerConfig { rate: 5000.0, burst: 5000.0, ..ServerConfig::default() };
+    let server = Server::start("127.0.0.1:0", storage, config).unwrap();
+    let url = server.url();
+    let mut honest = vec![Member::new(&url, "room", "token", "host", Some(&ball_scene()))];
+    converge(&mut honest, Duration::from_secs(30));
+    honest.push(Member::new(&url, "room", "token", "guest", None));
+    converge(&mut honest, Duration::from_secs(30));
+    let hostile = {
+        let url = url.clone();
+        std::thread::spawn(move || {
+            let mut rng = Rng(99);
+            let mut sent = 0;
+            let mut kind = 0;
+            while sent < 10_000 {
+                sent +=
+                    if kind % 10 == 9 { replays(&url, "room", 100) } else { attack(&url, "room", kind % 10, &mut rng) };
+                kind += 1;
+            }
+            (sent, kind)
+        })
+    };
+    let mut rng = Rng(3);
+    while !hostile.is_finished() {
+        let i = rng.below(2) as usize;
+        random_stroke(&mut honest[i].editor, &mut rng);
+        for m in honest.iter_mut() {
+            m.poll(Duration::from_millis(10));
+        }
+    }
+    let (sent, connections) = hostile.join().expect("the hostile client's own checks");
+    assert!(sent >= 10_000);
+    converge(&mut honest, Duration::from_secs(60));
+    assert!(digests(&honest[0].editor) == digests(&honest[1].editor));
+    for m in &honest {
+        assert!(m.trouble.is_empty(), "{:?}", m.trouble);
+        assert_eq!(*m.session.state(), strata_net::SessionState::InRoom);
+    }
+    // Still serving: a newcomer joins and gets the same bytes.
+    let mut late = vec![Member::new(&url, "room", "token", "late", None)];
+    converge(&mut late, Duration::from_secs(30));
+    assert!(digests(&late[0].editor) == digests(&honest[0].editor));
+    eprintln!("{sent} hostile messages over {connections} connections");
+}
+
+#[test]
+fn a_flood_is_slowed_to_the_rate_limit_while_others_are_served() {
+    let dir = temp_dir("flood");
+    let storage = Arc::new(RedbStorage::open(&dir.join("rooms.redb")).unwrap());
+    let config = ServerConfig { rate: 100.0, burst: 20.0, ..ServerConfig::default() };
+    let server = Server::start("127.0.0.1:0", storage, config).unwrap();
+    let url = server.url();
+    let mut honest = vec![Member::new(&url, "room", "token", "host", Some(&ball_scene()))];
+    converge(&mut honest, Duration::from_secs(30));
+    let mut flood = open(&url);
+    flood.send(Message::Binary(encode(&hello("room", "token")).into())).unwrap();
+    let t0 = Instant::now();
+    // 220 presences, then a resync whose snapshot can come only after all were read.
+    let p = ClientMsg::Presence(Presence { position: Some(DVec3::ZERO), radius: 1.0 });
+    for _ in 0..220 {
+        flood.send(Message::Binary(encode(&p).into())).unwrap();
+    }
+    flood.send(Message::Binary(encode(&ClientMsg::Resync).into())).unwrap();
+    // Meanwhile an honest stroke is ordered and confirmed at once.
+    let mut rng = Rng(8);
+    random_stroke(&mut honest[0].editor, &mut rng);
+    let t1 = Instant::now();
+    converge(&mut honest, Duration::from_secs(30));
+    let honest_wait = t1.elapsed();
+    let mut snapshots = 0;
+    while snapshots < 2 {
+        // (The first snapshot answers the hello; the second the resync.)
+        if let Message::Binary(b) = flood.read().unwrap()
+            && let Ok(ServerMsg::Snapshot { .. }) = decode::<ServerMsg>(&b, usize::MAX)
+        {
+            snapshots += 1;
+        }
+    }
+    let flood_wait = t0.elapsed();
+    // 221 messages, 20 at once, the rest at 100 a second: at least two seconds.
+    assert!(flood_wait >= Duration::from_millis(2000), "a flood of 221 messages was read in {flood_wait:?}");
+    assert!(honest_wait < flood_wait, "the honest client waited {honest_wait:?}, behind the flood");
+}
