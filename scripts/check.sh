@@ -10,8 +10,8 @@ cargo fmt --all -- --check
 echo "== clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 
-echo "== layering: the volume core, the editor core and the terrain crate depend on no GPU, UI or windowing crate"
-for core in strata-volume strata-editor strata-terrain; do
+echo "== layering: the volume core, the editor core, the terrain crate and the network crates depend on no GPU, UI or windowing crate"
+for core in strata-volume strata-editor strata-terrain strata-net strata-server; do
   if cargo tree -p "$core" -e normal | grep -E '(wgpu|egui|eframe|winit) v'; then
     echo "$core must not depend on the crates above" >&2
     exit 1

@@ -148,7 +148,7 @@ async fn run(url: String, mut commands: async_mpsc::UnboundedReceiver<Command>, 
                 if events.send(LinkEvent::Connected(connection)).is_err() {
                     return;
                 }
-                let why = loop {
+                loop {
                     tokio::select! {
                         incoming = ws.next() => match incoming {
                             Some(Ok(Message::Binary(bytes))) => match decode::<ServerMsg>(&bytes, MAX_SERVER_MESSAGE) {
@@ -181,8 +181,7 @@ async fn run(url: String, mut commands: async_mpsc::UnboundedReceiver<Command>, 
                             }
                         },
                     }
-                };
-                why
+                }
             }
         };
         if events.send(LinkEvent::Disconnected(why)).is_err() {

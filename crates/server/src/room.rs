@@ -61,6 +61,17 @@ impl Handled {
     }
 }
 
+/// A room's state to store in place of its log (see [`crate::store::RoomStore::compact`]).
+#[derive(Clone, Debug)]
+pub struct Snapshot {
+    /// The last operation it holds.
+    pub seq: Seq,
+    /// The scene file.
+    pub scene: std::sync::Arc<Vec<u8>>,
+    /// Each client's highest ordered number.
+    pub clients: Vec<(ClientId, u64)>,
+}
+
 /// Why a room could not be opened or created.
 #[derive(Debug, thiserror::Error)]
 pub enum RoomError {
@@ -168,14 +179,13 @@ impl Room {
         self.seq - self.snapshot_seq
     }
 
-    /// A snapshot to store (after [`RoomConfig::compact_every`] operations): the sequence it
-    /// holds up to, the scene file and the clients' numbers; `None` when none is due.
-    pub fn snapshot_due(&mut self) -> Option<(Seq, std::sync::Arc<Vec<u8>>, Vec<(ClientId, u64)>)> {
+    /// A snapshot to store, after [`RoomConfig::compact_every`] operations (`None` before).
+    pub fn snapshot_due(&mut self) -> Option<Snapshot> {
         if self.since_snapshot() < self.config.compact_every {
             return None;
         }
         let scene = self.encoded_scene()?;
-        Some((self.seq, scene, self.clients.iter().map(|(c, n)| (*c, *n)).collect()))
+        Some(Snapshot { seq: self.seq, scene, clients: self.clients.iter().map(|(c, n)| (*c, *n)).collect() })
     }
 
     /// Records that the snapshot after `seq` is stored.

@@ -441,10 +441,10 @@ fn serve_room(
             }
         }
         if let Some(r) = room.as_mut()
-            && let Some((seq, scene, clients)) = r.snapshot_due()
+            && let Some(snapshot) = r.snapshot_due()
         {
-            store.compact(seq, &scene, &clients).map_err(|e| e.to_string())?;
-            r.snapshot_stored(seq);
+            store.compact(snapshot.seq, &snapshot.scene, &snapshot.clients).map_err(|e| e.to_string())?;
+            r.snapshot_stored(snapshot.seq);
         }
         if room.is_none() && conns.is_empty() {
             return Ok(());

@@ -91,7 +91,7 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
         // Bytes that are no message at all.
         0 => {
             let n = 1 + rng.below(200) as usize;
-            send(&mut ws, (0..n).map(|_| rng.next() as u8).collect());
+            send(&mut ws, (0..n).map(|_| rng.bits() as u8).collect());
             BURST
         }
         // A message over the size limit.

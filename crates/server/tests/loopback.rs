@@ -36,7 +36,13 @@ fn fresh(name: &str) -> String {
 /// Eight clients sculpting at once through drops and resumes (see the module docs); returns
 /// the clients' final digests after checking them against the stored room.
 fn session(storage: Arc<dyn Storage>, room: &str, seed: u64) {
-    let server = Server::start("127.0.0.1:0", storage.clone(), ServerConfig::default()).unwrap();
+    // The log is folded into snapshots every 16 operations, and resumes further back than 12
+    // get one: both happen many times in a session.
+    let config = ServerConfig {
+        room: RoomConfig { compact_every: 16, tail: 12, ..RoomConfig::default() },
+        ..ServerConfig::default()
+    };
+    let server = Server::start("127.0.0.1:0", storage.clone(), config).unwrap();
     let url = server.url();
     let mut rng = Rng(seed | 1);
     let mut members = vec![Member::new(&url, room, "token", "host", Some(&ball_scene()))];
@@ -66,6 +72,8 @@ fn session(storage: Arc<dyn Storage>, room: &str, seed: u64) {
     drop(server);
     // The room as its storage holds it: what a restarted server would serve.
     let stored = storage.open(room).unwrap().load().unwrap().expect("the room is stored");
+    assert!(stored.snapshot_seq > 0, "the log was never compacted");
+    assert!(stored.ops.len() < 16 + 16, "{} operations after the snapshot", stored.ops.len());
     let room = Room::open(room, stored, RoomConfig::default()).unwrap();
     let expected = digests(room.editor());
     assert!(room.seq() > 20, "only {} operations were ordered", room.seq());
