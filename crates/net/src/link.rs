@@ -12,7 +12,7 @@ use tokio::sync::mpsc as async_mpsc;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 
-use crate::protocol::{ClientMsg, MAX_CLIENT_MESSAGE, MAX_SERVER_MESSAGE, ServerMsg, decode, encode};
+use crate::protocol::{ClientMsg, MAX_SERVER_MESSAGE, ServerMsg, decode, encode};
 
 /// What the link reports.
 #[derive(Debug)]
@@ -165,7 +165,8 @@ async fn run(url: String, mut commands: async_mpsc::UnboundedReceiver<Command>, 
                         },
                         command = commands.recv() => match command {
                             Some(Command::Send(n, bytes)) => {
-                                if n == connection && bytes.len() <= MAX_CLIENT_MESSAGE
+                                // (The server refuses what is too large, with a reason.)
+                                if n == connection
                                     && let Err(e) = ws.send(Message::Binary(bytes.into())).await
                                 {
                                     break e.to_string();

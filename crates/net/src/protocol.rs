@@ -10,9 +10,13 @@ use strata_editor::EditOp;
 /// The protocol version this build speaks.
 pub const PROTOCOL: u32 = 1;
 
-/// The largest message a client may send (bytes); the server closes a connection that sends
-/// a larger one.
+/// The largest message a client may send after its hello (bytes); the server closes a
+/// connection that sends a larger one.
 pub const MAX_CLIENT_MESSAGE: usize = 1 << 20;
+
+/// The largest hello (it may carry the scene a new room starts with: the bunny at 1,024 cells
+/// a side is a 25 MB scene file).
+pub const MAX_HELLO: usize = 256 << 20;
 
 /// The largest message a server may send (a room's snapshot is the largest).
 pub const MAX_SERVER_MESSAGE: usize = 1 << 30;

@@ -17,7 +17,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
-use strata_net::protocol::{ClientMsg, Hello, MAX_CLIENT_MESSAGE, ServerMsg, decode, encode};
+use strata_net::protocol::{ClientMsg, Hello, MAX_CLIENT_MESSAGE, MAX_HELLO, ServerMsg, decode, encode};
 use tokio::sync::mpsc as async_mpsc;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
@@ -188,8 +188,9 @@ impl Bucket {
 
 async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
     let _ = stream.set_nodelay(true);
-    let ws_config =
-        WebSocketConfig::default().max_message_size(Some(MAX_CLIENT_MESSAGE)).max_frame_size(Some(MAX_CLIENT_MESSAGE));
+    // The hello may carry a new room's scene; every later message is held to
+    // MAX_CLIENT_MESSAGE when it is decoded.
+    let ws_config = WebSocketConfig::default().max_message_size(Some(MAX_HELLO)).max_frame_size(Some(MAX_HELLO));
     let Ok(Ok(ws)) = tokio::time::timeout(
         shared.config.hello_timeout,
         tokio_tungstenite::accept_async_with_config(stream, Some(ws_config)),
@@ -201,7 +202,7 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
     let (mut sink, mut incoming) = ws.split();
     let refuse = |reason: String| Message::Binary(encode(&ServerMsg::Error { reason }).into());
     let hello = match tokio::time::timeout(shared.config.hello_timeout, incoming.next()).await {
-        Ok(Some(Ok(Message::Binary(bytes)))) => match decode::<ClientMsg>(&bytes, MAX_CLIENT_MESSAGE) {
+        Ok(Some(Ok(Message::Binary(bytes)))) => match decode::<ClientMsg>(&bytes, MAX_HELLO) {
             Ok(ClientMsg::Hello(h)) => h,
             Ok(_) => {
                 let _ = sink.send(refuse("the first message must be a hello".into())).await;
