@@ -28,6 +28,9 @@ pub struct EditOp {
     pub tool: ToolSettings,
     /// The dabs, in the order applied.
     pub dabs: Vec<DabRecord>,
+    /// The stroke it belongs to, numbered by the editor that made it: an undo takes back a
+    /// whole stroke, all its operations together.
+    pub stroke: u64,
 }
 
 /// One dab of an [`EditOp`] (world coordinates).
@@ -99,7 +102,9 @@ impl EditOp {
 }
 
 /// What takes an applied operation back: the undo records of its edits, restored in reverse.
-#[derive(Debug, Default)]
+/// It serialises (a room's server sends it to undo an operation everywhere); restore only
+/// records from a trusted source (see [`strata_volume::UndoRecord`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct OpUndo {
     pub(crate) surface: usize,
     pub(crate) records: Vec<UndoRecord>,
@@ -139,6 +144,8 @@ pub struct RecordedOp {
 pub(crate) struct Recorder {
     pub(crate) done: Vec<RecordedOp>,
     pub(crate) current: Option<RecordedOp>,
+    /// The number of the stroke in progress (or the next).
+    pub(crate) stroke: u64,
 }
 
 impl Editor {
@@ -174,7 +181,13 @@ impl Editor {
             r.done.push(op);
         }
         r.current = Some(RecordedOp {
-            op: EditOp { surface: layer as u32, transform: *transform, tool: *tool, dabs: Vec::new() },
+            op: EditOp {
+                surface: layer as u32,
+                transform: *transform,
+                tool: *tool,
+                dabs: Vec::new(),
+                stroke: r.stroke,
+            },
             undo: OpUndo { surface: layer, records: Vec::new() },
         });
     }

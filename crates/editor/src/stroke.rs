@@ -466,7 +466,8 @@ impl Editor {
     pub fn end_stroke(&mut self) {
         if let Some(s) = self.stroke.take() {
             // (While recording operations, the stroke's records went to them.)
-            if self.recorder.is_some() {
+            if let Some(r) = self.recorder.as_mut() {
+                r.stroke += 1;
                 return;
             }
             self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None, layers: None });

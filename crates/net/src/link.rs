@@ -20,7 +20,7 @@ pub enum LinkEvent {
     /// Connection `n` is open (send the hello first).
     Connected(u64),
     /// A message arrived.
-    Message(ServerMsg),
+    Message(Box<ServerMsg>),
     /// The connection dropped (why); the link retries by itself.
     Disconnected(String),
 }
@@ -153,7 +153,7 @@ async fn run(url: String, mut commands: async_mpsc::UnboundedReceiver<Command>, 
                         incoming = ws.next() => match incoming {
                             Some(Ok(Message::Binary(bytes))) => match decode::<ServerMsg>(&bytes, MAX_SERVER_MESSAGE) {
                                 Ok(msg) => {
-                                    if events.send(LinkEvent::Message(msg)).is_err() {
+                                    if events.send(LinkEvent::Message(Box::new(msg))).is_err() {
                                         return;
                                     }
                                 }

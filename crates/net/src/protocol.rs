@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
-use strata_editor::EditOp;
+use strata_editor::{EditOp, OpUndo};
 
 /// The protocol version this build speaks.
 pub const PROTOCOL: u32 = 1;
@@ -51,8 +51,9 @@ pub struct Hello {
 pub struct Resume {
     /// The identity the room gave it.
     pub client: ClientId,
-    /// The last operation it applied.
-    pub seq: Seq,
+    /// The last operation it applied; `None` before it had the room's scene (a snapshot
+    /// lost with the connection that brought it): it needs one.
+    pub seq: Option<Seq>,
 }
 
 /// Messages from a client.
@@ -71,6 +72,9 @@ pub enum ClientMsg {
     Presence(Presence),
     /// The client found its state diverged: it asks for a snapshot.
     Resync,
+    /// Undo the client's newest stroke the room has not undone yet (refused when someone else
+    /// has since edited the same chunks).
+    Undo,
 }
 
 /// A brush cursor.
@@ -82,17 +86,32 @@ pub struct Presence {
     pub radius: f64,
 }
 
-/// An operation in the room's order.
+/// An entry in the room's order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Ordered {
     /// Its place in the order.
     pub seq: Seq,
     /// Who made it.
     pub author: ClientId,
-    /// The author's number for it.
+    /// The author's number for it (0 for an undo, which is not numbered).
     pub number: u64,
-    /// The operation.
-    pub op: EditOp,
+    /// What it does.
+    pub entry: Entry,
+}
+
+/// What an ordered entry does.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Entry {
+    /// An edit operation, replayed.
+    Edit(EditOp),
+    /// The undo of the author's stroke, entries `of` (newest first): the room's records of
+    /// what they changed, restored in that order (no one else has edited those chunks since).
+    Undo {
+        /// The entries undone, newest first.
+        of: Vec<Seq>,
+        /// What restores each, in the same order.
+        undo: Vec<OpUndo>,
+    },
 }
 
 /// Messages from the server.
@@ -128,6 +147,12 @@ pub enum ServerMsg {
     Refused {
         /// The client's number for it.
         number: u64,
+        /// Why.
+        reason: String,
+    },
+    /// The room refused the client's undo (why: someone else edited the same place since,
+    /// nothing left to undo, too old).
+    UndoRefused {
         /// Why.
         reason: String,
     },

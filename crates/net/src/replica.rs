@@ -11,7 +11,7 @@ use std::collections::VecDeque;
 
 use strata_editor::{EditOp, Editor, OpUndo};
 
-use crate::protocol::{ClientId, ClientMsg, Hello, Ordered, PROTOCOL, Peer, Resume, Seq, ServerMsg};
+use crate::protocol::{ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Resume, Seq, ServerMsg};
 
 /// A local operation the room has not ordered yet.
 #[derive(Debug)]
@@ -34,6 +34,10 @@ pub enum Event {
     Snapshot,
     /// The room refused one of our operations (it was taken back).
     Refused(String),
+    /// The room refused our undo (why).
+    UndoRefused(String),
+    /// The room undid one of our operations.
+    Undone,
     /// Our scene's digest differed from the room's: a snapshot was asked for.
     Diverged,
     /// Someone joined or moved their brush.
@@ -66,6 +70,8 @@ pub struct Replica {
     /// number that did not come back were refused (the refusal went to a connection that
     /// dropped).
     catch_up: Option<(Seq, u64)>,
+    /// Whether the room's scene is here (a snapshot arrived): until then a resume asks for one.
+    based: bool,
     /// Whether the pending operations are taken back (while the room's operations of one step
     /// are applied: they are put back once, at the end of the step).
     rewound: bool,
@@ -107,7 +113,7 @@ impl Replica {
             room: room.to_owned(),
             token: token.to_owned(),
             name: name.to_owned(),
-            resume: self.client.map(|client| Resume { client, seq: self.seq }),
+            resume: self.client.map(|client| Resume { client, seq: self.based.then_some(self.seq) }),
             create,
         })
     }
@@ -182,8 +188,11 @@ impl Replica {
                     self.out_of_step(why, step);
                     return;
                 }
-                if let Err(why) = self.apply_ordered(editor, ordered) {
-                    self.out_of_step(why, step);
+                let undone = Some(ordered.author) == self.client && matches!(ordered.entry, Entry::Undo { .. });
+                match self.apply_ordered(editor, ordered) {
+                    Ok(()) if undone => step.events.push(Event::Undone),
+                    Ok(()) => {}
+                    Err(why) => self.out_of_step(why, step),
                 }
             }
             ServerMsg::Refused { number, reason } => {
@@ -207,6 +216,7 @@ impl Replica {
                     step.events.push(Event::Diverged);
                 }
             }
+            ServerMsg::UndoRefused { reason } => step.events.push(Event::UndoRefused(reason)),
             ServerMsg::Presence { peer, presence } => step.events.push(Event::Presence(peer, presence)),
             ServerMsg::Left { client } => step.events.push(Event::Left(client)),
             ServerMsg::Error { reason } => {
@@ -253,11 +263,17 @@ impl Replica {
             self.rewind(editor, 0);
             self.rewound = true;
         }
-        let result = editor.replay(&ordered.op).map(drop).map_err(|e| format!("operation {}: {e}", ordered.seq));
+        let seq = ordered.seq;
+        let result = match ordered.entry {
+            Entry::Edit(op) => editor.replay(&op).map(drop).map_err(|e| format!("operation {seq}: {e}")),
+            Entry::Undo { undo, .. } => {
+                undo.into_iter().try_for_each(|u| editor.revert(u).map_err(|(e, _)| format!("undo {seq}: {e}")))
+            }
+        };
         if ours {
             self.pending.pop_front();
         }
-        self.seq = ordered.seq;
+        self.seq = seq;
         result
     }
 
@@ -312,6 +328,7 @@ impl Replica {
         }
         self.replay_from(editor, 0);
         self.seq = seq;
+        self.based = true;
         self.awaiting_snapshot = false;
         step.events.push(Event::Snapshot);
     }

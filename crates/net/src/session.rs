@@ -92,7 +92,7 @@ impl Session {
         let mut incoming = Vec::new();
         for e in events {
             match e {
-                LinkEvent::Message(m) => incoming.push(m),
+                LinkEvent::Message(m) => incoming.push(*m),
                 LinkEvent::Connected(_) => {
                     // (What came on the last connection is applied first.)
                     out.extend(self.flush(editor, std::mem::take(&mut incoming)));
@@ -157,6 +157,19 @@ impl Session {
         }
         self.last_presence = Some(Instant::now());
         self.send(&ClientMsg::Presence(Presence { position, radius }));
+    }
+
+    /// Asks the room to undo our newest operation it has not undone; the answer comes as
+    /// [`Event::Undone`] or [`Event::UndoRefused`]. Refused at once (with why) when not in
+    /// the room.
+    /// (`editor`'s new operations are sent first: the undo is for the newest.)
+    pub fn undo(&mut self, editor: &mut Editor) -> Result<Vec<Event>, String> {
+        if self.state != SessionState::InRoom {
+            return Err("not in the room: nothing can be undone until the connection is back".into());
+        }
+        let events = self.handle(editor, Vec::new());
+        self.send(&ClientMsg::Undo);
+        Ok(events)
     }
 
     /// Where the session is.

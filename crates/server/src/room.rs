@@ -7,9 +7,12 @@ use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::hash::{BuildHasher, Hasher};
 
 use sha2::{Digest, Sha256};
-use strata_editor::Editor;
-use strata_net::protocol::{ClientId, ClientMsg, Hello, Ordered, PROTOCOL, Peer, Presence, Seq, ServerMsg, encode};
+use strata_editor::{Editor, OpUndo};
+use strata_net::protocol::{
+    ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Presence, Seq, ServerMsg, encode,
+};
 use strata_net::{Limits, state_hash, validate};
+use strata_volume::ChunkKey;
 
 use crate::store::StoredRoom;
 
@@ -104,7 +107,26 @@ pub struct Room {
     encoded: Option<(Seq, std::sync::Arc<Vec<u8>>)>,
     ids: std::collections::hash_map::RandomState,
     id_counter: u64,
+    /// Recent entries: who made them, where, and (for edits not undone) what undoes them.
+    done: BTreeMap<Seq, Done>,
+    /// Heap bytes of the undo records in `done`.
+    done_bytes: usize,
+    /// Each client's edits that may still be undone, newest last.
+    undoable: HashMap<ClientId, Vec<Seq>>,
 }
+
+/// An entry the room remembers for undo.
+struct Done {
+    author: ClientId,
+    /// The author's stroke (edits only).
+    stroke: Option<u64>,
+    surface: usize,
+    keys: Vec<ChunkKey>,
+    undo: Option<OpUndo>,
+}
+
+/// The undo records a room keeps, at most (bytes); older edits cannot be undone.
+const UNDO_BUDGET: usize = 256 << 20;
 
 impl std::fmt::Debug for Room {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -134,15 +156,25 @@ impl Room {
             encoded: None,
             ids: Default::default(),
             id_counter: 0,
+            done: BTreeMap::new(),
+            done_bytes: 0,
+            undoable: HashMap::new(),
         };
         for op in stored.ops {
             if op.seq != room.seq + 1 {
                 return Err(RoomError::Damaged(format!("operation {} follows {}", op.seq, room.seq)));
             }
-            // An operation was applied before it was stored: it applies again.
-            room.editor
-                .replay(&op.op)
-                .map_err(|e| RoomError::Damaged(format!("stored operation {} does not apply: {e}", op.seq)))?;
+            // An entry was applied before it was stored: it applies again.
+            let applied = match &op.entry {
+                Entry::Edit(edit) => room.editor.replay(edit).map(Some).map_err(|e| e.to_string()),
+                Entry::Undo { undo, .. } => undo
+                    .iter()
+                    .try_for_each(|u| room.editor.revert(u.clone()).map_err(|(e, _)| e.to_string()))
+                    .map(|_| None),
+            };
+            let undo =
+                applied.map_err(|e| RoomError::Damaged(format!("stored entry {} does not apply: {e}", op.seq)))?;
+            room.remember(&op, undo);
             room.order(op);
         }
         Ok(room)
@@ -239,8 +271,9 @@ impl Room {
         h.send(conn, &ServerMsg::Welcome { client, acked, seq: self.seq, peers });
         let first_in_tail = self.tail.front().map_or(self.seq + 1, |o| o.seq);
         match known {
-            Some(r) if r.seq <= self.seq && r.seq + 1 >= first_in_tail => {
-                for op in self.tail.iter().filter(|o| o.seq > r.seq) {
+            Some(r) if r.seq.is_some_and(|seq| seq <= self.seq && seq + 1 >= first_in_tail) => {
+                let after = r.seq.unwrap_or_default();
+                for op in self.tail.iter().filter(|o| o.seq > after) {
                     h.out.push(Out::Send(conn, encode(&ServerMsg::Op(op.clone())).into()));
                 }
             }
@@ -284,22 +317,9 @@ impl Room {
                 }
                 self.clients.insert(client, number);
                 match self.editor.replay(&op) {
-                    Ok(_) => {
-                        let ordered = Ordered { seq: self.seq + 1, author: client, number, op };
-                        self.order(ordered.clone());
-                        let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Op(ordered.clone())).into();
-                        h.logged.push(ordered);
-                        for &c in self.conns.keys() {
-                            h.out.push(Out::Send(c, msg.clone()));
-                        }
-                        if self.seq.is_multiple_of(self.config.hash_every)
-                            && let Some(hash) = state_hash(&self.editor.scene)
-                        {
-                            let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Hash { seq: self.seq, hash }).into();
-                            for &c in self.conns.keys() {
-                                h.out.push(Out::Send(c, msg.clone()));
-                            }
-                        }
+                    Ok(undo) => {
+                        let ordered = Ordered { seq: self.seq + 1, author: client, number, entry: Entry::Edit(op) };
+                        self.publish(ordered, Some(undo), h);
                     }
                     Err(e) => h.send(conn, &ServerMsg::Refused { number, reason: e.to_string() }),
                 }
@@ -316,6 +336,10 @@ impl Room {
                     h.out.push(Out::Send(c, msg.clone()));
                 }
             }
+            ClientMsg::Undo => match self.undo(client) {
+                Ok(ordered) => self.publish(ordered, None, h),
+                Err(reason) => h.send(conn, &ServerMsg::UndoRefused { reason }),
+            },
             ClientMsg::Resync => {
                 let acked = self.clients.get(&client).copied().unwrap_or(0);
                 self.send_snapshot(conn, acked, h);
@@ -338,7 +362,114 @@ impl Room {
         h.out.push(Out::Close(conn, reason));
     }
 
-    /// Puts an applied operation in the order.
+    /// Orders an applied entry (with what undoes it, for an edit), logs and broadcasts it,
+    /// and a digest when one is due.
+    fn publish(&mut self, ordered: Ordered, undo: Option<OpUndo>, h: &mut Handled) {
+        self.remember(&ordered, undo);
+        self.order(ordered.clone());
+        let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Op(ordered.clone())).into();
+        h.logged.push(ordered);
+        for &c in self.conns.keys() {
+            h.out.push(Out::Send(c, msg.clone()));
+        }
+        if self.seq.is_multiple_of(self.config.hash_every)
+            && let Some(hash) = state_hash(&self.editor.scene)
+        {
+            let msg: std::sync::Arc<[u8]> = encode(&ServerMsg::Hash { seq: self.seq, hash }).into();
+            for &c in self.conns.keys() {
+                h.out.push(Out::Send(c, msg.clone()));
+            }
+        }
+    }
+
+    /// Remembers an entry for undo: where it changed things, and for an edit what undoes it.
+    fn remember(&mut self, ordered: &Ordered, undo: Option<OpUndo>) {
+        let (stroke, surface, mut keys) = match (&ordered.entry, &undo) {
+            (Entry::Edit(op), Some(u)) => (Some(op.stroke), u.surface(), u.keys()),
+            (Entry::Edit(op), None) => (Some(op.stroke), op.surface as usize, Vec::new()),
+            (Entry::Undo { undo, .. }, _) => {
+                (None, undo.first().map_or(0, OpUndo::surface), undo.iter().flat_map(OpUndo::keys).collect())
+            }
+        };
+        keys.sort();
+        keys.dedup();
+        if let Entry::Undo { of, .. } = &ordered.entry {
+            // (Already off the author's stack when the undo was made here; not when it is
+            // read back from storage.)
+            if let Some(stack) = self.undoable.get_mut(&ordered.author) {
+                stack.retain(|s| !of.contains(s));
+            }
+            for s in of {
+                if let Some(d) = self.done.get_mut(s)
+                    && let Some(u) = d.undo.take()
+                {
+                    self.done_bytes -= u.bytes();
+                }
+            }
+        }
+        if undo.is_some() {
+            self.undoable.entry(ordered.author).or_default().push(ordered.seq);
+        }
+        self.done_bytes += undo.as_ref().map_or(0, OpUndo::bytes);
+        self.done.insert(ordered.seq, Done { author: ordered.author, stroke, surface, keys, undo });
+        // Oldest first out, beyond the tail or the memory budget.
+        while self.done.len() > self.config.tail.max(1) || self.done_bytes > UNDO_BUDGET {
+            let Some((seq, d)) = self.done.pop_first() else { break };
+            self.done_bytes -= d.undo.as_ref().map_or(0, OpUndo::bytes);
+            if let Some(stack) = self.undoable.get_mut(&d.author) {
+                stack.retain(|s| *s != seq);
+            }
+        }
+    }
+
+    /// The entry that undoes `client`'s newest stroke not undone yet, applied; or why not.
+    fn undo(&mut self, client: ClientId) -> Result<Ordered, String> {
+        let stack = self.undoable.get(&client).map(Vec::as_slice).unwrap_or_default();
+        let Some(&newest) = stack.last() else {
+            return Err("nothing of yours is left to undo in this room".into());
+        };
+        // The stroke's entries: the newest and those before it of the same stroke, in a row.
+        let stroke = self.done.get(&newest).and_then(|d| d.stroke);
+        let group: Vec<Seq> = stack
+            .iter()
+            .rev()
+            .take_while(|s| self.done.get(s).is_some_and(|d| d.stroke == stroke && d.undo.is_some()))
+            .copied()
+            .collect();
+        let Some(&oldest) = group.last() else { return Err("that edit is too old to undo".into()) };
+        for &s in &group {
+            let d = &self.done[&s];
+            // Someone else's edit since, not undone, in the same chunks. (An undone edit and its
+            // undo leave the chunks as they were before it.)
+            let later = self.done.range(oldest + 1..).find(|(_, l)| {
+                l.author != client
+                    && l.stroke.is_some()
+                    && l.undo.is_some()
+                    && l.surface == d.surface
+                    && l.keys.iter().any(|k| d.keys.binary_search(k).is_ok())
+            });
+            if let Some((_, l)) = later {
+                let who = self
+                    .conns
+                    .values()
+                    .find(|c| c.client == l.author)
+                    .map_or_else(|| "someone else".to_owned(), |c| c.name.clone());
+                return Err(format!("{who} has edited the same place since: your stroke stays (undo refused)"));
+            }
+        }
+        let undo: Vec<OpUndo> = group.iter().filter_map(|s| self.done[s].undo.clone()).collect();
+        // (A room's surfaces are scene layers, all in memory and all there: a revert of a
+        // record made on them cannot fail.)
+        for u in &undo {
+            self.editor.revert(u.clone()).map_err(|(e, _)| format!("the undo could not be applied: {e}"))?;
+        }
+        if let Some(stack) = self.undoable.get_mut(&client) {
+            stack.truncate(stack.len() - group.len());
+        }
+        Ok(Ordered { seq: self.seq + 1, author: client, number: 0, entry: Entry::Undo { of: group, undo } })
+    }
+
+    /// Puts an applied entry in the order.
     fn order(&mut self, op: Ordered) {
         self.seq = op.seq;
         let n = self.clients.entry(op.author).or_insert(0);

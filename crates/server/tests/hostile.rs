@@ -49,6 +49,7 @@ fn op(position: DVec3, radius: f64) -> EditOp {
             pressure: 1.0,
             inverted: false,
         }],
+        stroke: 0,
     }
 }
 

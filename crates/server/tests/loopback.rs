@@ -57,7 +57,12 @@ fn session(storage: Arc<dyn Storage>, room: &str, seed: u64) {
         let i = rng.below(members.len() as u64) as usize;
         let m = &mut members[i];
         match rng.below(10) {
-            0..=5 => random_stroke(&mut m.editor, &mut rng),
+            0..=4 => random_stroke(&mut m.editor, &mut rng),
+            // An undo of the member's newest stroke (refused where someone else edited since,
+            // or while reconnecting).
+            5 => {
+                let _ = m.session.undo(&mut m.editor);
+            }
             6 => {
                 m.session.drop_connection();
                 drops += 1;

@@ -23,6 +23,8 @@ struct Client {
     /// Room → client, in flight.
     down: VecDeque<ServerMsg>,
     refused: usize,
+    undone: usize,
+    snapshots: usize,
 }
 
 struct World {
@@ -85,9 +87,11 @@ impl World {
         let step = c.replica.step(&mut c.editor, incoming);
         for e in &step.events {
             match e {
+                Event::Undone => c.undone += 1,
                 Event::Closed(r) => panic!("the room closed client {i}: {r}"),
                 Event::OutOfStep(r) => panic!("client {i} out of step: {r}"),
-                Event::Diverged => panic!("client {i} diverged"),
+                Event::Diverged => panic!("client {i} diverged (snapshots loaded: {})", c.snapshots),
+                Event::Snapshot => c.snapshots += 1,
                 Event::Refused(_) => c.refused += 1,
                 _ => {}
             }
@@ -102,7 +106,133 @@ impl World {
     }
 }
 
-fn run(seed: u64, clients: usize, rounds: usize) {
+/// A room on the ball scene with `clients` connected, recording replicas.
+fn world(clients: usize, config: RoomConfig) -> World {
+    let scene = strata_editor::file::encode(&ball_scene()).unwrap();
+    let stored = StoredRoom {
+        token_hash: token_hash("secret"),
+        snapshot_seq: 0,
+        snapshot: scene,
+        clients: Vec::new(),
+        ops: Vec::new(),
+    };
+    let room = Room::open("r", stored, config).unwrap();
+    let mut w = World { room, clients: Vec::new(), next_conn: 0 };
+    for i in 0..clients {
+        let mut editor = Editor::default();
+        editor.record_ops(true);
+        w.clients.push(Client {
+            editor,
+            replica: Replica::new(),
+            conn: None,
+            up: VecDeque::new(),
+            down: VecDeque::new(),
+            refused: 0,
+            undone: 0,
+            snapshots: 0,
+        });
+        w.connect(i);
+    }
+    w.settle();
+    w
+}
+
+impl World {
+    /// Delivers everything until nothing is in flight.
+    fn settle(&mut self) {
+        for _ in 0..1000 {
+            if self.quiet() {
+                return;
+            }
+            for i in 0..self.clients.len() {
+                self.pump_down(i, usize::MAX);
+                self.pump_up(i, usize::MAX);
+            }
+        }
+        panic!("messages still in flight");
+    }
+
+    /// A line stroke of client `i` from `a` to `b` (add, radius 2), settled.
+    fn line(&mut self, i: usize, a: [f64; 3], b: [f64; 3]) {
+        let e = &mut self.clients[i].editor;
+        e.tool.kind = strata_editor::ToolKind::Add;
+        e.tool.radius = 2.0;
+        e.line_stroke(a.into(), b.into(), 1.0, Default::default()).unwrap();
+        self.pump_down(i, 0);
+        self.settle();
+    }
+
+    /// Client `i` asks for an undo; returns the events its replica saw once settled.
+    fn undo(&mut self, i: usize) -> Vec<Event> {
+        self.clients[i].up.push_back(ClientMsg::Undo);
+        let mut events = Vec::new();
+        for _ in 0..100 {
+            self.pump_up(i, usize::MAX);
+            let c = &mut self.clients[i];
+            let incoming: Vec<ServerMsg> = c.down.drain(..).collect();
+            events.extend(c.replica.step(&mut c.editor, incoming).events);
+            self.settle();
+            if events.iter().any(|e| matches!(e, Event::Undone | Event::UndoRefused(_))) {
+                return events;
+            }
+        }
+        panic!("no answer to the undo");
+    }
+
+    fn all_equal_the_room(&self) -> Vec<strata_editor::file::ChunkDigest> {
+        let expected = digests(self.room.editor());
+        for (i, c) in self.clients.iter().enumerate() {
+            assert!(digests(&c.editor) == expected, "client {i} differs from the room");
+        }
+        expected
+    }
+}
+
+#[test]
+fn an_undo_takes_back_ones_own_edit_everywhere_unless_someone_else_edited_there_since() {
+    let mut w = world(2, RoomConfig::default());
+    let start = w.all_equal_the_room();
+    // Two edits of client 0 in one place, one of client 1 far away.
+    w.line(0, [9.0, 0.0, 0.0], [10.0, 2.0, 0.0]);
+    w.line(0, [9.0, 1.0, 0.0], [10.0, 3.0, 0.0]);
+    w.line(1, [-9.0, 0.0, 0.0], [-10.0, 0.0, 2.0]);
+    let with_all = w.all_equal_the_room();
+    // Client 1 never edited near client 0's edits: both undo, newest first, everywhere.
+    assert!(w.undo(0).contains(&Event::Undone));
+    assert!(w.undo(0).contains(&Event::Undone));
+    let undone = w.all_equal_the_room();
+    assert!(undone != with_all);
+    // What is left is client 1's edit alone on the starting scene.
+    let mut reference = world(1, RoomConfig::default());
+    reference.line(0, [-9.0, 0.0, 0.0], [-10.0, 0.0, 2.0]);
+    let want = reference.all_equal_the_room();
+    if undone != want {
+        let a: std::collections::BTreeSet<_> = undone.iter().collect();
+        let b: std::collections::BTreeSet<_> = want.iter().collect();
+        eprintln!("only after undo: {:?}", a.difference(&b).collect::<Vec<_>>());
+        eprintln!("only in reference: {:?}", b.difference(&a).collect::<Vec<_>>());
+    }
+    assert!(undone == want, "the undos left something of client 0's edits");
+    // Nothing of client 0's is left to undo.
+    let events = w.undo(0);
+    assert!(events.iter().any(|e| matches!(e, Event::UndoRefused(r) if r.contains("nothing"))), "{events:?}");
+    // Now client 1 edits where client 0 edits next: client 0's undo is refused, naming client 1.
+    w.line(0, [0.0, 9.0, 0.0], [2.0, 10.0, 0.0]);
+    w.line(1, [1.0, 9.5, 0.0], [2.0, 10.0, 1.0]);
+    let before = w.all_equal_the_room();
+    let events = w.undo(0);
+    assert!(events.iter().any(|e| matches!(e, Event::UndoRefused(r) if r.contains("c1"))), "{events:?}");
+    assert!(w.all_equal_the_room() == before, "a refused undo changed something");
+    // Client 1's own undo goes through; then client 0's does too.
+    assert!(w.undo(1).contains(&Event::Undone));
+    assert!(w.undo(0).contains(&Event::Undone));
+    // Client 1's first edit, far away, undoes as well: back to the start.
+    assert!(w.undo(1).contains(&Event::Undone));
+    assert!(w.all_equal_the_room() == start, "undoing everything did not give the start back");
+}
+
+/// Returns how many undos went through.
+fn run(seed: u64, clients: usize, rounds: usize) -> usize {
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
     let scene = strata_editor::file::encode(&ball_scene()).unwrap();
     let stored = StoredRoom {
@@ -126,6 +256,8 @@ fn run(seed: u64, clients: usize, rounds: usize) {
             up: VecDeque::new(),
             down: VecDeque::new(),
             refused: 0,
+            undone: 0,
+            snapshots: 0,
         });
     }
     for i in 0..clients {
@@ -138,6 +270,11 @@ fn run(seed: u64, clients: usize, rounds: usize) {
                 random_stroke(&mut w.clients[i].editor, &mut rng);
                 // (The stroke's operations become pending at the next step.)
                 w.pump_down(i, 0);
+            }
+            3 if rng.chance(0.3) && w.clients[i].conn.is_some() => {
+                // An undo of this client's newest stroke (refused where others edited since).
+                w.pump_down(i, 0);
+                w.clients[i].up.push_back(ClientMsg::Undo);
             }
             3..=5 => w.pump_up(i, 1 + rng.below(4) as usize),
             6..=8 => w.pump_down(i, 1 + rng.below(6) as usize),
@@ -167,22 +304,24 @@ fn run(seed: u64, clients: usize, rounds: usize) {
     }
     assert!(w.quiet(), "seed {seed}: messages still in flight");
     let expected = digests(w.room.editor());
+    let undone = w.clients.iter().map(|c| c.undone).sum();
     for (i, c) in w.clients.iter().enumerate() {
         assert_eq!(c.replica.seq(), w.room.seq(), "seed {seed}: client {i} is behind");
         assert!(digests(&c.editor) == expected, "seed {seed}: client {i}'s volume differs from the room's");
         c.editor.scene.layers[0].volume.check_invariants().unwrap();
     }
     assert!(w.room.seq() > 0, "seed {seed}: nothing was ordered");
+    undone
 }
 
 #[test]
 fn replicas_converge_to_the_room_through_random_delays_drops_and_resumes() {
     let seeds: u64 = std::env::var("STRATA_ROOM_SEEDS").ok().and_then(|v| v.parse().ok()).unwrap_or(4);
+    let mut undone = 0;
     for seed in 0..seeds {
-        let t = std::time::Instant::now();
-        run(seed, 4, 160);
-        eprintln!("seed {seed}: {:?}", t.elapsed());
+        undone += run(seed, 4, 160);
     }
+    assert!(undone > 0, "no undo went through in {seeds} sessions");
 }
 
 #[test]

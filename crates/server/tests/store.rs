@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 use strata_editor::{DabRecord, EditOp, LayerTransform, ToolSettings};
-use strata_net::protocol::Ordered;
+use strata_net::protocol::{Entry, Ordered};
 use strata_server::{PgStorage, RedbStorage, Storage, StoreError};
 use strata_tests::collab::temp_dir;
 
@@ -13,7 +13,7 @@ fn ordered(seq: u64) -> Ordered {
         seq,
         author: 7,
         number: seq,
-        op: EditOp {
+        entry: Entry::Edit(EditOp {
             surface: 0,
             transform: LayerTransform::default(),
             tool: ToolSettings::default(),
@@ -24,7 +24,8 @@ fn ordered(seq: u64) -> Ordered {
                 pressure: 1.0,
                 inverted: false,
             }],
-        },
+            stroke: 0,
+        }),
     }
 }
 

@@ -192,7 +192,11 @@ impl EditReport {
 
 /// The previous contents of every chunk an edit changed. [`Volume::restore`] puts them back bit
 /// for bit and returns the record that redoes the edit.
-#[derive(Debug, Clone, Default, PartialEq)]
+///
+/// Records serialise (a collaboration server sends the record that undoes an operation to
+/// every client); a record is restored as it is, unchecked, so only records from a trusted
+/// source (the room's server, this process) may be restored.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct UndoRecord {
     pub(crate) previous: Vec<(ChunkKey, Option<Chunk>)>,
     /// Previous materials of the chunks whose materials changed.
