@@ -9,6 +9,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 pub mod baselines;
+pub mod collab;
 pub mod lod;
 pub mod materials;
 pub mod quality;

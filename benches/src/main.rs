@@ -137,6 +137,29 @@ enum Command {
         #[arg(long)]
         quick: bool,
     },
+    /// Sculpting together on loopback: dab-to-everyone latency with several client counts,
+    /// the operations a room orders per second, bytes per operation, and the join time for the
+    /// bunny at 1,024 cells; on redb and, with --pg or STRATA_PG_URL, on PostgreSQL.
+    Collab {
+        /// Client counts for the latency rows (repeatable).
+        #[arg(long, default_values_t = [8, 32])]
+        clients: Vec<usize>,
+        /// Dabs per second over all clients.
+        #[arg(long, default_value_t = 30.0)]
+        rate: f64,
+        /// Seconds of dabs per latency row.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        /// Operations in the throughput run.
+        #[arg(long, default_value_t = 2000)]
+        burst: usize,
+        /// Bunny cells for the join row (0: skip it).
+        #[arg(long, default_value_t = 1024)]
+        join_cells: u32,
+        /// A PostgreSQL URL (default: STRATA_PG_URL when set).
+        #[arg(long)]
+        pg: Option<String>,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -151,6 +174,11 @@ fn main() -> Result<()> {
         Command::Table1 { count, radii, seed, single } => table1(count, &radii, seed, single),
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
+        Command::Collab { clients, rate, seconds, burst, join_cells, pg } => {
+            let pg = pg.or_else(|| std::env::var("STRATA_PG_URL").ok());
+            let config = strata_bench::collab::CollabConfig { clients, rate, seconds, burst, join_cells, pg };
+            print!("{}", strata_bench::collab::run(&config)?);
+        }
         Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
         Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
         Command::Materials { count, res, dabs } => return materials(count, res, dabs),

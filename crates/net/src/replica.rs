@@ -38,6 +38,15 @@ pub enum Event {
     UndoRefused(String),
     /// The room undid one of our operations.
     Undone,
+    /// An entry of the room's order was applied here (anyone's, ours included).
+    Applied {
+        /// Its place in the order.
+        seq: Seq,
+        /// Who made it.
+        author: ClientId,
+        /// The author's number for it (0 for an undo).
+        number: u64,
+    },
     /// Our scene's digest differed from the room's: a snapshot was asked for.
     Diverged,
     /// Someone joined or moved their brush.
@@ -91,6 +100,11 @@ impl Replica {
     /// The last ordered operation applied.
     pub fn seq(&self) -> Seq {
         self.seq
+    }
+
+    /// The number given to our newest operation (0: none yet).
+    pub fn last_number(&self) -> u64 {
+        self.next_number.saturating_sub(1)
     }
 
     /// Local operations the room has not ordered yet.
@@ -189,9 +203,14 @@ impl Replica {
                     return;
                 }
                 let undone = Some(ordered.author) == self.client && matches!(ordered.entry, Entry::Undo { .. });
+                let applied = Event::Applied { seq: ordered.seq, author: ordered.author, number: ordered.number };
                 match self.apply_ordered(editor, ordered) {
-                    Ok(()) if undone => step.events.push(Event::Undone),
-                    Ok(()) => {}
+                    Ok(()) => {
+                        step.events.push(applied);
+                        if undone {
+                            step.events.push(Event::Undone);
+                        }
+                    }
                     Err(why) => self.out_of_step(why, step),
                 }
             }
