@@ -74,7 +74,9 @@ fn wait_in_room(members: &mut [Member], timeout: Duration) -> Result<()> {
         let mut all = true;
         for m in members.iter_mut() {
             m.session.wait(&mut m.editor, Duration::from_millis(2));
-            all &= *m.session.state() == SessionState::InRoom && m.session.replica().pending() == 0;
+            all &= *m.session.state() == SessionState::InRoom
+                && m.session.replica().has_scene()
+                && m.session.replica().pending() == 0;
         }
         let seq = members[0].session.replica().seq();
         if all && members.iter().all(|m| m.session.replica().seq() == seq) {
@@ -228,7 +230,8 @@ fn throughput(storage: Arc<dyn Storage>, count: usize) -> Result<f64> {
     Ok(last as f64 / t0.elapsed().as_secs_f64())
 }
 
-/// Seconds for a client to join a room holding the bunny at `cells` (the room made first).
+/// Seconds for a client to join a room holding `scene` (the room made first), until it holds
+/// the room's scene.
 fn join(storage: Arc<dyn Storage>, scene: &Scene) -> Result<f64> {
     let server = Server::start("127.0.0.1:0", storage, ServerConfig::default())?;
     let room = fresh("join");

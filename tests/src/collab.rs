@@ -120,9 +120,11 @@ impl Member {
         );
     }
 
-    /// Whether it is in the room with nothing pending.
+    /// Whether it is in the room, holds the room's scene and has nothing pending.
     pub fn settled(&self) -> bool {
-        *self.session.state() == strata_net::SessionState::InRoom && self.session.replica().pending() == 0
+        *self.session.state() == strata_net::SessionState::InRoom
+            && self.session.replica().has_scene()
+            && self.session.replica().pending() == 0
     }
 }
 

@@ -112,6 +112,11 @@ impl Replica {
         self.pending.len()
     }
 
+    /// Whether the room's scene is here (a snapshot arrived since the replica was made).
+    pub fn has_scene(&self) -> bool {
+        self.based
+    }
+
     /// Whether the room welcomed the current connection.
     pub fn joined(&self) -> bool {
         self.welcomed

@@ -419,18 +419,36 @@ fn serve_room(
         if !h.logged.is_empty() {
             store.append(&h.logged).map_err(|e| e.to_string())?;
         }
-        for o in h.out {
+        deliver(h.out, conns, room.as_mut());
+        if let Some(r) = room.as_mut()
+            && let Some(snapshot) = r.snapshot_due()
+        {
+            store.compact(snapshot.seq, &snapshot.scene, &snapshot.clients).map_err(|e| e.to_string())?;
+            r.snapshot_stored(snapshot.seq);
+        }
+        if room.is_none() && conns.is_empty() {
+            return Ok(());
+        }
+    }
+}
+
+/// Sends the room's messages and closes; a connection too slow to take a message is closed
+/// (it resumes when it reconnects) and the others are told it left.
+fn deliver(mut outs: Vec<Out>, conns: &mut HashMap<ConnId, async_mpsc::Sender<Outgoing>>, mut room: Option<&mut Room>) {
+    while !outs.is_empty() {
+        let mut more = Vec::new();
+        for o in outs {
             match o {
                 Out::Send(conn, bytes) => {
                     if let Some(tx) = conns.get(&conn)
                         && tx.try_send(Outgoing::Bytes(bytes)).is_err()
                     {
-                        // Too slow to keep up (or gone): it resumes when it reconnects.
                         let tx = conns.remove(&conn).expect("found above");
                         let _ = tx.try_send(Outgoing::Close("too far behind".into()));
-                        if let Some(r) = room.as_mut() {
+                        if let Some(r) = room.as_deref_mut() {
                             let mut left = Handled::default();
                             r.leave(conn, &mut left);
+                            more.extend(left.out);
                         }
                     }
                 }
@@ -441,14 +459,6 @@ fn serve_room(
                 }
             }
         }
-        if let Some(r) = room.as_mut()
-            && let Some(snapshot) = r.snapshot_due()
-        {
-            store.compact(snapshot.seq, &snapshot.scene, &snapshot.clients).map_err(|e| e.to_string())?;
-            r.snapshot_stored(snapshot.seq);
-        }
-        if room.is_none() && conns.is_empty() {
-            return Ok(());
-        }
+        outs = more;
     }
 }
