@@ -100,6 +100,8 @@ pub struct Member {
     pub session: strata_net::Session,
     /// Events that say something went wrong (divergence, out of step), for the test to check.
     pub trouble: Vec<strata_net::Event>,
+    /// Why the server closed connections, in order.
+    pub closed: Vec<String>,
 }
 
 impl Member {
@@ -109,12 +111,17 @@ impl Member {
             Some(s) => strata_net::Session::host(url, room, token, name, s).unwrap(),
             None => strata_net::Session::join(url, room, token, name).unwrap(),
         };
-        Member { editor: Editor::default(), session, trouble: Vec::new() }
+        Member { editor: Editor::default(), session, trouble: Vec::new(), closed: Vec::new() }
     }
 
     /// Polls once, waiting up to `wait` for something to arrive.
     pub fn poll(&mut self, wait: Duration) {
         let events = self.session.wait(&mut self.editor, wait);
+        for e in &events {
+            if let strata_net::Event::Closed { reason, .. } = e {
+                self.closed.push(reason.clone());
+            }
+        }
         self.trouble.extend(
             events.into_iter().filter(|e| matches!(e, strata_net::Event::Diverged | strata_net::Event::OutOfStep(_))),
         );

@@ -17,6 +17,10 @@ use crate::editor::{Editor, EditorError};
 use crate::scene::LayerTransform;
 use crate::tool::ToolSettings;
 
+/// The most dabs one operation holds: a frame with more (a fast drag at a small spacing makes
+/// thousands) is recorded as several operations of the same stroke.
+pub const MAX_OP_DABS: usize = 4096;
+
 /// One frame's dabs on one surface (see the module docs).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EditOp {
@@ -192,10 +196,25 @@ impl Editor {
         });
     }
 
-    /// Adds an applied dab to the frame's operation (a no-op unless recording).
+    /// Adds an applied dab to the frame's operation (a no-op unless recording); a full
+    /// operation is closed and the frame's next dabs go to another of the same stroke.
     pub(crate) fn note_dab(&mut self, dab: DabRecord) {
-        if let Some(op) = self.recorder.as_mut().and_then(|r| r.current.as_mut()) {
-            op.op.dabs.push(dab);
+        let Some(r) = self.recorder.as_mut() else { return };
+        let Some(op) = r.current.as_mut() else { return };
+        op.op.dabs.push(dab);
+        if op.op.dabs.len() >= MAX_OP_DABS {
+            let next = RecordedOp {
+                op: EditOp {
+                    surface: op.op.surface,
+                    transform: op.op.transform,
+                    tool: op.op.tool,
+                    dabs: Vec::new(),
+                    stroke: op.op.stroke,
+                },
+                undo: OpUndo { surface: op.undo.surface, records: Vec::new() },
+            };
+            let full = std::mem::replace(op, next);
+            r.done.push(full);
         }
     }
 

@@ -168,3 +168,33 @@ fn a_replay_of_a_bad_operation_is_refused_and_changes_nothing() {
     assert!(other.replay(&op).is_err());
     assert_eq!(digests(&other), before);
 }
+
+#[test]
+fn a_frame_of_more_dabs_than_an_operation_holds_is_recorded_as_several() {
+    let mut e = start(false);
+    e.record_ops(true);
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 0.5;
+    // The smallest spacing (a hundredth of the radius): a drag of 25 units is 5,000 dabs.
+    e.tool.spacing = 0.0;
+    let down = Buttons { primary: true, secondary: false };
+    let at = |x: f64| ToolPose { position: DVec3::new(x, 9.5, 0.0), buttons: down, ..ToolPose::default() };
+    e.frame(&at(-12.5), Duration::ZERO).unwrap();
+    let report = e.frame(&at(12.5), Duration::ZERO).unwrap();
+    e.frame(&ToolPose::at(DVec3::new(12.5, 9.5, 0.0), false), Duration::ZERO).unwrap();
+    assert!(report.dabs > strata_editor::op::MAX_OP_DABS, "{} dabs", report.dabs);
+    let ops = e.take_ops();
+    assert_eq!(ops.len(), 3, "one operation for the first frame, two for the second");
+    assert!(ops.iter().all(|o| o.op.dabs.len() <= strata_editor::op::MAX_OP_DABS));
+    assert!(ops.iter().all(|o| o.op.stroke == ops[0].op.stroke), "one stroke");
+    let mut other = start(false);
+    for o in &ops {
+        other.replay(&o.op).unwrap();
+    }
+    assert_eq!(digests(&other), digests(&e));
+    let before = digests(&start(false));
+    for o in ops.into_iter().rev() {
+        e.revert(o.undo).unwrap();
+    }
+    assert_eq!(digests(&e), before);
+}

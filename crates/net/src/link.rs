@@ -1,7 +1,7 @@
 //! A WebSocket connection to a room's server on its own thread (a one-thread tokio runtime),
 //! reconnecting by itself after a drop, with a growing pause (0.1 s doubling to 2 s). Each
-//! connection has a number: messages are sent on the connection the caller last heard of, so
-//! nothing meant for a connection that dropped reaches the next one before its hello.
+//! connection has a number, and every message is sent on a numbered connection: nothing meant
+//! for a connection that dropped reaches the next one before its hello.
 
 use std::sync::mpsc;
 use std::thread::JoinHandle;
@@ -47,7 +47,6 @@ enum Command {
 pub struct Link {
     commands: async_mpsc::UnboundedSender<Command>,
     events: mpsc::Receiver<LinkEvent>,
-    connection: u64,
     state: LinkState,
     thread: Option<JoinHandle<()>>,
 }
@@ -71,13 +70,13 @@ impl Link {
         let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
         let thread =
             std::thread::Builder::new().name("strata-link".into()).spawn(move || runtime.block_on(run(url, rx, tx)))?;
-        Ok(Link { commands, events, connection: 0, state: LinkState::Connecting, thread: Some(thread) })
+        Ok(Link { commands, events, state: LinkState::Connecting, thread: Some(thread) })
     }
 
-    /// Sends `msg` on the connection last reported by [`Link::poll`] (dropped when that one
-    /// has gone).
-    pub fn send(&self, msg: &ClientMsg) {
-        let _ = self.commands.send(Command::Send(self.connection, encode(msg)));
+    /// Sends `msg` on connection `connection` (as [`LinkEvent::Connected`] numbered it;
+    /// dropped when that one has gone).
+    pub fn send(&self, connection: u64, msg: &ClientMsg) {
+        let _ = self.commands.send(Command::Send(connection, encode(msg)));
     }
 
     /// What happened since the last call.
@@ -98,10 +97,7 @@ impl Link {
 
     fn note(&mut self, e: &LinkEvent) {
         match e {
-            LinkEvent::Connected(n) => {
-                self.connection = *n;
-                self.state = LinkState::Connected;
-            }
+            LinkEvent::Connected(_) => self.state = LinkState::Connected,
             LinkEvent::Disconnected(why) => self.state = LinkState::Retrying(why.clone()),
             LinkEvent::Message(_) => {}
         }

@@ -15,8 +15,8 @@ pub const PROTOCOL: u32 = 1;
 pub const MAX_CLIENT_MESSAGE: usize = 1 << 20;
 
 /// The largest hello (it may carry the scene a new room starts with: the bunny at 1,024 cells
-/// a side is a 25 MB scene file).
-pub const MAX_HELLO: usize = 256 << 20;
+/// a side is a 20 MB scene file).
+pub const MAX_HELLO: usize = 64 << 20;
 
 /// The largest message a server may send (a room's snapshot is the largest).
 pub const MAX_SERVER_MESSAGE: usize = 1 << 30;
@@ -179,6 +179,9 @@ pub enum ServerMsg {
     Error {
         /// Why.
         reason: String,
+        /// Whether connecting again may work (a room closing, a server stopping) or not (a
+        /// wrong token, another protocol, a refused message).
+        retry: bool,
     },
 }
 

@@ -53,8 +53,14 @@ pub enum Event {
     Presence(Peer, crate::protocol::Presence),
     /// Someone left.
     Left(ClientId),
-    /// The room closed the connection with this reason.
-    Closed(String),
+    /// The room closed the connection.
+    Closed {
+        /// Why.
+        reason: String,
+        /// Whether connecting again may work (the room was closing, the server stopping); if
+        /// not, a session that was joining stops trying.
+        retry: bool,
+    },
     /// Something arrived that this state machine cannot follow (a gap in the order, an
     /// operation that does not apply): a snapshot was asked for.
     OutOfStep(String),
@@ -132,7 +138,11 @@ impl Replica {
             room: room.to_owned(),
             token: token.to_owned(),
             name: name.to_owned(),
-            resume: self.client.map(|client| Resume { client, seq: self.based.then_some(self.seq) }),
+            // A replica without the room's scene, or waiting for a snapshot it asked for (the
+            // answer may have been lost with the connection), asks for one.
+            resume: self
+                .client
+                .map(|client| Resume { client, seq: (self.based && !self.awaiting_snapshot).then_some(self.seq) }),
             create,
         })
     }
@@ -147,7 +157,7 @@ impl Replica {
     /// and returns what to send and what happened.
     pub fn step(&mut self, editor: &mut Editor, incoming: impl IntoIterator<Item = ServerMsg>) -> Step {
         let mut step = Step::default();
-        self.capture(editor);
+        self.capture(editor, &mut step);
         for msg in incoming {
             if !matches!(msg, ServerMsg::Op(_)) {
                 self.unwind(editor);
@@ -167,13 +177,40 @@ impl Replica {
         step
     }
 
-    /// Makes the editor's recorded operations pending.
-    fn capture(&mut self, editor: &mut Editor) {
-        for recorded in editor.take_ops() {
+    /// Makes the editor's recorded operations pending. One a room would refuse as out of
+    /// bounds (see [`crate::validate`]) is taken back here at once, with an event, instead of
+    /// being sent.
+    fn capture(&mut self, editor: &mut Editor, step: &mut Step) {
+        let ops = editor.take_ops();
+        let bad: Vec<Option<crate::Invalid>> =
+            ops.iter().map(|r| crate::validate(&r.op, editor, &crate::Limits::default()).err()).collect();
+        if bad.iter().all(Option::is_none) {
+            for recorded in ops {
+                let number = self.next_number;
+                self.next_number += 1;
+                self.pending.push_back(Pending { number, op: recorded.op, undo: Some(recorded.undo) });
+            }
+            return;
+        }
+        // Everything applied since the last step is taken back in the reverse order it was
+        // applied, then the pending work; the good operations go back on without the bad.
+        let mut good = Vec::new();
+        for (recorded, why) in ops.into_iter().zip(bad).rev() {
+            if let Err((e, _)) = editor.revert(recorded.undo) {
+                step.events.push(Event::OutOfStep(e.to_string()));
+            }
+            match why {
+                Some(e) => step.events.push(Event::Refused(format!("not sent to the room: {e}"))),
+                None => good.push(recorded.op),
+            }
+        }
+        self.rewind(editor, 0);
+        for op in good.into_iter().rev() {
             let number = self.next_number;
             self.next_number += 1;
-            self.pending.push_back(Pending { number, op: recorded.op, undo: Some(recorded.undo) });
+            self.pending.push_back(Pending { number, op, undo: None });
         }
+        self.replay_from(editor, 0);
     }
 
     fn receive(&mut self, editor: &mut Editor, msg: ServerMsg, step: &mut Step) {
@@ -189,6 +226,8 @@ impl Replica {
                     self.next_number = self.pending.len() as u64 + 1;
                 }
                 self.welcomed = true;
+                // The room wants numbers after the highest it handled.
+                self.next_number = self.next_number.max(acked + 1);
                 // What the room ordered comes in the tail or is in the snapshot; resend the rest.
                 self.sent = acked;
                 self.catch_up = Some((seq, acked));
@@ -243,9 +282,9 @@ impl Replica {
             ServerMsg::UndoRefused { reason } => step.events.push(Event::UndoRefused(reason)),
             ServerMsg::Presence { peer, presence } => step.events.push(Event::Presence(peer, presence)),
             ServerMsg::Left { client } => step.events.push(Event::Left(client)),
-            ServerMsg::Error { reason } => {
+            ServerMsg::Error { reason, retry } => {
                 self.welcomed = false;
-                step.events.push(Event::Closed(reason));
+                step.events.push(Event::Closed { reason, retry });
             }
         }
     }
@@ -344,9 +383,13 @@ impl Replica {
         // What the room ordered of ours is in the snapshot: only what it has not ordered stays
         // pending (sent or not, it comes back in the order after the snapshot).
         self.pending.retain(|p| p.number > acked);
-        let tool = editor.tool;
+        // A stroke in progress ends here (its operations so far are pending; the next frame
+        // starts a new stroke, undone on its own).
+        editor.end_stroke();
+        let (tool, active) = (editor.tool, editor.active_layer);
         editor.set_scene(loaded.scene);
         editor.tool = tool;
+        editor.active_layer = active.min(editor.scene.layers.len().saturating_sub(1));
         for p in self.pending.iter_mut() {
             p.undo = None;
         }

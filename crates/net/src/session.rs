@@ -40,6 +40,8 @@ pub struct Session {
     name: String,
     create: Option<Vec<u8>>,
     state: SessionState,
+    /// The connection messages go on (0: none).
+    connection: u64,
     peers: BTreeMap<ClientId, (String, Presence)>,
     last_presence: Option<Instant>,
 }
@@ -55,6 +57,7 @@ impl Session {
             name: name.to_owned(),
             create: None,
             state: SessionState::Connecting,
+            connection: 0,
             peers: BTreeMap::new(),
             last_presence: None,
         })
@@ -93,16 +96,20 @@ impl Session {
         for e in events {
             match e {
                 LinkEvent::Message(m) => incoming.push(*m),
-                LinkEvent::Connected(_) => {
+                LinkEvent::Connected(n) => {
                     // (What came on the last connection is applied first.)
                     out.extend(self.flush(editor, std::mem::take(&mut incoming)));
+                    self.connection = n;
                     let hello = self.replica.hello(&self.room, &self.token, &self.name, self.create.clone());
                     self.send(&hello);
                     self.state = SessionState::Joining;
                 }
                 LinkEvent::Disconnected(why) => {
-                    out.extend(self.flush(editor, std::mem::take(&mut incoming)));
+                    // Nothing more goes on the connection that dropped (what its messages
+                    // ask for is asked again after the next hello).
+                    self.connection = 0;
                     self.replica.disconnected();
+                    out.extend(self.flush(editor, std::mem::take(&mut incoming)));
                     if self.link.is_some() {
                         self.state = SessionState::Retrying(why);
                     }
@@ -132,7 +139,7 @@ impl Session {
                 Event::Left(client) => {
                     self.peers.remove(client);
                 }
-                Event::Closed(reason) if self.state == SessionState::Joining => {
+                Event::Closed { reason, retry: false } if self.state == SessionState::Joining => {
                     // Refused at the door: trying again would be refused again.
                     self.state = SessionState::Refused(reason.clone());
                     self.link = None;
@@ -144,8 +151,10 @@ impl Session {
     }
 
     fn send(&self, msg: &ClientMsg) {
-        if let Some(l) = &self.link {
-            l.send(msg);
+        if let Some(l) = &self.link
+            && self.connection != 0
+        {
+            l.send(self.connection, msg);
         }
     }
 

@@ -16,9 +16,10 @@ pub struct Limits {
 }
 
 impl Default for Limits {
-    /// 4,096 dabs, 256 cells, a million units.
+    /// 4,096 dabs (what the editor records in one operation at most), 256 cells, a million
+    /// units.
     fn default() -> Self {
-        Limits { max_dabs: 4096, max_radius_cells: 256.0, max_coordinate: 1e6 }
+        Limits { max_dabs: strata_editor::op::MAX_OP_DABS, max_radius_cells: 256.0, max_coordinate: 1e6 }
     }
 }
 

@@ -86,6 +86,8 @@ pub enum RoomError {
 struct Conn {
     client: ClientId,
     name: String,
+    /// The sequence number of the last snapshot sent to it.
+    snapshot_at: Option<Seq>,
 }
 
 /// A room (see the module docs).
@@ -113,6 +115,10 @@ pub struct Room {
     done_bytes: usize,
     /// Each client's edits that may still be undone, newest last.
     undoable: HashMap<ClientId, Vec<Seq>>,
+    /// Strokes (author, stroke) of which some entries were forgotten (older than what the room
+    /// remembers, or before the stored snapshot): an undo of one would be partial, so it is
+    /// refused.
+    forgotten: std::collections::HashSet<(ClientId, u64)>,
 }
 
 /// An entry the room remembers for undo.
@@ -159,7 +165,10 @@ impl Room {
             done: BTreeMap::new(),
             done_bytes: 0,
             undoable: HashMap::new(),
+            forgotten: Default::default(),
         };
+        // Each author's first stroke after the snapshot may have begun before it.
+        let mut first_seen: std::collections::HashSet<ClientId> = std::collections::HashSet::new();
         for op in stored.ops {
             if op.seq != room.seq + 1 {
                 return Err(RoomError::Damaged(format!("operation {} follows {}", op.seq, room.seq)));
@@ -174,6 +183,12 @@ impl Room {
             };
             let undo =
                 applied.map_err(|e| RoomError::Damaged(format!("stored entry {} does not apply: {e}", op.seq)))?;
+            if let Entry::Edit(edit) = &op.entry
+                && room.snapshot_seq > 0
+                && first_seen.insert(op.author)
+            {
+                room.forgotten.insert((op.author, edit.stroke));
+            }
             room.remember(&op, undo);
             room.order(op);
         }
@@ -242,7 +257,7 @@ impl Room {
             let mut h = self.ids.build_hasher();
             h.write_u64(self.id_counter);
             let id = h.finish();
-            if id != 0 && !self.clients.contains_key(&id) {
+            if id != 0 && !self.clients.contains_key(&id) && !self.conns.values().any(|c| c.client == id) {
                 return id;
             }
         }
@@ -259,7 +274,8 @@ impl Room {
         // A client known to the room resumes; anyone else is someone new.
         let known = hello.resume.filter(|r| self.clients.contains_key(&r.client));
         let client = known.map_or_else(|| self.new_client(), |r| r.client);
-        let acked = *self.clients.entry(client).or_insert(0);
+        // (A client is recorded with its first operation: hellos alone leave nothing behind.)
+        let acked = self.clients.get(&client).copied().unwrap_or(0);
         // The same client on another connection (the old one not yet noticed dead) leaves.
         let stale: Vec<ConnId> = self.conns.iter().filter(|(_, c)| c.client == client).map(|(id, _)| *id).collect();
         for old in stale {
@@ -270,15 +286,19 @@ impl Room {
         let peers: Vec<Peer> = self.conns.values().map(|c| Peer { client: c.client, name: c.name.clone() }).collect();
         h.send(conn, &ServerMsg::Welcome { client, acked, seq: self.seq, peers });
         let first_in_tail = self.tail.front().map_or(self.seq + 1, |o| o.seq);
-        match known {
+        let sent_snapshot = match known {
             Some(r) if r.seq.is_some_and(|seq| seq <= self.seq && seq + 1 >= first_in_tail) => {
                 let after = r.seq.unwrap_or_default();
                 for op in self.tail.iter().filter(|o| o.seq > after) {
                     h.out.push(Out::Send(conn, encode(&ServerMsg::Op(op.clone())).into()));
                 }
+                false
             }
-            _ => self.send_snapshot(conn, acked, &mut h),
-        }
+            _ => {
+                self.send_snapshot(conn, acked, &mut h);
+                true
+            }
+        };
         let me = Peer { client, name: name.clone() };
         for &other in self.conns.keys() {
             h.send(
@@ -286,13 +306,19 @@ impl Room {
                 &ServerMsg::Presence { peer: me.clone(), presence: Presence { position: None, radius: 0.0 } },
             );
         }
-        self.conns.insert(conn, Conn { client, name });
+        let snapshot_at = sent_snapshot.then_some(self.seq);
+        self.conns.insert(conn, Conn { client, name, snapshot_at });
         h
     }
 
     fn send_snapshot(&mut self, conn: ConnId, acked: u64, h: &mut Handled) {
         match self.encoded_scene() {
-            Some(scene) => h.send(conn, &ServerMsg::Snapshot { seq: self.seq, acked, scene: scene.to_vec() }),
+            Some(scene) => {
+                h.send(conn, &ServerMsg::Snapshot { seq: self.seq, acked, scene: scene.to_vec() });
+                if let Some(c) = self.conns.get_mut(&conn) {
+                    c.snapshot_at = Some(self.seq);
+                }
+            }
             None => h.out.push(Out::Close(conn, "the room's scene cannot be encoded".into())),
         }
     }
@@ -311,9 +337,23 @@ impl Room {
                     // Sent again after a resume: it is already in the order (or refused).
                     return;
                 }
-                if let Err(e) = validate(&op, &self.editor, &self.config.limits) {
-                    self.kick(conn, format!("operation {number} refused: {e}"), h);
+                if number != acked + 1 {
+                    self.kick(conn, format!("operation {number} does not follow {acked}"), h);
                     return;
+                }
+                match validate(&op, &self.editor, &self.config.limits) {
+                    // Numbers that are not numbers: not a client of ours.
+                    Err(e @ strata_net::Invalid::NotFinite) => {
+                        self.kick(conn, format!("operation {number} refused: {e}"), h);
+                        return;
+                    }
+                    // Out of bounds: refused, taken back by its author.
+                    Err(e) => {
+                        self.clients.insert(client, number);
+                        h.send(conn, &ServerMsg::Refused { number, reason: e.to_string() });
+                        return;
+                    }
+                    Ok(()) => {}
                 }
                 self.clients.insert(client, number);
                 match self.editor.replay(&op) {
@@ -341,6 +381,11 @@ impl Room {
                 Err(reason) => h.send(conn, &ServerMsg::UndoRefused { reason }),
             },
             ClientMsg::Resync => {
+                // One snapshot per connection and sequence number: asking again before
+                // anything changed gets nothing more.
+                if self.conns.get(&conn).is_some_and(|c| c.snapshot_at == Some(self.seq)) {
+                    return;
+                }
                 let acked = self.clients.get(&client).copied().unwrap_or(0);
                 self.send_snapshot(conn, acked, h);
             }
@@ -416,6 +461,9 @@ impl Room {
         while self.done.len() > self.config.tail.max(1) || self.done_bytes > UNDO_BUDGET {
             let Some((seq, d)) = self.done.pop_first() else { break };
             self.done_bytes -= d.undo.as_ref().map_or(0, OpUndo::bytes);
+            if let Some(stroke) = d.stroke {
+                self.forgotten.insert((d.author, stroke));
+            }
             if let Some(stack) = self.undoable.get_mut(&d.author) {
                 stack.retain(|s| *s != seq);
             }
@@ -437,6 +485,9 @@ impl Room {
             .copied()
             .collect();
         let Some(&oldest) = group.last() else { return Err("that edit is too old to undo".into()) };
+        if stroke.is_some_and(|st| self.forgotten.contains(&(client, st))) {
+            return Err("that stroke is too old to undo (the room no longer holds all of it)".into());
+        }
         for &s in &group {
             let d = &self.done[&s];
             // Someone else's edit since, not undone, in the same chunks. (An undone edit and its

@@ -58,16 +58,39 @@ impl Default for ServerConfig {
 #[derive(Debug)]
 enum Outgoing {
     Bytes(Arc<[u8]>),
-    Close(String),
+    /// The error to send before closing, and whether connecting again may work.
+    Close(String, bool),
+}
+
+/// How a room reaches one connection: its queue, and a signal that ends it at once (when the
+/// queue is full, so that even a close cannot be queued).
+#[derive(Clone, Debug)]
+struct ConnLink {
+    out: async_mpsc::Sender<Outgoing>,
+    kill: Arc<tokio::sync::Notify>,
+}
+
+impl ConnLink {
+    /// Queues `o`; a connection whose queue is full is ended (it resumes when it reconnects).
+    fn send(&self, o: Outgoing) -> bool {
+        let sent = self.out.try_send(o).is_ok();
+        if !sent {
+            self.kill.notify_one();
+        }
+        sent
+    }
 }
 
 enum RoomInput {
-    Join { conn: ConnId, hello: Hello, out: async_mpsc::Sender<Outgoing> },
+    Join { conn: ConnId, hello: Hello, link: ConnLink },
     Msg { conn: ConnId, msg: ClientMsg },
     Leave { conn: ConnId },
 }
 
-type Rooms = Arc<Mutex<HashMap<String, mpsc::Sender<RoomInput>>>>;
+/// Messages waiting for a room's thread, at most (a connection's reader waits beyond).
+const ROOM_QUEUE: usize = 4096;
+
+type Rooms = Arc<Mutex<HashMap<String, mpsc::SyncSender<RoomInput>>>>;
 
 /// What the connection tasks share.
 struct Shared {
@@ -200,7 +223,7 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
         return;
     };
     let (mut sink, mut incoming) = ws.split();
-    let refuse = |reason: String| Message::Binary(encode(&ServerMsg::Error { reason }).into());
+    let refuse = |reason: String| Message::Binary(encode(&ServerMsg::Error { reason, retry: false }).into());
     let hello = match tokio::time::timeout(shared.config.hello_timeout, incoming.next()).await {
         Ok(Some(Ok(Message::Binary(bytes)))) => match decode::<ClientMsg>(&bytes, MAX_HELLO) {
             Ok(ClientMsg::Hello(h)) => h,
@@ -224,12 +247,17 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
     }
     let conn = shared.next_conn.fetch_add(1, Ordering::Relaxed);
     let (out, mut out_rx) = async_mpsc::channel(shared.config.out_queue);
-    let Some(room) = enter(&shared, conn, hello, out.clone()) else {
-        let _ = sink.send(refuse("the server is stopping".into())).await;
-        return;
+    let link = ConnLink { out, kill: Arc::new(tokio::sync::Notify::new()) };
+    let room = match enter(&shared, conn, hello, link.clone()) {
+        Ok(room) => room,
+        Err(why) => {
+            let again = Message::Binary(encode(&ServerMsg::Error { reason: why, retry: true }).into());
+            let _ = sink.send(again).await;
+            return;
+        }
     };
     // The writer: what the room sends, in order; a close sends the reason and ends.
-    let writer = tokio::spawn(async move {
+    let mut writer = tokio::spawn(async move {
         while let Some(o) = out_rx.recv().await {
             match o {
                 Outgoing::Bytes(b) => {
@@ -237,14 +265,17 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
                         return;
                     }
                 }
-                Outgoing::Close(reason) => {
-                    let _ = sink.send(refuse(reason)).await;
+                Outgoing::Close(reason, retry) => {
+                    let _ = sink.send(Message::Binary(encode(&ServerMsg::Error { reason, retry }).into())).await;
                     let _ = sink.close().await;
                     return;
                 }
             }
         }
     });
+    let close = |reason: String| {
+        link.send(Outgoing::Close(reason, false));
+    };
     let mut bucket = Bucket {
         tokens: shared.config.burst,
         rate: shared.config.rate,
@@ -252,21 +283,30 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
         at: Instant::now(),
     };
     let mut last_presence: Option<Instant> = None;
+    let mut killed = false;
+    let mut writer_done = false;
     loop {
         let next = tokio::select! {
             next = incoming.next() => next,
-            _ = out.closed() => break,
+            _ = link.kill.notified() => {
+                killed = true;
+                break;
+            }
+            _ = &mut writer => {
+                writer_done = true;
+                break;
+            }
         };
         let bytes = match next {
             Some(Ok(Message::Binary(bytes))) => bytes,
             Some(Ok(Message::Close(_))) | None => break,
             Some(Ok(Message::Text(_))) => {
-                let _ = out.try_send(Outgoing::Close("text messages are not part of the protocol".into()));
+                close("text messages are not part of the protocol".into());
                 break;
             }
             Some(Ok(_)) => continue,
             Some(Err(e)) => {
-                let _ = out.try_send(Outgoing::Close(e.to_string()));
+                close(e.to_string());
                 break;
             }
         };
@@ -274,7 +314,7 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
         let msg = match decode::<ClientMsg>(&bytes, MAX_CLIENT_MESSAGE) {
             Ok(m) => m,
             Err(e) => {
-                let _ = out.try_send(Outgoing::Close(e.to_string()));
+                close(e.to_string());
                 break;
             }
         };
@@ -285,72 +325,95 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
             }
             last_presence = Some(Instant::now());
         }
-        if room.send(RoomInput::Msg { conn, msg }).is_err() {
-            let _ = out.try_send(Outgoing::Close("the room closed; connect again".into()));
-            break;
+        // A busy room's queue holds this reader back (a flood waits here, not in memory).
+        let mut input = RoomInput::Msg { conn, msg };
+        loop {
+            match room.try_send(input) {
+                Ok(()) => break,
+                Err(mpsc::TrySendError::Full(back)) => {
+                    input = back;
+                    tokio::time::sleep(Duration::from_millis(2)).await;
+                }
+                Err(mpsc::TrySendError::Disconnected(_)) => {
+                    link.send(Outgoing::Close("the room closed; connect again".into(), true));
+                    break;
+                }
+            }
         }
     }
+    // (A full queue cannot block the leave: the room learns of it at its next message.)
     let _ = room.send(RoomInput::Leave { conn });
-    drop(out);
-    let _ = writer.await;
+    drop(link);
+    if killed {
+        // Too far behind to take even a close: the socket just ends; the client resumes.
+        writer.abort();
+    }
+    if !writer_done {
+        let _ = writer.await;
+    }
 }
 
-/// Hands a hello to its room's thread, starting the thread when the room is not open.
+/// Hands a hello to its room's thread, starting the thread when the room is not open; or says
+/// why not (worth trying again).
 fn enter(
     shared: &Arc<Shared>,
     conn: ConnId,
     hello: Hello,
-    out: async_mpsc::Sender<Outgoing>,
-) -> Option<mpsc::Sender<RoomInput>> {
+    link: ConnLink,
+) -> Result<mpsc::SyncSender<RoomInput>, String> {
     let mut rooms = shared.rooms.lock().unwrap_or_else(|p| p.into_inner());
     let name = hello.room.clone();
-    let mut input = RoomInput::Join { conn, hello, out };
+    let mut input = RoomInput::Join { conn, hello, link };
+    // Threads of rooms that closed are reaped as new ones start.
+    shared.room_threads.lock().unwrap_or_else(|p| p.into_inner()).retain(|t| !t.is_finished());
     // A room whose thread just ended is started again (twice at most).
     for _ in 0..2 {
         let tx = match rooms.get(&name) {
             Some(tx) => tx.clone(),
             None => {
-                let (tx, rx) = mpsc::channel();
+                let (tx, rx) = mpsc::sync_channel(ROOM_QUEUE);
                 let s = shared.clone();
                 let n = name.clone();
                 let t = std::thread::Builder::new()
                     .name(format!("room {name}"))
                     .spawn(move || room_thread(&n, &s, rx))
-                    .ok()?;
+                    .map_err(|e| format!("the server cannot open a room now ({e}); connect again"))?;
                 shared.room_threads.lock().unwrap_or_else(|p| p.into_inner()).push(t);
                 rooms.insert(name.clone(), tx.clone());
                 tx
             }
         };
-        match tx.send(input) {
-            Ok(()) => return Some(tx),
-            Err(mpsc::SendError(back)) => {
+        match tx.try_send(input) {
+            Ok(()) => return Ok(tx),
+            Err(mpsc::TrySendError::Full(_)) => return Err("the room is busy; connect again".into()),
+            Err(mpsc::TrySendError::Disconnected(back)) => {
                 rooms.remove(&name);
                 input = back;
             }
         }
     }
-    None
+    Err("the server is stopping".into())
 }
 
 /// A room's thread: opens the room from storage and handles its messages in batches until no
 /// connection is left.
 fn room_thread(name: &str, shared: &Arc<Shared>, rx: mpsc::Receiver<RoomInput>) {
-    let mut conns: HashMap<ConnId, async_mpsc::Sender<Outgoing>> = HashMap::new();
+    let mut conns: HashMap<ConnId, ConnLink> = HashMap::new();
     let result = serve_room(name, shared, &rx, &mut conns);
-    // Out of service: no new inputs; those waiting are told, as are the connections.
+    // Out of service: no new inputs; those waiting are told, as are the connections (they
+    // may connect again: the room opens anew).
     shared.rooms.lock().unwrap_or_else(|p| p.into_inner()).remove(name);
     let reason = match result {
         Ok(()) => "the room closed; connect again".to_owned(),
         Err(e) => format!("the room stopped: {e}; connect again"),
     };
     for input in rx.try_iter() {
-        if let RoomInput::Join { out, .. } = input {
-            let _ = out.try_send(Outgoing::Close(reason.clone()));
+        if let RoomInput::Join { link, .. } = input {
+            link.send(Outgoing::Close(reason.clone(), true));
         }
     }
-    for (_, out) in conns {
-        let _ = out.try_send(Outgoing::Close(reason.clone()));
+    for (_, link) in conns {
+        link.send(Outgoing::Close(reason.clone(), true));
     }
 }
 
@@ -358,7 +421,7 @@ fn serve_room(
     name: &str,
     shared: &Arc<Shared>,
     rx: &mpsc::Receiver<RoomInput>,
-    conns: &mut HashMap<ConnId, async_mpsc::Sender<Outgoing>>,
+    conns: &mut HashMap<ConnId, ConnLink>,
 ) -> Result<(), String> {
     let config = shared.config.room;
     let mut store = shared.storage.open(name).map_err(|e| e.to_string())?;
@@ -377,8 +440,8 @@ fn serve_room(
         let mut h = Handled::default();
         for input in std::iter::once(first).chain(rx.try_iter().take(1023)) {
             match input {
-                RoomInput::Join { conn, hello, out } => {
-                    conns.insert(conn, out);
+                RoomInput::Join { conn, hello, link } => {
+                    conns.insert(conn, link);
                     if room.is_none()
                         && let Some(scene) = &hello.create
                     {
@@ -432,19 +495,18 @@ fn serve_room(
     }
 }
 
-/// Sends the room's messages and closes; a connection too slow to take a message is closed
+/// Sends the room's messages and closes; a connection too slow to take a message is ended
 /// (it resumes when it reconnects) and the others are told it left.
-fn deliver(mut outs: Vec<Out>, conns: &mut HashMap<ConnId, async_mpsc::Sender<Outgoing>>, mut room: Option<&mut Room>) {
+fn deliver(mut outs: Vec<Out>, conns: &mut HashMap<ConnId, ConnLink>, mut room: Option<&mut Room>) {
     while !outs.is_empty() {
         let mut more = Vec::new();
         for o in outs {
             match o {
                 Out::Send(conn, bytes) => {
-                    if let Some(tx) = conns.get(&conn)
-                        && tx.try_send(Outgoing::Bytes(bytes)).is_err()
+                    if let Some(link) = conns.get(&conn)
+                        && !link.send(Outgoing::Bytes(bytes))
                     {
-                        let tx = conns.remove(&conn).expect("found above");
-                        let _ = tx.try_send(Outgoing::Close("too far behind".into()));
+                        conns.remove(&conn);
                         if let Some(r) = room.as_deref_mut() {
                             let mut left = Handled::default();
                             r.leave(conn, &mut left);
@@ -453,8 +515,8 @@ fn deliver(mut outs: Vec<Out>, conns: &mut HashMap<ConnId, async_mpsc::Sender<Ou
                     }
                 }
                 Out::Close(conn, reason) => {
-                    if let Some(tx) = conns.remove(&conn) {
-                        let _ = tx.try_send(Outgoing::Close(reason));
+                    if let Some(link) = conns.remove(&conn) {
+                        link.send(Outgoing::Close(reason, false));
                     }
                 }
             }

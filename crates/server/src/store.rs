@@ -268,7 +268,11 @@ impl PgStorage {
 impl Storage for PgStorage {
     fn open(&self, name: &str) -> Result<Box<dyn RoomStore>, StoreError> {
         let mut client = postgres::Client::connect(&self.url, postgres::NoTls).map_err(dberr)?;
-        let row = client.query_one("SELECT pg_try_advisory_lock(7143, hashtext($1))", &[&name]).map_err(dberr)?;
+        // A 64-bit key from the name's SHA-256: two rooms never share a lock in practice (a
+        // 32-bit hash would make collisions likely past tens of thousands of rooms).
+        let digest = <sha2::Sha256 as sha2::Digest>::digest(name.as_bytes());
+        let key = i64::from_le_bytes(digest[..8].try_into().expect("8 bytes"));
+        let row = client.query_one("SELECT pg_try_advisory_lock($1)", &[&key]).map_err(dberr)?;
         if !row.get::<_, bool>(0) {
             return Err(StoreError::Busy(name.to_owned()));
         }

@@ -55,20 +55,26 @@ fn op(position: DVec3, radius: f64) -> EditOp {
 
 /// Reads until the server closes the connection; whether it said why first.
 fn closed_with_error(ws: &mut Socket) -> bool {
-    let mut said = false;
+    read_until_closed(ws).0
+}
+
+/// Reads until the server closes the connection: whether it said why, and whether it refused
+/// an operation before.
+fn read_until_closed(ws: &mut Socket) -> (bool, bool) {
+    let (mut said, mut refused) = (false, false);
     loop {
         match ws.read() {
-            Ok(Message::Binary(b)) => {
-                if let Ok(ServerMsg::Error { .. }) = decode::<ServerMsg>(&b, usize::MAX) {
-                    said = true;
-                }
-            }
+            Ok(Message::Binary(b)) => match decode::<ServerMsg>(&b, usize::MAX) {
+                Ok(ServerMsg::Error { .. }) => said = true,
+                Ok(ServerMsg::Refused { .. }) => refused = true,
+                _ => {}
+            },
             Ok(Message::Close(_)) => {}
             Ok(_) => {}
             Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => {
                 panic!("the server kept a hostile connection open")
             }
-            Err(_) => return said,
+            Err(_) => return (said, refused),
         }
     }
 }
@@ -108,10 +114,16 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
             send(&mut ws, encode(&msg));
             1 + BURST
         }
-        // A submit before any hello.
+        // A submit before any hello, or one whose number skips ahead.
         3 => {
-            send(&mut ws, encode(&ClientMsg::Submit { number: 1, op: op(DVec3::ZERO, 2.0) }));
-            BURST
+            if rng.chance(0.5) {
+                send(&mut ws, encode(&ClientMsg::Submit { number: 1, op: op(DVec3::ZERO, 2.0) }));
+                BURST
+            } else {
+                joined(&mut ws);
+                send(&mut ws, encode(&ClientMsg::Submit { number: 5, op: op(DVec3::ZERO, 2.0) }));
+                1 + BURST
+            }
         }
         // Another protocol.
         4 => {
@@ -127,17 +139,23 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
             2
         }
         // Out of bounds: a huge brush, a material or a surface that does not exist, infinity.
+        // Out of bounds (a huge brush, a material or a surface that does not exist): refused
+        // and taken back, as an honest client's mistake would be; then infinity, which closes.
         6 => {
             joined(&mut ws);
             let mut o = op(DVec3::ZERO, 2.0);
-            match rng.below(4) {
+            match rng.below(3) {
                 0 => o.tool.radius = 1e9,
                 1 => o.tool.material = 250,
-                2 => o.surface = 9,
-                _ => o.transform.scale = f64::INFINITY,
+                _ => o.surface = 9,
             }
-            send(&mut ws, encode(&ClientMsg::Submit { number: 1 + rng.below(5), op: o }));
-            1 + BURST
+            let _ = ws.send(Message::Binary(encode(&ClientMsg::Submit { number: 1, op: o }).into()));
+            let mut inf = op(DVec3::ZERO, 2.0);
+            inf.transform.scale = f64::INFINITY;
+            send(&mut ws, encode(&ClientMsg::Submit { number: 2, op: inf }));
+            let (said, refused) = read_until_closed(&mut ws);
+            assert!(said && refused, "an out-of-bounds operation was not refused, or infinity not closed");
+            return 2 + BURST;
         }
         // Out of order: a second hello after the first.
         7 => {
@@ -165,16 +183,16 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
     sent
 }
 
-/// Operations sent again, out of order, on a connection that stays open (the server ignores
+/// An operation sent again and again on a connection that stays open (the server ignores
 /// numbers it has already handled): many messages, no disconnection needed.
 fn replays(url: &str, room: &str, count: usize) -> usize {
     let mut ws = open(url);
     ws.send(Message::Binary(encode(&hello(room, "token")).into())).unwrap();
     let submit = |n: u64| Message::Binary(encode(&ClientMsg::Submit { number: n, op: op(DVec3::ZERO, 1.0) }).into());
-    // One real operation (number 9), then numbers at or below it, backwards.
-    ws.send(submit(9)).unwrap();
-    for k in 0..count {
-        ws.send(submit(9 - (k as u64 % 9))).unwrap();
+    // One real operation (number 1), then the same number again and again.
+    ws.send(submit(1)).unwrap();
+    for _ in 0..count {
+        ws.send(submit(1)).unwrap();
     }
     ws.close(None).ok();
     count + 2

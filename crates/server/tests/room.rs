@@ -38,7 +38,7 @@ impl World {
         for o in h.out {
             let (conn, msg) = match o {
                 Out::Send(conn, bytes) => (conn, decode::<ServerMsg>(&bytes, usize::MAX).unwrap()),
-                Out::Close(conn, reason) => (conn, ServerMsg::Error { reason }),
+                Out::Close(conn, reason) => (conn, ServerMsg::Error { reason, retry: false }),
             };
             if let Some(c) = self.clients.iter_mut().find(|c| c.conn == Some(conn)) {
                 c.down.push_back(msg);
@@ -88,7 +88,7 @@ impl World {
         for e in &step.events {
             match e {
                 Event::Undone => c.undone += 1,
-                Event::Closed(r) => panic!("the room closed client {i}: {r}"),
+                Event::Closed { reason, .. } => panic!("the room closed client {i}: {reason}"),
                 Event::OutOfStep(r) => panic!("client {i} out of step: {r}"),
                 Event::Diverged => panic!("client {i} diverged (snapshots loaded: {})", c.snapshots),
                 Event::Snapshot => c.snapshots += 1,
@@ -327,4 +327,54 @@ fn replicas_converge_to_the_room_through_random_delays_drops_and_resumes() {
 #[test]
 fn eight_replicas_converge() {
     run(1234, 8, 400);
+}
+
+#[test]
+fn a_client_whose_resync_answer_was_lost_asks_again_when_it_reconnects() {
+    let mut w = world(2, RoomConfig::default());
+    w.line(1, [9.0, 0.0, 0.0], [10.0, 2.0, 0.0]);
+    // A digest that cannot match: the client asks for a snapshot…
+    let c = &mut w.clients[0];
+    let wrong = ServerMsg::Hash { seq: c.replica.seq(), hash: 1 };
+    let step = c.replica.step(&mut c.editor, vec![wrong]);
+    assert!(step.events.contains(&Event::Diverged));
+    assert_eq!(step.send, vec![ClientMsg::Resync]);
+    // …but the connection drops before the answer comes.
+    w.drop_connection(0);
+    w.line(1, [-9.0, 0.0, 0.0], [-10.0, 2.0, 0.0]);
+    // The hello asks for a snapshot (no sequence number to resume from), and the client is
+    // back in step with the room.
+    let ClientMsg::Hello(h) = w.clients[0].replica.hello("r", "secret", "c0", None) else { unreachable!() };
+    assert_eq!(h.resume.and_then(|r| r.seq), None);
+    w.connect(0);
+    w.settle();
+    w.line(1, [0.0, 9.0, 0.0], [2.0, 10.0, 0.0]);
+    w.all_equal_the_room();
+    assert_eq!(w.clients[0].replica.seq(), w.room.seq());
+}
+
+#[test]
+fn a_stroke_the_room_no_longer_holds_whole_is_too_old_to_undo() {
+    // The room remembers its last three entries only.
+    let mut w = world(1, RoomConfig { tail: 3, ..RoomConfig::default() });
+    let e = &mut w.clients[0].editor;
+    e.tool.kind = strata_editor::ToolKind::Add;
+    e.tool.radius = 1.0;
+    // One stroke of five frames: five operations.
+    for k in 0..5 {
+        let pose = strata_editor::ToolPose {
+            position: glam::DVec3::new(9.0, k as f64, 0.0),
+            buttons: strata_editor::Buttons { primary: true, secondary: false },
+            ..strata_editor::ToolPose::default()
+        };
+        e.frame(&pose, std::time::Duration::ZERO).unwrap();
+    }
+    e.frame(&strata_editor::ToolPose::at(glam::DVec3::new(9.0, 4.0, 0.0), false), std::time::Duration::ZERO).unwrap();
+    w.pump_down(0, 0);
+    w.settle();
+    assert_eq!(w.room.seq(), 5);
+    let before = w.all_equal_the_room();
+    let events = w.undo(0);
+    assert!(events.iter().any(|e| matches!(e, Event::UndoRefused(r) if r.contains("too old"))), "{events:?}");
+    assert!(w.all_equal_the_room() == before, "a partial undo was applied");
 }
