@@ -166,3 +166,25 @@ pub fn converge(members: &mut [Member], timeout: Duration) {
         );
     }
 }
+
+/// The PostgreSQL URL the database tests use (`STRATA_PG_URL`, which `.ci/run` sets after
+/// starting a server), or `None` with a message where they may be skipped: everywhere but CI,
+/// where its absence fails the test.
+pub fn pg_url() -> Option<String> {
+    match std::env::var("STRATA_PG_URL") {
+        Ok(url) => Some(url),
+        Err(_) if std::env::var_os("CI").is_some() => {
+            panic!("STRATA_PG_URL is not set: CI must start PostgreSQL (see .ci/run)")
+        }
+        Err(_) => {
+            eprintln!("skipped: set STRATA_PG_URL=postgres://… to run the PostgreSQL tests");
+            None
+        }
+    }
+}
+
+/// A room name no earlier run used (PostgreSQL keeps rooms between runs).
+pub fn fresh_room(name: &str) -> String {
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos();
+    format!("{name}-{}-{nanos}", std::process::id())
+}

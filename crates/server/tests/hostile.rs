@@ -2,7 +2,8 @@
 //! out-of-order messages over many connections while two honest clients sculpt. The server
 //! never stops serving, the hostile connections are closed with an error, the honest clients
 //! converge; and a flood of well-formed messages is slowed to the connection's rate limit
-//! while another client is served at once.
+//! while another client is served at once. Each on redb and on PostgreSQL (`STRATA_PG_URL`,
+//! which `.ci/run` sets; without it these fail in CI and are skipped elsewhere).
 
 use std::net::TcpStream;
 use std::sync::Arc;
@@ -11,8 +12,8 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use strata_editor::{DabRecord, EditOp, LayerTransform, ToolSettings};
 use strata_net::protocol::{ClientMsg, Hello, PROTOCOL, Presence, ServerMsg, decode, encode};
-use strata_server::{RedbStorage, Server, ServerConfig};
-use strata_tests::collab::{Member, Rng, ball_scene, converge, digests, random_stroke, temp_dir};
+use strata_server::{PgStorage, RedbStorage, Server, ServerConfig, Storage};
+use strata_tests::collab::{Member, Rng, ball_scene, converge, digests, fresh_room, pg_url, random_stroke, temp_dir};
 use tungstenite::stream::MaybeTlsStream;
 use tungstenite::{Message, WebSocket};
 
@@ -198,27 +199,26 @@ fn replays(url: &str, room: &str, count: usize) -> usize {
     count + 2
 }
 
-#[test]
-fn ten_thousand_hostile_messages_leave_the_honest_clients_converging() {
-    let dir = temp_dir("hostile");
-    let storage = Arc::new(RedbStorage::open(&dir.join("rooms.redb")).unwrap());
+/// 10,000 hostile messages beside two honest clients in room `room` (see the module docs).
+fn hostile_session(storage: Arc<dyn Storage>, room: &str) {
     // (A rate that lets the replays through in seconds.)
     let config = ServerConfig { rate: 5000.0, burst: 5000.0, ..ServerConfig::default() };
     let server = Server::start("127.0.0.1:0", storage, config).unwrap();
     let url = server.url();
-    let mut honest = vec![Member::new(&url, "room", "token", "host", Some(&ball_scene()))];
+    let mut honest = vec![Member::new(&url, room, "token", "host", Some(&ball_scene()))];
     converge(&mut honest, Duration::from_secs(30));
-    honest.push(Member::new(&url, "room", "token", "guest", None));
+    honest.push(Member::new(&url, room, "token", "guest", None));
     converge(&mut honest, Duration::from_secs(30));
     let hostile = {
         let url = url.clone();
+        let room = room.to_owned();
         std::thread::spawn(move || {
             let mut rng = Rng(99);
             let mut sent = 0;
             let mut kind = 0;
             while sent < 10_000 {
                 sent +=
-                    if kind % 10 == 9 { replays(&url, "room", 100) } else { attack(&url, "room", kind % 10, &mut rng) };
+                    if kind % 10 == 9 { replays(&url, &room, 100) } else { attack(&url, &room, kind % 10, &mut rng) };
                 kind += 1;
             }
             (sent, kind)
@@ -241,23 +241,21 @@ fn ten_thousand_hostile_messages_leave_the_honest_clients_converging() {
         assert_eq!(*m.session.state(), strata_net::SessionState::InRoom);
     }
     // Still serving: a newcomer joins and gets the same bytes.
-    let mut late = vec![Member::new(&url, "room", "token", "late", None)];
+    let mut late = vec![Member::new(&url, room, "token", "late", None)];
     converge(&mut late, Duration::from_secs(30));
     assert!(digests(&late[0].editor) == digests(&honest[0].editor));
     eprintln!("{sent} hostile messages over {connections} connections");
 }
 
-#[test]
-fn a_flood_is_slowed_to_the_rate_limit_while_others_are_served() {
-    let dir = temp_dir("flood");
-    let storage = Arc::new(RedbStorage::open(&dir.join("rooms.redb")).unwrap());
+/// A flood beside an honest client in room `room` (see the module docs).
+fn flood_session(storage: Arc<dyn Storage>, room: &str) {
     let config = ServerConfig { rate: 100.0, burst: 20.0, ..ServerConfig::default() };
     let server = Server::start("127.0.0.1:0", storage, config).unwrap();
     let url = server.url();
-    let mut honest = vec![Member::new(&url, "room", "token", "host", Some(&ball_scene()))];
+    let mut honest = vec![Member::new(&url, room, "token", "host", Some(&ball_scene()))];
     converge(&mut honest, Duration::from_secs(30));
     let mut flood = open(&url);
-    flood.send(Message::Binary(encode(&hello("room", "token")).into())).unwrap();
+    flood.send(Message::Binary(encode(&hello(room, "token")).into())).unwrap();
     let t0 = Instant::now();
     // 220 presences, then a resync whose snapshot can come only after all were read.
     let p = ClientMsg::Presence(Presence { position: Some(DVec3::ZERO), radius: 1.0 });
@@ -284,4 +282,34 @@ fn a_flood_is_slowed_to_the_rate_limit_while_others_are_served() {
     // 221 messages, 20 at once, the rest at 100 a second: at least two seconds.
     assert!(flood_wait >= Duration::from_millis(2000), "a flood of 221 messages was read in {flood_wait:?}");
     assert!(honest_wait < flood_wait, "the honest client waited {honest_wait:?}, behind the flood");
+}
+
+fn redb(name: &str) -> Arc<dyn Storage> {
+    Arc::new(RedbStorage::open(&temp_dir(name).join("rooms.redb")).unwrap())
+}
+
+fn postgres() -> Option<Arc<dyn Storage>> {
+    Some(Arc::new(PgStorage::open(&pg_url()?).unwrap()))
+}
+
+#[test]
+fn ten_thousand_hostile_messages_leave_the_honest_clients_converging_with_redb() {
+    hostile_session(redb("hostile"), "room");
+}
+
+#[test]
+fn ten_thousand_hostile_messages_leave_the_honest_clients_converging_with_postgres() {
+    let Some(storage) = postgres() else { return };
+    hostile_session(storage, &fresh_room("hostile"));
+}
+
+#[test]
+fn a_flood_is_slowed_to_the_rate_limit_while_others_are_served_with_redb() {
+    flood_session(redb("flood"), "room");
+}
+
+#[test]
+fn a_flood_is_slowed_to_the_rate_limit_while_others_are_served_with_postgres() {
+    let Some(storage) = postgres() else { return };
+    flood_session(storage, &fresh_room("flood"));
 }

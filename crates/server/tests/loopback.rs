@@ -11,27 +11,7 @@ use std::time::Duration;
 use strata_net::SessionState;
 use strata_server::room::{Room, RoomConfig};
 use strata_server::{PgStorage, RedbStorage, Server, ServerConfig, Storage};
-use strata_tests::collab::{Member, Rng, ball_scene, converge, digests, random_stroke, temp_dir};
-
-/// The PostgreSQL URL, or `None` (and a message) where the tests may be skipped.
-fn pg_url() -> Option<String> {
-    match std::env::var("STRATA_PG_URL") {
-        Ok(url) => Some(url),
-        Err(_) if std::env::var_os("CI").is_some() => {
-            panic!("STRATA_PG_URL is not set: CI must start PostgreSQL (see .ci/run)")
-        }
-        Err(_) => {
-            eprintln!("skipped: set STRATA_PG_URL=postgres://… to run the PostgreSQL tests");
-            None
-        }
-    }
-}
-
-/// A room name no earlier run used (PostgreSQL keeps rooms between runs).
-fn fresh(name: &str) -> String {
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos();
-    format!("{name}-{}-{nanos}", std::process::id())
-}
+use strata_tests::collab::{Member, Rng, ball_scene, converge, digests, fresh_room, pg_url, random_stroke, temp_dir};
 
 /// Eight clients sculpting at once through drops and resumes (see the module docs); returns
 /// the clients' final digests after checking them against the stored room.
@@ -101,7 +81,7 @@ fn eight_clients_converge_through_drops_with_redb() {
 fn eight_clients_converge_through_drops_with_postgres() {
     let Some(url) = pg_url() else { return };
     let storage = Arc::new(PgStorage::open(&url).unwrap());
-    session(storage, &fresh("sculpt"), 11);
+    session(storage, &fresh_room("sculpt"), 11);
 }
 
 #[test]
@@ -109,7 +89,7 @@ fn two_servers_serve_different_rooms_against_one_database_and_never_the_same_one
     let Some(url) = pg_url() else { return };
     let a = Server::start("127.0.0.1:0", Arc::new(PgStorage::open(&url).unwrap()), ServerConfig::default()).unwrap();
     let b = Server::start("127.0.0.1:0", Arc::new(PgStorage::open(&url).unwrap()), ServerConfig::default()).unwrap();
-    let (room_a, room_b) = (fresh("a"), fresh("b"));
+    let (room_a, room_b) = (fresh_room("a"), fresh_room("b"));
     let mut on_a = vec![Member::new(&a.url(), &room_a, "t", "one", Some(&ball_scene()))];
     let mut on_b = vec![Member::new(&b.url(), &room_b, "t", "two", Some(&ball_scene()))];
     converge(&mut on_a, Duration::from_secs(30));

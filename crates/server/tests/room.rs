@@ -106,8 +106,8 @@ impl World {
     }
 }
 
-/// A room on the ball scene with `clients` connected, recording replicas.
-fn world(clients: usize, config: RoomConfig) -> World {
+/// A room on the ball scene and `clients` recording replicas, not connected yet.
+fn unconnected(clients: usize, config: RoomConfig) -> World {
     let scene = strata_editor::file::encode(&ball_scene()).unwrap();
     let stored = StoredRoom {
         token_hash: token_hash("secret"),
@@ -118,7 +118,7 @@ fn world(clients: usize, config: RoomConfig) -> World {
     };
     let room = Room::open("r", stored, config).unwrap();
     let mut w = World { room, clients: Vec::new(), next_conn: 0 };
-    for i in 0..clients {
+    for _ in 0..clients {
         let mut editor = Editor::default();
         editor.record_ops(true);
         w.clients.push(Client {
@@ -131,6 +131,14 @@ fn world(clients: usize, config: RoomConfig) -> World {
             undone: 0,
             snapshots: 0,
         });
+    }
+    w
+}
+
+/// A room on the ball scene with `clients` connected, recording replicas, all settled.
+fn world(clients: usize, config: RoomConfig) -> World {
+    let mut w = unconnected(clients, config);
+    for i in 0..clients {
         w.connect(i);
     }
     w.settle();
@@ -234,32 +242,8 @@ fn an_undo_takes_back_ones_own_edit_everywhere_unless_someone_else_edited_there_
 /// Returns how many undos went through.
 fn run(seed: u64, clients: usize, rounds: usize) -> usize {
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
-    let scene = strata_editor::file::encode(&ball_scene()).unwrap();
-    let stored = StoredRoom {
-        token_hash: token_hash("secret"),
-        snapshot_seq: 0,
-        snapshot: scene,
-        clients: Vec::new(),
-        ops: Vec::new(),
-    };
     // A digest every 8 operations and a short tail, so resumes past it get snapshots.
-    let config = RoomConfig { hash_every: 8, tail: 24, ..RoomConfig::default() };
-    let room = Room::open("r", stored, config).unwrap();
-    let mut w = World { room, clients: Vec::new(), next_conn: 0 };
-    for _ in 0..clients {
-        let mut editor = Editor::default();
-        editor.record_ops(true);
-        w.clients.push(Client {
-            editor,
-            replica: Replica::new(),
-            conn: None,
-            up: VecDeque::new(),
-            down: VecDeque::new(),
-            refused: 0,
-            undone: 0,
-            snapshots: 0,
-        });
-    }
+    let mut w = unconnected(clients, RoomConfig { hash_every: 8, tail: 24, ..RoomConfig::default() });
     for i in 0..clients {
         w.connect(i);
     }

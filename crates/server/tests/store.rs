@@ -5,7 +5,7 @@ use glam::DVec3;
 use strata_editor::{DabRecord, EditOp, LayerTransform, ToolSettings};
 use strata_net::protocol::{Entry, Ordered};
 use strata_server::{PgStorage, RedbStorage, Storage, StoreError};
-use strata_tests::collab::temp_dir;
+use strata_tests::collab::{fresh_room, pg_url, temp_dir};
 
 fn ordered(seq: u64) -> Ordered {
     let at = DVec3::new(seq as f64, 0.0, 0.0);
@@ -65,14 +65,6 @@ fn redb_keeps_rooms() {
 
 #[test]
 fn postgres_keeps_rooms() {
-    let url = match std::env::var("STRATA_PG_URL") {
-        Ok(url) => url,
-        Err(_) if std::env::var_os("CI").is_some() => panic!("STRATA_PG_URL is not set: CI must start PostgreSQL"),
-        Err(_) => {
-            eprintln!("skipped: set STRATA_PG_URL=postgres://… to run the PostgreSQL tests");
-            return;
-        }
-    };
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos();
-    check(&PgStorage::open(&url).unwrap(), &format!("store-{nanos}"));
+    let Some(url) = pg_url() else { return };
+    check(&PgStorage::open(&url).unwrap(), &fresh_room("store"));
 }
