@@ -44,6 +44,8 @@ pub struct Session {
     connection: u64,
     peers: BTreeMap<ClientId, (String, Presence)>,
     last_presence: Option<Instant>,
+    /// How many times the room welcomed us.
+    welcomes: u64,
 }
 
 impl Session {
@@ -60,6 +62,7 @@ impl Session {
             connection: 0,
             peers: BTreeMap::new(),
             last_presence: None,
+            welcomes: 0,
         })
     }
 
@@ -132,7 +135,10 @@ impl Session {
     fn note(&mut self, events: Vec<Event>) -> Vec<Event> {
         for e in &events {
             match e {
-                Event::Joined { .. } => self.state = SessionState::InRoom,
+                Event::Joined { .. } => {
+                    self.state = SessionState::InRoom;
+                    self.welcomes += 1;
+                }
                 Event::Presence(peer, presence) => {
                     self.peers.insert(peer.client, (peer.name.clone(), *presence));
                 }
@@ -179,6 +185,12 @@ impl Session {
         let events = self.handle(editor, Vec::new());
         self.send(&ClientMsg::Undo);
         Ok(events)
+    }
+
+    /// How many times the room has welcomed this session: 1 once in, one more for each
+    /// reconnection.
+    pub fn welcomes(&self) -> u64 {
+        self.welcomes
     }
 
     /// Where the session is.

@@ -44,6 +44,8 @@ pub(super) enum Then {
     Open,
     /// Open the file in `StudioApp::open_next` (dropped on the window, or a recent file).
     OpenFile,
+    /// Join the room in `StudioApp::join_next`.
+    Join,
     Quit,
 }
 
@@ -257,6 +259,13 @@ impl StudioApp {
                     self.path_chosen(ctx, Prompt::Open, path, None);
                 }
             }
+            Then::Join => {
+                if let Some(params) = self.join_next.take()
+                    && self.studio.act(Action::JoinSession(params)).is_ok()
+                {
+                    self.autosave.forget();
+                }
+            }
             Then::Quit => {
                 self.autosave.forget();
                 self.allow_close = true;
@@ -380,6 +389,7 @@ impl StudioApp {
         let what = match then {
             Then::New => "starting a new scene",
             Then::Open | Then::OpenFile => "opening another scene",
+            Then::Join => "joining a shared room (its scene replaces this one)",
             Then::Quit => "quitting",
         };
         let name = self.studio.path.as_ref().map_or("the new scene".to_string(), |p| p.display().to_string());

@@ -61,7 +61,9 @@ impl StudioApp {
                 changed_t |= r.changed();
                 dragging |= r.dragged() && !r.drag_started();
             });
-            if changed_t {
+            if changed_t && let Err(e) = self.studio.refuse_in_session("move, turn or scale a layer") {
+                self.studio.message = e;
+            } else if changed_t {
                 let (_, pitch, roll) = t.rotation.to_euler(glam::EulerRot::YXZ);
                 t.rotation = glam::DQuat::from_euler(glam::EulerRot::YXZ, yaw.to_radians(), pitch, roll);
                 match self.studio.editor.set_layer_transform(active, t, dragging) {

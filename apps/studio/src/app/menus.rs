@@ -92,6 +92,32 @@ impl StudioApp {
                         .suffix(" cells³"),
                 );
                 ui.separator();
+                let in_room = self.studio.in_session();
+                if ui
+                    .add_enabled(!in_room, egui::Button::new("Host session…"))
+                    .on_hover_text("Share this scene: others on the network sculpt it with you")
+                    .clicked()
+                {
+                    self.open_session_dialog(&ctx, true);
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(!in_room, egui::Button::new("Join session…"))
+                    .on_hover_text("Sculpt a scene someone hosts (its address, room and token)")
+                    .clicked()
+                {
+                    self.open_session_dialog(&ctx, false);
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(in_room, egui::Button::new("Leave session"))
+                    .on_hover_text("Leave the room (closing it if you host it); the scene stays here")
+                    .clicked()
+                {
+                    let _ = self.studio.act(Action::LeaveSession);
+                    ui.close();
+                }
+                ui.separator();
                 if ui.button("Quit").clicked() {
                     self.guard(&ctx, Then::Quit);
                 }

@@ -26,6 +26,7 @@ mod input;
 mod jobs;
 mod layers_panel;
 mod menus;
+mod session;
 mod tool_panel;
 mod viewport;
 
@@ -71,6 +72,12 @@ pub struct StudioApp {
     /// What the windows, menus and modals showed last frame, and the status message (see
     /// [`StudioApp::repaint_on_change`]).
     shown: (u64, String),
+    /// The Host or Join dialog, when open.
+    session_dialog: Option<session::SessionDialog>,
+    /// What the last Host or Join dialog was given (the next one starts from it).
+    session_params: Option<crate::studio::SessionParams>,
+    /// The room to join once the unsaved-changes question is answered.
+    join_next: Option<crate::studio::SessionParams>,
 }
 
 /// Sizing the brush by dragging (Blender's F): the radius is the pointer's distance from
@@ -126,6 +133,9 @@ impl StudioApp {
             viewport_rect: None,
             shown: (0, String::new()),
             open_next: None,
+            session_dialog: None,
+            session_params: None,
+            join_next: None,
             recent,
             help_open: false,
             studio,
@@ -157,6 +167,7 @@ impl StudioApp {
             || self.native.is_some()
             || self.recovery.is_some()
             || self.resize.is_some()
+            || self.session_dialog.is_some()
             || self.studio.busy()
             || self.studio.pending_import.is_some()
     }
@@ -171,7 +182,8 @@ impl StudioApp {
         }
         let file = name(&self.studio.path).unwrap_or_else(|| "Untitled".into());
         let mark = if self.studio.is_modified() { "*" } else { "" };
-        format!("{file}{mark} — Strata Studio")
+        let room = self.studio.collab.as_ref().map_or(String::new(), |c| format!(" (room {})", c.params.room));
+        format!("{file}{mark}{room} — Strata Studio")
     }
 
     /// Where the viewport was last laid out (screen points), and the screen point of world
@@ -217,6 +229,8 @@ impl StudioApp {
             self.studio.notice.is_some(),
             self.resize.is_some(),
             self.studio.pending_import.is_some(),
+            self.session_dialog.is_some(),
+            self.studio.collab.is_some(),
             egui::Popup::is_any_open(ctx),
         ]
         .iter()
@@ -259,7 +273,10 @@ impl StudioApp {
         egui::Panel::left("tools").resizable(false).show(ui, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| self.palette(ui));
         });
-        egui::Panel::right("layers").show(ui, |ui| self.layers(ui));
+        egui::Panel::right("layers").show(ui, |ui| {
+            self.people(ui);
+            self.layers(ui);
+        });
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, frame));
         self.dropped(&ctx);
         self.job_progress(&ctx);
@@ -268,10 +285,16 @@ impl StudioApp {
         self.help(&ctx);
         self.native_dialog(&ctx);
         self.prompt(&ctx);
+        self.session_dialog(&ctx);
         self.confirm(&ctx);
         self.recovery(&ctx);
         self.notice(&ctx);
         self.shortcuts(&ctx);
+        // The room's strokes and the others' brushes arrive between input events: a live
+        // session keeps frames coming.
+        if self.studio.poll_session() {
+            ctx.request_repaint_after(Duration::from_millis(33));
+        }
         self.update_title(&ctx);
         self.repaint_on_change(&ctx);
         // (Not while a background dab holds a layer's volume: the copy would miss it.)

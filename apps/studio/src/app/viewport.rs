@@ -57,6 +57,7 @@ impl StudioApp {
             self.scene_input(ui, &response, rect, aspect);
         }
         self.draw(ui, frame, rect);
+        self.peer_cursors(ui, rect);
     }
 
     /// Terrain mode: WASD, Q and E fly (Shift faster), right drag looks; the world streams

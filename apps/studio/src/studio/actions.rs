@@ -22,7 +22,22 @@ impl Studio {
         if let Some(what) = action.scene_only() {
             self.refuse_in_world(what)?;
         }
+        if let Some(what) = action.unshared() {
+            self.refuse_in_session(what)?;
+        }
         match action {
+            Action::HostSession(params) => return self.host_session(params),
+            Action::JoinSession(params) => {
+                self.join_session(params)?;
+                // The scene is the room's from now on, in no file of this machine's.
+                self.path = None;
+                return Ok(());
+            }
+            Action::LeaveSession => return self.leave_session(),
+            Action::Undo if self.in_session() => return self.undo_in_session(),
+            Action::Redo if self.in_session() => {
+                return Err("Redo is not available in a shared room: sculpt the stroke again".into());
+            }
             Action::NewWorld(path, seed) => {
                 let recipe = strata_terrain::Recipe::with_seed(seed);
                 let materials = self.scene_editor().scene.materials.clone();

@@ -41,6 +41,7 @@ impl Studio {
     /// scene layer: refused while a world is open).
     pub fn choose_import(&mut self, path: PathBuf) -> Result<(), String> {
         self.refuse_in_world("import a mesh")?;
+        self.refuse_in_session("import a mesh as a new layer")?;
         let mesh =
             strata_mesh::import::load_mesh(&path).map_err(|e| format!("Could not import {}: {e}", path.display()))?;
         let closed = strata_editor::import::is_closed(&mesh);

@@ -14,12 +14,14 @@ use strata_render::Camera;
 use strata_volume::brush::Sphere;
 
 mod actions;
+mod collab;
 mod import;
 mod pointer;
 mod preview;
 #[cfg(test)]
 mod tests;
 
+pub use collab::{Collab, SessionParams};
 pub use import::{ImportJob, PendingImport};
 
 /// What a menu item, a key or a button asks for.
@@ -73,6 +75,12 @@ pub enum Action {
     Bomb,
     /// Mesh the viewport with this mesher and per-chunk simplification.
     ViewMesher(strata_mesh::MeshOptions),
+    /// Host a room on this machine with the scene as it is (File > Host session).
+    HostSession(SessionParams),
+    /// Join a room; the scene becomes the room's (File > Join session).
+    JoinSession(SessionParams),
+    /// Leave the room (closing it when this studio hosts it); the scene stays.
+    LeaveSession,
 }
 
 impl Action {
@@ -90,6 +98,23 @@ impl Action {
             | Action::MergeDown => "change the layers",
             Action::FrameAll | Action::AxisView(..) | Action::ToggleOrthographic => "use the scene's views",
             Action::ViewMesher(_) => "change the viewport's mesher (a world is meshed by marching cubes as it streams)",
+            _ => return None,
+        })
+    }
+
+    /// For an action that changes what a shared room's operations refer to (the scene itself,
+    /// its layers, or the editor's surface): what it does, for the message that refuses it while
+    /// in a room.
+    pub fn unshared(&self) -> Option<&'static str> {
+        Some(match self {
+            Action::New => "start a new scene",
+            Action::Open(_) => "open a scene",
+            Action::AddLayer
+            | Action::DeleteLayer
+            | Action::DuplicateLayer
+            | Action::MoveLayer(_)
+            | Action::MergeDown => "change the layers",
+            Action::NewWorld(..) | Action::OpenWorld(_) => "open a world",
             _ => return None,
         })
     }
@@ -221,6 +246,8 @@ pub struct Studio {
     /// The base resolution level of layers added from now on (the detail tool raises chunks
     /// above it; new chunks of a layer are made at its base).
     pub new_layer_level: strata_volume::Level,
+    /// The shared room the studio is in, when it is in one.
+    pub collab: Option<Collab>,
 }
 
 impl Studio {
@@ -272,6 +299,7 @@ impl Studio {
             viewport_height: 720.0,
             last_lod: None,
             new_layer_level: strata_volume::Level::BASE,
+            collab: None,
         };
         s.saved_revision = s.editor.revision();
         s.editor.tool.radius = DEFAULT_RADIUS;
@@ -358,6 +386,10 @@ impl Studio {
 
     /// Adds a material to the palette (a copy of the current one) and makes it current.
     pub fn add_material(&mut self) -> Option<u8> {
+        if let Err(e) = self.refuse_in_session("add a material") {
+            self.message = e;
+            return None;
+        }
         let palette = &mut self.editor.scene.materials;
         if palette.len() >= strata_volume::MATERIAL_IDS {
             self.message = format!("The palette is full ({} materials)", strata_volume::MATERIAL_IDS);
@@ -386,6 +418,14 @@ impl Studio {
 
     /// The status bar's live figures.
     pub fn status(&self) -> String {
+        let room = self.collab.as_ref().map_or(String::new(), |c| {
+            let people = c.session.peers().count() + 1;
+            format!("Room {:?}: {} · {people} in the room · ", c.params.room, c.state_text())
+        });
+        format!("{room}{}", self.local_status())
+    }
+
+    fn local_status(&self) -> String {
         if let Some(t) = &self.terrain {
             return format!("{} · {}", self.message, t.status(&self.editor));
         }

@@ -188,7 +188,9 @@ impl Studio {
         };
         // Dabs too large for a frame are refused by the editor (which builds each dab's brush
         // once) and run in the background instead.
-        self.editor.frame_dab_limit = self.background_chunks;
+        // (In a room every dab is an operation of the frame: none goes to the background, and
+        // the room refuses dabs over its radius limit.)
+        self.editor.frame_dab_limit = if self.in_session() { u64::MAX } else { self.background_chunks };
         match self.editor.frame(&pose, budget) {
             Err(strata_editor::EditorError::DabTooLargeForFrame(_)) => {
                 // Like a stroke's dabs: the next large dab waits until the pointer has moved by
