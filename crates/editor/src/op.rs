@@ -162,6 +162,16 @@ impl Editor {
         self.recorder = on.then(Recorder::default);
     }
 
+    /// Ends the stroke in progress and gives the next stroke's number to the caller (who makes
+    /// operations of their own under it, as a shared room's redo does); `None` unless recording.
+    pub fn claim_stroke(&mut self) -> Option<u64> {
+        self.end_stroke();
+        let r = self.recorder.as_mut()?;
+        let n = r.stroke;
+        r.stroke += 1;
+        Some(n)
+    }
+
     /// Whether the editor records operations.
     pub fn records_ops(&self) -> bool {
         self.recorder.is_some()

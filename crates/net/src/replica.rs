@@ -9,6 +9,13 @@
 
 use std::collections::VecDeque;
 
+/// How many of our own ordered operations a replica keeps for redo (the room keeps no more
+/// than its tail for undo).
+const MINE_KEPT: usize = 4096;
+
+/// How many undone strokes a replica keeps for redo.
+const REDO_KEPT: usize = 64;
+
 use strata_editor::{EditOp, Editor, OpUndo};
 
 use crate::protocol::{ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Resume, Seq, ServerMsg};
@@ -90,6 +97,10 @@ pub struct Replica {
     /// Whether the pending operations are taken back (while the room's operations of one step
     /// are applied: they are put back once, at the end of the step).
     rewound: bool,
+    /// Our newest operations the room ordered (at most [`MINE_KEPT`]), for redo.
+    mine: VecDeque<(Seq, EditOp)>,
+    /// Our strokes the room undid, newest last: what redo makes again.
+    redo: Vec<Vec<EditOp>>,
 }
 
 impl Replica {
@@ -121,6 +132,29 @@ impl Replica {
     /// Whether the room's scene is here (a snapshot arrived since the replica was made).
     pub fn has_scene(&self) -> bool {
         self.based
+    }
+
+    /// Whether there is an undone stroke of ours to redo.
+    pub fn can_redo(&self) -> bool {
+        !self.redo.is_empty()
+    }
+
+    /// Redoes our stroke the room undid last: its operations are made again, as a new stroke,
+    /// applied here at once and sent at the next step (to the room they are new operations,
+    /// which it may refuse like any). A new stroke of ours forgets what could be redone.
+    pub fn redo(&mut self, editor: &mut Editor) -> Result<(), String> {
+        let Some(stroke) = self.redo.pop() else { return Err("nothing to redo".into()) };
+        let Some(number) = editor.claim_stroke() else {
+            self.redo.push(stroke);
+            return Err("the editor does not record operations".into());
+        };
+        for mut op in stroke {
+            op.stroke = number;
+            let undo = editor.replay(&op).ok();
+            self.pending.push_back(Pending { number: self.next_number, op, undo });
+            self.next_number += 1;
+        }
+        Ok(())
     }
 
     /// Whether the room welcomed the current connection.
@@ -182,6 +216,10 @@ impl Replica {
     /// being sent.
     fn capture(&mut self, editor: &mut Editor, step: &mut Step) {
         let ops = editor.take_ops();
+        if !ops.is_empty() {
+            // New work: what was undone before it cannot be redone on top of it.
+            self.redo.clear();
+        }
         let bad: Vec<Option<crate::Invalid>> =
             ops.iter().map(|r| crate::validate(&r.op, editor, &crate::Limits::default()).err()).collect();
         if bad.iter().all(Option::is_none) {
@@ -317,8 +355,9 @@ impl Replica {
         let ours =
             Some(ordered.author) == self.client && self.pending.front().is_some_and(|p| p.number == ordered.number);
         if ours && !self.rewound && self.pending.front().is_some_and(|p| p.undo.is_some()) {
-            self.pending.pop_front();
+            let p = self.pending.pop_front().expect("checked");
             self.seq = ordered.seq;
+            self.keep_mine(ordered.seq, p.op);
             return Ok(());
         }
         // Pending work is taken back once for all the room's operations of this step.
@@ -327,9 +366,19 @@ impl Replica {
             self.rewound = true;
         }
         let seq = ordered.seq;
+        let by_us = Some(ordered.author) == self.client;
         let result = match ordered.entry {
-            Entry::Edit(op) => editor.replay(&op).map(drop).map_err(|e| format!("operation {seq}: {e}")),
-            Entry::Undo { undo, .. } => {
+            Entry::Edit(op) => {
+                let r = editor.replay(&op).map(drop).map_err(|e| format!("operation {seq}: {e}"));
+                if by_us {
+                    self.keep_mine(seq, op);
+                }
+                r
+            }
+            Entry::Undo { undo, of } => {
+                if by_us {
+                    self.undone(&of);
+                }
                 undo.into_iter().try_for_each(|u| editor.revert(u).map_err(|(e, _)| format!("undo {seq}: {e}")))
             }
         };
@@ -338,6 +387,34 @@ impl Replica {
         }
         self.seq = seq;
         result
+    }
+
+    /// Keeps our operation ordered at `seq` for redo.
+    fn keep_mine(&mut self, seq: Seq, op: EditOp) {
+        self.mine.push_back((seq, op));
+        if self.mine.len() > MINE_KEPT {
+            self.mine.pop_front();
+        }
+    }
+
+    /// The room undid our operations `of`: they become the newest stroke to redo.
+    fn undone(&mut self, of: &[Seq]) {
+        let mut stroke: Vec<(Seq, EditOp)> = Vec::new();
+        self.mine.retain(|(seq, op)| {
+            let hit = of.contains(seq);
+            if hit {
+                stroke.push((*seq, op.clone()));
+            }
+            !hit
+        });
+        // (A stroke only partly kept here cannot be made again whole.)
+        if stroke.len() == of.len() && !stroke.is_empty() {
+            stroke.sort_by_key(|(seq, _)| *seq);
+            self.redo.push(stroke.into_iter().map(|(_, op)| op).collect());
+            if self.redo.len() > REDO_KEPT {
+                self.redo.remove(0);
+            }
+        }
     }
 
     /// Puts pending work back after the room's operations (see `rewound`).

@@ -193,6 +193,18 @@ impl Session {
         self.welcomes
     }
 
+    /// Redoes our stroke the room undid last (see [`Replica::redo`]) and sends it at once.
+    pub fn redo(&mut self, editor: &mut Editor) -> Result<Vec<Event>, String> {
+        if self.state != SessionState::InRoom {
+            return Err("not in the room: nothing can be redone until the connection is back".into());
+        }
+        // (What the editor made before is taken first: new work forgets what could be redone.)
+        let mut events = self.handle(editor, Vec::new());
+        self.replica.redo(editor)?;
+        events.extend(self.handle(editor, Vec::new()));
+        Ok(events)
+    }
+
     /// Where the session is.
     pub fn state(&self) -> &SessionState {
         &self.state

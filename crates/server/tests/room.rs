@@ -239,6 +239,36 @@ fn an_undo_takes_back_ones_own_edit_everywhere_unless_someone_else_edited_there_
     assert!(w.all_equal_the_room() == start, "undoing everything did not give the start back");
 }
 
+#[test]
+fn a_redo_makes_the_undone_stroke_again_everywhere_until_new_work_forgets_it() {
+    let mut w = world(2, RoomConfig::default());
+    let start = w.all_equal_the_room();
+    w.line(0, [9.0, 0.0, 0.0], [10.0, 2.0, 0.0]);
+    w.line(1, [-9.0, 0.0, 0.0], [-10.0, 0.0, 2.0]);
+    let with_all = w.all_equal_the_room();
+    assert!(!w.clients[0].replica.can_redo(), "nothing undone yet");
+    assert!(w.undo(0).contains(&Event::Undone));
+    let undone = w.all_equal_the_room();
+    assert!(w.clients[0].replica.can_redo() && !w.clients[1].replica.can_redo());
+    // Redo: the same dabs on the same chunks give the same bytes, everywhere.
+    let c = &mut w.clients[0];
+    c.replica.redo(&mut c.editor).unwrap();
+    w.pump_down(0, 0);
+    w.settle();
+    assert!(w.all_equal_the_room() == with_all, "the redo did not give the stroke back bit for bit");
+    // The redone stroke is a stroke of its own: it undoes again, and redoes again.
+    assert!(w.undo(0).contains(&Event::Undone));
+    assert!(w.all_equal_the_room() == undone);
+    // New work forgets what could be redone.
+    w.line(0, [0.0, 9.0, 0.0], [2.0, 10.0, 0.0]);
+    assert!(!w.clients[0].replica.can_redo());
+    let c = &mut w.clients[0];
+    assert!(c.replica.redo(&mut c.editor).is_err());
+    assert!(w.undo(0).contains(&Event::Undone));
+    assert!(w.undo(1).contains(&Event::Undone));
+    assert!(w.all_equal_the_room() == start);
+}
+
 /// Returns how many undos went through.
 fn run(seed: u64, clients: usize, rounds: usize) -> usize {
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
@@ -259,6 +289,12 @@ fn run(seed: u64, clients: usize, rounds: usize) -> usize {
                 // An undo of this client's newest stroke (refused where others edited since).
                 w.pump_down(i, 0);
                 w.clients[i].up.push_back(ClientMsg::Undo);
+            }
+            4 if rng.chance(0.3) && w.clients[i].replica.can_redo() => {
+                // A redo of this client's stroke the room undid last (a new stroke to the room).
+                let c = &mut w.clients[i];
+                c.replica.redo(&mut c.editor).unwrap();
+                w.pump_down(i, 0);
             }
             3..=5 => w.pump_up(i, 1 + rng.below(4) as usize),
             6..=8 => w.pump_down(i, 1 + rng.below(6) as usize),

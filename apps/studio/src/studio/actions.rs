@@ -35,9 +35,7 @@ impl Studio {
             }
             Action::LeaveSession => return self.leave_session(),
             Action::Undo if self.in_session() => return self.undo_in_session(),
-            Action::Redo if self.in_session() => {
-                return Err("Redo is not available in a shared room: sculpt the stroke again".into());
-            }
+            Action::Redo if self.in_session() => return self.redo_in_session(),
             Action::NewWorld(path, seed) => {
                 let recipe = strata_terrain::Recipe::with_seed(seed);
                 let materials = self.scene_editor().scene.materials.clone();

@@ -248,6 +248,19 @@ impl Studio {
         Ok(())
     }
 
+    /// Redo in a room: makes our stroke the room undid last again, as a new stroke.
+    pub(super) fn redo_in_session(&mut self) -> Result<(), String> {
+        let Some(c) = self.collab.as_mut() else { return Ok(()) };
+        if !c.session.replica().can_redo() {
+            self.message = "Nothing to redo".into();
+            return Ok(());
+        }
+        let events = c.session.redo(&mut self.editor).map_err(|e| format!("Could not redo: {e}"))?;
+        self.message = "Redone (sent to the room)".into();
+        self.session_events(events);
+        Ok(())
+    }
+
     /// One frame of the session (call every frame, after the pointer): sends our new strokes
     /// and where our brush is, applies what the room sent, and reports what happened. Returns
     /// whether the session is live (the caller keeps frames coming while it is).
