@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use strata_editor::{EditOp, OpUndo};
 
 /// The protocol version this build speaks.
-pub const PROTOCOL: u32 = 1;
+pub const PROTOCOL: u32 = 2;
 
 /// The largest message a client may send after its hello (bytes); the server closes a
 /// connection that sends a larger one.
@@ -25,8 +25,15 @@ pub const MAX_SERVER_MESSAGE: usize = 1 << 30;
 /// "none yet").
 pub type Seq = u64;
 
-/// A client's identity within a room, assigned by the room and kept across reconnections.
+/// A client's identity within a room, assigned by the room and kept across reconnections. It
+/// is public (the others see it as the author of entries and with presence): a reconnection
+/// proves it with the client's [`ResumeKey`].
 pub type ClientId = u64;
+
+/// The secret a room gives each client in its welcome, which only that client knows: a
+/// reconnection that carries it goes on as the same client (its id is derived from the key by
+/// the room, so knowing a public id is not enough to act as someone else).
+pub type ResumeKey = [u8; 16];
 
 /// The first message of a connection.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -49,8 +56,8 @@ pub struct Hello {
 /// What a reconnecting client already has.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Resume {
-    /// The identity the room gave it.
-    pub client: ClientId,
+    /// The secret the room gave it with its identity.
+    pub key: ResumeKey,
     /// The last operation it applied; `None` before it had the room's scene (a snapshot
     /// lost with the connection that brought it): it needs one.
     pub seq: Option<Seq>,
@@ -123,6 +130,8 @@ pub enum ServerMsg {
     Welcome {
         /// The client's identity (a new one when the room did not know the one it resumed).
         client: ClientId,
+        /// The client's secret for reconnections (the one it resumed with, or a new one).
+        key: ResumeKey,
         /// The highest of the client's numbers the room ordered (0: none).
         acked: u64,
         /// The room's last operation.

@@ -18,7 +18,7 @@ const REDO_KEPT: usize = 64;
 
 use strata_editor::{EditOp, Editor, OpUndo};
 
-use crate::protocol::{ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Resume, Seq, ServerMsg};
+use crate::protocol::{ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Resume, ResumeKey, Seq, ServerMsg};
 
 /// A local operation the room has not ordered yet.
 #[derive(Debug)]
@@ -77,6 +77,8 @@ pub enum Event {
 #[derive(Debug, Default)]
 pub struct Replica {
     client: Option<ClientId>,
+    /// The secret that proves our identity when reconnecting.
+    key: Option<ResumeKey>,
     /// The last ordered operation applied.
     seq: Seq,
     /// Whether the room welcomed this connection (operations wait until it has).
@@ -175,8 +177,8 @@ impl Replica {
             // A replica without the room's scene, or waiting for a snapshot it asked for (the
             // answer may have been lost with the connection), asks for one.
             resume: self
-                .client
-                .map(|client| Resume { client, seq: (self.based && !self.awaiting_snapshot).then_some(self.seq) }),
+                .key
+                .map(|key| Resume { key, seq: (self.based && !self.awaiting_snapshot).then_some(self.seq) }),
             create,
         })
     }
@@ -253,7 +255,8 @@ impl Replica {
 
     fn receive(&mut self, editor: &mut Editor, msg: ServerMsg, step: &mut Step) {
         match msg {
-            ServerMsg::Welcome { client, acked, seq, peers } => {
+            ServerMsg::Welcome { client, key, acked, seq, peers } => {
+                self.key = Some(key);
                 if self.client != Some(client) {
                     // A new identity: nothing of ours was ordered under it; renumber what is
                     // pending from 1.

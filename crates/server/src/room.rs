@@ -9,7 +9,7 @@ use std::hash::{BuildHasher, Hasher};
 use sha2::{Digest, Sha256};
 use strata_editor::{Editor, OpUndo};
 use strata_net::protocol::{
-    ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Presence, Seq, ServerMsg, encode,
+    ClientId, ClientMsg, Entry, Hello, Ordered, PROTOCOL, Peer, Presence, ResumeKey, Seq, ServerMsg, encode,
 };
 use strata_net::{Limits, state_hash, validate};
 use strata_volume::ChunkKey;
@@ -140,6 +140,13 @@ impl std::fmt::Debug for Room {
     }
 }
 
+/// The identity a resume key stands for: the first 64 bits of its SHA-256 (public ids do not
+/// give keys away).
+pub fn client_of(key: &ResumeKey) -> ClientId {
+    let d = Sha256::digest(key);
+    u64::from_le_bytes(d[..8].try_into().expect("8 bytes"))
+}
+
 /// SHA-256 of a token.
 pub fn token_hash(token: &str) -> [u8; 32] {
     Sha256::digest(token.as_bytes()).into()
@@ -251,14 +258,22 @@ impl Room {
         Some(bytes)
     }
 
-    fn new_client(&mut self) -> ClientId {
+    /// A new client's identity and its secret key: 128 bits of SipHash keyed from the operating
+    /// system's randomness (a pseudo-random function: unpredictable without its keys), the
+    /// identity derived from them.
+    fn new_client(&mut self) -> (ClientId, ResumeKey) {
         loop {
             self.id_counter += 1;
-            let mut h = self.ids.build_hasher();
-            h.write_u64(self.id_counter);
-            let id = h.finish();
+            let mut key = [0u8; 16];
+            for (half, part) in key.chunks_mut(8).enumerate() {
+                let mut h = self.ids.build_hasher();
+                h.write_u64(self.id_counter);
+                h.write_u8(half as u8);
+                part.copy_from_slice(&h.finish().to_le_bytes());
+            }
+            let id = client_of(&key);
             if id != 0 && !self.clients.contains_key(&id) && !self.conns.values().any(|c| c.client == id) {
-                return id;
+                return (id, key);
             }
         }
     }
@@ -271,9 +286,13 @@ impl Room {
             h.out.push(Out::Close(conn, reason));
             return h;
         }
-        // A client known to the room resumes; anyone else is someone new.
-        let known = hello.resume.filter(|r| self.clients.contains_key(&r.client));
-        let client = known.map_or_else(|| self.new_client(), |r| r.client);
+        // A client known to the room resumes (its key proves who it is); anyone else is someone
+        // new.
+        let known = hello.resume.filter(|r| self.clients.contains_key(&client_of(&r.key)));
+        let (client, key) = match known {
+            Some(r) => (client_of(&r.key), r.key),
+            None => self.new_client(),
+        };
         // (A client is recorded with its first operation: hellos alone leave nothing behind.)
         let acked = self.clients.get(&client).copied().unwrap_or(0);
         // The same client on another connection (the old one not yet noticed dead) leaves.
@@ -284,7 +303,7 @@ impl Room {
         }
         let name: String = hello.name.chars().take(64).collect();
         let peers: Vec<Peer> = self.conns.values().map(|c| Peer { client: c.client, name: c.name.clone() }).collect();
-        h.send(conn, &ServerMsg::Welcome { client, acked, seq: self.seq, peers });
+        h.send(conn, &ServerMsg::Welcome { client, key, acked, seq: self.seq, peers });
         let first_in_tail = self.tail.front().map_or(self.seq + 1, |o| o.seq);
         let sent_snapshot = match known {
             Some(r) if r.seq.is_some_and(|seq| seq <= self.seq && seq + 1 >= first_in_tail) => {

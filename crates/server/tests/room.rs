@@ -398,3 +398,51 @@ fn a_stroke_the_room_no_longer_holds_whole_is_too_old_to_undo() {
     assert!(events.iter().any(|e| matches!(e, Event::UndoRefused(r) if r.contains("too old"))), "{events:?}");
     assert!(w.all_equal_the_room() == before, "a partial undo was applied");
 }
+
+/// The first welcome in `h` (its client and key).
+fn welcome(h: &Handled) -> (u64, strata_net::protocol::ResumeKey) {
+    for o in &h.out {
+        if let Out::Send(_, bytes) = o
+            && let Ok(ServerMsg::Welcome { client, key, .. }) = decode::<ServerMsg>(bytes, usize::MAX)
+        {
+            return (client, key);
+        }
+    }
+    panic!("no welcome");
+}
+
+#[test]
+fn knowing_someones_public_id_is_not_enough_to_resume_as_them() {
+    let mut w = world(2, RoomConfig::default());
+    // Client 0 is known to the room (it sculpted); everyone sees its id as the author.
+    w.line(0, [9.0, 0.0, 0.0], [10.0, 2.0, 0.0]);
+    let victim = w.clients[0].replica.client().unwrap();
+    let hello = |key: [u8; 16]| strata_net::protocol::Hello {
+        protocol: strata_net::protocol::PROTOCOL,
+        room: "r".into(),
+        token: "secret".into(),
+        name: "mallory".into(),
+        resume: Some(strata_net::protocol::Resume { key, seq: Some(0) }),
+        create: None,
+    };
+    // Keys made from the public id, or guessed, make someone new; the victim stays connected.
+    let mut guesses = vec![[0u8; 16], [0xff; 16]];
+    let mut id_key = [0u8; 16];
+    id_key[..8].copy_from_slice(&victim.to_le_bytes());
+    guesses.push(id_key);
+    for (k, key) in guesses.into_iter().enumerate() {
+        let h = w.room.join(900 + k as u64, hello(key));
+        let (client, new_key) = welcome(&h);
+        assert_ne!(client, victim, "a made-up key resumed as the victim");
+        assert_ne!(new_key, key, "a new client gets a key of its own");
+        assert_eq!(strata_server::room::client_of(&new_key), client);
+        assert!(h.out.iter().all(|o| !matches!(o, Out::Close(..))), "no one was disconnected");
+    }
+    // The victim's own key resumes it (its old connection, not yet seen dead, is closed).
+    w.drop_connection(0);
+    w.connect(0);
+    w.settle();
+    assert_eq!(w.clients[0].replica.client(), Some(victim));
+    w.line(0, [-9.0, 0.0, 0.0], [-10.0, 2.0, 0.0]);
+    assert!(w.undo(0).contains(&Event::Undone));
+}
