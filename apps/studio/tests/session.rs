@@ -158,10 +158,19 @@ fn two_studios_host_join_sculpt_see_each_other_undo_through_the_room_and_leave()
         };
         sees(a, "Ben") && sees(b, "Ana")
     });
+    // With both pointers off the model, each panel says the other's brush is away.
+    host.hover_at(egui::pos2(20.0, 780.0));
+    guest.hover_at(egui::pos2(20.0, 780.0));
+    settle(&mut host, &mut guest, "both brushes away", |a, b| {
+        let away = |s: &StudioApp| {
+            s.studio.collab.as_ref().is_some_and(|c| c.session.peers().all(|(_, _, p)| p.position.is_none()))
+        };
+        away(a) && away(b)
+    });
     host.step();
     guest.step();
-    host.get_by_label("Ben");
-    guest.get_by_label("Ana");
+    host.get_by_label("Ben (away from the model)");
+    guest.get_by_label("Ana (away from the model)");
     guest.get_by_label("Ben (you)");
 
     // A stroke in the host appears in the guest.
@@ -192,6 +201,22 @@ fn two_studios_host_join_sculpt_see_each_other_undo_through_the_room_and_leave()
     host.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
     frames(&mut host);
     assert_eq!(host.state().studio.message, "Nothing to redo");
+    // A brush past the room's radius limit is refused before it sculpts (not made in the frame
+    // and then taken back).
+    // (A brush of 40 units on cells of 0.1: 400 cells. The panel keeps radii within 64 units,
+    // so only a layer of fine cells reaches past the limit; the cells are set here directly.)
+    let (radius, cell) =
+        (host.state().studio.editor.tool.radius, host.state().studio.editor.scene.layers[0].transform.scale);
+    host.state_mut().studio.editor.tool.radius = 40.0;
+    host.state_mut().studio.editor.scene.layers[0].transform.scale = 0.1;
+    stroke(&mut host, &mut guest, centre, 2);
+    let notice = host.state_mut().studio.notice.take().expect("the refusal is said");
+    assert!(notice.contains("256 cells") && notice.contains("400"), "{notice}");
+    assert_eq!(digests(host.state()), both, "nothing was sculpted");
+    host.state_mut().studio.editor.tool.radius = radius;
+    host.state_mut().studio.editor.scene.layers[0].transform.scale = cell;
+    // The palette is the room's: its materials are not edited here.
+    assert!(host.query_by_label("material name").is_none(), "the material editor is hidden in a room");
     // A structure change is refused in a room, with how to get out.
     host.get_by_label("Add").click();
     frames(&mut host);
@@ -283,6 +308,13 @@ fn a_wrong_token_is_said_and_leaves_the_scene_alone() {
         assert!(start.elapsed() < Duration::from_secs(30), "{}", guest.state().studio.status());
         std::thread::sleep(Duration::from_millis(10));
     }
+    // Until the room's scene arrives, the scene on screen is not sculpted (a stroke on it
+    // would go into the room's).
+    let mut nobody = harness("nobody", default_scene());
+    guest.state_mut().studio.editor.tool.radius = 2.5;
+    stroke(&mut guest, &mut nobody, egui::pos2(640.0, 400.0), 4);
+    assert_eq!(digests(guest.state()), before, "a stroke before the room's scene changed nothing");
+    assert!(guest.state().studio.message.contains("Waiting for room"), "{}", guest.state().studio.message);
     guest.get_by_label("Leave session").click();
     frames(&mut guest);
     assert!(guest.state().studio.collab.is_none());

@@ -10,8 +10,9 @@
 use std::collections::VecDeque;
 
 /// How many of our own ordered operations a replica keeps for redo (the room keeps no more
-/// than its tail for undo).
+/// than its tail for undo), and how many dabs in them at most (about 100 bytes each).
 const MINE_KEPT: usize = 4096;
+const MINE_DABS: usize = 1 << 18;
 
 /// How many undone strokes a replica keeps for redo.
 const REDO_KEPT: usize = 64;
@@ -99,8 +100,11 @@ pub struct Replica {
     /// Whether the pending operations are taken back (while the room's operations of one step
     /// are applied: they are put back once, at the end of the step).
     rewound: bool,
-    /// Our newest operations the room ordered (at most [`MINE_KEPT`]), for redo.
+    /// Our newest operations the room ordered (at most [`MINE_KEPT`] and [`MINE_DABS`]), for
+    /// redo.
     mine: VecDeque<(Seq, EditOp)>,
+    /// The dabs in `mine`.
+    mine_dabs: usize,
     /// Our strokes the room undid, newest last: what redo makes again.
     redo: Vec<Vec<EditOp>>,
 }
@@ -259,8 +263,11 @@ impl Replica {
                 self.key = Some(key);
                 if self.client != Some(client) {
                     // A new identity: nothing of ours was ordered under it; renumber what is
-                    // pending from 1.
+                    // pending from 1. What we could redo referred to the old one's entries.
                     self.client = Some(client);
+                    self.mine.clear();
+                    self.mine_dabs = 0;
+                    self.redo.clear();
                     for (k, p) in self.pending.iter_mut().enumerate() {
                         p.number = k as u64 + 1;
                     }
@@ -394,9 +401,11 @@ impl Replica {
 
     /// Keeps our operation ordered at `seq` for redo.
     fn keep_mine(&mut self, seq: Seq, op: EditOp) {
+        self.mine_dabs += op.dabs.len();
         self.mine.push_back((seq, op));
-        if self.mine.len() > MINE_KEPT {
-            self.mine.pop_front();
+        while self.mine.len() > MINE_KEPT || self.mine_dabs > MINE_DABS {
+            let Some((_, old)) = self.mine.pop_front() else { break };
+            self.mine_dabs -= old.dabs.len();
         }
     }
 
@@ -410,6 +419,7 @@ impl Replica {
             }
             !hit
         });
+        self.mine_dabs = self.mine.iter().map(|(_, op)| op.dabs.len()).sum();
         // (A stroke only partly kept here cannot be made again whole.)
         if stroke.len() == of.len() && !stroke.is_empty() {
             stroke.sort_by_key(|(seq, _)| *seq);
@@ -466,8 +476,12 @@ impl Replica {
         // A stroke in progress ends here (its operations so far are pending; the next frame
         // starts a new stroke, undone on its own).
         editor.end_stroke();
-        let (tool, active) = (editor.tool, editor.active_layer);
+        let (mut tool, active) = (editor.tool, editor.active_layer);
         editor.set_scene(loaded.scene);
+        // (A material the room's palette lacks would make every stroke fail.)
+        if tool.material as usize >= editor.scene.materials.len() {
+            tool.material = 0;
+        }
         editor.tool = tool;
         editor.active_layer = active.min(editor.scene.layers.len().saturating_sub(1));
         for p in self.pending.iter_mut() {

@@ -193,16 +193,19 @@ impl Session {
         self.welcomes
     }
 
-    /// Redoes our stroke the room undid last (see [`Replica::redo`]) and sends it at once.
-    pub fn redo(&mut self, editor: &mut Editor) -> Result<Vec<Event>, String> {
+    /// Redoes our stroke the room undid last (see [`Replica::redo`]) and sends it at once;
+    /// returns what happened meanwhile, and whether the redo was made (or why not).
+    pub fn redo(&mut self, editor: &mut Editor) -> (Vec<Event>, Result<(), String>) {
         if self.state != SessionState::InRoom {
-            return Err("not in the room: nothing can be redone until the connection is back".into());
+            return (Vec::new(), Err("not in the room: nothing can be redone until the connection is back".into()));
         }
         // (What the editor made before is taken first: new work forgets what could be redone.)
         let mut events = self.handle(editor, Vec::new());
-        self.replica.redo(editor)?;
-        events.extend(self.handle(editor, Vec::new()));
-        Ok(events)
+        let done = self.replica.redo(editor);
+        if done.is_ok() {
+            events.extend(self.handle(editor, Vec::new()));
+        }
+        (events, done)
     }
 
     /// Where the session is.

@@ -141,6 +141,11 @@ impl StudioApp {
 
     /// Opens a scene file (dropped or recent), asking first about unsaved changes.
     pub(super) fn open_file(&mut self, ctx: &egui::Context, path: PathBuf) {
+        // (Refused before the unsaved-changes question, which would be asked for nothing.)
+        if let Err(e) = self.studio.refuse_in_session("open a scene") {
+            self.studio.fail(e);
+            return;
+        }
         self.open_next = Some(path);
         self.guard(ctx, Then::OpenFile);
     }

@@ -36,7 +36,12 @@ impl StudioApp {
         if let Some(layer) = self.studio.editor.scene.layers.get_mut(active) {
             ui.horizontal(|ui| {
                 let label = ui.label("Name");
-                edited |= ui.text_edit_singleline(&mut layer.name).labelled_by(label.id).changed();
+                // (In a shared room names are the room's: a local rename would not be seen.)
+                let shared = self.studio.collab.is_some();
+                edited |= ui
+                    .add_enabled(!shared, egui::TextEdit::singleline(&mut layer.name))
+                    .labelled_by(label.id)
+                    .changed();
             });
         }
         // Move, turn (about the vertical) and scale the layer; a drag is one undo step.

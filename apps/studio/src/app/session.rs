@@ -17,9 +17,10 @@ pub(super) struct SessionDialog {
     error: Option<String>,
 }
 
-/// A colour of its own for each person in a room (hues spread by the golden ratio).
+/// A colour of its own for each person in a room: a hue from the id's bits mixed by the
+/// golden ratio (Fibonacci hashing), so that ids close together get hues far apart.
 pub(super) fn peer_colour(client: strata_net::protocol::ClientId) -> egui::Color32 {
-    let hue = (client as f32 * 0.618_034).fract();
+    let hue = (client.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f32 / (1u64 << 24) as f32;
     egui::ecolor::Hsva::new(hue, 0.75, 0.95, 1.0).into()
 }
 
@@ -35,7 +36,12 @@ impl StudioApp {
     pub(super) fn open_session_dialog(&mut self, ctx: &egui::Context, host: bool) {
         let params = match &self.session_params {
             Some(p) if !host => p.clone(),
-            Some(p) => SessionParams { address: SessionParams::suggested(true).address, ..p.clone() },
+            // A new room gets a new token: someone still trying to reconnect to the last one
+            // must not land in this one.
+            Some(p) => {
+                let fresh = SessionParams::suggested(true);
+                SessionParams { address: fresh.address, token: fresh.token, ..p.clone() }
+            }
             None => SessionParams::suggested(host),
         };
         self.session_dialog = Some(SessionDialog { host, params, focused: false, error: None });
@@ -176,5 +182,17 @@ impl StudioApp {
                 colour,
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn people_get_colours_of_their_own_even_with_ids_close_together() {
+        let colours: std::collections::HashSet<_> = (1..=64u64).map(super::peer_colour).collect();
+        assert!(colours.len() >= 60, "{} colours for 64 people", colours.len());
+        let random: std::collections::HashSet<_> =
+            (1..=64u64).map(|i| super::peer_colour(i.wrapping_mul(0x2545_f491_4f6c_dd1d))).collect();
+        assert!(random.len() >= 60, "{} colours for 64 people", random.len());
     }
 }

@@ -167,7 +167,9 @@ impl StudioApp {
                 ui.selectable_value(current, i as u8, text).on_hover_text("Add, clay and paint use this material");
             }
         });
-        if let Some(m) = palette.get_mut(*current as usize) {
+        // (In a shared room the palette is the room's: its materials are not edited here.)
+        let shared = self.studio.collab.is_some();
+        if let Some(m) = palette.get_mut(*current as usize).filter(|_| !shared) {
             ui.horizontal(|ui| {
                 let label = ui.label("material name");
                 changed |= ui.text_edit_singleline(&mut m.name).labelled_by(label.id).changed();

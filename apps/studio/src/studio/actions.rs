@@ -27,12 +27,7 @@ impl Studio {
         }
         match action {
             Action::HostSession(params) => return self.host_session(params),
-            Action::JoinSession(params) => {
-                self.join_session(params)?;
-                // The scene is the room's from now on, in no file of this machine's.
-                self.path = None;
-                return Ok(());
-            }
+            Action::JoinSession(params) => return self.join_session(params),
             Action::LeaveSession => return self.leave_session(),
             Action::Undo if self.in_session() => return self.undo_in_session(),
             Action::Redo if self.in_session() => return self.redo_in_session(),

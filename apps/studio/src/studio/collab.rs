@@ -169,8 +169,15 @@ impl Studio {
         self.editor.end_stroke();
         let camera = self.camera;
         self.editor.scene.view = strata_viewport::view_of(&camera);
-        let session = Session::host(&format!("ws://{local}"), &p.room, &p.token, &p.name, &self.editor.scene)
-            .map_err(|e| format!("Could not start the session: {e}"))?;
+        let session = match Session::host(&format!("ws://{local}"), &p.room, &p.token, &p.name, &self.editor.scene) {
+            Ok(s) => s,
+            Err(e) => {
+                // (The server holds the log open: it stops first.)
+                drop(server);
+                let _ = std::fs::remove_file(&store);
+                return Err(format!("Could not start the session: {e}"));
+            }
+        };
         self.message = format!("Hosting room {:?} at {share}: the others join with its token", p.room);
         self.collab = Some(Collab {
             session,
@@ -224,6 +231,17 @@ impl Studio {
         let Some(mut c) = self.collab.take() else { return Err("Not in a session".into()) };
         // What was sculpted since the last frame goes out first.
         c.session.poll(&mut self.editor);
+        // Operations the room has not confirmed may not have reached it (a connection down, a
+        // room that had no time to answer): wait a moment for them, then say what stays here.
+        let until = std::time::Instant::now() + std::time::Duration::from_millis(500);
+        while c.session.replica().pending() > 0 && *c.session.state() == SessionState::InRoom {
+            let left = until.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            c.session.wait(&mut self.editor, left);
+        }
+        let unsent = c.session.replica().pending();
         self.editor.record_ops(false);
         self.editor.clear_history();
         let hosting = c.hosting();
@@ -234,6 +252,11 @@ impl Studio {
         } else {
             format!("Left room {room:?}: the scene stays here")
         };
+        if unsent > 0 {
+            self.fail(format!(
+                "Left room {room:?} with {unsent} operations the room had not confirmed: they stay in this scene but may be missing from the room's"
+            ));
+        }
         Ok(())
     }
 
@@ -255,9 +278,10 @@ impl Studio {
             self.message = "Nothing to redo".into();
             return Ok(());
         }
-        let events = c.session.redo(&mut self.editor).map_err(|e| format!("Could not redo: {e}"))?;
-        self.message = "Redone (sent to the room)".into();
+        let (events, done) = c.session.redo(&mut self.editor);
         self.session_events(events);
+        done.map_err(|e| format!("Could not redo: {e}"))?;
+        self.message = "Redone (sent to the room)".into();
         Ok(())
     }
 
@@ -301,6 +325,8 @@ impl Studio {
                         // A joiner looks at the room's scene as its host saved the view.
                         c.framed = true;
                         self.camera = strata_viewport::camera_of(&self.editor.scene.view);
+                        // The scene is the room's from now on, in no file of this machine's.
+                        self.path = None;
                         self.message = format!("Received room {:?}'s scene", c.params.room);
                     }
                     self.line_start = None;

@@ -39,6 +39,29 @@ impl Studio {
     /// hit) while a button is held; a stroke keeps its depth when it leaves the surface.
     pub fn pointer(&mut self, ndc: Option<(f32, f32)>, buttons: Buttons, pressure: f64, aspect: f32, budget: Duration) {
         self.update_lod();
+        // Joining a room: the scene on screen is about to be replaced by the room's, and a
+        // stroke on it would be sent into the room's.
+        let held = buttons.primary || buttons.secondary;
+        if let Some(c) = self.collab.as_ref().filter(|c| !c.session.replica().has_scene()) {
+            if held && !self.prev_held {
+                self.message = format!("Waiting for room {:?}'s scene before sculpting…", c.params.room);
+            }
+            self.prev_held = held;
+            self.hover = None;
+            return;
+        }
+        // A dab the room would refuse is not made (in a room every dab is made in the frame:
+        // one over the room's limit would hold the window, then be taken back).
+        if held && let Some(cells) = self.over_room_radius(pressure) {
+            if !self.prev_held {
+                self.fail(format!(
+                    "In a shared room a brush may reach {} cells of its layer at most (this one reaches {cells:.0}): make it smaller",
+                    strata_net::Limits::default().max_radius_cells
+                ));
+            }
+            self.prev_held = held;
+            return;
+        }
         // Holding Shift smooths, whatever the tool; Ctrl or Alt inverts it (the sculptors'
         // conventions): the pose says so, the tool and the buttons stay as they are.
         let modifiers = Modifiers { inverted: self.inverse_held, smooth: self.smooth_held };
@@ -50,6 +73,15 @@ impl Studio {
             self.pointer_with_tool(ndc, buttons, modifiers, pressure, aspect, budget);
         }
         self.prev_held = buttons.primary || buttons.secondary;
+    }
+
+    /// In a room, the radius in cells of the surface the tools edit when it is over the room's
+    /// limit.
+    fn over_room_radius(&self, pressure: f64) -> Option<f64> {
+        self.collab.as_ref()?;
+        let scale = self.editor.surface(self.editor.active_surface())?.transform().scale;
+        let cells = self.editor.tool.radius_at(pressure) / scale;
+        (cells > strata_net::Limits::default().max_radius_cells).then_some(cells)
     }
 
     /// Tells the editor where the camera is, for level of detail (when the view changed).
