@@ -126,7 +126,22 @@ impl TerrainMode {
         Ok(Self::around(world, viewer, materials))
     }
 
+    /// Terrain mode on a world an editor already holds (one that arrived from a shared room):
+    /// above the ground at the origin, with no scene waiting.
+    pub fn viewing(world: &World) -> Self {
+        Self::mode_at(world, None)
+    }
+
     fn around(world: World, viewer: Option<[f64; 5]>, materials: Vec<Material>) -> (Self, Editor) {
+        let mode = Self::mode_at(&world, viewer);
+        let mut editor = Editor::on_world(world, materials);
+        // The tools start as a dig: erase with a ball (Ctrl raises, Shift smooths).
+        editor.tool.kind = ToolKind::Erase;
+        editor.tool.radius = WORLD_BRUSH_RADIUS;
+        (mode, editor)
+    }
+
+    fn mode_at(world: &World, viewer: Option<[f64; 5]>) -> Self {
         let (eye, yaw, pitch) = match viewer {
             Some([x, y, z, yaw, pitch]) => (DVec3::new(x, y, z), yaw, pitch),
             None => {
@@ -136,11 +151,7 @@ impl TerrainMode {
                 (DVec3::new(0.0, ground + 24.0, 0.0), -std::f64::consts::FRAC_PI_2, 0.25)
             }
         };
-        let mut editor = Editor::on_world(world, materials);
-        // The tools start as a dig: erase with a ball (Ctrl raises, Shift smooths).
-        editor.tool.kind = ToolKind::Erase;
-        editor.tool.radius = WORLD_BRUSH_RADIUS;
-        let mode = TerrainMode {
+        TerrainMode {
             eye,
             yaw,
             pitch,
@@ -151,8 +162,7 @@ impl TerrainMode {
             craters: 0,
             scene: None,
             seed: 0x9E37_79B9_7F4A_7C15,
-        };
-        (mode, editor)
+        }
     }
 
     /// Streams and meshes until everything in view is loaded and meshed, or `timeout` passes;

@@ -319,3 +319,97 @@ fn a_wrong_token_is_said_and_leaves_the_scene_alone() {
     frames(&mut guest);
     assert!(guest.state().studio.collab.is_none());
 }
+
+/// Steps `h` until its world has streamed in and is meshed, looking down at the ground.
+fn settle_world(h: &mut H, other: &mut H) {
+    h.state_mut().studio.terrain.as_mut().unwrap().pitch = 1.2;
+    let start = Instant::now();
+    loop {
+        h.step();
+        other.step();
+        let s = &h.state().studio;
+        let w = s.editor.world().unwrap();
+        if w.loaded_count() > 50 && w.pending_count() == 0 && s.editor.pending() == 0 {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "the world did not settle: {}", s.status());
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn world_chunks(app: &StudioApp) -> Vec<(strata_volume::ChunkKey, strata_terrain::StoredChunk)> {
+    app.studio.editor.world().expect("a world").edited_chunks().unwrap()
+}
+
+#[test]
+fn a_world_is_hosted_joined_and_dug_together() {
+    let dir = std::env::temp_dir().join(format!("strata-session-{}-world", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut host = harness("world-host", default_scene());
+    frames(&mut host);
+    // Terrain > New world…, a typed path.
+    host.get_by_label("Terrain").click();
+    frames(&mut host);
+    host.get_by_label("New world…").click();
+    frames(&mut host);
+    type_keys(&mut host, &dir.join("shared.world").display().to_string());
+    host.key_press(egui::Key::Enter);
+    frames(&mut host);
+    assert!(host.state().studio.terrain.is_some(), "{}", host.state().studio.message);
+    session_dialog(
+        &mut host,
+        "Host session…",
+        &[("Listen on", "127.0.0.1:0"), ("Room", "valley"), ("Token", "t"), ("Your name", "Ana")],
+        "Host",
+    );
+    let url = host.state().studio.collab.as_ref().expect("hosting").share.clone();
+    assert!(
+        host.state().studio.editor.world().is_some_and(strata_editor::room::is_shareable),
+        "the world is shared at one level"
+    );
+    let mut guest = harness("world-guest", default_scene());
+    frames(&mut guest);
+    session_dialog(
+        &mut guest,
+        "Join session…",
+        &[("Server", &url), ("Room", "valley"), ("Token", "t"), ("Your name", "Ben")],
+        "Join",
+    );
+    settle(&mut host, &mut guest, "both in the room", |a, b| in_room(a) && in_room(b));
+    assert!(guest.state().studio.terrain.is_some(), "the guest flies through the room's world");
+    assert!(guest.state().studio.editor.world().unwrap().store().is_none(), "kept in memory at the guest's");
+    settle_world(&mut host, &mut guest);
+    settle_world(&mut guest, &mut host);
+    let generated = world_chunks(host.state());
+    // The host digs; the guest's world gets the same chunks.
+    stroke(&mut host, &mut guest, egui::pos2(640.0, 400.0), 6);
+    settle(&mut host, &mut guest, "the host's dig at the guest's", |a, b| {
+        let idle = |s: &StudioApp| s.studio.collab.as_ref().is_some_and(|c| c.session.replica().pending() == 0);
+        idle(a) && idle(b) && world_chunks(a) == world_chunks(b)
+    });
+    assert!(world_chunks(host.state()) != generated, "the drag dug: {}", host.state().studio.message);
+    // Bombs are refused in a room (a crater is not an operation the room replays).
+    host.key_press(egui::Key::B);
+    frames(&mut host);
+    assert!(host.state().studio.terrain.as_ref().unwrap().projectiles.is_empty());
+    assert!(host.state().studio.message.contains("bombs"), "{}", host.state().studio.message);
+    host.state_mut().studio.notice = None;
+    // The guest undoes nothing of the host's; the host's undo takes the dig back everywhere.
+    host.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    frames(&mut host);
+    settle(&mut host, &mut guest, "the host's undo at the guest's", |a, b| {
+        world_chunks(a) == generated && world_chunks(b) == generated
+    });
+    // The guest leaves and closes the room's world: back to a scene.
+    guest.get_by_label("Leave session").click();
+    frames(&mut guest);
+    guest.get_by_label("Terrain").click();
+    frames(&mut guest);
+    guest.get_by_label("Close world").click();
+    frames(&mut guest);
+    assert!(guest.state().studio.terrain.is_none() && guest.state().studio.editor.world().is_none());
+    assert_eq!(guest.state().studio.editor.scene.layers.len(), 1, "a fresh scene");
+    host.get_by_label("Close the room").click();
+    frames(&mut host);
+}

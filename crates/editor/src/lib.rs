@@ -18,6 +18,7 @@ mod lod;
 pub mod op;
 mod pick;
 mod pose;
+pub mod room;
 mod scene;
 mod stroke;
 pub mod target;

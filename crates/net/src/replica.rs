@@ -107,6 +107,8 @@ pub struct Replica {
     mine_dabs: usize,
     /// Our strokes the room undid, newest last: what redo makes again.
     redo: Vec<Vec<EditOp>>,
+    /// How a world that arrives in a snapshot streams here (see [`Replica::set_world_settings`]).
+    world_settings: Option<strata_terrain::WorldSettings>,
 }
 
 impl Replica {
@@ -138,6 +140,13 @@ impl Replica {
     /// Whether the room's scene is here (a snapshot arrived since the replica was made).
     pub fn has_scene(&self) -> bool {
         self.based
+    }
+
+    /// How a world that arrives in a snapshot (the room holds one, the editor does not) streams
+    /// here; without this, as [`strata_terrain::WorldSettings::default`] says (at one level either
+    /// way: see [`strata_editor::room`]).
+    pub fn set_world_settings(&mut self, settings: strata_terrain::WorldSettings) {
+        self.world_settings = Some(settings);
     }
 
     /// Whether there is an undone stroke of ours to redo.
@@ -460,11 +469,13 @@ impl Replica {
         }
     }
 
-    /// The room's snapshot replaces the scene; pending work the room has not ordered is put
-    /// back on top of it.
+    /// The room's snapshot replaces the scene (or the world's edited chunks); pending work
+    /// the room has not ordered is put back on top of it. A snapshot of another kind than the
+    /// editor holds (a world where it holds a scene, or the other way) gives the editor the
+    /// room's content and drops what was pending (it was made on something else).
     fn snapshot(&mut self, editor: &mut Editor, seq: Seq, acked: u64, scene: &[u8], step: &mut Step) {
-        let loaded = match strata_editor::file::decode(scene) {
-            Ok(l) => l,
+        let content = match strata_editor::room::decode(scene) {
+            Ok(c) => c,
             Err(e) => {
                 step.events.push(Event::OutOfStep(format!("the room's snapshot cannot be read: {e}")));
                 return;
@@ -477,7 +488,33 @@ impl Replica {
         // starts a new stroke, undone on its own).
         editor.end_stroke();
         let (mut tool, active) = (editor.tool, editor.active_layer);
-        editor.set_scene(loaded.scene);
+        match editor.load_room(&content) {
+            Ok(true) => {}
+            Ok(false) => {
+                let settings = editor
+                    .world()
+                    .map(|w| w.settings().clone())
+                    .or_else(|| self.world_settings.clone())
+                    .unwrap_or_default();
+                match strata_editor::room::editor_for(content, settings) {
+                    Ok(mut fresh) => {
+                        fresh.record_ops(true);
+                        *editor = fresh;
+                        for _ in self.pending.drain(..) {
+                            step.events.push(Event::Refused("made before the room's content arrived".into()));
+                        }
+                    }
+                    Err(e) => {
+                        step.events.push(Event::OutOfStep(format!("the room's snapshot cannot be opened: {e}")));
+                        return;
+                    }
+                }
+            }
+            Err(e) => {
+                step.events.push(Event::OutOfStep(format!("the room's snapshot cannot be loaded: {e}")));
+                return;
+            }
+        }
         // (A material the room's palette lacks would make every stroke fail.)
         if tool.material as usize >= editor.scene.materials.len() {
             tool.material = 0;

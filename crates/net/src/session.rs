@@ -70,8 +70,14 @@ impl Session {
     /// how a session is hosted.
     pub fn host(url: &str, room: &str, token: &str, name: &str, scene: &Scene) -> Result<Session, String> {
         let bytes = strata_editor::file::encode(scene).map_err(|e| e.to_string())?;
+        Session::host_snapshot(url, room, token, name, bytes)
+    }
+
+    /// [`Session::host`] with the room's content as a snapshot ([`strata_editor::room::encode`]:
+    /// a scene, or a world).
+    pub fn host_snapshot(url: &str, room: &str, token: &str, name: &str, snapshot: Vec<u8>) -> Result<Session, String> {
         let mut s = Session::join(url, room, token, name).map_err(|e| e.to_string())?;
-        s.create = Some(bytes);
+        s.create = Some(snapshot);
         Ok(s)
     }
 
@@ -221,6 +227,11 @@ impl Session {
     /// The others in the room: name and brush.
     pub fn peers(&self) -> impl Iterator<Item = (ClientId, &str, &Presence)> {
         self.peers.iter().filter(|(c, _)| Some(**c) != self.replica.client()).map(|(c, (n, p))| (*c, n.as_str(), p))
+    }
+
+    /// How a world that arrives from the room streams here (see [`Replica::set_world_settings`]).
+    pub fn set_world_settings(&mut self, settings: strata_terrain::WorldSettings) {
+        self.replica.set_world_settings(settings);
     }
 
     /// The replica (sequence, pending work).

@@ -147,6 +147,12 @@ pub fn client_of(key: &ResumeKey) -> ClientId {
     u64::from_le_bytes(d[..8].try_into().expect("8 bytes"))
 }
 
+/// How a room's own world streams: it never moves a viewer, so it loads what edits reach and
+/// keeps it; one worker thread (the room's thread does the edits).
+fn room_world_settings() -> strata_terrain::WorldSettings {
+    strata_terrain::WorldSettings { threads: 1, ..strata_terrain::WorldSettings::default() }
+}
+
 /// SHA-256 of a token.
 pub fn token_hash(token: &str) -> [u8; 32] {
     Sha256::digest(token.as_bytes()).into()
@@ -155,11 +161,12 @@ pub fn token_hash(token: &str) -> [u8; 32] {
 impl Room {
     /// The room as stored: its snapshot with the logged operations replayed.
     pub fn open(name: &str, stored: StoredRoom, config: RoomConfig) -> Result<Room, RoomError> {
-        let loaded = strata_editor::file::decode(&stored.snapshot).map_err(|e| RoomError::Damaged(e.to_string()))?;
+        let content = strata_editor::room::decode(&stored.snapshot).map_err(RoomError::Damaged)?;
+        let editor = strata_editor::room::editor_for(content, room_world_settings()).map_err(RoomError::Damaged)?;
         let mut room = Room {
             name: name.to_owned(),
             token_hash: stored.token_hash,
-            editor: Editor::new(loaded.scene),
+            editor,
             config,
             seq: stored.snapshot_seq,
             clients: stored.clients.into_iter().collect(),
@@ -253,7 +260,7 @@ impl Room {
         {
             return Some(bytes.clone());
         }
-        let bytes = std::sync::Arc::new(strata_editor::file::encode(&self.editor.scene).ok()?);
+        let bytes = std::sync::Arc::new(strata_editor::room::encode(&self.editor).ok()?);
         self.encoded = Some((self.seq, bytes.clone()));
         Some(bytes)
     }

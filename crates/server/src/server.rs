@@ -446,7 +446,7 @@ fn serve_room(
                         && let Some(scene) = &hello.create
                     {
                         // A new room: its first snapshot must load.
-                        if strata_editor::file::decode(scene).is_ok() {
+                        if strata_editor::room::decode(scene).is_ok() {
                             let stored = StoredRoom {
                                 token_hash: token_hash(&hello.token),
                                 snapshot_seq: 0,

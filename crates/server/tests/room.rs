@@ -108,7 +108,12 @@ impl World {
 
 /// A room on the ball scene and `clients` recording replicas, not connected yet.
 fn unconnected(clients: usize, config: RoomConfig) -> World {
-    let scene = strata_editor::file::encode(&ball_scene()).unwrap();
+    unconnected_on(strata_editor::file::encode(&ball_scene()).unwrap(), clients, config)
+}
+
+/// A room on `scene` (a snapshot: a scene file or a world) and `clients` recording replicas
+/// on empty scenes, not connected yet.
+fn unconnected_on(scene: Vec<u8>, clients: usize, config: RoomConfig) -> World {
     let stored = StoredRoom {
         token_hash: token_hash("secret"),
         snapshot_seq: 0,
@@ -445,4 +450,115 @@ fn knowing_someones_public_id_is_not_enough_to_resume_as_them() {
     assert_eq!(w.clients[0].replica.client(), Some(victim));
     w.line(0, [-9.0, 0.0, 0.0], [-10.0, 2.0, 0.0]);
     assert!(w.undo(0).contains(&Event::Undone));
+}
+
+/// The chunks of a world editor that differ from its recipe's.
+fn world_chunks(e: &Editor) -> Vec<(strata_volume::ChunkKey, strata_terrain::StoredChunk)> {
+    e.world().expect("a world").edited_chunks().unwrap()
+}
+
+/// An editor on an in-memory world of seed 3, shared as a room streams (one level), with a
+/// trench dug along x.
+fn dug_world() -> Editor {
+    use strata_editor::room;
+    let settings = room::shared_world_settings(strata_terrain::WorldSettings { threads: 1, ..Default::default() });
+    let world = strata_terrain::World::in_memory(&strata_terrain::Recipe::with_seed(3), settings).unwrap();
+    let mut host = Editor::on_world(world, strata_editor::Scene::default().materials);
+    host.tool.kind = strata_editor::ToolKind::Erase;
+    host.tool.radius = 6.0;
+    host.line_stroke([0.0, 0.0, 0.0].into(), [20.0, 0.0, 0.0].into(), 1.0, Default::default()).unwrap();
+    host
+}
+
+#[test]
+fn replicas_of_a_shared_world_converge_through_drops_resumes_undos_and_redos() {
+    let host = dug_world();
+    let dug = world_chunks(&host);
+    assert!(!dug.is_empty());
+    let snapshot = strata_editor::room::encode(&host).unwrap();
+    for seed in 1..=3u64 {
+        let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+        let config = RoomConfig { hash_every: 8, tail: 24, ..RoomConfig::default() };
+        let mut w = unconnected_on(snapshot.clone(), 3, config);
+        for i in 0..3 {
+            w.connect(i);
+        }
+        w.settle();
+        for c in &w.clients {
+            assert!(world_chunks(&c.editor) == dug, "a joiner holds the room's world");
+        }
+        for _ in 0..120 {
+            let i = rng.below(3) as usize;
+            match rng.below(10) {
+                0..=2 => {
+                    random_stroke(&mut w.clients[i].editor, &mut rng);
+                    w.pump_down(i, 0);
+                }
+                3 if rng.chance(0.3) && w.clients[i].conn.is_some() => {
+                    w.pump_down(i, 0);
+                    w.clients[i].up.push_back(ClientMsg::Undo);
+                }
+                4 if w.clients[i].replica.can_redo() => {
+                    let c = &mut w.clients[i];
+                    c.replica.redo(&mut c.editor).unwrap();
+                    w.pump_down(i, 0);
+                }
+                3..=5 => w.pump_up(i, 1 + rng.below(4) as usize),
+                6..=8 => w.pump_down(i, 1 + rng.below(6) as usize),
+                _ => {
+                    if w.clients[i].conn.is_some() {
+                        w.drop_connection(i);
+                    } else {
+                        w.connect(i);
+                    }
+                }
+            }
+        }
+        for i in 0..3 {
+            if w.clients[i].conn.is_none() {
+                w.connect(i);
+            }
+        }
+        w.settle();
+        let expected = world_chunks(w.room.editor());
+        assert!(expected != dug, "seed {seed}: the clients' strokes changed the world");
+        for (i, c) in w.clients.iter().enumerate() {
+            assert_eq!(c.replica.seq(), w.room.seq(), "seed {seed}: client {i} is behind");
+            assert!(world_chunks(&c.editor) == expected, "seed {seed}: client {i}'s world differs from the room's");
+        }
+    }
+}
+
+#[test]
+fn a_world_snapshot_that_is_damaged_or_breaks_its_rules_is_refused() {
+    use strata_editor::room;
+    let good = room::encode(&dug_world()).unwrap();
+    let room::RoomContent::World(content) = room::decode(&good).unwrap() else { panic!("a world") };
+    let framed = |c: &room::WorldContent| {
+        let mut bytes = room::WORLD_MAGIC.to_vec();
+        bytes.extend_from_slice(&1u32.to_le_bytes());
+        bytes.extend(postcard::to_allocvec(c).unwrap());
+        bytes
+    };
+    assert!(matches!(room::decode(&framed(&content)), Ok(room::RoomContent::World(_))));
+    // A chunk listed twice.
+    let mut twice = content.clone();
+    twice.chunks.push(twice.chunks[0].clone());
+    assert!(room::decode(&framed(&twice)).unwrap_err().contains("twice"));
+    // No palette.
+    let mut bare = content.clone();
+    bare.materials.clear();
+    assert!(room::decode(&framed(&bare)).is_err());
+    // Truncated, and of another version.
+    assert!(room::decode(&good[..good.len() / 2]).is_err());
+    let mut other = good.clone();
+    other[8] = 9;
+    assert!(room::decode(&other).unwrap_err().contains("version"));
+    // A world that makes finer chunks near its viewer is not shared.
+    let fine = strata_terrain::World::in_memory(
+        &strata_terrain::Recipe::with_seed(3),
+        strata_terrain::WorldSettings { threads: 1, detail_distance: 32.0, ..Default::default() },
+    )
+    .unwrap();
+    assert!(room::encode(&Editor::on_world(fine, strata_editor::Scene::default().materials)).is_err());
 }

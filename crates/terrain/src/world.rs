@@ -748,6 +748,67 @@ impl World {
         Ok(count)
     }
 
+    /// Every chunk that differs from what the recipe generates at the base level (edited here,
+    /// read from the database, or kept aside after eviction), with its contents, by key: what a
+    /// shared room's snapshot of the world holds. A chunk edited back to what the recipe makes
+    /// is left out, so worlds with the same chunks give the same list whatever was flushed.
+    pub fn edited_chunks(&self) -> Result<Vec<(ChunkKey, StoredChunk)>, WorldError> {
+        let mut out: KeyMap<StoredChunk> = KeyMap::default();
+        for &k in self.edited.iter().chain(self.dirty.iter()) {
+            if self.loaded.contains(&k) {
+                let stored = StoredChunk {
+                    chunk: self.volume.chunk(k).cloned(),
+                    materials: self.volume.chunk_materials(k).cloned(),
+                };
+                out.insert(k, stored);
+            }
+        }
+        for (k, s) in &self.evicted_dirty {
+            out.entry(*k).or_insert_with(|| s.clone());
+        }
+        // The file's edited chunks not in memory (those in memory were read from it and are
+        // marked edited: they are above, with any change since).
+        if let Some(store) = &self.store {
+            for k in store.edited_keys()? {
+                if !out.contains_key(&k)
+                    && let Some(stored) = store.read(k)?
+                {
+                    out.insert(k, stored);
+                }
+            }
+        }
+        let mut list: Vec<(ChunkKey, StoredChunk)> = out
+            .into_iter()
+            .filter(|(k, s)| {
+                let g = generate_chunk(*k, self.level, &*self.field);
+                !(s.chunk == g.chunk && s.materials == g.materials)
+            })
+            .collect();
+        list.sort_by_key(|(k, _)| *k);
+        Ok(list)
+    }
+
+    /// Makes the world's edited chunks exactly `chunks` (a shared room's snapshot): chunks
+    /// edited here and not in it go back to what the recipe generates at the base level; those
+    /// in it take its contents. Both are marked edited (written at the next flush).
+    pub fn replace_edited(&mut self, chunks: Vec<(ChunkKey, StoredChunk)>) -> Result<(), WorldError> {
+        let mut want: KeyMap<StoredChunk> = chunks.into_iter().collect();
+        for (k, _) in self.edited_chunks()? {
+            want.entry(k).or_insert_with(|| {
+                let g = generate_chunk(k, self.level, &*self.field);
+                StoredChunk { chunk: g.chunk, materials: g.materials }
+            });
+        }
+        let keys: Vec<ChunkKey> = want.keys().copied().collect();
+        self.load_now(&keys)?;
+        let before = self.bytes_of(&keys);
+        for (k, stored) in want {
+            self.volume.put_chunk(k, stored.chunk, stored.materials);
+        }
+        self.after_change(&keys, &before);
+        Ok(())
+    }
+
     /// Sets a named note (a camera position, a counter) written in the same transaction as the
     /// next flush's chunks; read back with [`WorldStore::note`].
     pub fn set_note(&mut self, name: &str, value: Vec<u8>) {

@@ -63,6 +63,11 @@ impl Studio {
             }
             Action::SaveWorld => {
                 let t = self.terrain.as_ref().ok_or("No world is open: Terrain > New world or Open world")?;
+                if self.editor.world().is_some_and(|w| w.store().is_none()) {
+                    return Err(
+                        "This world is kept in memory here (a shared room's world): it has no file to write".into()
+                    );
+                }
                 let written = t.save(&mut self.editor).map_err(|e| format!("Could not write the world: {e}"))?;
                 self.message = format!("World written ({written} chunks)");
                 return Ok(());
@@ -270,7 +275,7 @@ impl Studio {
 
     /// Opens terrain mode on `editor`'s world: the scene's editor and camera wait in `mode`
     /// (a world already open is written and closed first).
-    fn enter_world(&mut self, mut mode: crate::terrain::TerrainMode, editor: Editor) -> Result<(), String> {
+    pub(super) fn enter_world(&mut self, mut mode: crate::terrain::TerrainMode, editor: Editor) -> Result<(), String> {
         if self.terrain.is_some() {
             self.leave_world()?;
         }
@@ -290,20 +295,26 @@ impl Studio {
 
     /// Writes the open world and goes back to the scene; returns the chunks written. (The
     /// world's history goes with it.)
-    fn leave_world(&mut self) -> Result<usize, String> {
+    pub(super) fn leave_world(&mut self) -> Result<usize, String> {
         let Some(t) = self.terrain.as_mut() else { return Ok(0) };
         self.editor.end_stroke();
         let written = t.save(&mut self.editor).map_err(|e| format!("Could not write the world: {e}"))?;
         let mut t = self.terrain.take().expect("checked");
-        if let Some(waiting) = t.scene.take() {
-            let (scene, camera) = *waiting;
-            let world = std::mem::replace(&mut self.editor, scene);
-            self.camera = camera;
-            // Materials added or recoloured on the world are the scene's palette too.
-            if world.scene.materials != self.editor.scene.materials {
-                self.editor.scene.materials = world.scene.materials.clone();
-                self.editor.touch();
+        // (A world that came from a shared room has no scene waiting: a new one then.)
+        let (scene, camera) = match t.scene.take() {
+            Some(waiting) => *waiting,
+            None => {
+                let scene = default_scene();
+                let camera = strata_viewport::camera_of(&scene.view);
+                (Editor::new(scene), camera)
             }
+        };
+        let world = std::mem::replace(&mut self.editor, scene);
+        self.camera = camera;
+        // Materials added or recoloured on the world are the scene's palette too.
+        if world.scene.materials != self.editor.scene.materials {
+            self.editor.scene.materials = world.scene.materials.clone();
+            self.editor.touch();
         }
         self.world_path = None;
         self.line_mode = false;

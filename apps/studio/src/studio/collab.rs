@@ -142,9 +142,13 @@ impl Studio {
     /// log in a file of its own, the room created with the scene as it is now, and this
     /// studio in it.
     pub(super) fn host_session(&mut self, params: SessionParams) -> Result<(), String> {
-        self.refuse_in_world("host a session")?;
         self.ready_for_session()?;
         let p = params.checked()?;
+        self.share_world_at_one_level()?;
+        self.editor.end_stroke();
+        let camera = self.camera;
+        self.editor.scene.view = strata_viewport::view_of(&camera);
+        let snapshot = strata_editor::room::encode(&self.editor).map_err(|e| format!("Could not share: {e}"))?;
         let store = std::env::temp_dir().join(format!("strata-host-{}-{}.redb", std::process::id(), fresh_token()));
         let storage = RedbStorage::open(&store).map_err(|e| format!("Could not keep the room's log: {e}"))?;
         let server = Server::start(&p.address, Arc::new(storage), ServerConfig::default()).map_err(|e| {
@@ -166,10 +170,7 @@ impl Studio {
         } else {
             server.url()
         };
-        self.editor.end_stroke();
-        let camera = self.camera;
-        self.editor.scene.view = strata_viewport::view_of(&camera);
-        let session = match Session::host(&format!("ws://{local}"), &p.room, &p.token, &p.name, &self.editor.scene) {
+        let session = match Session::host_snapshot(&format!("ws://{local}"), &p.room, &p.token, &p.name, snapshot) {
             Ok(s) => s,
             Err(e) => {
                 // (The server holds the log open: it stops first.)
@@ -198,8 +199,10 @@ impl Studio {
         self.ready_for_session()?;
         let p = params.checked()?;
         let url = ws_url(&p.address);
-        let session =
+        let mut session =
             Session::join(&url, &p.room, &p.token, &p.name).map_err(|e| format!("Could not start the session: {e}"))?;
+        // (A room may hold a world: it streams here as the studio's worlds do.)
+        session.set_world_settings(self.world_settings.clone());
         self.editor.end_stroke();
         self.message = format!("Joining room {:?} at {url}…", p.room);
         self.collab = Some(Collab {
@@ -212,6 +215,49 @@ impl Studio {
             framed: false,
         });
         Ok(())
+    }
+
+    /// A world is shared with every chunk at the base level (see [`strata_editor::room`]): an
+    /// open world that makes finer chunks near the viewer is written and opened again so.
+    fn share_world_at_one_level(&mut self) -> Result<(), String> {
+        if self.editor.world().is_none_or(strata_editor::room::is_shareable) {
+            return Ok(());
+        }
+        let path = self.world_path.clone().ok_or("The open world has no file to share from")?;
+        self.leave_world()?;
+        let settings = strata_editor::room::shared_world_settings(self.world_settings.clone());
+        let materials = self.scene_editor().scene.materials.clone();
+        let (mode, editor) = crate::terrain::TerrainMode::open(&path, settings, materials)
+            .map_err(|e| format!("Could not open the world {} again to share it: {e}", path.display()))?;
+        self.enter_world(mode, editor)?;
+        self.world_path = Some(path);
+        Ok(())
+    }
+
+    /// Terrain mode follows what the room holds: a world that arrived in a snapshot is flown
+    /// through; a scene that replaced a world goes back to scene mode.
+    fn follow_room_content(&mut self) {
+        match (self.editor.world(), self.terrain.is_some()) {
+            (Some(world), false) => {
+                let mode = crate::terrain::TerrainMode::viewing(world);
+                self.camera = mode.camera();
+                self.terrain = Some(mode);
+                self.world_path = None;
+                self.editor.tool.kind = ToolKind::Erase;
+                self.editor.tool.radius = crate::terrain::WORLD_BRUSH_RADIUS;
+                self.line_mode = false;
+                self.line_start = None;
+                self.editor.redraw_all();
+                self.message = "The room holds a world: fly with WASD, dig with the left button".into();
+            }
+            (None, true) => {
+                self.terrain = None;
+                self.world_path = None;
+                self.camera = strata_viewport::camera_of(&self.editor.scene.view);
+                self.editor.redraw_all();
+            }
+            _ => {}
+        }
     }
 
     /// Nothing may be running that a session would miss.
@@ -320,11 +366,14 @@ impl Studio {
         for e in events {
             match e {
                 Event::Snapshot => {
+                    self.follow_room_content();
                     let Some(c) = self.collab.as_mut() else { continue };
                     if !c.framed {
                         // A joiner looks at the room's scene as its host saved the view.
                         c.framed = true;
-                        self.camera = strata_viewport::camera_of(&self.editor.scene.view);
+                        if self.terrain.is_none() {
+                            self.camera = strata_viewport::camera_of(&self.editor.scene.view);
+                        }
                         // The scene is the room's from now on, in no file of this machine's.
                         self.path = None;
                         self.message = format!("Received room {:?}'s scene", c.params.room);

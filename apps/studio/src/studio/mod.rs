@@ -115,6 +115,8 @@ impl Action {
             | Action::MoveLayer(_)
             | Action::MergeDown => "change the layers",
             Action::NewWorld(..) | Action::OpenWorld(_) => "open a world",
+            Action::CloseWorld => "close the world",
+            Action::Bomb => "launch bombs (a crater is not an operation the room can replay)",
             _ => return None,
         })
     }
