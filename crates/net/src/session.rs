@@ -27,6 +27,10 @@ pub enum SessionState {
     Refused(String),
 }
 
+/// A hello the room has not answered in this long is given up: the connection is dropped and
+/// made again (an answer lost on the server's side must not leave a session joining forever).
+pub const HELLO_ANSWER_TIMEOUT: Duration = Duration::from_secs(10);
+
 /// Presence is sent at most this often.
 const PRESENCE_INTERVAL: Duration = Duration::from_millis(33);
 
@@ -46,6 +50,10 @@ pub struct Session {
     last_presence: Option<Instant>,
     /// How many times the room welcomed us.
     welcomes: u64,
+    /// When the hello of the current connection was sent, until the room answers it.
+    hello_sent: Option<Instant>,
+    /// See [`HELLO_ANSWER_TIMEOUT`].
+    hello_timeout: Duration,
 }
 
 impl Session {
@@ -63,6 +71,8 @@ impl Session {
             peers: BTreeMap::new(),
             last_presence: None,
             welcomes: 0,
+            hello_sent: None,
+            hello_timeout: HELLO_ANSWER_TIMEOUT,
         })
     }
 
@@ -112,6 +122,7 @@ impl Session {
                     let hello = self.replica.hello(&self.room, &self.token, &self.name, self.create.clone());
                     self.send(&hello);
                     self.state = SessionState::Joining;
+                    self.hello_sent = Some(Instant::now());
                 }
                 LinkEvent::Disconnected(why) => {
                     // Nothing more goes on the connection that dropped (what its messages
@@ -126,7 +137,18 @@ impl Session {
             }
         }
         out.extend(self.flush(editor, incoming));
+        if self.state != SessionState::Joining {
+            self.hello_sent = None;
+        } else if self.hello_sent.is_some_and(|t| t.elapsed() > self.hello_timeout) {
+            self.hello_sent = None;
+            self.drop_connection();
+        }
         out
+    }
+
+    /// Sets how long a hello may wait for the room's answer (see [`HELLO_ANSWER_TIMEOUT`]).
+    pub fn set_hello_timeout(&mut self, timeout: Duration) {
+        self.hello_timeout = timeout;
     }
 
     /// One replica step over `incoming`, its messages sent.

@@ -313,3 +313,33 @@ fn a_flood_is_slowed_to_the_rate_limit_while_others_are_served_with_postgres() {
     let Some(storage) = postgres() else { return };
     flood_session(storage, &fresh_room("flood"));
 }
+
+/// A server that takes WebSocket connections and never answers: a session's hello is given up
+/// after its timeout and the connection made again, instead of joining forever.
+#[test]
+fn a_hello_the_server_never_answers_is_tried_again() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("ws://{}", listener.local_addr().unwrap());
+    let accepted = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let count = accepted.clone();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            count.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            std::thread::spawn(move || {
+                if let Ok(mut ws) = tungstenite::accept(stream) {
+                    // Reads the hello and everything after it; says nothing.
+                    while ws.read().is_ok() {}
+                }
+            });
+        }
+    });
+    let mut editor = strata_editor::Editor::new(ball_scene());
+    let mut session = strata_net::Session::join(&url, "room", "token", "patient").unwrap();
+    session.set_hello_timeout(Duration::from_millis(300));
+    let start = Instant::now();
+    while accepted.load(std::sync::atomic::Ordering::SeqCst) < 3 {
+        session.wait(&mut editor, Duration::from_millis(20));
+        assert!(start.elapsed() < Duration::from_secs(20), "the unanswered hello was not tried again");
+    }
+    assert!(!session.replica().joined());
+}
