@@ -161,7 +161,12 @@ pub fn converge(members: &mut [Member], timeout: Duration) {
             "no convergence within {timeout:?}: {:?}",
             members
                 .iter()
-                .map(|m| (m.session.state().clone(), m.session.replica().seq(), m.session.replica().pending()))
+                .map(|m| (
+                    m.session.state().clone(),
+                    m.session.replica().seq(),
+                    m.session.replica().pending(),
+                    m.closed.iter().rev().take(3).cloned().collect::<Vec<_>>()
+                ))
                 .collect::<Vec<_>>()
         );
     }
