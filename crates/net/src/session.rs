@@ -113,6 +113,10 @@ impl Session {
         let mut out = Vec::new();
         let mut incoming = Vec::new();
         for e in events {
+            if self.link.is_none() {
+                // Refused: whatever the link said after (a reconnection) is moot.
+                break;
+            }
             match e {
                 LinkEvent::Message(m) => incoming.push(*m),
                 LinkEvent::Connected(n) => {
@@ -271,5 +275,47 @@ impl Session {
         if let Some(l) = &self.link {
             l.drop_connection();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::ServerMsg;
+
+    fn error(retry: bool) -> LinkEvent {
+        LinkEvent::Message(Box::new(ServerMsg::Error { reason: "no".into(), retry }))
+    }
+
+    /// A session that nothing polled for a while gets its refusal and the link's next
+    /// connection in one batch: the refusal stands (it once went back to joining, with no link
+    /// left to join on, for good).
+    #[test]
+    fn a_refusal_is_not_undone_by_a_reconnection_in_the_same_batch() {
+        let mut editor = Editor::default();
+        // (Nothing listens there: the link's own tries fail quietly.)
+        let mut s = Session::join("ws://127.0.0.1:9", "room", "token", "me").unwrap();
+        let batch = vec![
+            LinkEvent::Connected(1),
+            error(false),
+            LinkEvent::Disconnected("gone".into()),
+            LinkEvent::Connected(2),
+        ];
+        s.handle(&mut editor, batch);
+        assert_eq!(*s.state(), SessionState::Refused("no".into()));
+        assert!(s.link_state().is_none());
+    }
+
+    /// An error worth retrying leaves the session trying: the next connection says hello.
+    #[test]
+    fn an_error_worth_retrying_goes_on_to_the_next_connection() {
+        let mut editor = Editor::default();
+        let mut s = Session::join("ws://127.0.0.1:9", "room", "token", "me").unwrap();
+        let batch = vec![LinkEvent::Connected(1), error(true), LinkEvent::Disconnected("gone".into())];
+        s.handle(&mut editor, batch);
+        assert_eq!(*s.state(), SessionState::Retrying("gone".into()));
+        s.handle(&mut editor, vec![LinkEvent::Connected(2)]);
+        assert_eq!(*s.state(), SessionState::Joining);
+        assert_eq!(s.connection, 2);
     }
 }

@@ -236,8 +236,17 @@ async fn connection(stream: tokio::net::TcpStream, shared: Arc<Shared>) {
                 return;
             }
         },
-        _ => {
-            let _ = sink.send(refuse("no hello".into())).await;
+        Ok(Some(Ok(_))) => {
+            let _ = sink.send(refuse("the first message must be a binary hello".into())).await;
+            return;
+        }
+        // (The connection ended or failed before a hello: no one is left to tell.)
+        Ok(None | Some(Err(_))) => return,
+        // A client that was slow to speak (a busy machine) may well do better next time.
+        Err(_) => {
+            let why = format!("no hello within {:?}; connect again", shared.config.hello_timeout);
+            let again = Message::Binary(encode(&ServerMsg::Error { reason: why, retry: true }).into());
+            let _ = sink.send(again).await;
             return;
         }
     };

@@ -343,3 +343,25 @@ fn a_hello_the_server_never_answers_is_tried_again() {
     }
     assert!(!session.replica().joined());
 }
+
+/// A client too busy to say hello within the server's time (a machine under load, a long
+/// frame) is told to connect again, and does: it is not refused for good.
+#[test]
+fn a_client_slow_to_say_hello_is_told_to_try_again_and_gets_in() {
+    let config = ServerConfig { hello_timeout: Duration::from_millis(200), ..ServerConfig::default() };
+    let server = Server::start("127.0.0.1:0", redb("slow-hello"), config).unwrap();
+    let mut host = Member::new(&server.url(), "room", "token", "host", Some(&ball_scene()));
+    converge(std::slice::from_mut(&mut host), Duration::from_secs(30));
+    let mut slow = Member::new(&server.url(), "room", "token", "slow", None);
+    // Not polled: the link connects and the server's wait for the hello runs out.
+    std::thread::sleep(Duration::from_millis(1500));
+    let mut members = vec![host, slow];
+    converge(&mut members, Duration::from_secs(30));
+    slow = members.pop().unwrap();
+    assert!(
+        slow.closed.iter().any(|r| r.contains("no hello")),
+        "the server did not time the hello out: {:?}",
+        slow.closed
+    );
+    assert_eq!(slow.session.welcomes(), 1);
+}
