@@ -261,7 +261,13 @@ impl Volume {
         report.relevelled_chunks = wrong_level.len() - report.dropped_chunks;
         let old = std::mem::replace(
             self,
-            Volume { chunks: Default::default(), materials: Default::default(), level, cell_size: self.cell_size },
+            Volume {
+                chunks: Default::default(),
+                materials: Default::default(),
+                level,
+                cell_size: self.cell_size,
+                mask: self.mask.clone(),
+            },
         );
         // The regions that hold a stored chunk, each with the box of its stored chunks (a sparse
         // volume far from the origin costs its chunks, not the box around them).

@@ -199,6 +199,8 @@ pub struct Volume {
     pub(crate) materials: crate::material::MaterialMap,
     pub(crate) level: Level,
     pub(crate) cell_size: f64,
+    /// What the tools may not change (see [`crate::mask`]).
+    pub(crate) mask: crate::mask::Mask,
 }
 
 /// Unchecked deserialised form of [`Volume`].
@@ -208,6 +210,7 @@ struct RawVolume {
     materials: crate::material::MaterialMap,
     level: Level,
     cell_size: f64,
+    mask: crate::mask::Mask,
 }
 
 impl TryFrom<RawVolume> for Volume {
@@ -220,7 +223,7 @@ impl TryFrom<RawVolume> for Volume {
         if let Some(k) = r.materials.keys().find(|k| !r.chunks.contains_key(k)) {
             return Err(format!("materials stored for the empty chunk {:?}", k.0.to_array()));
         }
-        Ok(Volume { chunks: r.chunks, materials: r.materials, level: r.level, cell_size: r.cell_size })
+        Ok(Volume { chunks: r.chunks, materials: r.materials, level: r.level, cell_size: r.cell_size, mask: r.mask })
     }
 }
 
@@ -238,7 +241,13 @@ impl Volume {
 
     /// An empty volume whose chunks are created at `level` (`16 << level` cells per side).
     pub fn with_level(level: Level) -> Self {
-        Volume { chunks: ChunkMap::default(), materials: Default::default(), level, cell_size: 1.0 }
+        Volume {
+            chunks: ChunkMap::default(),
+            materials: Default::default(),
+            level,
+            cell_size: 1.0,
+            mask: Default::default(),
+        }
     }
 
     /// A volume holding exactly `chunks` (later entries replace earlier ones with the same key;
@@ -253,7 +262,13 @@ impl Volume {
         if !(cell_size.is_finite() && cell_size > 0.0) {
             return None;
         }
-        let mut v = Volume { chunks: ChunkMap::default(), materials: Default::default(), level, cell_size };
+        let mut v = Volume {
+            chunks: ChunkMap::default(),
+            materials: Default::default(),
+            level,
+            cell_size,
+            mask: Default::default(),
+        };
         for (key, chunk) in chunks {
             v.chunks.insert(key, chunk);
         }

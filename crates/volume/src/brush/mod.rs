@@ -16,11 +16,13 @@
 //!   each crossing by bracketing a sign change of [`Brush::field`] inside its cell; the field's
 //!   Lipschitz bound ([`Brush::lipschitz`]) lets it skip nodes that cannot be near the surface.
 
+mod masked;
 mod mesh;
 mod sdf;
 mod shapes;
 mod transform;
 
+pub(crate) use masked::Masked;
 pub use mesh::{MeshBrush, MeshError, MeshRule};
 pub use sdf::SdfBrush;
 pub use shapes::{Capsule, Cuboid, Cylinder, Sphere, Torus};

@@ -175,6 +175,15 @@ impl EditReport {
                 self.undo.materials.push((key, m));
             }
         }
+        let seen: std::collections::HashSet<ChunkKey> = self.undo.masks.keys().collect();
+        for (key, m) in later.undo.masks.chunks {
+            if !seen.contains(&key) {
+                self.undo.masks.chunks.push((key, m));
+            }
+        }
+        if self.undo.masks.outside.is_none() {
+            self.undo.masks.outside = later.undo.masks.outside;
+        }
         // A report that changed nothing reaches nothing; otherwise the union, unknown where
         // either is.
         self.reach = match (self.changed.is_empty(), later.changed.is_empty()) {
@@ -201,6 +210,8 @@ pub struct UndoRecord {
     pub(crate) previous: Vec<(ChunkKey, Option<Chunk>)>,
     /// Previous materials of the chunks whose materials changed.
     pub(crate) materials: crate::material::MaterialUndo,
+    /// What the mask was where a mask edit changed it.
+    pub(crate) masks: crate::mask::MaskUndo,
 }
 
 impl UndoRecord {
@@ -208,7 +219,11 @@ impl UndoRecord {
     pub fn keys(&self) -> impl Iterator<Item = ChunkKey> + '_ {
         let only_materials =
             self.materials.iter().map(|(k, _)| *k).filter(|k| !self.previous.iter().any(|(p, _)| p == k));
-        self.previous.iter().map(|(k, _)| *k).chain(only_materials)
+        let only_masks = self
+            .masks
+            .keys()
+            .filter(|k| !self.previous.iter().any(|(p, _)| p == k) && !self.materials.iter().any(|(m, _)| m == k));
+        self.previous.iter().map(|(k, _)| *k).chain(only_materials).chain(only_masks)
     }
 
     /// Heap bytes the record holds (for history memory budgets).
@@ -225,11 +240,12 @@ impl UndoRecord {
                 .sum::<usize>()
             + self.materials.capacity() * std::mem::size_of::<(ChunkKey, Option<crate::ChunkMaterials>)>()
             + self.materials.iter().map(|(_, m)| m.as_ref().map_or(0, crate::ChunkMaterials::heap_bytes)).sum::<usize>()
+            + self.masks.heap_bytes()
     }
 
     /// Whether the record restores nothing.
     pub fn is_empty(&self) -> bool {
-        self.previous.is_empty() && self.materials.is_empty()
+        self.previous.is_empty() && self.materials.is_empty() && self.masks.is_empty()
     }
 }
 
@@ -272,8 +288,45 @@ impl Volume {
         self.apply(CsgOp::Intersect, brush, &EditSettings::default())
     }
 
-    /// Applies one CSG edit.
+    /// Applies one CSG edit. Nodes the mask holds keep their states, and edges between two
+    /// of them their crossings (see [`crate::mask`]).
     pub fn apply(&mut self, op: CsgOp, brush: &dyn Brush, settings: &EditSettings) -> Result<EditReport, EditError> {
+        let bounds = brush.bounds();
+        if !bounds.is_valid() {
+            return Err(EditError::BadBounds);
+        }
+        if self.mask.is_clear() {
+            return self.apply_brush(op, brush, settings);
+        }
+        // An intersection empties whatever lies outside the brush: the held part anywhere must
+        // be in reach.
+        let reach = match (op, self.chunk_bounds()) {
+            (CsgOp::Intersect, Some(all)) => Aabb::new(bounds.min.min(all.min), bounds.max.max(all.max)),
+            _ => bounds,
+        };
+        let margin = DVec3::splat(1.0);
+        let sampler = match self.mask.sampler(reach.min - margin, reach.max + margin) {
+            Some(s) if s.any_held() => s,
+            _ => return self.apply_brush(op, brush, settings),
+        };
+        let masked =
+            crate::brush::Masked { inner: brush, mask: &sampler, widen: op == CsgOp::Intersect, bounds: reach };
+        self.apply_brush(op, &masked, settings)
+    }
+
+    /// The box of every stored chunk (grid units), if any.
+    fn chunk_bounds(&self) -> Option<Aabb> {
+        let keys = self.chunks.keys();
+        let (lo, hi) = keys.fold(None, |acc: Option<(IVec3, IVec3)>, k| match acc {
+            None => Some((k.0, k.0)),
+            Some((lo, hi)) => Some((lo.min(k.0), hi.max(k.0))),
+        })?;
+        let c = CHUNK_CELLS as f64;
+        Some(Aabb::new(lo.as_dvec3() * c, (hi + IVec3::ONE).as_dvec3() * c))
+    }
+
+    /// [`Volume::apply`] with the brush as it is.
+    fn apply_brush(&mut self, op: CsgOp, brush: &dyn Brush, settings: &EditSettings) -> Result<EditReport, EditError> {
         let bounds = brush.bounds();
         if !bounds.is_valid() {
             return Err(EditError::BadBounds);
@@ -386,7 +439,11 @@ impl Volume {
         let mut redo = UndoRecord {
             previous: Vec::with_capacity(record.previous.len()),
             materials: Vec::with_capacity(record.materials.len()),
+            masks: Default::default(),
         };
+        if !record.masks.is_empty() {
+            redo.masks = self.mask.restore(record.masks);
+        }
         for (key, chunk) in record.previous {
             let now = match chunk {
                 Some(c) => self.chunks.insert(key, c),

@@ -27,8 +27,9 @@ impl Volume {
     /// the coarser level does not have). Uniform and empty chunks have no level and are left as
     /// they are. A step that would break an invariant is not made and the chunk stays at the
     /// level it reached: a lowering that would leave a uniform chunk that a face neighbour's line
-    /// at the volume's level contradicts (only below the volume's level), and a raise that would
-    /// leave a neighbour it rewrites uniform. The report's undo restores the volume exactly;
+    /// at the volume's level contradicts (only below the volume's level), a raise that would
+    /// leave a neighbour it rewrites uniform, and any lowering of a chunk where the mask holds a
+    /// node (see [`crate::mask`]). The report's undo restores the volume exactly;
     /// `changed` lists the chunks whose meshes the change touches (the chunk and its 26
     /// neighbours).
     pub fn set_chunk_level(&mut self, key: ChunkKey, level: Level) -> EditReport {
@@ -56,6 +57,10 @@ impl Volume {
                 let old = self.put_built(key, built);
                 remember(self, &mut undo, key, old);
             } else if now > level {
+                // Lowering drops lines: a chunk the mask holds keeps them.
+                if self.mask_holds_chunk(key) {
+                    break;
+                }
                 let Some(built) = change::lower(self, key) else { break };
                 let old = self.put_built(key, built);
                 remember(self, &mut undo, key, old);
@@ -72,7 +77,7 @@ impl Volume {
         };
         EditReport {
             changed,
-            undo: UndoRecord { previous: undo, materials: material_undo },
+            undo: UndoRecord { previous: undo, materials: material_undo, masks: Default::default() },
             repaired_nodes: 0,
             reach: None,
         }

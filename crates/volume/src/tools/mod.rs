@@ -8,11 +8,13 @@
 
 mod deform;
 mod endpoints;
+mod mask;
 mod ops;
 mod paint;
 mod region;
 
 pub use deform::{MAX_STEP, MAX_STEPS, grab, pinch};
+pub use mask::{MaskStroke, mask};
 pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, smooth};
 pub use paint::paint;
 pub use region::{BAND, FAR, MAX_REGION_NODES, Reach, Region, RegionCrossing, RegionError};

@@ -24,7 +24,8 @@ impl Volume {
     /// Gives the solid nodes inside `brush` material `id` where `weight(node)` (grid point) beats
     /// the node's dither threshold (a fixed hash of its global position in `[0, 1)`): weight 1
     /// paints every node, weight 0 none, and a weight between paints that share of the nodes,
-    /// the same ones every time. Node states and crossings are not touched. Returns the chunks
+    /// the same ones every time; the mask scales the weight by `1 - mask weight`. Node states and
+    /// crossings are not touched. Returns the chunks
     /// whose materials changed and the record that undoes it.
     pub fn paint_where(
         &mut self,
@@ -40,6 +41,8 @@ impl Volume {
         let keys: Vec<ChunkKey> = ChunkBox::new(cmin, cmax).keys().filter(|k| self.chunks.contains_key(k)).collect();
         let mut ids = Vec::new();
         let mut updates = Vec::new();
+        // The mask takes its share off the weight (a held node is never painted).
+        let mask = self.mask_sampler(bounds.min, bounds.max);
         for key in keys {
             let level = self.level_of(key);
             let n = level.cells();
@@ -63,7 +66,7 @@ impl Volume {
                     if !bounds.contains(p) || !brush.contains(origin.as_dvec3(), local) {
                         continue;
                     }
-                    let w = weight(p);
+                    let w = weight(p) * mask.as_ref().map_or(1.0, |m| 1.0 - m.at(p));
                     if w > 0.0
                         && (w >= 1.0
                             || w > dither(origin * (1 << level.get()) + I64Vec3::new(x as i64, y as i64, z as i64)))

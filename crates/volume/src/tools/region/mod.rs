@@ -174,6 +174,31 @@ impl Region {
         &self.crossings
     }
 
+    /// The region with the operator's change at every node scaled by `1 - mask weight` there;
+    /// a node the mask protects fully is not handed to the operator (see [`crate::mask`]).
+    pub(crate) fn masked(&self, mask: &crate::mask::MaskSampler) -> Region {
+        let mut out = self.clone();
+        for z in 0..self.dims[2] {
+            for y in 0..self.dims[1] {
+                for x in 0..self.dims[0] {
+                    let i = self.index(x, y, z);
+                    if self.weight[i] <= 0.0 {
+                        continue;
+                    }
+                    let m = mask.at(self.grid_point(x, y, z));
+                    if m >= 1.0 {
+                        out.weight[i] = 0.0;
+                        out.phi[i] = self.original[i];
+                    } else if m > 0.0 {
+                        let o = self.original[i];
+                        out.phi[i] = o + ((1.0 - m) as f32) * (self.phi[i] - o);
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Whether the node at index `i` ([`Region::index`]) was inside when read.
     pub fn was_inside(&self, i: usize) -> bool {
         self.original[i] < 0.0

@@ -94,12 +94,21 @@ impl Volume {
         }
         let mut report =
             EditReport { changed: Vec::new(), undo: UndoRecord::default(), repaired_nodes: 0, reach: None };
+        let sp = region.level.spacing();
+        let far = region.origin + I64Vec3::new(region.dims[0] as i64, region.dims[1] as i64, region.dims[2] as i64);
+        let masked;
+        let region = match self.mask_sampler(region.origin.as_dvec3() * sp, far.as_dvec3() * sp) {
+            Some(mask) => {
+                masked = region.masked(&mask);
+                &masked
+            }
+            None => region,
+        };
         let (written, owned_box) = Written::new(region);
         let Some((lo, hi)) = owned_box else { return Ok(report) };
         let level = region.level;
         // Only owned nodes change, and the crossings of edges with an owned end: one cell of the
         // coarsest level around the owned box holds both ends of those edges in every chunk.
-        let sp = level.spacing();
         report.reach =
             Some(crate::edit::Reach { min: lo.as_dvec3() * sp - DVec3::ONE, max: hi.as_dvec3() * sp + DVec3::ONE });
         let n = level.cells() as i64;
