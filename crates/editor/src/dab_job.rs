@@ -85,6 +85,7 @@ impl Editor {
         self.check_editable(layer)?;
         self.check_material()?;
         let tool = self.tool_for(pose);
+        self.check_mask_target(layer, &tool)?;
         let l = &mut self.scene.layers[layer];
         let inverted = pose.inverted();
         let op = tool.kind.op(inverted);

@@ -67,6 +67,13 @@ pub enum EditorError {
         "a dab spanning {0} chunks is too large to sculpt into a streamed world (large dabs run in the background in scenes only): make the brush smaller"
     )]
     DabTooLargeForWorld(u64),
+    /// A mask tool or action on a streamed world (whose pages keep no mask).
+    #[error("masks are for scenes: a streamed world cannot hold one")]
+    MaskOnWorld,
+    /// A change that is not an operation (a whole-mask action) while the editor records
+    /// operations for a room: the others would not see it.
+    #[error("{0} cannot be shared with the room: leave the session first")]
+    NotShared(&'static str),
     /// The current material is not in the scene's palette.
     #[error("material {id} is not in the palette ({count} materials)")]
     UnknownMaterial {
@@ -75,6 +82,34 @@ pub enum EditorError {
         /// Materials in the palette.
         count: usize,
     },
+}
+
+/// A change of a layer's whole mask ([`Editor::mask_all`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaskAction {
+    /// Protect what was free and free what was protected.
+    Invert,
+    /// Free everything.
+    Clear,
+    /// Grow the masked part by a node.
+    Grow,
+    /// Shrink it by a node.
+    Shrink,
+}
+
+impl MaskAction {
+    /// Every action, in menu order.
+    pub const ALL: [MaskAction; 4] = [MaskAction::Invert, MaskAction::Clear, MaskAction::Grow, MaskAction::Shrink];
+
+    /// What the menu calls it.
+    pub fn name(self) -> &'static str {
+        match self {
+            MaskAction::Invert => "Invert mask",
+            MaskAction::Clear => "Clear mask",
+            MaskAction::Grow => "Grow mask",
+            MaskAction::Shrink => "Shrink mask",
+        }
+    }
 }
 
 /// What one frame did.
@@ -260,6 +295,49 @@ impl Editor {
         if !l.transform().is_valid() {
             return Err(EditorError::BadLayerTransform(layer));
         }
+        Ok(())
+    }
+
+    /// Refuses a mask tool on a streamed surface.
+    pub(crate) fn check_mask_target(&self, layer: usize, tool: &crate::tool::ToolSettings) -> Result<(), EditorError> {
+        if tool.kind.is_mask() && self.surface(layer).is_some_and(|s| s.streamed()) {
+            return Err(EditorError::MaskOnWorld);
+        }
+        Ok(())
+    }
+
+    /// Inverts, clears, grows or shrinks the mask of layer `layer` as one undo step, its
+    /// chunks queued for meshing (their shading changes). Refused on a world and while the
+    /// editor records operations for a room.
+    pub fn mask_all(&mut self, layer: usize, action: MaskAction) -> Result<(), EditorError> {
+        if self.records_ops() {
+            return Err(EditorError::NotShared(action.name()));
+        }
+        if self.surface(layer).is_some_and(|s| s.streamed()) {
+            return Err(EditorError::MaskOnWorld);
+        }
+        self.end_stroke();
+        let l = self.scene.layers.get_mut(layer).ok_or(EditorError::NoLayer(layer))?;
+        if l.locked {
+            return Err(EditorError::Locked(layer));
+        }
+        let mut edit = match action {
+            MaskAction::Invert => l.volume.invert_mask(),
+            MaskAction::Clear => l.volume.clear_mask(),
+            MaskAction::Grow => l.volume.grow_mask(true),
+            MaskAction::Shrink => l.volume.grow_mask(false),
+        };
+        if edit.undo.is_empty() {
+            return Ok(());
+        }
+        self.queue(layer, &edit.changed, None);
+        self.revision += 1;
+        self.history.push(HistoryEntry {
+            layer,
+            records: vec![std::mem::take(&mut edit.undo)],
+            transform: None,
+            layers: None,
+        });
         Ok(())
     }
 

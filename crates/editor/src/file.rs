@@ -6,9 +6,11 @@
 //! own CRC-32, beside the layer's metadata and its list of solid chunk keys, and frames the node
 //! materials of every chunk that has any but material 0 the same way (a postcard
 //! [`strata_volume::ChunkMaterials`]); the palette's entries carry texture, scale and roughness.
-//! Versions 3 (the same without node materials: one material per layer) and 2 (the whole scene
-//! as one postcard value) are still read: a layer's material becomes the material of its every
-//! node, and the palette's entries get the plain texture.
+//! Version 5 (written since masks) adds each layer's mask ([`strata_volume::mask`]): its weight
+//! outside the stored chunks, and every stored chunk of it framed the same way (a postcard
+//! [`strata_volume::ChunkMask`]). Versions 4 (no masks), 3 (no node materials: one material per
+//! layer) and 2 (the whole scene as one postcard value) are still read: a layer of version 2 or
+//! 3 gives its material to its every node, and the palette's entries get the plain texture.
 //!
 //! What is guaranteed:
 //! - **Never refuse what can be saved, never write what cannot be read.** [`save`] runs the
@@ -26,7 +28,8 @@
 //!   chunk of lists or else one solid entry and the report names what was dropped, materials
 //!   stored twice, for an empty chunk or not fitting their chunk are dropped (its nodes use
 //!   material 0), a volume whose lists disagree is rebuilt from its x lines ([`Volume::repair`],
-//!   which keeps chunks stored at other levels than the layer's), an invalid view is reset. A
+//!   which keeps chunks stored at other levels than the layer's), an invalid view is reset, a chunk of a mask that fails its checksum or
+//!   does not decode is dropped (its nodes take the mask's outside weight) and named. A
 //!   file whose payload checksum fails is still read chunk by chunk: chunks whose own CRC fails
 //!   are dropped and the report says so.
 //! - **Levels.** A layer stores its base level and every chunk of lists its own; any mix is
@@ -50,7 +53,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use strata_volume::{Chunk, ChunkKey, ChunkLists, ChunkMap, ChunkMaterials, Level, Volume};
+use strata_volume::{Chunk, ChunkKey, ChunkLists, ChunkMap, ChunkMask, ChunkMaterials, Level, Volume};
 use thiserror::Error;
 
 use crate::scene::{Layer, LayerTransform, Material, Scene, View};
@@ -58,7 +61,7 @@ use crate::scene::{Layer, LayerTransform, Material, Scene, View};
 /// The first eight bytes of every scene file.
 pub const MAGIC: [u8; 8] = *b"STRATA\x00S";
 /// The format version this build writes and the newest it reads.
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 /// The oldest version this build reads. Version 1 stored chunk lists with per-line start bits
 /// and unary counts (before the layout of `strata-volume`'s `ChunkLists` changed).
 pub const OLDEST_VERSION: u32 = 2;
@@ -169,6 +172,31 @@ pub struct LayerRecord {
     pub lists: Vec<ChunkRecord>,
     /// Framed [`ChunkMaterials`], one per chunk with materials.
     pub materials: Vec<ChunkRecord>,
+    /// The mask's weight outside its stored chunks (version 5).
+    pub mask_outside: u8,
+    /// Framed [`ChunkMask`]s, one per stored chunk of the mask (version 5).
+    pub masks: Vec<ChunkRecord>,
+}
+
+/// What version 4 stored per layer: the same without a mask.
+#[derive(Serialize, Deserialize)]
+struct LayerRecordV4 {
+    name: String,
+    transform: LayerTransform,
+    visible: bool,
+    locked: bool,
+    level: u8,
+    cell_size: f64,
+    solid: Vec<ChunkKey>,
+    lists: Vec<ChunkRecord>,
+    materials: Vec<ChunkRecord>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct SceneRecordV4 {
+    layers: Vec<LayerRecordV4>,
+    materials: Vec<Material>,
+    view: View,
 }
 
 /// What version 3 stored per layer: one material for the whole layer, no node materials.
@@ -394,6 +422,12 @@ pub fn scene_record(scene: &Scene) -> Result<SceneRecord, SceneFileError> {
         for (key, m) in with_materials {
             materials.push(ChunkRecord::new(key, postcard::to_allocvec(m).map_err(payload_err)?));
         }
+        let mut masks = Vec::new();
+        let mut stored: Vec<(ChunkKey, &ChunkMask)> = l.volume.mask().chunks().collect();
+        stored.sort_by_key(|(k, _)| k.0.to_array());
+        for (key, m) in stored {
+            masks.push(ChunkRecord::new(key, postcard::to_allocvec(m).map_err(payload_err)?));
+        }
         let mut chunks: Vec<(ChunkKey, &Chunk)> = l.volume.chunks().collect();
         // A canonical order: the same scene always gives the same bytes.
         chunks.sort_by_key(|(k, _)| k.0.to_array());
@@ -413,23 +447,55 @@ pub fn scene_record(scene: &Scene) -> Result<SceneRecord, SceneFileError> {
             solid,
             lists,
             materials,
+            mask_outside: l.volume.mask().outside(),
+            masks,
         });
     }
     Ok(SceneRecord { layers, materials: scene.materials.clone(), view: scene.view })
 }
 
-/// The file's bytes for a version 4 payload: `record` with the header (for tests that craft
+/// The file's bytes for a version 5 payload: `record` with the header (for tests that craft
 /// files; [`encode`] is `scene_record` then this).
 #[doc(hidden)]
 pub fn encode_record(record: &SceneRecord) -> Result<Vec<u8>, SceneFileError> {
     let payload = postcard::to_allocvec(record).map_err(|e| SceneFileError::Payload(e.to_string()))?;
+    Ok(frame(VERSION, payload))
+}
+
+/// A version 4 file of `scene` as the builds before masks wrote it (its masks left out), for
+/// tests of the reader.
+#[doc(hidden)]
+pub fn encode_version_4(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
+    let record = scene_record(scene)?;
+    let layers = record
+        .layers
+        .into_iter()
+        .map(|l| LayerRecordV4 {
+            name: l.name,
+            transform: l.transform,
+            visible: l.visible,
+            locked: l.locked,
+            level: l.level,
+            cell_size: l.cell_size,
+            solid: l.solid,
+            lists: l.lists,
+            materials: l.materials,
+        })
+        .collect();
+    let v4 = SceneRecordV4 { layers, materials: record.materials, view: record.view };
+    let payload = postcard::to_allocvec(&v4).map_err(|e| SceneFileError::Payload(e.to_string()))?;
+    Ok(frame(4, payload))
+}
+
+/// The header for `payload` of format `version`, then the payload.
+fn frame(version: u32, payload: Vec<u8>) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&version.to_le_bytes());
     out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
     out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
     out.extend_from_slice(&payload);
-    Ok(out)
+    out
 }
 
 /// The scene in `bytes`, with whatever had to be repaired (see the module docs).
@@ -500,10 +566,40 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
                     solid: l.solid,
                     lists: l.lists,
                     materials: Vec::new(),
+                    mask_outside: 0,
+                    masks: Vec::new(),
                 })
                 .collect();
             let materials = record.materials.into_iter().map(material_v3).collect();
             (scene_from_record(SceneRecord { layers, materials, view: record.view }, &mut report), fills)
+        }
+        4 => {
+            let record: SceneRecordV4 = postcard::from_bytes(payload).map_err(parse_err)?;
+            if !intact {
+                report.repairs.push(damaged.into());
+            }
+            let fills = vec![None; record.layers.len()];
+            let layers = record
+                .layers
+                .into_iter()
+                .map(|l| LayerRecord {
+                    name: l.name,
+                    transform: l.transform,
+                    visible: l.visible,
+                    locked: l.locked,
+                    level: l.level,
+                    cell_size: l.cell_size,
+                    solid: l.solid,
+                    lists: l.lists,
+                    materials: l.materials,
+                    mask_outside: 0,
+                    masks: Vec::new(),
+                })
+                .collect();
+            (
+                scene_from_record(SceneRecord { layers, materials: record.materials, view: record.view }, &mut report),
+                fills,
+            )
         }
         _ => {
             let record: SceneRecord = postcard::from_bytes(payload).map_err(parse_err)?;
@@ -613,6 +709,27 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
                 volume.set_chunk_materials(c.key, Some(m));
             }
         }
+        // The mask: a damaged chunk of it is dropped (its nodes take the outside weight), and
+        // the report says so (a mask protects work: losing part of it must not go unsaid).
+        let mut mask_chunks: Vec<(ChunkKey, ChunkMask)> = Vec::new();
+        for c in l.masks {
+            let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
+            let m = if crc32fast::hash(&c.bytes) != c.crc {
+                Err("failed its checksum".to_owned())
+            } else {
+                postcard::from_bytes::<ChunkMask>(&c.bytes).map_err(|e| format!("does not decode ({e})"))
+            };
+            match m {
+                Err(why) => report.repairs.push(format!(
+                    "layer {name:?}: the mask of chunk ({x}, {y}, {z}) {why} and was dropped; check what it protected"
+                )),
+                Ok(_) if mask_chunks.iter().any(|(k, _)| *k == c.key) => report.repairs.push(format!(
+                    "layer {name:?}: the mask of chunk ({x}, {y}, {z}) is stored more than once; the first record was read"
+                )),
+                Ok(m) => mask_chunks.push((c.key, m)),
+            }
+        }
+        volume.set_mask(strata_volume::Mask::from_parts(l.mask_outside, mask_chunks));
         layers.push(Layer { name, transform: l.transform, visible: l.visible, locked: l.locked, volume });
     }
     Scene { layers, materials: record.materials, view: record.view }

@@ -26,7 +26,7 @@ mod tool;
 mod view_meshes;
 
 pub use dab_job::DabJob;
-pub use editor::{Editor, EditorError, FrameReport, to_world};
+pub use editor::{Editor, EditorError, FrameReport, MaskAction, to_world};
 pub use history::{History, HistoryEntry, Restored};
 pub use lod::{LodView, lod_levels};
 pub use op::{DabRecord, EditOp, OpUndo, RecordedOp};

@@ -82,12 +82,14 @@ pub(crate) fn field_tool_dab(
     inverted: bool,
     direction: Option<DVec3>,
 ) -> Result<EditReport, strata_volume::tools::ToolError> {
-    use strata_volume::tools::{Dab, Smoothing, clay, flatten, inflate, paint, pinch, smooth};
+    use strata_volume::tools::{Dab, MaskStroke, Smoothing, clay, flatten, inflate, mask, paint, pinch, smooth};
     let radius = tool.radius_at(pressure) / transform.scale;
     let dab =
         Dab { material: tool.material, ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))? };
     match tool.kind {
         ToolKind::Paint => paint(volume, &Dab { material: if inverted { 0 } else { tool.material }, ..dab }),
+        ToolKind::Mask => mask(volume, &dab, if inverted { MaskStroke::Subtract } else { MaskStroke::Add }),
+        ToolKind::MaskSmooth => mask(volume, &dab, MaskStroke::Smooth),
         ToolKind::Clay => clay(volume, &dab, tool.fillet.clamp(0.0, 4.0) * radius, inverted),
         ToolKind::Smooth => {
             let method = if inverted {
@@ -172,6 +174,7 @@ impl Editor {
         self.check_material()?;
         let inverted = pose.inverted();
         let tool = self.tool_for(pose);
+        self.check_mask_target(layer, &tool)?;
         let spacing = tool.dab_spacing();
         let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
         let continuing =
@@ -405,7 +408,7 @@ impl Editor {
     pub(crate) fn tool_for(&self, pose: &ToolPose) -> ToolSettings {
         let mut tool = self.tool;
         if pose.modifiers.smooth {
-            tool.kind = ToolKind::Smooth;
+            tool.kind = if tool.kind.is_mask() { ToolKind::MaskSmooth } else { ToolKind::Smooth };
         }
         tool
     }

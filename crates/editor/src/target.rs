@@ -135,6 +135,6 @@ impl EditTarget for World {
         // loads nothing here: no I/O, nothing that can fail (a failure would be a bug in the
         // editor's history, not bad input).
         World::restore(self, record)
-            .unwrap_or_else(|(e, _)| panic!("a world restored a record whose chunks were not prepared: {e}"))
+            .unwrap_or_else(|b| panic!("a world restored a record whose chunks were not prepared: {}", b.0))
     }
 }

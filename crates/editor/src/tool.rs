@@ -42,11 +42,19 @@ pub enum ToolKind {
     /// strength) shows as a dithered share of painted nodes. Inverse: paint the scene's first
     /// material back.
     Paint,
+    /// Paint protection on: the nodes under a ball of the radius gain mask weight (the falloff
+    /// scaled by the field strength), and no tool changes what the mask holds (see
+    /// [`strata_volume::mask`]); drawn darkened. Inverse: take the mask off. With the smooth
+    /// modifier: [`ToolKind::MaskSmooth`].
+    Mask,
+    /// Smooth the mask's weights under the ball (what the smooth modifier makes of
+    /// [`ToolKind::Mask`]; not in the palette).
+    MaskSmooth,
 }
 
 impl ToolKind {
     /// Every tool, in palette order.
-    pub const ALL: [ToolKind; 10] = [
+    pub const ALL: [ToolKind; 11] = [
         ToolKind::Clay,
         ToolKind::Add,
         ToolKind::Erase,
@@ -57,6 +65,7 @@ impl ToolKind {
         ToolKind::Grab,
         ToolKind::Detail,
         ToolKind::Paint,
+        ToolKind::Mask,
     ];
 
     /// The tool's name.
@@ -72,6 +81,8 @@ impl ToolKind {
             ToolKind::Grab => "Grab",
             ToolKind::Detail => "Detail",
             ToolKind::Paint => "Paint",
+            ToolKind::Mask => "Mask",
+            ToolKind::MaskSmooth => "Smooth mask",
         }
     }
 
@@ -88,6 +99,8 @@ impl ToolKind {
             ToolKind::Grab => "grab",
             ToolKind::Detail => "lower detail",
             ToolKind::Paint => "paint the first material",
+            ToolKind::Mask => "unmask",
+            ToolKind::MaskSmooth => "smooth the mask",
         }
     }
 
@@ -103,6 +116,12 @@ impl ToolKind {
     /// erase) rather than by CSG with a brush of the chosen shape.
     pub fn is_field_tool(self) -> bool {
         !matches!(self, ToolKind::Add | ToolKind::Erase)
+    }
+
+    /// Whether the tool changes the mask, not the solid (masks are for scenes: a world has
+    /// none).
+    pub fn is_mask(self) -> bool {
+        matches!(self, ToolKind::Mask | ToolKind::MaskSmooth)
     }
 
     /// Whether the tool builds material up or carves it away where it acts (add, erase, clay,

@@ -78,7 +78,19 @@ fn every_tool_strokes_a_world_across_chunk_borders_and_undoes_to_the_generated_w
     e.tool.symmetry = [true, false, false];
     e.tool.symmetry_center = DVec3::new(4.0, 0.0, 0.0);
     e.tool.material = 3;
-    for (i, kind) in ToolKind::ALL.into_iter().enumerate() {
+    // Masks are for scenes: the mask tool and the mask actions are refused, and change nothing.
+    e.tool.kind = ToolKind::Mask;
+    let before = snapshot(&e, &keys);
+    let pose = ToolPose { position: ground(&e, 12.0, 4.0), buttons: DOWN, ..ToolPose::default() };
+    assert!(matches!(e.frame(&pose, BUDGET), Err(strata_editor::EditorError::MaskOnWorld)));
+    e.frame(&ToolPose::at(pose.position, false), BUDGET).unwrap();
+    let world = e.surface_count() - 1;
+    assert!(matches!(
+        e.mask_all(world, strata_editor::MaskAction::Invert),
+        Err(strata_editor::EditorError::MaskOnWorld)
+    ));
+    assert!(snapshot(&e, &keys) == before);
+    for (i, kind) in ToolKind::ALL.into_iter().filter(|k| !k.is_mask()).enumerate() {
         e.tool.kind = kind;
         let before = snapshot(&e, &keys);
         let steps = e.history().undo_len();

@@ -8,7 +8,8 @@ use serde::{Deserialize, Serialize};
 use strata_editor::{EditOp, OpUndo};
 
 /// The protocol version this build speaks.
-pub const PROTOCOL: u32 = 2;
+/// (3: tools and undo records carry masks.)
+pub const PROTOCOL: u32 = 3;
 
 /// The largest message a client may send after its hello (bytes); the server closes a
 /// connection that sends a larger one.

@@ -32,7 +32,13 @@ pub struct MeshRef<'a> {
     pub materials: &'a [MaterialBlend],
     /// Three indices per triangle, counter-clockwise seen from outside.
     pub indices: &'a [u32],
+    /// Per vertex, how much a mask holds it (0 to 255: drawn up to [`MASK_DARKENING`] darker),
+    /// or empty where nothing is masked.
+    pub shade: &'a [u8],
 }
+
+/// How much darker a vertex the mask holds fully is drawn.
+pub const MASK_DARKENING: f32 = 0.55;
 
 impl MeshRef<'_> {
     /// The materials of vertex `i`.
@@ -647,6 +653,8 @@ fn world_vertices(
         .enumerate()
         .map(|(i, (p, n))| {
             let m = mesh.material(i);
+            let dark = 1.0 - MASK_DARKENING * mesh.shade.get(i).map_or(0.0, |&s| s as f32 / 255.0);
+            let color = [color[0] * dark, color[1] * dark, color[2] * dark, color[3]];
             Vertex {
                 position: world_from_grid.transform_point3(origin + Vec3::from(*p).as_dvec3()).as_vec3().to_array(),
                 normal: (normal_matrix * Vec3::from(*n)).normalize_or(Vec3::Y).to_array(),
@@ -710,6 +718,12 @@ mod tests {
             assert!((Vec3::from(x.normal).length() - 1.0).abs() < 1e-5);
         }
         assert_eq!(edge_indices(mesh.indices), vec![0, 1, 1, 2, 2, 0]);
+        // A masked vertex is drawn darker, in proportion to its weight.
+        let shaded = MeshRef { shade: &[0, 255, 51], ..mesh };
+        let v = world_vertices(&shaded, model, DVec3::ZERO, [1.0; 4], true);
+        assert_eq!(v[0].color, [1.0; 4]);
+        assert!((v[1].color[0] - (1.0 - MASK_DARKENING)).abs() < 1e-6 && v[1].color[3] == 1.0);
+        assert!((v[2].color[1] - (1.0 - 0.2 * MASK_DARKENING)).abs() < 1e-6);
         // The grid's axis lines are coloured, the others translucent grey.
         assert!(grid_vertices().iter().any(|g| g.color == [0.85, 0.25, 0.25, 0.9]));
     }

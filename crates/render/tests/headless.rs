@@ -35,6 +35,7 @@ fn lend(mesh: &Mesh) -> MeshRef<'_> {
         normals: &mesh.normals,
         materials: bytemuck::cast_slice(&mesh.materials),
         indices: &mesh.indices,
+        shade: &[],
     }
 }
 

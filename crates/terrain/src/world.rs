@@ -698,10 +698,10 @@ impl World {
     /// that left memory: undo works across eviction and reload) and marks them edited. Returns
     /// the record that takes this back. When a chunk cannot be loaded nothing changes and the
     /// record is handed back with the error.
-    pub fn restore(&mut self, record: UndoRecord) -> Result<UndoRecord, (WorldError, UndoRecord)> {
+    pub fn restore(&mut self, record: UndoRecord) -> Result<UndoRecord, Box<(WorldError, UndoRecord)>> {
         let keys: Vec<ChunkKey> = record.keys().collect();
         if let Err(e) = self.load_now(&keys) {
-            return Err((e, record));
+            return Err(Box::new((e, record)));
         }
         let before = self.bytes_of(&keys);
         let back = self.volume.restore(record);

@@ -166,12 +166,12 @@ fn undo_works_across_eviction_and_an_undone_chunk_loses_its_record() {
     assert!(!world.store().unwrap().edited_keys().unwrap().is_empty());
     assert!(world.settle(&[DVec3::new(5000.0, 0.0, 0.0)], SETTLE));
     // Undo with the edited chunks out of memory: they are loaded for it.
-    let redo = world.restore(record).unwrap_or_else(|(e, _)| panic!("{e}"));
+    let redo = world.restore(record).unwrap_or_else(|b| panic!("{}", b.0));
     assert!(world.settle(&[home], SETTLE));
     assert_eq!(snapshot(&world, &keys), generated);
     world.flush().unwrap();
     assert!(world.store().unwrap().edited_keys().unwrap().is_empty(), "chunks back to the recipe are not stored");
-    world.restore(redo).unwrap_or_else(|(e, _)| panic!("{e}"));
+    world.restore(redo).unwrap_or_else(|b| panic!("{}", b.0));
     assert_ne!(snapshot(&world, &keys), generated);
     drop(world);
     let _ = std::fs::remove_dir_all(dir);
@@ -276,7 +276,7 @@ fn every_tool_and_brush_edits_a_streamed_world_and_undoes() {
     let edits = records.iter().filter(|r| !r.is_empty()).count();
     assert!(edits >= 10, "the edits changed the world ({edits})");
     for record in records.into_iter().rev() {
-        world.restore(record).unwrap_or_else(|(e, _)| panic!("{e}"));
+        world.restore(record).unwrap_or_else(|b| panic!("{}", b.0));
     }
     assert_eq!(snapshot(&world, &loaded), generated, "undoing everything gives the generated world back");
 }

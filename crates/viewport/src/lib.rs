@@ -30,7 +30,20 @@ pub fn mesh_ref(mesh: &Mesh) -> MeshRef<'_> {
         normals: &mesh.normals,
         materials: bytemuck::cast_slice(&mesh.materials),
         indices: &mesh.indices,
+        shade: &[],
     }
+}
+
+/// How much the mask of `volume` holds each vertex of chunk `key`'s `mesh` (0 to 255, for
+/// [`MeshRef::shade`]); empty where no mask reaches the chunk.
+pub fn mask_shade(volume: &strata_volume::Volume, key: ChunkKey, mesh: &Mesh) -> Vec<u8> {
+    let origin = key.origin_grid().as_dvec3();
+    let side = glam::DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64);
+    let Some(mask) = volume.mask().sampler(origin, origin + side) else { return Vec::new() };
+    mesh.positions
+        .iter()
+        .map(|p| (mask.at(origin + glam::Vec3::from(*p).as_dvec3()) * 255.0).round().clamp(0.0, 255.0) as u8)
+        .collect()
 }
 
 /// The renderer's name for chunk `key` of mesh group `group` (a scene layer's index).
@@ -44,7 +57,9 @@ pub fn chunk_placement(model: Mat4, key: ChunkKey) -> Placement {
     Placement { model, origin: key.origin_grid().as_dvec3() }
 }
 
-/// Uploads chunk `key`'s `mesh` of group `group` (an empty mesh drops it), untinted.
+/// Uploads chunk `key`'s `mesh` of group `group` (an empty mesh drops it), untinted, darkened
+/// where the mask of `volume` (the surface's) holds it.
+#[allow(clippy::too_many_arguments)]
 pub fn upload_chunk(
     renderer: &mut Renderer,
     device: &wgpu::Device,
@@ -53,8 +68,11 @@ pub fn upload_chunk(
     key: ChunkKey,
     mesh: &Mesh,
     model: Mat4,
+    volume: &strata_volume::Volume,
 ) {
-    renderer.upload_mesh(device, queue, chunk_id(group, key), mesh_ref(mesh), chunk_placement(model, key), [1.0; 3]);
+    let shade = mask_shade(volume, key, mesh);
+    let mesh = MeshRef { shade: &shade, ..mesh_ref(mesh) };
+    renderer.upload_mesh(device, queue, chunk_id(group, key), mesh, chunk_placement(model, key), [1.0; 3]);
 }
 
 /// The id of a mesh drawn over the surfaces that is not one of them (terrain mode's debris): a
@@ -144,13 +162,15 @@ pub fn apply_changes(
     for &i in &changes.layers {
         renderer.clear_group(i as u32);
         let Some(model) = shown_surface(editor, i) else { continue };
+        let Some(volume) = editor.surface(i).map(|s| s.volume()) else { continue };
         for (key, mesh) in editor.chunk_meshes(i) {
-            upload_chunk(renderer, device, queue, i as u32, key, mesh, model);
+            upload_chunk(renderer, device, queue, i as u32, key, mesh, model, volume);
         }
     }
     for &(i, key) in &changes.meshes {
-        match shown_surface(editor, i).and_then(|model| editor.chunk_mesh(i, key).map(|m| (model, m))) {
-            Some((model, mesh)) => upload_chunk(renderer, device, queue, i as u32, key, mesh, model),
+        let shown = shown_surface(editor, i).zip(editor.surface(i));
+        match shown.and_then(|(model, s)| editor.chunk_mesh(i, key).map(|m| (model, m, s.volume()))) {
+            Some((model, mesh, volume)) => upload_chunk(renderer, device, queue, i as u32, key, mesh, model, volume),
             None => renderer.remove_mesh(chunk_id(i as u32, key)),
         }
     }
@@ -161,8 +181,12 @@ pub fn apply_changes(
 pub fn upload_scene(editor: &Editor, device: &wgpu::Device, queue: &wgpu::Queue, renderer: &mut Renderer) {
     renderer.clear();
     renderer.set_palette(queue, &palette(&editor.scene));
-    for m in scene_meshes(editor) {
-        renderer.upload_mesh(device, queue, m.id, m.mesh, m.placement, m.color);
+    for i in 0..editor.surface_count() {
+        let Some(model) = shown_surface(editor, i) else { continue };
+        let Some(volume) = editor.surface(i).map(|s| s.volume()) else { continue };
+        for (key, mesh) in editor.chunk_meshes(i) {
+            upload_chunk(renderer, device, queue, i as u32, key, mesh, model, volume);
+        }
     }
 }
 

@@ -175,14 +175,17 @@ impl EditReport {
                 self.undo.materials.push((key, m));
             }
         }
-        let seen: std::collections::HashSet<ChunkKey> = self.undo.masks.keys().collect();
-        for (key, m) in later.undo.masks.chunks {
-            if !seen.contains(&key) {
-                self.undo.masks.chunks.push((key, m));
+        if let Some(later_masks) = later.undo.masks {
+            let masks = self.undo.masks.get_or_insert_with(Default::default);
+            let seen: std::collections::HashSet<ChunkKey> = masks.keys().collect();
+            for (key, m) in later_masks.chunks {
+                if !seen.contains(&key) {
+                    masks.chunks.push((key, m));
+                }
             }
-        }
-        if self.undo.masks.outside.is_none() {
-            self.undo.masks.outside = later.undo.masks.outside;
+            if masks.outside.is_none() {
+                masks.outside = later_masks.outside;
+            }
         }
         // A report that changed nothing reaches nothing; otherwise the union, unknown where
         // either is.
@@ -211,7 +214,8 @@ pub struct UndoRecord {
     /// Previous materials of the chunks whose materials changed.
     pub(crate) materials: crate::material::MaterialUndo,
     /// What the mask was where a mask edit changed it.
-    pub(crate) masks: crate::mask::MaskUndo,
+    /// (Boxed: most records have none, and records travel in `Result`s.)
+    pub(crate) masks: Option<Box<crate::mask::MaskUndo>>,
 }
 
 impl UndoRecord {
@@ -221,7 +225,8 @@ impl UndoRecord {
             self.materials.iter().map(|(k, _)| *k).filter(|k| !self.previous.iter().any(|(p, _)| p == k));
         let only_masks = self
             .masks
-            .keys()
+            .iter()
+            .flat_map(|m| m.keys())
             .filter(|k| !self.previous.iter().any(|(p, _)| p == k) && !self.materials.iter().any(|(m, _)| m == k));
         self.previous.iter().map(|(k, _)| *k).chain(only_materials).chain(only_masks)
     }
@@ -240,12 +245,12 @@ impl UndoRecord {
                 .sum::<usize>()
             + self.materials.capacity() * std::mem::size_of::<(ChunkKey, Option<crate::ChunkMaterials>)>()
             + self.materials.iter().map(|(_, m)| m.as_ref().map_or(0, crate::ChunkMaterials::heap_bytes)).sum::<usize>()
-            + self.masks.heap_bytes()
+            + self.masks.as_ref().map_or(0, |m| std::mem::size_of::<crate::mask::MaskUndo>() + m.heap_bytes())
     }
 
     /// Whether the record restores nothing.
     pub fn is_empty(&self) -> bool {
-        self.previous.is_empty() && self.materials.is_empty() && self.masks.is_empty()
+        self.previous.is_empty() && self.materials.is_empty() && self.masks.as_ref().is_none_or(|m| m.is_empty())
     }
 }
 
@@ -441,8 +446,8 @@ impl Volume {
             materials: Vec::with_capacity(record.materials.len()),
             masks: Default::default(),
         };
-        if !record.masks.is_empty() {
-            redo.masks = self.mask.restore(record.masks);
+        if let Some(masks) = record.masks {
+            redo.masks = Some(Box::new(self.mask.restore(*masks)));
         }
         for (key, chunk) in record.previous {
             let now = match chunk {

@@ -64,6 +64,7 @@ impl Volume {
         };
         changed.sort();
         changed.dedup();
+        let masks = (!masks.is_empty()).then(|| Box::new(masks));
         EditReport { changed, undo: UndoRecord { masks, ..UndoRecord::default() }, repaired_nodes: 0, reach: None }
     }
 }
