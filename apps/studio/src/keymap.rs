@@ -6,7 +6,7 @@
 //! commands, are listed beside it ([`POINTER_AND_HELD`]).
 
 use eframe::egui::{Key, Modifiers};
-use strata_editor::ToolKind;
+use strata_editor::{MaskAction, ToolKind};
 use strata_render::AxisView;
 
 /// What a key press asks for.
@@ -52,6 +52,8 @@ pub enum Command {
     MirrorX,
     /// Arm the eyedropper.
     Eyedropper,
+    /// Invert, clear, grow or shrink the active layer's mask.
+    Mask(MaskAction),
 }
 
 impl Command {
@@ -79,6 +81,7 @@ pub struct Binding {
 const C: Modifiers = Modifiers::COMMAND;
 const CS: Modifiers = Modifiers { shift: true, ..Modifiers::COMMAND };
 const N: Modifiers = Modifiers::NONE;
+const A: Modifiers = Modifiers::ALT;
 
 const fn bind(command: Command, keys: &'static [(Modifiers, Key)], does: &'static str) -> Binding {
     Binding { command, keys, does, terrain: None }
@@ -109,6 +112,15 @@ pub const BINDINGS: &[Binding] = &[
     both(Command::Tool(ToolKind::Detail), &[(N, Key::D)], "detail: raise the chunks' resolution under the brush", FLY),
     bind(Command::Tool(ToolKind::Paint), &[(N, Key::V)], "paint the current material"),
     bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
+    bind(
+        Command::Tool(ToolKind::Mask),
+        &[(N, Key::M)],
+        "mask: protect what the brush covers from every tool (inverse: unmask; Shift: smooth the mask)",
+    ),
+    bind(Command::Mask(MaskAction::Invert), &[(C, Key::I)], "invert the mask"),
+    bind(Command::Mask(MaskAction::Clear), &[(A, Key::M)], "clear the mask"),
+    bind(Command::Mask(MaskAction::Grow), &[(C, Key::G)], "grow the mask by a cell"),
+    bind(Command::Mask(MaskAction::Shrink), &[(CS, Key::G)], "shrink the mask by a cell"),
     both(
         Command::NextShape,
         &[(N, Key::B)],

@@ -1264,3 +1264,73 @@ fn grab_moves_the_surface_as_far_as_the_pointer() {
     let err = (pick.point - moved_to).length();
     assert!(err < 0.25 * travel, "grabbed {travel:.2} units; the surface is {err:.2} from where the pointer went");
 }
+
+/// Issue 32: a region masked with the mask tool (M) keeps its shape, its crossings included,
+/// when the smooth tool is dragged across it; the mask's actions run from their keys and the
+/// Edit menu, each one undo step.
+#[test]
+fn a_masked_region_keeps_its_shape_when_smoothed_across() {
+    let dir = temp("mask");
+    let mut h = harness(&dir);
+    h.run();
+    let cell = strata_studio::DEFAULT_CELL;
+    // A ridge of clay first, so that smoothing has something to take off.
+    h.state_mut().studio.editor.tool.radius = 6.0 * cell;
+    drag_over_the_ball(&mut h, 12);
+    h.key_press(egui::Key::M);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Mask);
+    h.state_mut().studio.editor.tool.field_strength = 1.0;
+    h.state_mut().studio.editor.tool.radius = 8.0 * cell;
+    drag_over_the_ball(&mut h, 6);
+    let volume = h.state().studio.editor.scene.layers[0].volume.clone();
+    let (lo, hi) = volume.chunk_bounds_grid().unwrap();
+    let nodes: Vec<glam::I64Vec3> = (lo.z as i64..=hi.z as i64)
+        .flat_map(|z| {
+            (lo.y as i64..=hi.y as i64)
+                .flat_map(move |y| (lo.x as i64..=hi.x as i64).map(move |x| glam::I64Vec3::new(x, y, z)))
+        })
+        .filter(|n| volume.mask().weight(*n) == strata_volume::PROTECTED)
+        .collect();
+    assert!(nodes.len() > 100, "the stroke masked {} nodes", nodes.len());
+    // The held nodes' states and the crossings along x between two of them.
+    let shape = |v: &strata_volume::Volume| -> Vec<bool> {
+        nodes
+            .iter()
+            .flat_map(|n| {
+                let along = v.mask().weight(*n + glam::I64Vec3::X) == strata_volume::PROTECTED;
+                let edge: Vec<bool> = if along {
+                    (1..8).map(|k| v.is_inside(n.as_dvec3() + glam::DVec3::X * (k as f64 / 8.0))).collect()
+                } else {
+                    Vec::new()
+                };
+                std::iter::once(v.node_inside(*n)).chain(edge)
+            })
+            .collect()
+    };
+    let held = shape(&volume);
+    h.key_press(egui::Key::S);
+    h.run();
+    h.state_mut().studio.editor.tool.radius = 14.0 * cell;
+    h.state_mut().studio.editor.tool.field_strength = 1.0;
+    drag_over_the_ball(&mut h, 12);
+    let smoothed = h.state().studio.editor.scene.layers[0].volume.clone();
+    assert!(smoothed != volume, "the smooth stroke changed nothing: {}", h.state().studio.message);
+    assert!(shape(&smoothed) == held, "the masked region changed under smoothing");
+    // Ctrl+I inverts the mask, the Edit menu clears it; Ctrl+Z takes each back.
+    let steps = h.state().studio.editor.history().undo_len();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::I);
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume.mask().weight(nodes[0]), 0, "inverted");
+    h.get_by_label("Edit").click();
+    h.run();
+    h.get_by_label("Clear mask (Alt+M)").click();
+    h.run();
+    assert!(h.state().studio.editor.scene.layers[0].volume.mask().is_clear(), "{}", h.state().studio.message);
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 2);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert!(*h.state().studio.editor.scene.layers[0].volume.mask() == *smoothed.mask(), "undone back to the mask");
+}

@@ -92,6 +92,9 @@ impl StudioApp {
             C::Line => self.studio.toggle_line_tool(),
             C::MirrorX => self.studio.toggle_symmetry(0),
             C::Eyedropper => self.studio.toggle_eyedropper(),
+            C::Mask(a) => {
+                let _ = self.studio.act(Action::Mask(a));
+            }
         }
     }
 

@@ -129,6 +129,13 @@ impl StudioApp {
                 if ui.button(labelled("Redo", Command::Redo)).clicked() {
                     let _ = self.studio.act(Action::Redo);
                 }
+                ui.separator();
+                for a in strata_editor::MaskAction::ALL {
+                    if ui.button(labelled(a.name(), Command::Mask(a))).on_hover_text(mask_tip(a)).clicked() {
+                        let _ = self.studio.act(Action::Mask(a));
+                        ui.close();
+                    }
+                }
             });
             ui.menu_button("View", |ui| {
                 if ui.checkbox(&mut self.studio.wireframe, labelled("Wireframe", Command::Wireframe)).changed() {
@@ -207,5 +214,16 @@ impl StudioApp {
                 }
             });
         });
+    }
+}
+
+/// What a whole-mask action does, for its tooltip.
+pub(super) fn mask_tip(a: strata_editor::MaskAction) -> &'static str {
+    use strata_editor::MaskAction as M;
+    match a {
+        M::Invert => "Protect what is free and free what is protected, on the whole layer",
+        M::Clear => "Free the whole layer: every tool acts everywhere again",
+        M::Grow => "Grow the masked part of the layer by one cell in every direction",
+        M::Shrink => "Shrink the masked part of the layer by one cell",
     }
 }

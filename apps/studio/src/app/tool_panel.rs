@@ -24,6 +24,10 @@ impl StudioApp {
                 "Add resolution under the brush for fine detail (Ctrl/Alt: back to the layer's base level)",
             ),
             (ToolKind::Paint, "Paint the current material without changing the shape (Ctrl/Alt: the first material)"),
+            (
+                ToolKind::Mask,
+                "Mask: protect what the brush covers from every tool, drawn darker (Ctrl/Alt: unmask; Shift: smooth the mask)",
+            ),
         ];
         for row in tips.chunks(3) {
             ui.horizontal(|ui| {
@@ -64,6 +68,22 @@ impl StudioApp {
                         }
                     });
                 }
+                if tool.kind == ToolKind::Mask {
+                    let mut run = None;
+                    ui.horizontal(|ui| {
+                        for a in strata_editor::MaskAction::ALL {
+                            let label = a.name().trim_end_matches(" mask");
+                            let tip = format!("{} ({})", super::menus::mask_tip(a), keys_of(Command::Mask(a)));
+                            if ui.button(label).on_hover_text(tip).clicked() {
+                                run = Some(a);
+                            }
+                        }
+                    });
+                    if let Some(a) = run {
+                        let _ = self.studio.act(Action::Mask(a));
+                    }
+                }
+                let tool = &mut self.studio.editor.tool;
                 if tool.kind == ToolKind::Smooth {
                     ui.checkbox(&mut tool.paper_smoothing, "Paper's smoothing (Eq. 1)").on_hover_text(
                         "Move crossings towards their neighbours' mean instead of smoothing the field (shrinks a little)",

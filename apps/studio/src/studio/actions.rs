@@ -144,6 +144,11 @@ impl Studio {
                 }
             }
             Action::ToggleWireframe => self.wireframe = !self.wireframe,
+            Action::Mask(a) => {
+                let layer = self.editor.active_layer;
+                self.editor.mask_all(layer, a).map_err(|e| format!("Could not {}: {e}", a.name().to_lowercase()))?;
+                self.message = format!("{} (layer {:?})", a.name(), self.editor.scene.layers[layer].name);
+            }
             Action::ViewMesher(options) => {
                 self.view_draft = options;
                 self.editor.set_view_mesher(options).map_err(|e| format!("Could not change the mesher: {e}"))?;

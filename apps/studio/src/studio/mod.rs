@@ -81,6 +81,8 @@ pub enum Action {
     JoinSession(SessionParams),
     /// Leave the room (closing it when this studio hosts it); the scene stays.
     LeaveSession,
+    /// Invert, clear, grow or shrink the active layer's mask (one undo step).
+    Mask(strata_editor::MaskAction),
 }
 
 impl Action {
@@ -98,6 +100,7 @@ impl Action {
             | Action::MergeDown => "change the layers",
             Action::FrameAll | Action::AxisView(..) | Action::ToggleOrthographic => "use the scene's views",
             Action::ViewMesher(_) => "change the viewport's mesher (a world is meshed by marching cubes as it streams)",
+            Action::Mask(_) => "change a mask (masks are for scenes)",
             _ => return None,
         })
     }
@@ -117,6 +120,9 @@ impl Action {
             Action::NewWorld(..) | Action::OpenWorld(_) => "open a world",
             Action::CloseWorld => "close the world",
             Action::Bomb => "launch bombs (a crater is not an operation the room can replay)",
+            Action::Mask(_) => {
+                "change the whole mask (mask strokes are shared; inverting, clearing, growing and shrinking are not)"
+            }
             _ => return None,
         })
     }
