@@ -11,6 +11,7 @@ use rayon::prelude::*;
 pub mod baselines;
 pub mod collab;
 pub mod lod;
+pub mod masks;
 pub mod materials;
 pub mod quality;
 pub mod suite;

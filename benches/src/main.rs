@@ -94,6 +94,21 @@ enum Command {
         #[arg(long, default_value_t = 2021)]
         seed: u64,
     },
+    /// Masked strokes against unmasked ones on the Table 6 canvas (issue 32), printed.
+    Masks {
+        /// Canvas instructions (radius 10).
+        #[arg(long, default_value_t = 1000)]
+        canvas: usize,
+        /// Brush radii.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![10.0, 20.0])]
+        radii: Vec<f64>,
+        /// Dabs per tool and radius.
+        #[arg(long, default_value_t = 100)]
+        dabs: usize,
+        /// Workload seed.
+        #[arg(long, default_value_t = 2021)]
+        seed: u64,
+    },
     /// Table 7 alone (level of detail): views, level changes, memory of detail where sculpted
     /// and sculpting frames, printed (not written to the docs; `suite` writes them).
     Lod {
@@ -180,6 +195,13 @@ fn main() -> Result<()> {
             print!("{}", strata_bench::collab::run(&config)?);
         }
         Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
+        Command::Masks { canvas, radii, dabs, seed } => {
+            let start = std::time::Instant::now();
+            let md = strata_bench::masks::run(canvas, &radii, dabs, seed, &mut |step| {
+                eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64());
+            });
+            println!("{md}");
+        }
         Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
         Command::Materials { count, res, dabs } => return materials(count, res, dabs),
         Command::Quality { quick, res } => return quality(quick, res),

@@ -54,6 +54,8 @@ pub enum Command {
     Eyedropper,
     /// Invert, clear, grow or shrink the active layer's mask.
     Mask(MaskAction),
+    /// The next stroke stabiliser setting (off, weak, strong).
+    Stabiliser,
 }
 
 impl Command {
@@ -116,6 +118,11 @@ pub const BINDINGS: &[Binding] = &[
         Command::Tool(ToolKind::Mask),
         &[(N, Key::M)],
         "mask: protect what the brush covers from every tool (inverse: unmask; Shift: smooth the mask)",
+    ),
+    bind(
+        Command::Stabiliser,
+        &[(N, Key::R)],
+        "stroke stabiliser: off, weak, strong (the brush trails the pointer on a rope)",
     ),
     bind(Command::Mask(MaskAction::Invert), &[(C, Key::I)], "invert the mask"),
     bind(Command::Mask(MaskAction::Clear), &[(A, Key::M)], "clear the mask"),

@@ -1334,3 +1334,61 @@ fn a_masked_region_keeps_its_shape_when_smoothed_across() {
     h.run();
     assert!(*h.state().studio.editor.scene.layers[0].volume.mask() == *smoothed.mask(), "undone back to the mask");
 }
+
+/// Issue 32: `R` cycles the stroke stabiliser; a shaky drag across the ball with it strong
+/// lays its dabs along a far straighter line than the same drag without it.
+#[test]
+fn a_stabilised_stroke_draws_a_shaky_drag_as_a_clean_line() {
+    let dir = temp("stabiliser");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::A);
+    h.run();
+    h.state_mut().studio.editor.tool.radius = 3.0 * strata_studio::DEFAULT_CELL;
+    // The dabs of a drag that zigzags 6 points up and down as it goes right: how much they
+    // wiggle.
+    let shaky = |h: &mut Harness<'static, StudioApp>| -> f64 {
+        h.state_mut().studio.editor.record_ops(true);
+        let centre = egui::pos2(600.0, 400.0);
+        h.hover_at(centre);
+        h.step();
+        h.drag_at(centre);
+        h.step();
+        for i in 1..=24 {
+            let wobble = if i % 2 == 0 { 6.0 } else { -6.0 };
+            h.hover_at(centre + egui::vec2(i as f32 * 4.0, wobble));
+            h.step();
+        }
+        h.drop_at(centre + egui::vec2(100.0, 0.0));
+        h.step();
+        h.step();
+        let dabs: Vec<glam::DVec3> = h
+            .state_mut()
+            .studio
+            .editor
+            .take_ops()
+            .into_iter()
+            .flat_map(|o| o.op.dabs)
+            .filter_map(|d| match d {
+                strata_editor::DabRecord::Dab { at, .. } => Some(at),
+                _ => None,
+            })
+            .collect();
+        h.state_mut().studio.editor.record_ops(false);
+        assert!(dabs.len() > 4, "the drag made {} dabs", dabs.len());
+        // How much longer the path through the dabs is than the way from the first to the
+        // last: a zigzag's wiggle (a straight line: 0).
+        let path: f64 = dabs.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        path / (dabs[dabs.len() - 1] - dabs[0]).length() - 1.0
+    };
+    let plain = shaky(&mut h);
+    assert_eq!(h.state().studio.editor.stabiliser, strata_editor::Stabiliser::Off);
+    h.key_press(egui::Key::R);
+    h.run();
+    h.key_press(egui::Key::R);
+    h.run();
+    assert_eq!(h.state().studio.editor.stabiliser, strata_editor::Stabiliser::Strong, "{}", h.state().studio.message);
+    let steady = shaky(&mut h);
+    assert!(plain > 0.3, "the drag did not zigzag: {plain}");
+    assert!(steady < 0.3 * plain, "stabilised, the path wiggles {steady}; without, {plain}");
+}

@@ -133,6 +133,10 @@ pub struct Editor {
     pub scene: Scene,
     /// The current tool.
     pub tool: ToolSettings,
+    /// How strongly strokes are stabilised (the brush trails the pointer on a rope; see
+    /// [`crate::Stabiliser`]). Operations record where the dabs went, so a room replays them
+    /// without it.
+    pub stabiliser: crate::Stabiliser,
     /// The layer tools edit (on a world, the world: see [`Editor::active_surface`]).
     pub active_layer: usize,
     /// Dabs of [`Editor::frame`] whose box spans more chunks than this are refused with
@@ -176,6 +180,7 @@ impl Editor {
         let mut e = Editor {
             scene,
             tool: ToolSettings::default(),
+            stabiliser: crate::Stabiliser::Off,
             active_layer: 0,
             history: History::default(),
             world: None,

@@ -20,6 +20,8 @@ pub(crate) struct Stroke {
     last: DVec3,
     /// The stroke's first position (world, before alignment): the axis lock's line.
     start: DVec3,
+    /// Where the stabilised brush is (world, before alignment; see [`crate::Stabiliser`]).
+    brush: DVec3,
     /// A grab's centre (world): it follows the material it drags.
     anchor: DVec3,
     inverted: bool,
@@ -34,7 +36,17 @@ pub(crate) struct Stroke {
 impl Stroke {
     /// A stroke starting at `position` (aligned) for a pose at `start` (as given).
     fn new(layer: usize, position: DVec3, start: DVec3, inverted: bool, kind: ToolKind) -> Self {
-        Stroke { layer, last: position, start, anchor: position, inverted, kind, records: Vec::new(), own: Vec::new() }
+        Stroke {
+            layer,
+            last: position,
+            start,
+            brush: start,
+            anchor: position,
+            inverted,
+            kind,
+            records: Vec::new(),
+            own: Vec::new(),
+        }
     }
 
     /// Whether world point `p` lies in one of the stroke's own balls.
@@ -183,7 +195,16 @@ impl Editor {
             self.end_stroke();
         }
         let start = self.stroke.as_ref().map(|s| s.start);
-        let position = tool.aligned(&transform, pose.position, start);
+        // The stabiliser's brush trails the pointer (a grab follows the pointer exactly).
+        let stabiliser = self.stabiliser;
+        let pointer = match self.stroke.as_mut() {
+            Some(s) if tool.kind != ToolKind::Grab => {
+                s.brush = stabiliser.follow(s.brush, pose.position, tool.radius_at(pose.pressure));
+                s.brush
+            }
+            _ => pose.position,
+        };
+        let position = tool.aligned(&transform, pointer, start);
         if tool.kind == ToolKind::Grab {
             return self.grab_to(layer, position, pose, &tool, report);
         }

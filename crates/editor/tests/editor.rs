@@ -759,3 +759,52 @@ fn dabs_over_the_frame_limit_are_refused_untouched_and_lines_ignore_the_limit() 
     e.frame(&ToolPose { position: pose.position + DVec3::Z * 6.0, ..pose }, BUDGET).unwrap();
     assert_ne!(e.scene.layers[0].volume, after_line);
 }
+
+/// The dabs a shaky horizontal stroke makes at `y = 20` (the pointer zigzags ±2 cells) with
+/// `stabiliser`: their largest distance from the line, and how far along it they got.
+fn shaky_line(stabiliser: strata_editor::Stabiliser) -> (f64, f64) {
+    let mut e = Editor::default();
+    e.stabiliser = stabiliser;
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 2.0;
+    e.record_ops(true);
+    for i in 0..=60 {
+        // (The stroke starts on the line: its first dab is where the pointer is.)
+        let wobble = if i == 0 {
+            0.0
+        } else if i % 2 == 0 {
+            2.0
+        } else {
+            -2.0
+        };
+        let p = DVec3::new(10.0 + i as f64 * 0.5, 20.0 + wobble, 12.0);
+        e.frame(&ToolPose { position: p, buttons: DOWN, ..ToolPose::default() }, BUDGET).unwrap();
+    }
+    e.frame(&ToolPose::at(DVec3::new(40.0, 20.0, 12.0), false), BUDGET).unwrap();
+    let dabs: Vec<DVec3> = e
+        .take_ops()
+        .into_iter()
+        .flat_map(|o| o.op.dabs)
+        .map(|d| match d {
+            strata_editor::DabRecord::Dab { at, .. } => at,
+            strata_editor::DabRecord::Grab { anchor, .. } => anchor,
+        })
+        .collect();
+    let off_line = dabs.iter().map(|p| (p.y - 20.0).abs()).fold(0.0, f64::max);
+    let reach = dabs.iter().map(|p| p.x).fold(f64::MIN, f64::max);
+    (off_line, reach)
+}
+
+#[test]
+fn the_stabiliser_draws_a_shaky_stroke_as_a_clean_line() {
+    use strata_editor::Stabiliser;
+    let (shaky, _) = shaky_line(Stabiliser::Off);
+    let (weak, _) = shaky_line(Stabiliser::Weak);
+    let (strong, reach) = shaky_line(Stabiliser::Strong);
+    assert!(shaky >= 1.9, "unstabilised, the dabs follow the hand: {shaky}");
+    eprintln!("off the line: {shaky} unstabilised, {weak} weak, {strong} strong");
+    assert!(weak < 0.75 * shaky, "a weak rope steadies it: {weak} against {shaky}");
+    assert!(strong < 0.25, "a strong rope draws a straight line: {strong} off it");
+    // The brush trails the pointer by the rope: the line ends short of where the pointer went.
+    assert!(reach < 40.0 - 5.0 && reach > 20.0, "the strong brush reached x = {reach}");
+}

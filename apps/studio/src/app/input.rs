@@ -92,6 +92,11 @@ impl StudioApp {
             C::Line => self.studio.toggle_line_tool(),
             C::MirrorX => self.studio.toggle_symmetry(0),
             C::Eyedropper => self.studio.toggle_eyedropper(),
+            C::Stabiliser => {
+                let s = self.studio.editor.stabiliser.next();
+                self.studio.editor.stabiliser = s;
+                self.studio.message = format!("Stroke stabiliser: {}", s.name());
+            }
             C::Mask(a) => {
                 let _ = self.studio.act(Action::Mask(a));
             }

@@ -91,6 +91,21 @@ impl StudioApp {
                 }
             },
         );
+        ui.horizontal(|ui| {
+            ui.label(labelled("Stabiliser", Command::Stabiliser));
+            for s in strata_editor::Stabiliser::ALL {
+                let tip = match s {
+                    strata_editor::Stabiliser::Off => "The brush is where the pointer is",
+                    strata_editor::Stabiliser::Weak => {
+                        "The brush trails the pointer on a rope of one radius: steadier lines"
+                    }
+                    strata_editor::Stabiliser::Strong => {
+                        "The brush trails the pointer on a rope of three radii: clean lines from a shaky hand"
+                    }
+                };
+                ui.selectable_value(&mut self.studio.editor.stabiliser, s, s.name()).on_hover_text(tip);
+            }
+        });
         let mut toggle = None;
         ui.horizontal(|ui| {
             ui.label("Mirror");
