@@ -13,6 +13,9 @@ use strata_volume::{ChunkMask, CsgOp, EditSettings, Mask, Volume};
 use crate::tools::{Tool, mean_ms, surface_points};
 use crate::{CANVAS_CELLS, replay, table1_instructions};
 
+/// One dab of a row at a surface point, with the stroke's direction there.
+type DabFn = Box<dyn Fn(&mut Volume, DVec3, DVec3) + Send + Sync>;
+
 /// Half of `v` masked: chunks whose x is left of the canvas's middle held, the middle column
 /// half held.
 fn half_masked(v: &Volume) -> Volume {
@@ -42,10 +45,10 @@ pub fn run(count: usize, radii: &[f64], dabs: usize, seed: u64, progress: &mut d
     );
     let settings = EditSettings { parallel: false, ..EditSettings::default() };
     for &r in radii {
-        let mut rows: Vec<(String, Box<dyn Fn(&mut Volume, DVec3, DVec3) + Send + Sync>)> = Tool::ALL
+        let mut rows: Vec<(String, DabFn)> = Tool::ALL
             .iter()
             .map(|&t| {
-                let f: Box<dyn Fn(&mut Volume, DVec3, DVec3) + Send + Sync> = Box::new(move |v, p, dir| {
+                let f: DabFn = Box::new(move |v, p, dir| {
                     std::hint::black_box(t.dab(v, p, r, dir));
                 });
                 (t.name().to_string(), f)
@@ -53,7 +56,7 @@ pub fn run(count: usize, radii: &[f64], dabs: usize, seed: u64, progress: &mut d
             .collect();
         for (name, op) in [("add (CSG sphere)", CsgOp::Add), ("erase (CSG sphere)", CsgOp::Subtract)] {
             let settings = settings.clone();
-            let f: Box<dyn Fn(&mut Volume, DVec3, DVec3) + Send + Sync> = Box::new(move |v, p, _| {
+            let f: DabFn = Box::new(move |v, p, _| {
                 let b = Sphere::new(p, r).expect("a sphere");
                 std::hint::black_box(v.apply(op, &b, &settings).expect("a valid edit"));
             });
