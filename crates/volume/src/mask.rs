@@ -511,7 +511,45 @@ impl Mask {
         if self.outside == 0 && chunks.is_empty() {
             return None;
         }
-        Some(MaskSampler { outside: self.outside, chunks })
+        let mut sampler = MaskSampler {
+            outside: self.outside,
+            chunks,
+            origin: I64Vec3::ZERO,
+            dims: I64Vec3::ZERO,
+            dense: Vec::new(),
+            rows: Default::default(),
+        };
+        // The nodes of the box (one around) in one array, where it is not too large: a lookup
+        // is then an index, not a hash.
+        let (a, b) = (lo.floor().as_i64vec3() - I64Vec3::ONE, hi.ceil().as_i64vec3() + I64Vec3::ONE);
+        let dims = b - a + I64Vec3::ONE;
+        let count = dims.x.saturating_mul(dims.y).saturating_mul(dims.z);
+        if dims.min_element() > 0 && count <= DENSE_SAMPLER_NODES {
+            let mut dense = vec![self.outside; count as usize];
+            // Each decoded chunk's rows copied in (the rest keeps the outside weight).
+            for (key, w) in &sampler.chunks {
+                let base = key.origin_grid();
+                let lo = (a - base).max(I64Vec3::ZERO);
+                let hi = (b - base).min(I64Vec3::splat(n - 1));
+                if lo.cmpgt(hi).any() {
+                    continue;
+                }
+                for z in lo.z..=hi.z {
+                    for y in lo.y..=hi.y {
+                        let from = (lo.x + n * (y + n * z)) as usize;
+                        let p = base + I64Vec3::new(lo.x, y, z) - a;
+                        let to = (p.x + dims.x * (p.y + dims.y * p.z)) as usize;
+                        let len = (hi.x - lo.x + 1) as usize;
+                        dense[to..to + len].copy_from_slice(&w[from..from + len]);
+                    }
+                }
+            }
+            sampler.rows = row_ranges(&dense, dims);
+            sampler.origin = a;
+            sampler.dims = dims;
+            sampler.dense = dense;
+        }
+        Some(sampler)
     }
 }
 
@@ -520,18 +558,102 @@ impl Mask {
 pub struct MaskSampler {
     outside: MaskWeight,
     chunks: HashMap<ChunkKey, Box<[MaskWeight]>, Hash>,
+    /// The first node of the dense box (see `dense`).
+    origin: I64Vec3,
+    /// Its nodes along each axis (zero: no dense box).
+    dims: I64Vec3,
+    /// The weights of the box's nodes, x-major, where the box is at most
+    /// [`DENSE_SAMPLER_NODES`] nodes.
+    dense: Vec<MaskWeight>,
+    /// Per axis, the smallest and largest weight along each line of the dense box in that
+    /// direction (indexed by the other two coordinates, the lower axis first).
+    rows: [Vec<(MaskWeight, MaskWeight)>; 3],
 }
 
+/// The smallest and largest weight along every line of a dense box, per axis.
+fn row_ranges(dense: &[MaskWeight], dims: I64Vec3) -> [Vec<(MaskWeight, MaskWeight)>; 3] {
+    let d = dims.as_uvec3();
+    let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
+    let mut x = vec![(MaskWeight::MAX, 0); ny * nz];
+    let mut y = vec![(MaskWeight::MAX, 0); nx * nz];
+    let mut z = vec![(MaskWeight::MAX, 0); nx * ny];
+    let widen = |r: &mut (MaskWeight, MaskWeight), w: MaskWeight| *r = (r.0.min(w), r.1.max(w));
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let w = dense[i + nx * (j + ny * k)];
+                widen(&mut x[j + ny * k], w);
+                widen(&mut y[i + nx * k], w);
+                widen(&mut z[i + nx * j], w);
+            }
+        }
+    }
+    [x, y, z]
+}
+
+/// The most nodes a sampler keeps in one array (4 MiB).
+const DENSE_SAMPLER_NODES: i64 = 1 << 22;
+
 impl MaskSampler {
+    /// The stored weight of node `p`, from the decoded chunks.
+    #[inline]
+    fn raw(&self, p: I64Vec3) -> MaskWeight {
+        let (key, i) = locate(p);
+        match self.chunks.get(&key) {
+            None => self.outside,
+            Some(c) => c[i],
+        }
+    }
+
     /// The weight of grid node `p`, 0 to 1.
     #[inline]
     pub fn node(&self, p: I64Vec3) -> f64 {
-        let (key, i) = locate(p);
-        let w = match self.chunks.get(&key) {
-            None => self.outside,
-            Some(c) => c[i],
+        let d = p - self.origin;
+        let w = if d.cmpge(I64Vec3::ZERO).all() && d.cmplt(self.dims).all() {
+            self.dense[(d.x + self.dims.x * (d.y + self.dims.y * d.z)) as usize]
+        } else {
+            self.raw(p)
         };
         w as f64 / PROTECTED as f64
+    }
+
+    /// The smallest and largest weight of the nodes on the grid line along `axis` through node
+    /// `p` (its `axis` coordinate ignored), within the sampler's dense box; `None` where the line
+    /// is not in the box.
+    pub fn line_range(&self, axis: usize, p: I64Vec3) -> Option<(MaskWeight, MaskWeight)> {
+        let d = p - self.origin;
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (lo, hi) = (u.min(v), u.max(v));
+        if self.rows[axis].is_empty() || d[lo] < 0 || d[hi] < 0 || d[lo] >= self.dims[lo] || d[hi] >= self.dims[hi] {
+            return None;
+        }
+        Some(self.rows[axis][(d[lo] + self.dims[lo] * d[hi]) as usize])
+    }
+
+    /// Whether every node from `lo` to `hi` (inclusive) is free for CSG (weight below one
+    /// half): `Some` only where the sampler's dense box holds them all.
+    pub(crate) fn free_in(&self, lo: I64Vec3, hi: I64Vec3) -> Option<bool> {
+        let (a, b) = (lo - self.origin, hi - self.origin);
+        if self.dense.is_empty() || a.cmplt(I64Vec3::ZERO).any() || b.cmpge(self.dims).any() {
+            return None;
+        }
+        for z in a.z..=b.z {
+            for y in a.y..=b.y {
+                let row = ((y + self.dims.y * z) * self.dims.x) as usize;
+                if self.dense[row + a.x as usize..=row + b.x as usize].iter().any(|&w| 2 * w as u32 >= PROTECTED as u32)
+                {
+                    return Some(false);
+                }
+            }
+        }
+        Some(true)
+    }
+
+    /// Whether the dense box reaches from `lo` to `hi` along `axis` (grid units).
+    pub(crate) fn spans_box(&self, axis: usize, lo: f64, hi: f64) -> bool {
+        !self.dense.is_empty()
+            && lo >= self.origin[axis] as f64
+            && hi <= (self.origin[axis] + self.dims[axis] - 1) as f64
     }
 
     /// The weight at grid point `p`, 0 to 1: trilinear between the nodes around it.

@@ -9,7 +9,7 @@
 use glam::DVec3;
 
 use super::{Aabb, Brush, Span, unit_axis};
-use crate::mask::{MaskSampler, holds};
+use crate::mask::{MaskSampler, PROTECTED, holds};
 
 /// See the module docs.
 pub(crate) struct Masked<'a> {
@@ -86,23 +86,76 @@ impl Brush for Masked<'_> {
         }
         out.clear();
         let base = origin + start;
-        let at = |t: f64| {
+        // Along the line the weight is linear between the integer positions `k` of the axis,
+        // where it is the bilinear blend of four nodes across (one when the line runs through
+        // nodes): `line_weight(k)`.
+        let (ua, va) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (fu, fv) = (base[ua] - base[ua].floor(), base[va] - base[va].floor());
+        let (bu, bv) = (base[ua].floor() as i64, base[va].floor() as i64);
+        let line_weight = |k: i64| {
+            let mut node = glam::I64Vec3::ZERO;
+            node[axis] = k;
+            let mut sum = 0.0;
+            for (du, wu) in [(0, 1.0 - fu), (1, fu)] {
+                for (dv, wv) in [(0, 1.0 - fv), (1, fv)] {
+                    let w = wu * wv;
+                    if w != 0.0 {
+                        node[ua] = bu + du;
+                        node[va] = bv + dv;
+                        sum += w * self.mask.node(node);
+                    }
+                }
+            }
+            sum
+        };
+        let a = base[axis];
+        let weight_at = |t: f64, below: f64, above: f64| {
+            let u = a + t;
+            below + (above - below) * (u - u.floor())
+        };
+        let normal_at = |t: f64, fallback: DVec3| {
             let mut p = base;
             p[axis] += t;
-            p
+            self.mask.gradient(p).normalize_or(fallback)
         };
-        let weight = |t: f64| self.mask.at(at(t));
-        let normal_at = |t: f64, fallback: DVec3| self.mask.gradient(at(t)).normalize_or(fallback);
+        // A line whose nodes (the one to four it runs between) are all free, or all held, in
+        // the sampler's box: the brush's spans as they are, or none.
+        if let (Some(first), Some(last)) = (inner.first(), inner.last())
+            && self.mask.spans_box(axis, a + first.enter - 1.0, a + last.exit + 1.0)
+        {
+            let mut range = (u8::MAX, 0u8);
+            let mut known = true;
+            for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                if (du == 1 && fu == 0.0) || (dv == 1 && fv == 0.0) {
+                    continue;
+                }
+                let mut node = glam::I64Vec3::ZERO;
+                node[ua] = bu + du;
+                node[va] = bv + dv;
+                match self.mask.line_range(axis, node) {
+                    Some((lo, hi)) => range = (range.0.min(lo), range.1.max(hi)),
+                    None => known = false,
+                }
+            }
+            if known && !holds(range.1 as f64 / PROTECTED as f64) {
+                out.extend_from_slice(&inner);
+                return true;
+            }
+            if known && holds(range.0 as f64 / PROTECTED as f64) {
+                return true;
+            }
+        }
         for s in inner {
-            // The weight is linear between the nodes along the line: walk them over the span.
+            // Walk the integer positions over the span, the weight linear between them.
+            let mut k = (a + s.enter).floor() as i64;
+            let (mut below, mut above) = (line_weight(k), line_weight(k + 1));
             let mut t = s.enter;
-            let mut free = !holds(weight(t));
+            let mut w0 = weight_at(t, below, above);
+            let mut free = !holds(w0);
             let mut open = free.then_some((s.enter, s.enter_normal));
-            let first = (base[axis] + s.enter).floor() + 1.0;
-            let mut node = first;
             while t < s.exit {
-                let next = (node - base[axis]).min(s.exit);
-                let (w0, w1) = (weight(t), weight(next));
+                let next = ((k + 1) as f64 - a).min(s.exit);
+                let w1 = if next < s.exit || (a + next).fract() == 0.0 { above } else { weight_at(next, below, above) };
                 let free_end = !holds(w1);
                 if free != free_end {
                     // The root of the linear weight on [t, next], kept inside it.
@@ -116,7 +169,10 @@ impl Brush for Masked<'_> {
                     free = free_end;
                 }
                 t = next;
-                node += 1.0;
+                w0 = w1;
+                k += 1;
+                below = above;
+                above = line_weight(k + 1);
             }
             if let Some((enter, enter_normal)) = open {
                 out.push(Span { enter, exit: s.exit, enter_normal, exit_normal: s.exit_normal });

@@ -78,6 +78,20 @@ pub(super) fn edit_chunk(
         let now = ctx.op == CsgOp::Add;
         return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
     }
+    if let Some((plain, mask)) = ctx.plain
+        && ctx.op != CsgOp::Intersect
+        && let Some(inside) = chunk_side(plain, origin)
+    {
+        // The cut brush lies within the plain one: a chunk outside that is untouched. One
+        // inside it whose every node is free is inside the cut brush too.
+        if !inside {
+            return None;
+        }
+        if mask.free_in(origin, origin + I64Vec3::splat(CHUNK_CELLS)) == Some(true) {
+            let now = ctx.op == CsgOp::Add;
+            return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
+        }
+    }
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
     let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;

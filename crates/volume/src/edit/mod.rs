@@ -275,6 +275,9 @@ struct EditCtx<'a> {
     tables: [Option<SpanTable>; crate::coords::MAX_LEVEL as usize + 1],
     /// Whether chunks note the x lines whose node states they change (for the materials).
     rows: bool,
+    /// For a brush cut by the mask: the brush before the cut, when it is a distance field, and
+    /// the mask (see `Volume::apply_masked`).
+    plain: Option<(&'a dyn Brush, &'a crate::mask::MaskSampler)>,
 }
 
 impl Volume {
@@ -316,7 +319,7 @@ impl Volume {
         };
         let masked =
             crate::brush::Masked { inner: brush, mask: &sampler, widen: op == CsgOp::Intersect, bounds: reach };
-        self.apply_brush(op, &masked, settings)
+        self.apply_masked(op, &masked, settings, Some((brush, &sampler)))
     }
 
     /// The box of every stored chunk (grid units), if any.
@@ -332,6 +335,19 @@ impl Volume {
 
     /// [`Volume::apply`] with the brush as it is.
     fn apply_brush(&mut self, op: CsgOp, brush: &dyn Brush, settings: &EditSettings) -> Result<EditReport, EditError> {
+        self.apply_masked(op, brush, settings, None)
+    }
+
+    /// [`Volume::apply_brush`]; for a brush cut by the mask, `plain` is the brush before the
+    /// cut and the mask: a chunk whose nodes are all free is decided as the plain brush
+    /// decides it where that brush is a distance field (far chunks cost one value).
+    fn apply_masked(
+        &mut self,
+        op: CsgOp,
+        brush: &dyn Brush,
+        settings: &EditSettings,
+        plain: Option<(&dyn Brush, &crate::mask::MaskSampler)>,
+    ) -> Result<EditReport, EditError> {
         let bounds = brush.bounds();
         if !bounds.is_valid() {
             return Err(EditError::BadBounds);
@@ -377,6 +393,7 @@ impl Volume {
             distance_field: brush.field_is_distance(),
             tables,
             rows: self.has_materials() || matches!(rule, MaterialRule::Fill(f) if f != 0),
+            plain: plain.filter(|(b, _)| b.field_is_distance()),
         };
         let control = settings.control.as_deref();
         if let Some(c) = control {
