@@ -38,6 +38,28 @@ pub fn run(count: usize, radii: &[f64], dabs: usize, seed: u64, progress: &mut d
     let masked = half_masked(&canvas);
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");
     let mut out = String::new();
+    // What a painted mask takes: mask dabs of radius 10 and strength 0.6 at the surface points
+    // (soft edges, every weight in between), against the lists it protects.
+    let mut painted = canvas.clone();
+    for &(p, _) in &points {
+        let dab = strata_volume::tools::Dab::new(p, 10.0, 0.6).expect("a valid dab");
+        strata_volume::tools::mask(&mut painted, &dab, strata_volume::tools::MaskStroke::Add).expect("a mask dab");
+    }
+    let m = painted.mask();
+    let runs = m.chunks().filter(|(_, c)| matches!(c, ChunkMask::Runs(_))).count();
+    let _ = writeln!(
+        out,
+        "Memory: {} mask dabs (radius 10, strength 0.6) on the canvas store {} chunks of mask ({} of runs) in {} bytes of runs, {} bytes with the table: {:.1} % of the canvas's {} bytes of lists; the half-masked canvas stores {} uniform chunks in {} bytes.\n",
+        points.len(),
+        m.chunks().count(),
+        runs,
+        m.chunks().map(|(_, c)| c.heap_bytes()).sum::<usize>(),
+        m.heap_bytes(),
+        100.0 * m.heap_bytes() as f64 / canvas.memory().total() as f64,
+        canvas.memory().total(),
+        masked.mask().chunks().count(),
+        masked.mask().heap_bytes(),
+    );
     let _ = writeln!(
         out,
         "{} dabs per row at the Table 6 surface points, one thread, the unmasked and the masked dab alternately; the masked canvas holds its left half (the middle column of chunks at half weight).\n\n| tool | radius | unmasked dab (ms) | masked dab (ms) | masked / unmasked |\n|---|---|---|---|---|",

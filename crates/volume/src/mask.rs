@@ -280,7 +280,7 @@ impl Mask {
 
     /// Heap bytes of the stored chunks.
     pub fn heap_bytes(&self) -> usize {
-        self.chunks.capacity() * (std::mem::size_of::<(ChunkKey, ChunkMask)>() + 8)
+        crate::memory::hash_table_bytes(self.chunks.capacity(), std::mem::size_of::<(ChunkKey, ChunkMask)>())
             + self.chunks.values().map(ChunkMask::heap_bytes).sum::<usize>()
     }
 

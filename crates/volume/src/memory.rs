@@ -21,6 +21,8 @@ pub struct MemoryReport {
     /// Node materials: the material map's table and the chunks' runs (see
     /// [`crate::material`]; 0 for a volume of material 0 only).
     pub materials: usize,
+    /// The mask: its table and its chunks' runs (see [`crate::mask`]; 0 for no mask).
+    pub mask: usize,
     /// Crossings stored (not bytes).
     pub crossings: usize,
 }
@@ -28,7 +30,7 @@ pub struct MemoryReport {
 impl MemoryReport {
     /// All bytes.
     pub fn total(&self) -> usize {
-        self.positions + self.normals + self.headers + self.chunk_map + self.materials
+        self.positions + self.normals + self.headers + self.chunk_map + self.materials + self.mask
     }
 
     /// All bytes except normals.
@@ -62,6 +64,7 @@ impl Volume {
         let mut r = MemoryReport {
             chunk_map: self.chunks.table_bytes(),
             materials: self.material_bytes(),
+            mask: self.mask.heap_bytes(),
             ..Default::default()
         };
         for chunk in self.chunks.values() {
