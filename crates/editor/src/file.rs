@@ -712,6 +712,7 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
         // The mask: a damaged chunk of it is dropped (its nodes take the outside weight), and
         // the report says so (a mask protects work: losing part of it must not go unsaid).
         let mut mask_chunks: Vec<(ChunkKey, ChunkMask)> = Vec::new();
+        let mut mask_keys: HashSet<ChunkKey> = HashSet::new();
         for c in l.masks {
             let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
             let m = if crc32fast::hash(&c.bytes) != c.crc {
@@ -723,7 +724,7 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
                 Err(why) => report.repairs.push(format!(
                     "layer {name:?}: the mask of chunk ({x}, {y}, {z}) {why} and was dropped; check what it protected"
                 )),
-                Ok(_) if mask_chunks.iter().any(|(k, _)| *k == c.key) => report.repairs.push(format!(
+                Ok(_) if !mask_keys.insert(c.key) => report.repairs.push(format!(
                     "layer {name:?}: the mask of chunk ({x}, {y}, {z}) is stored more than once; the first record was read"
                 )),
                 Ok(m) => mask_chunks.push((c.key, m)),

@@ -73,12 +73,23 @@ impl HistoryEntry {
             return Err(Box::new((e, self)));
         }
         let records: Vec<UndoRecord> = self.records.into_iter().rev().map(|r| target.restore(r)).collect();
+        // (A mask's outside weight changed: every chunk is drawn anew.)
+        let everything: Vec<ChunkKey> = if records.iter().any(UndoRecord::reshades_everything) {
+            target.volume().chunks().map(|(k, _)| k).collect()
+        } else {
+            Vec::new()
+        };
         let transform = match (self.transform, layers.get_mut(self.layer)) {
             (Some(t), Some(layer)) => Some(std::mem::replace(&mut layer.transform, t)),
             _ => None,
         };
         let entry = HistoryEntry { layer: self.layer, records, transform, layers: None };
-        let keys = entry.keys();
+        let mut keys = entry.keys();
+        if !everything.is_empty() {
+            keys.extend(everything);
+            keys.sort();
+            keys.dedup();
+        }
         Ok(Some((entry, Restored::Chunks(self.layer, keys))))
     }
 }

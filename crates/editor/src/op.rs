@@ -285,7 +285,12 @@ impl Editor {
     /// On an error (a world's chunk that cannot be read) nothing changed and the undo comes
     /// back with it.
     pub fn revert(&mut self, undo: OpUndo) -> Result<(), (EditorError, OpUndo)> {
-        let keys = undo.keys();
+        let mut keys = undo.keys();
+        if undo.records.iter().any(UndoRecord::reshades_everything)
+            && let Some(target) = self.surface(undo.surface)
+        {
+            keys.extend(target.volume().chunks().map(|(k, _)| k));
+        }
         let Some(target) = self.surface_mut(undo.surface) else {
             return Err((EditorError::NoLayer(undo.surface), undo));
         };

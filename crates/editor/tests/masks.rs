@@ -121,6 +121,12 @@ fn whole_mask_actions_are_one_undo_step_each_and_refused_in_a_room() {
     assert!(e.scene.layers[0].volume == painted);
     assert!(e.redo());
     assert!(e.scene.layers[0].volume == after[0]);
+    // Undoing an inversion redraws every chunk (its shading changes everywhere).
+    e.finish_meshing();
+    assert_eq!(e.pending(), 0);
+    assert!(e.undo());
+    assert!(e.pending() >= e.scene.layers[0].volume.chunk_count(), "{} chunks queued", e.pending());
+    e.finish_meshing();
     e.record_ops(true);
     assert!(matches!(e.mask_all(0, MaskAction::Clear), Err(EditorError::NotShared(_))));
     e.record_ops(false);

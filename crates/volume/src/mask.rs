@@ -252,6 +252,8 @@ fn locate(p: I64Vec3) -> (ChunkKey, usize) {
     let n = CHUNK_CELLS;
     let k = p.div_euclid(I64Vec3::splat(n));
     let l = p - k * n;
+    // (Nodes beyond the key range, which edits never reach, read the outermost chunks.)
+    let k = k.clamp(I64Vec3::splat(i32::MIN as i64), I64Vec3::splat(i32::MAX as i64));
     (ChunkKey(IVec3::new(k.x as i32, k.y as i32, k.z as i32)), (l.x + n * (l.y + n * l.z)) as usize)
 }
 
@@ -476,9 +478,11 @@ impl Mask {
             return None;
         }
         let n = CHUNK_CELLS;
-        let klo = (lo.floor().as_i64vec3() - I64Vec3::ONE).div_euclid(I64Vec3::splat(n));
-        let khi = (hi.ceil().as_i64vec3() + I64Vec3::ONE).div_euclid(I64Vec3::splat(n));
-        let span = khi - klo + I64Vec3::ONE;
+        let klo = lo.floor().as_i64vec3().saturating_sub(I64Vec3::ONE).div_euclid(I64Vec3::splat(n));
+        let khi = hi.ceil().as_i64vec3().saturating_add(I64Vec3::ONE).div_euclid(I64Vec3::splat(n));
+        let keys = (I64Vec3::splat(i32::MIN as i64), I64Vec3::splat(i32::MAX as i64));
+        let (klo, khi) = (klo.clamp(keys.0, keys.1), khi.clamp(keys.0, keys.1));
+        let span = khi.saturating_sub(klo).saturating_add(I64Vec3::ONE);
         let boxed = span.x.saturating_mul(span.y).saturating_mul(span.z);
         let mut chunks: HashMap<ChunkKey, Box<[MaskWeight]>, Hash> = HashMap::default();
         let inside = |k: &ChunkKey| {
@@ -521,8 +525,9 @@ impl Mask {
         };
         // The nodes of the box (one around) in one array, where it is not too large: a lookup
         // is then an index, not a hash.
-        let (a, b) = (lo.floor().as_i64vec3() - I64Vec3::ONE, hi.ceil().as_i64vec3() + I64Vec3::ONE);
-        let dims = b - a + I64Vec3::ONE;
+        let (a, b) =
+            (lo.floor().as_i64vec3().saturating_sub(I64Vec3::ONE), hi.ceil().as_i64vec3().saturating_add(I64Vec3::ONE));
+        let dims = b.saturating_sub(a).saturating_add(I64Vec3::ONE);
         let count = dims.x.saturating_mul(dims.y).saturating_mul(dims.z);
         if dims.min_element() > 0 && count <= DENSE_SAMPLER_NODES {
             let mut dense = vec![self.outside; count as usize];

@@ -241,6 +241,16 @@ impl Volume {
             Err(v) => v.to_string(),
         };
         report.problem = Some(problem);
+        // The rebuild re-adds the solid and may relevel chunks: the mask, which would cut the
+        // one and forbid the other, is set aside and put back after.
+        let mask = std::mem::take(&mut self.mask);
+        self.repair_lists(&mut report);
+        self.mask = mask;
+        report
+    }
+
+    /// [`Volume::repair`]'s rebuild, without a mask.
+    fn repair_lists(&mut self, report: &mut RepairReport) {
         let level = self.level;
         let mut wrong_level: Vec<(ChunkKey, crate::coords::Level)> = self
             .chunks
@@ -266,7 +276,7 @@ impl Volume {
                 materials: Default::default(),
                 level,
                 cell_size: self.cell_size,
-                mask: self.mask.clone(),
+                mask: Default::default(),
             },
         );
         // The regions that hold a stored chunk, each with the box of its stored chunks (a sparse
@@ -294,7 +304,6 @@ impl Volume {
             self.restore(back.undo);
         }
         report.chunks_after = self.chunk_count();
-        report
     }
 }
 
@@ -349,10 +358,22 @@ mod tests {
 
     #[test]
     fn a_volume_whose_axes_disagree_is_rebuilt_consistent_with_its_x_lines() {
+        for masked in [false, true] {
+            repaired_consistent_with_its_x_lines(masked);
+        }
+    }
+
+    /// The repair of a volume whose axes disagree, with a mask holding everything or without:
+    /// the mask does not stop the rebuild (it once cut the rebuilt solid away) and is kept.
+    fn repaired_consistent_with_its_x_lines(masked: bool) {
         let mut v = Volume::new();
         v.add(&sphere(20.0, 9.0)).unwrap();
         v.add(&Liar(sphere(14.0, 6.3), sphere(14.5, 6.0))).unwrap();
         assert!(v.check_invariants().is_err(), "the liar broke the volume");
+        if masked {
+            v.invert_mask();
+        }
+        let mask = v.mask().clone();
         let before = v.clone();
         let report = v.repair();
         assert!(report.changed());
@@ -366,6 +387,7 @@ mod tests {
                 }
             }
         }
+        assert!(*v.mask() == mask, "the mask is kept");
         // A consistent volume is left alone.
         let again = v.clone();
         assert_eq!(

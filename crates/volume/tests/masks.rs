@@ -255,3 +255,20 @@ fn mask_storage_is_canonical_and_checked() {
     assert!(m.chunks().next().is_none());
     let _ = Level::BASE;
 }
+
+#[test]
+fn far_and_huge_brushes_on_a_masked_volume_are_refused_not_panics() {
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::splat(8.0), 5.0).unwrap()).unwrap();
+    v.invert_mask();
+    let before = v.clone();
+    assert!(v.add(&Sphere::new(DVec3::splat(8.0), 1e300).unwrap()).is_err());
+    assert!(v.subtract(&Sphere::new(DVec3::new(1e300, 0.0, 0.0), 3.0).unwrap()).is_err());
+    for c in [DVec3::new(1e300, 0.0, 0.0), DVec3::new(68_719_476_736.0, 8.0, 8.0)] {
+        for stroke in [MaskStroke::Add, MaskStroke::Subtract, MaskStroke::Smooth] {
+            assert!(tools::mask(&mut v, &Dab::new(c, 4.0, 1.0).unwrap(), stroke).is_err(), "{c} {stroke:?}");
+        }
+    }
+    assert!(v == before, "nothing changed");
+    assert_eq!(v.mask().weight(I64Vec3::new(i64::MAX, 0, i64::MIN)), PROTECTED);
+}

@@ -163,7 +163,7 @@ impl EditReport {
     /// record that restores the volume as it was before this edit (for a chunk both changed, the
     /// older contents).
     pub fn then(mut self, later: EditReport) -> EditReport {
-        let seen: std::collections::HashSet<ChunkKey> = self.undo.keys().collect();
+        let seen: std::collections::HashSet<ChunkKey> = self.undo.previous.iter().map(|(k, _)| *k).collect();
         for (key, chunk) in later.undo.previous {
             if !seen.contains(&key) {
                 self.undo.previous.push((key, chunk));
@@ -219,7 +219,14 @@ pub struct UndoRecord {
 }
 
 impl UndoRecord {
-    /// Chunks the record restores.
+    /// Whether restoring the record changes the mask's weight outside its stored chunks: the
+    /// shading of every chunk then changes (see [`UndoRecord::keys`] for the others).
+    pub fn reshades_everything(&self) -> bool {
+        self.masks.as_ref().is_some_and(|m| m.outside.is_some())
+    }
+
+    /// Chunks the record restores, and for a mask change the chunks around each chunk of the
+    /// mask it restores (their meshes' shading reads its weights).
     pub fn keys(&self) -> impl Iterator<Item = ChunkKey> + '_ {
         let only_materials =
             self.materials.iter().map(|(k, _)| *k).filter(|k| !self.previous.iter().any(|(p, _)| p == k));
@@ -227,6 +234,7 @@ impl UndoRecord {
             .masks
             .iter()
             .flat_map(|m| m.keys())
+            .flat_map(ChunkKey::around)
             .filter(|k| !self.previous.iter().any(|(p, _)| p == k) && !self.materials.iter().any(|(m, _)| m == k));
         self.previous.iter().map(|(k, _)| *k).chain(only_materials).chain(only_masks)
     }
@@ -306,6 +314,8 @@ impl Volume {
         if self.mask.is_clear() {
             return self.apply_brush(op, brush, settings);
         }
+        // (A brush out of range or too large is refused before the mask is read for it.)
+        chunk_range(&bounds.expand(SNAP_DISTANCE), settings.max_chunks)?;
         // An intersection empties whatever lies outside the brush: the held part anywhere must
         // be in reach.
         let reach = match (op, self.chunk_bounds()) {

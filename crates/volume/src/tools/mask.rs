@@ -24,6 +24,9 @@ pub enum MaskStroke {
 /// Applies one mask dab; the report lists the chunks whose shading changes and undoes the
 /// dab exactly.
 pub fn mask(volume: &mut Volume, dab: &Dab, stroke: MaskStroke) -> Result<EditReport, ToolError> {
+    // A ball beyond the chunk key range is refused, as an edit there is.
+    let r = DVec3::splat(dab.radius + 1.0);
+    crate::edit::chunk_range(&crate::brush::Aabb::new(dab.center - r, dab.center + r), u64::MAX)?;
     let side = 2.0 * dab.radius + 1.0;
     let nodes = side * side * side;
     if nodes > MAX_REGION_NODES as f64 {
