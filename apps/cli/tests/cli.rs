@@ -47,7 +47,7 @@ fn convert_info_and_export_round_trip_the_bunny() {
     let report = ok(strata(&["convert", s(&bunny()), "--cells", "48", "-o", s(&scene)]));
     assert!(report.contains("crossings") && report.contains("wrote"), "{report}");
     let info = ok(strata(&["info", s(&scene)]));
-    assert!(info.contains("scene file version 4"), "{info}");
+    assert!(info.contains("scene file version 5"), "{info}");
     assert!(info.contains("\"bunny\""), "the layer is named after the file: {info}");
     assert!(info.contains("crossings") && info.contains("bounds") && info.contains("memory"), "{info}");
     for (ext, mesher) in [("glb", "mc"), ("stl", "dc"), ("obj", "mc"), ("ply", "dc")] {
