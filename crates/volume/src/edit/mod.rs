@@ -225,8 +225,7 @@ impl UndoRecord {
         self.masks.as_ref().is_some_and(|m| m.outside.is_some())
     }
 
-    /// Chunks the record restores, and for a mask change the chunks around each chunk of the
-    /// mask it restores (their meshes' shading reads its weights).
+    /// Chunks the record restores (a shared room's undo compares them with later edits).
     pub fn keys(&self) -> impl Iterator<Item = ChunkKey> + '_ {
         let only_materials =
             self.materials.iter().map(|(k, _)| *k).filter(|k| !self.previous.iter().any(|(p, _)| p == k));
@@ -234,7 +233,6 @@ impl UndoRecord {
             .masks
             .iter()
             .flat_map(|m| m.keys())
-            .flat_map(ChunkKey::around)
             .filter(|k| !self.previous.iter().any(|(p, _)| p == k) && !self.materials.iter().any(|(m, _)| m == k));
         self.previous.iter().map(|(k, _)| *k).chain(only_materials).chain(only_masks)
     }
