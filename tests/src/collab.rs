@@ -52,8 +52,7 @@ pub fn ball_scene() -> Scene {
 pub fn random_stroke(e: &mut Editor, rng: &mut Rng) {
     // (Mask strokes are left out too: they kept the random streams of these tests as they were
     // before masks; their replay is covered by the editor's operation tests.)
-    let tools: Vec<ToolKind> =
-        ToolKind::ALL.into_iter().filter(|k| *k != ToolKind::Detail && !k.is_mask()).collect();
+    let tools: Vec<ToolKind> = ToolKind::ALL.into_iter().filter(|k| *k != ToolKind::Detail && !k.is_mask()).collect();
     e.tool.kind = tools[rng.below(tools.len() as u64) as usize];
     e.tool.radius = rng.range(1.5, 4.0);
     e.tool.strength = 0.5;
