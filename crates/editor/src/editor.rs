@@ -303,6 +303,19 @@ impl Editor {
         Ok(())
     }
 
+    /// Queues an edit's chunks for meshing and pushes its undo record as one history step
+    /// (the history keeps the record; `edit` is left with an empty one).
+    fn commit_edit(&mut self, layer: usize, edit: &mut EditReport) {
+        self.queue(layer, &edit.changed, edit.reach);
+        self.revision += 1;
+        self.history.push(HistoryEntry {
+            layer,
+            records: vec![std::mem::take(&mut edit.undo)],
+            transform: None,
+            layers: None,
+        });
+    }
+
     /// Refuses a mask tool on a streamed surface.
     pub(crate) fn check_mask_target(&self, layer: usize, tool: &crate::tool::ToolSettings) -> Result<(), EditorError> {
         if tool.kind.is_mask() && self.surface(layer).is_some_and(|s| s.streamed()) {
@@ -335,14 +348,7 @@ impl Editor {
         if edit.undo.is_empty() {
             return Ok(());
         }
-        self.queue(layer, &edit.changed, None);
-        self.revision += 1;
-        self.history.push(HistoryEntry {
-            layer,
-            records: vec![std::mem::take(&mut edit.undo)],
-            transform: None,
-            layers: None,
-        });
+        self.commit_edit(layer, &mut edit);
         Ok(())
     }
 
@@ -373,15 +379,7 @@ impl Editor {
             return Err(EditorError::Locked(layer));
         }
         let mut edit = l.edit(&brush.bounds(), &mut |v| Ok(v.apply(op, brush, &settings)?))?;
-        self.queue(layer, &edit.changed, edit.reach);
-        self.revision += 1;
-        // The history keeps the undo record; the report returned has an empty one.
-        self.history.push(HistoryEntry {
-            layer,
-            records: vec![std::mem::take(&mut edit.undo)],
-            transform: None,
-            layers: None,
-        });
+        self.commit_edit(layer, &mut edit);
         Ok(edit)
     }
 
