@@ -6,7 +6,7 @@
 use glam::{DVec3, I64Vec3};
 use proptest::prelude::*;
 use strata_volume::brush::{Brush, Cuboid, Sphere};
-use strata_volume::tools::{self, Dab, MaskStroke, Smoothing};
+use strata_volume::tools::{self, BuiltinStamp, Dab, MaskStroke, Smoothing, StampPlacement};
 use strata_volume::{ChunkMask, CsgOp, EditReport, EditSettings, Level, Mask, PROTECTED, Volume};
 
 /// Side of the checked region in nodes.
@@ -70,7 +70,7 @@ fn step() -> impl Strategy<Value = Step> {
         prop_oneof![
             3 => (prop_oneof![Just(CsgOp::Add), Just(CsgOp::Subtract), Just(CsgOp::Intersect)], point(on_grid), 2.0..12.0f64, any::<bool>())
                 .prop_map(move |(op, center, size, cube)| Step::Csg { op, center, size: snap(size), cube }),
-            3 => (0u8..9, point(on_grid), 2.0..9.0f64, 0.2..1.0f64)
+            3 => (0u8..11, point(on_grid), 2.0..9.0f64, 0.2..1.0f64)
                 .prop_map(move |(kind, center, radius, strength)| Step::Tool { kind, center, radius: snap(radius), strength }),
             2 => (0u8..3, point(on_grid), 2.0..10.0f64, 0.3..1.0f64)
                 .prop_map(move |(stroke, center, radius, strength)| Step::Mask { stroke, center, radius: snap(radius), strength }),
@@ -100,7 +100,14 @@ fn run(v: &mut Volume, s: &Step) {
                 5 => checked(v, |v| tools::flatten(v, &dab).unwrap()),
                 6 => checked(v, |v| tools::grab(v, &dab, DVec3::new(2.0, -1.0, 1.5)).unwrap()),
                 7 => checked(v, |v| tools::pinch(v, &dab, None, 0.8).unwrap()),
-                _ => checked(v, |v| tools::paint(v, &dab).unwrap()),
+                8 => checked(v, |v| tools::paint(v, &dab).unwrap()),
+                _ => {
+                    let (image, height) =
+                        if kind == 9 { (BuiltinStamp::Dome, 2.5) } else { (BuiltinStamp::Cells, -2.0) };
+                    let placement =
+                        StampPlacement { up: DVec3::new(0.3, 1.0, -0.2), angle: radius, mirrored: kind == 10 };
+                    checked(v, |v| tools::stamp(v, &dab, &image.image(), &placement, height).unwrap())
+                }
             }
         }
         Step::Mask { stroke, center, radius, strength } => {

@@ -1,7 +1,8 @@
 //! Strokes of every sculpting tool keep every invariant and undo exactly (issue 29): random
 //! strokes (dabs a quarter radius apart, radius 1–30, centres on nodes, on half-cells and
 //! anywhere, mirrored across a node plane) of smoothing (all three methods), inflate and
-//! deflate, flatten, clay and its erase, pinch, grab and paint, on volumes whose shapes sit on
+//! deflate, flatten, clay and its erase, pinch, grab, paint, and stamps raised and carved at
+//! any turn (issue 32), on volumes whose shapes sit on
 //! nodes and grid planes, half of them with chunks at finer levels. After every dab:
 //! `check_invariants` (what the loader requires); after the stroke, undoing its dabs in reverse
 //! gives the volume back bit for bit.
@@ -12,11 +13,11 @@
 use glam::DVec3;
 use proptest::prelude::*;
 use strata_volume::brush::{Cuboid, Sphere};
-use strata_volume::tools::{self, Dab, Smoothing};
+use strata_volume::tools::{self, BuiltinStamp, Dab, Smoothing, StampPlacement};
 use strata_volume::{ChunkKey, EditReport, Level, Volume};
 
 /// The tools, by number.
-const TOOLS: u8 = 12;
+const TOOLS: u8 = 14;
 
 fn dab_of(v: &mut Volume, tool: u8, dab: &Dab, dir: DVec3) -> EditReport {
     let r = dab.radius;
@@ -32,7 +33,16 @@ fn dab_of(v: &mut Volume, tool: u8, dab: &Dab, dir: DVec3) -> EditReport {
         8 => tools::pinch(v, dab, Some(dir), 0.5),
         9 => tools::pinch(v, dab, None, -0.5),
         10 => tools::grab(v, dab, dir * 0.25 * r),
-        _ => tools::paint(v, dab),
+        11 => tools::paint(v, dab),
+        // Stamps turned every way: up along the stroke, turned further by an angle of it, and
+        // mirrored for the carving one.
+        12 | 13 => {
+            let (stamp, height) =
+                if tool == 12 { (BuiltinStamp::Star, 0.3 * r) } else { (BuiltinStamp::Cells, -0.25 * r) };
+            let placement = StampPlacement { up: dir, angle: dir.x.atan2(dir.z) * 3.0, mirrored: tool == 13 };
+            tools::stamp(v, dab, &stamp.image(), &placement, height)
+        }
+        _ => unreachable!("tool {tool}"),
     };
     match result {
         Ok(report) => report,

@@ -1,9 +1,11 @@
 //! The field operators on the region primitive: inflate, smooth (all three methods) and
-//! flatten, measured.
+//! flatten, measured; and stamps, placed and turned.
 
 use glam::DVec3;
 use strata_volume::brush::{Cuboid, Sphere};
-use strata_volume::tools::{Dab, Smoothing, ToolError, falloff, flatten, inflate, smooth};
+use strata_volume::tools::{
+    BuiltinStamp, Dab, Smoothing, StampImage, StampPlacement, ToolError, falloff, flatten, inflate, smooth, stamp,
+};
 use strata_volume::{Axis, Volume};
 
 struct Rng(u64);
@@ -227,4 +229,90 @@ fn laplacian_smoothing_shrinks_a_sphere_as_mean_curvature_flow() {
     let (drop, predicted) = (measured0 * measured0 - measured * measured, measured0 * measured0 - r2);
     eprintln!("r² fell by {drop:.2}, mean-curvature flow predicts {predicted:.2} (r {measured0:.3} -> {measured:.3})");
     assert!((drop - predicted).abs() <= 0.05 * predicted, "r² fell by {drop}, predicted {predicted}");
+}
+
+/// A slab whose top face lies on the grid plane z = 16 (every node of the face on it), and the
+/// height of its top at `(x, y)`.
+fn slab() -> Volume {
+    let mut v = Volume::new();
+    v.add(&Cuboid::new(DVec3::new(24.0, 24.0, 8.0), DVec3::new(30.0, 30.0, 8.0)).unwrap()).unwrap();
+    v
+}
+
+fn top(v: &Volume, x: f64, y: f64) -> f64 {
+    40.0 - v.raycast(DVec3::new(x, y, 40.0), -DVec3::Z, 60.0).unwrap().t
+}
+
+#[test]
+fn a_stamp_raises_its_picture_and_carves_it_with_a_negative_height() {
+    let c = DVec3::new(24.0, 24.0, 16.0);
+    let ring = BuiltinStamp::Ring.image();
+    let placement = StampPlacement::default();
+    for height in [2.0, -2.0] {
+        let mut v = slab();
+        let fresh = v.clone();
+        let dab = Dab::new(c, 10.0, 1.0).unwrap();
+        let report = stamp(&mut v, &dab, &ring, &placement, height).unwrap();
+        v.check_invariants().unwrap();
+        // The ring (at 0.55 of the radius) moves by the height; its middle and the slab
+        // beyond the radius stay.
+        for a in 0..8 {
+            let (s, k) = (a as f64 * std::f64::consts::TAU / 8.0).sin_cos();
+            let moved = top(&v, 24.0 + 5.5 * k, 24.0 + 5.5 * s) - 16.0;
+            assert!((moved - height).abs() < 0.25, "height {height}: the ring moved {moved}");
+        }
+        assert!((top(&v, 24.0, 24.0) - 16.0).abs() < 0.1, "the ring's middle stays");
+        // (A face on a grid plane is stored a hair off it.)
+        assert_eq!(top(&v, 35.0, 24.0), top(&fresh, 35.0, 24.0), "beyond the radius nothing moves");
+        v.restore(report.undo);
+        assert_eq!(v, fresh, "a stamp undoes exactly");
+    }
+}
+
+#[test]
+fn a_stamp_turns_with_its_up_direction_and_angle_and_mirrors() {
+    // An image white in its top-right quarter only.
+    let side = 32;
+    let corner = StampImage::from_fn(side, |u, v| if u > 0.15 && v > 0.15 { 1.0 } else { 0.0 });
+    let c = DVec3::new(24.0, 24.0, 16.0);
+    let raised = |placement: StampPlacement| {
+        let mut v = slab();
+        stamp(&mut v, &Dab::new(c, 10.0, 1.0).unwrap(), &corner, &placement, 2.0).unwrap();
+        v.check_invariants().unwrap();
+        // Which quarter rose (seen from above, +z out of the slab: x right, y up).
+        let mut q = Vec::new();
+        for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)] {
+            q.push(top(&v, 24.0 + 4.0 * sx, 24.0 + 4.0 * sy) - 16.0 > 1.0);
+        }
+        q
+    };
+    let up = StampPlacement { up: DVec3::Y, angle: 0.0, mirrored: false };
+    assert_eq!(raised(up), [true, false, false, false], "up +y: the top-right quarter");
+    let quarter = StampPlacement { angle: std::f64::consts::FRAC_PI_2, ..up };
+    assert_eq!(raised(quarter), [false, true, false, false], "a quarter turn counter-clockwise");
+    let left = StampPlacement { up: -DVec3::X, ..up };
+    assert_eq!(raised(left), [false, true, false, false], "up along −x is the same turn");
+    let mirrored = StampPlacement { mirrored: true, ..up };
+    assert_eq!(raised(mirrored), [false, true, false, false], "mirrored: left for right");
+}
+
+#[test]
+fn a_stamp_over_empty_space_or_with_bad_numbers_changes_nothing() {
+    let mut v = slab();
+    let before = v.clone();
+    let dome = BuiltinStamp::Dome.image();
+    let dab = Dab::new(DVec3::new(24.0, 24.0, 16.0), 6.0, 1.0).unwrap();
+    for (placement, height) in [
+        (StampPlacement::default(), f64::NAN),
+        (StampPlacement::default(), f64::INFINITY),
+        (StampPlacement { angle: f64::NAN, ..Default::default() }, 1.0),
+        (StampPlacement { up: DVec3::INFINITY, ..Default::default() }, 1.0),
+    ] {
+        assert!(matches!(stamp(&mut v, &dab, &dome, &placement, height), Err(ToolError::BadParameter { .. })));
+    }
+    let far = Dab::new(DVec3::splat(300.0), 6.0, 1.0).unwrap();
+    assert!(stamp(&mut v, &far, &dome, &StampPlacement::default(), 2.0).unwrap().changed.is_empty());
+    let huge = Dab::new(DVec3::ZERO, 1e6, 1.0).unwrap();
+    assert!(matches!(stamp(&mut v, &huge, &dome, &StampPlacement::default(), 2.0), Err(ToolError::Region(_))));
+    assert_eq!(v, before);
 }
