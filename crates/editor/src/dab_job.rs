@@ -9,7 +9,7 @@ use strata_volume::{EditControl, EditError, EditReport, EditSettings, Volume};
 use crate::editor::{Editor, EditorError};
 use crate::history::HistoryEntry;
 use crate::pose::ToolPose;
-use crate::stroke::field_tool_dab;
+use crate::stroke::{FieldDab, field_tool_dab};
 use crate::tool::ToolKind;
 
 /// One dab applied on a worker thread ([`Editor::start_dab_job`]), for edits too large for a
@@ -85,13 +85,17 @@ impl Editor {
         self.check_editable(layer)?;
         self.check_material()?;
         let tool = self.tool_for(pose);
-        self.check_mask_target(layer, &tool)?;
+        self.check_tool_target(layer, &tool)?;
+        let image = self.stamp_image(&tool)?;
         let l = &mut self.scene.layers[layer];
         let inverted = pose.inverted();
         let op = tool.kind.op(inverted);
         let mut dabs = Vec::new();
-        for (at, orientation) in tool.mirrored(&l.transform, pose.position, pose.orientation) {
-            dabs.push((at, tool.brush(&l.transform, at, orientation, pose.pressure)?));
+        let parities = tool.mirror_parities(&l.transform, pose.position);
+        for ((at, orientation), mirrored) in
+            tool.mirrored(&l.transform, pose.position, pose.orientation).into_iter().zip(parities)
+        {
+            dabs.push((at, orientation, mirrored, tool.brush(&l.transform, at, orientation, pose.pressure)?));
         }
         let placeholder = Volume::with_level(l.volume.level());
         let mut volume = std::mem::replace(&mut l.volume, placeholder);
@@ -105,11 +109,12 @@ impl Editor {
         }
         let worker = std::thread::spawn(move || {
             let mut done: Vec<EditReport> = Vec::new();
-            for (at, brush) in dabs {
+            for (at, orientation, mirrored, brush) in dabs {
                 // (A field tool's dab cannot stop half-way; a cancel is honoured when it ends.)
                 let result = if tool.kind.is_field_tool() {
-                    field_tool_dab(&tool, &transform, &mut volume, at, pressure, inverted, None)
-                        .map_err(EditorError::from)
+                    let stamp = image.as_deref();
+                    let dab = FieldDab { at, orientation, pressure, inverted, direction: None, mirrored, stamp };
+                    field_tool_dab(&tool, &transform, &mut volume, &dab).map_err(EditorError::from)
                 } else {
                     volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)
                 };

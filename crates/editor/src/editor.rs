@@ -74,6 +74,10 @@ pub enum EditorError {
     /// operations for a room: the others would not see it.
     #[error("{0} cannot be shared with the room: leave the session first")]
     NotShared(&'static str),
+    /// The stamp tool names an image the editor does not hold (one loaded into another
+    /// editor).
+    #[error("the stamp tool's image is not loaded here: load it again or pick a built-in stamp")]
+    UnknownStamp,
     /// The current material is not in the scene's palette.
     #[error("material {id} is not in the palette ({count} materials)")]
     UnknownMaterial {
@@ -137,6 +141,8 @@ pub struct Editor {
     /// [`crate::Stabiliser`]). Operations record where the dabs went, so a room replays them
     /// without it.
     pub stabiliser: crate::Stabiliser,
+    /// The stamp tool's images (the tool names one by [`crate::StampSettings::source`]).
+    pub stamps: crate::StampLibrary,
     /// The layer tools edit (on a world, the world: see [`Editor::active_surface`]).
     pub active_layer: usize,
     /// Dabs of [`Editor::frame`] whose box spans more chunks than this are refused with
@@ -181,6 +187,7 @@ impl Editor {
             scene,
             tool: ToolSettings::default(),
             stabiliser: crate::Stabiliser::Off,
+            stamps: crate::StampLibrary::default(),
             active_layer: 0,
             history: History::default(),
             world: None,
@@ -316,10 +323,22 @@ impl Editor {
         });
     }
 
-    /// Refuses a mask tool on a streamed surface.
-    pub(crate) fn check_mask_target(&self, layer: usize, tool: &crate::tool::ToolSettings) -> Result<(), EditorError> {
+    /// Refuses a mask tool on a streamed surface, and a stamp loaded from a file that this
+    /// editor does not hold or that a room would not have.
+    pub(crate) fn check_tool_target(&self, layer: usize, tool: &crate::tool::ToolSettings) -> Result<(), EditorError> {
         if tool.kind.is_mask() && self.surface(layer).is_some_and(|s| s.streamed()) {
             return Err(EditorError::MaskOnWorld);
+        }
+        if tool.kind == crate::ToolKind::Stamp
+            && let crate::StampSource::Loaded(_) = tool.stamp.source
+        {
+            if self.records_ops() {
+                // (Operations name the image; the others in the room do not have it.)
+                return Err(EditorError::NotShared("a stamp loaded from a file"));
+            }
+            if self.stamps.name(tool.stamp.source).is_none() {
+                return Err(EditorError::UnknownStamp);
+            }
         }
         Ok(())
     }

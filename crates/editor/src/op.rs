@@ -254,7 +254,7 @@ impl Editor {
         if op.tool.material as usize >= count {
             return Err(EditorError::UnknownMaterial { id: op.tool.material, count });
         }
-        self.check_mask_target(layer, &op.tool)?;
+        self.check_tool_target(layer, &op.tool)?;
         let mut undo = OpUndo { surface: layer, records: Vec::new() };
         // The frame's limit is for dragging; a replayed operation is applied as it was.
         let limit = std::mem::replace(&mut self.frame_dab_limit, u64::MAX);

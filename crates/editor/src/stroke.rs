@@ -4,7 +4,7 @@
 
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use strata_volume::{ChunkKey, EditReport, EditSettings, Volume};
 
 use crate::editor::{Editor, EditorError, FrameReport};
@@ -24,6 +24,12 @@ pub(crate) struct Stroke {
     brush: DVec3,
     /// A grab's centre (world): it follows the material it drags.
     anchor: DVec3,
+    /// A stamp dragged out (see [`crate::StampStroke::Drag`]): `last` is its middle, `brush`
+    /// the pointer, and nothing is applied until the button is released.
+    drag: bool,
+    /// The pose's orientation when the stroke started (a dragged stamp's top where it was
+    /// not dragged at all).
+    orientation: DQuat,
     inverted: bool,
     /// The tool the stroke applies (the current tool, or smoothing while the pose says so).
     kind: ToolKind,
@@ -42,6 +48,8 @@ impl Stroke {
             start,
             brush: start,
             anchor: position,
+            drag: false,
+            orientation: DQuat::IDENTITY,
             inverted,
             kind,
             records: Vec::new(),
@@ -81,21 +89,39 @@ impl Stroke {
     }
 }
 
-/// One dab of the field tool `tool.kind` at world point `p` on `volume`, placed in its layer's
-/// grid by `transform`: a ball of the tool's radius (at `pressure`), the falloff scaled by
-/// [`ToolSettings::field_strength`]; `inverted` (the secondary button) picks the inverse tool;
-/// `direction` is the stroke's direction (world), the line a pinch pulls towards.
+/// Where and how one field-tool dab (one mirror image) acts (world coordinates).
+pub(crate) struct FieldDab<'a> {
+    /// The dab's centre.
+    pub at: DVec3,
+    /// The pose's orientation (a stamp's top is its y axis unless it follows the stroke).
+    pub orientation: DQuat,
+    pub pressure: f64,
+    /// The secondary button: the inverse tool.
+    pub inverted: bool,
+    /// The stroke's direction, the line a pinch pulls towards and a stamp's top when it
+    /// follows the stroke.
+    pub direction: Option<DVec3>,
+    /// An image reflected an odd number of times (a stamp's picture is mirrored).
+    pub mirrored: bool,
+    /// The stamp tool's image.
+    pub stamp: Option<&'a strata_volume::tools::StampImage>,
+}
+
+/// One dab of the field tool `tool.kind` on `volume`, placed in its layer's grid by
+/// `transform`: a ball of the tool's radius (at the dab's pressure), the falloff scaled by
+/// [`ToolSettings::field_strength`]; the dab's `inverted` picks the inverse tool.
 pub(crate) fn field_tool_dab(
     tool: &ToolSettings,
     transform: &crate::scene::LayerTransform,
     volume: &mut Volume,
-    p: DVec3,
-    pressure: f64,
-    inverted: bool,
-    direction: Option<DVec3>,
+    d: &FieldDab,
 ) -> Result<EditReport, strata_volume::tools::ToolError> {
-    use strata_volume::tools::{Dab, MaskStroke, Smoothing, clay, flatten, inflate, mask, paint, pinch, smooth};
-    let radius = tool.radius_at(pressure) / transform.scale;
+    use strata_volume::tools::{
+        Dab, MaskStroke, Smoothing, StampPlacement, ToolError, clay, flatten, inflate, mask, paint, pinch, smooth,
+        stamp,
+    };
+    let (p, inverted) = (d.at, d.inverted);
+    let radius = tool.radius_at(d.pressure) / transform.scale;
     let dab =
         Dab { material: tool.material, ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))? };
     match tool.kind {
@@ -115,8 +141,19 @@ pub(crate) fn field_tool_dab(
         }
         ToolKind::Inflate => inflate(volume, &dab, if inverted { -0.2 } else { 0.2 } * radius),
         ToolKind::Pinch => {
-            let axis = direction.map(|d| transform.rotation.inverse() * d);
+            let axis = d.direction.map(|d| transform.rotation.inverse() * d);
             pinch(volume, &dab, axis, if inverted { -0.5 } else { 0.5 })
+        }
+        ToolKind::Stamp => {
+            let image = d.stamp.ok_or(ToolError::BadParameter { what: "the stamp's image", positive: false })?;
+            let s = &tool.stamp;
+            let along = s.follow_stroke || s.stroke == crate::StampStroke::Drag;
+            let up = d.direction.filter(|_| along).unwrap_or(d.orientation * DVec3::Y);
+            // A mirror image turns the other way.
+            let angle = s.angle.to_radians() * if d.mirrored { -1.0 } else { 1.0 };
+            let placement = StampPlacement { up: transform.rotation.inverse() * up, angle, mirrored: d.mirrored };
+            let height = crate::stamps::STAMP_HEIGHT * radius * if inverted { -1.0 } else { 1.0 };
+            stamp(volume, &dab, image, &placement, height)
         }
         // (Grab drags through `Editor::grab_to`; a dab of it alone has nothing to drag.)
         ToolKind::Grab => {
@@ -170,7 +207,7 @@ impl Editor {
         let mut report = FrameReport::default();
         let t0 = Instant::now();
         let down = pose.buttons.primary || pose.buttons.secondary;
-        let result = if down { self.stroke_to(pose, &mut report) } else { Ok(()) };
+        let result = if down { self.stroke_to(pose, &mut report) } else { self.finish_stamp_drag(&mut report) };
         self.end_op();
         if !down || result.is_err() {
             self.end_stroke();
@@ -186,7 +223,7 @@ impl Editor {
         self.check_material()?;
         let inverted = pose.inverted();
         let tool = self.tool_for(pose);
-        self.check_mask_target(layer, &tool)?;
+        self.check_tool_target(layer, &tool)?;
         let spacing = tool.dab_spacing();
         let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
         let continuing =
@@ -195,10 +232,12 @@ impl Editor {
             self.end_stroke();
         }
         let start = self.stroke.as_ref().map(|s| s.start);
-        // The stabiliser's brush trails the pointer (a grab follows the pointer exactly).
+        let dragging = tool.kind == ToolKind::Stamp && tool.stamp.stroke == crate::StampStroke::Drag;
+        // The stabiliser's brush trails the pointer (a grab and a dragged stamp follow the
+        // pointer exactly).
         let stabiliser = self.stabiliser;
         let pointer = match self.stroke.as_mut() {
-            Some(s) if tool.kind != ToolKind::Grab => {
+            Some(s) if tool.kind != ToolKind::Grab && !dragging => {
                 s.brush = stabiliser.follow(s.brush, pose.position, tool.radius_at(pose.pressure));
                 s.brush
             }
@@ -207,6 +246,17 @@ impl Editor {
         let position = tool.aligned(&transform, pointer, start);
         if tool.kind == ToolKind::Grab {
             return self.grab_to(layer, position, pose, &tool, report);
+        }
+        if dragging {
+            match self.stroke.as_mut() {
+                Some(s) => s.brush = pose.position,
+                None => {
+                    let mut s = Stroke::new(layer, position, pose.position, inverted, tool.kind);
+                    (s.drag, s.orientation) = (true, pose.orientation);
+                    self.stroke = Some(s);
+                }
+            }
+            return Ok(());
         }
         let mut dabs = Vec::new();
         match &self.stroke {
@@ -247,6 +297,51 @@ impl Editor {
             s.last = p;
             report.dabs += 1;
         }
+        Ok(())
+    }
+
+    /// Where a stamp being dragged out goes: its middle and radius (world), and where its top
+    /// points (a zero vector until the pointer has moved); `None` unless one is.
+    pub fn stamp_drag(&self) -> Option<(DVec3, f64, DVec3)> {
+        let s = self.stroke.as_ref().filter(|s| s.drag)?;
+        let reach = s.brush - s.last;
+        let radius = if reach.length() > 0.0 { reach.length() } else { self.tool.radius };
+        Some((s.last, radius, reach))
+    }
+
+    /// Applies the stamp dragged out in the stroke in progress, if one is (the button was
+    /// released): one dab at its middle, as large as the drag and turned towards the pointer
+    /// (a click without a drag: the tool's radius, the top up the pose's y axis), whatever its
+    /// size (the frame limit is for dragging). Its undo goes to the stroke.
+    fn finish_stamp_drag(&mut self, report: &mut FrameReport) -> Result<(), EditorError> {
+        let Some(s) = self.stroke.as_ref().filter(|s| s.drag) else { return Ok(()) };
+        let (layer, centre, pointer, inverted, orientation) = (s.layer, s.last, s.brush, s.inverted, s.orientation);
+        let mut tool = self.tool;
+        tool.kind = ToolKind::Stamp;
+        tool.stamp.stroke = crate::StampStroke::Drag;
+        let reach = pointer - centre;
+        if reach.length() > 0.0 {
+            // The drag is the radius: pressure does not scale it.
+            (tool.radius, tool.strength) = (reach.length(), 0.0);
+        }
+        self.check_editable(layer)?;
+        self.check_tool_target(layer, &tool)?;
+        let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();
+        self.begin_op(layer, &transform, &tool);
+        // (The dab's top points from `from` to `at`: from the pointer's mirror image.)
+        let dab = DabRecord::Dab { at: centre, from: centre - reach, orientation, pressure: 1.0, inverted };
+        let limit = std::mem::replace(&mut self.frame_dab_limit, u64::MAX);
+        let mut applied = Vec::new();
+        let result = self.apply_dab(layer, &tool, &transform, &dab, &mut applied);
+        self.frame_dab_limit = limit;
+        result?;
+        for (edit, at, reach) in applied {
+            self.record(layer, edit);
+            let s = self.stroke.as_mut().expect("a stroke is in progress");
+            s.own.push((at, reach));
+        }
+        self.note_dab(dab);
+        report.dabs += 1;
         Ok(())
     }
 
@@ -297,15 +392,18 @@ impl Editor {
     ) -> Result<(), EditorError> {
         let op = tool.kind.op(inverted);
         let images = tool.mirrored(transform, p, orientation);
-        // (The same images, in the same order, each with the stroke's direction.)
+        // (The same images, in the same order, each with the stroke's direction and whether it
+        // is mirrored.)
         let directions = tool.mirrored_directions(transform, p, p - last);
+        let parities = tool.mirror_parities(transform, p);
+        let image = self.stamp_image(tool)?;
         // Each image's brush (CSG tools) and box, built once; all are checked against the
         // frame's limit before any is applied, so a refused dab leaves no image behind.
         let mut planned = Vec::with_capacity(images.len());
         for &(at, orientation) in &images {
             if tool.kind.is_field_tool() {
-                // Clay's and inflate's change stays within the ball; a tenth more covers the
-                // surface it moved.
+                // Clay's, inflate's and a stamp's change stays within the ball; a tenth more
+                // covers the surface it moved.
                 let reach = tool.radius_at(pressure) * 1.1;
                 planned.push((None, ball_bounds(transform.to_grid(at), reach / transform.scale), reach));
             } else {
@@ -320,14 +418,15 @@ impl Editor {
             self.check_dab_size(bounds)?;
         }
         let settings = EditSettings { material: tool.material, ..self.settings.clone() };
-        for (k, ((at, _), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
+        for (k, ((at, orientation), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
             let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
             let edit = match brush {
                 None => {
                     let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
-                    target.edit(&bounds, &mut |v| {
-                        Ok(field_tool_dab(tool, transform, v, at, pressure, inverted, direction)?)
-                    })?
+                    let mirrored = parities.get(k).copied().unwrap_or(false);
+                    let dab =
+                        FieldDab { at, orientation, pressure, inverted, direction, mirrored, stamp: image.as_deref() };
+                    target.edit(&bounds, &mut |v| Ok(field_tool_dab(tool, transform, v, &dab)?))?
                 }
                 Some(brush) => target.edit(&bounds, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?,
             };
@@ -412,6 +511,17 @@ impl Editor {
         Ok(done)
     }
 
+    /// The image the stamp tool uses (`None` for other tools), or [`EditorError::UnknownStamp`].
+    pub(crate) fn stamp_image(
+        &mut self,
+        tool: &ToolSettings,
+    ) -> Result<Option<std::sync::Arc<strata_volume::tools::StampImage>>, EditorError> {
+        if tool.kind != ToolKind::Stamp {
+            return Ok(None);
+        }
+        self.stamps.image(tool.stamp.source).map(Some).ok_or(EditorError::UnknownStamp)
+    }
+
     /// Refuses a dab whose box `b` spans more chunks than [`Editor::frame_dab_limit`].
     fn check_dab_size(&self, b: &strata_volume::brush::Aabb) -> Result<(), EditorError> {
         if self.frame_dab_limit == u64::MAX {
@@ -472,11 +582,14 @@ impl Editor {
         let buttons = crate::pose::Buttons { primary: true, secondary: false };
         let pose =
             |p: DVec3| ToolPose { position: p, orientation: glam::DQuat::IDENTITY, pressure, buttons, modifiers };
-        // A line is applied whole, whatever its dabs' size (the frame limit is for dragging).
+        // A line is applied whole, whatever its dabs' size (the frame limit is for dragging),
+        // and a stamp is sprayed along it.
         let limit = std::mem::replace(&mut self.frame_dab_limit, u64::MAX);
+        let stamp_stroke = std::mem::replace(&mut self.tool.stamp.stroke, crate::StampStroke::Spray);
         let first = self.frame(&pose(a), Duration::ZERO);
         let end = first.as_ref().ok().map(|_| self.frame(&pose(b), Duration::ZERO));
         self.frame_dab_limit = limit;
+        self.tool.stamp.stroke = stamp_stroke;
         let mut report = first?;
         let end = end.expect("the first frame went through")?;
         report.dabs += end.dabs;

@@ -42,6 +42,10 @@ pub enum ToolKind {
     /// strength) shows as a dithered share of painted nodes. Inverse: paint the scene's first
     /// material back.
     Paint,
+    /// Raise the stamp's grey-scale picture ([`ToolSettings::stamp`]) in relief on the surface,
+    /// by up to [`crate::stamps::STAMP_HEIGHT`] of the radius times the field strength where it
+    /// is white; sprayed along the stroke or dragged out as one stamp. Inverse: carve it in.
+    Stamp,
     /// Paint protection on: the nodes under a ball of the radius gain mask weight (the falloff
     /// scaled by the field strength), and no tool changes what the mask holds (see
     /// [`strata_volume::mask`]); drawn darkened. Inverse: take the mask off. With the smooth
@@ -54,7 +58,7 @@ pub enum ToolKind {
 
 impl ToolKind {
     /// Every tool, in palette order.
-    pub const ALL: [ToolKind; 11] = [
+    pub const ALL: [ToolKind; 12] = [
         ToolKind::Clay,
         ToolKind::Add,
         ToolKind::Erase,
@@ -65,6 +69,7 @@ impl ToolKind {
         ToolKind::Grab,
         ToolKind::Detail,
         ToolKind::Paint,
+        ToolKind::Stamp,
         ToolKind::Mask,
     ];
 
@@ -81,6 +86,7 @@ impl ToolKind {
             ToolKind::Grab => "Grab",
             ToolKind::Detail => "Detail",
             ToolKind::Paint => "Paint",
+            ToolKind::Stamp => "Stamp",
             ToolKind::Mask => "Mask",
             ToolKind::MaskSmooth => "Smooth mask",
         }
@@ -99,6 +105,7 @@ impl ToolKind {
             ToolKind::Grab => "grab",
             ToolKind::Detail => "lower detail",
             ToolKind::Paint => "paint the first material",
+            ToolKind::Stamp => "carve the stamp in",
             ToolKind::Mask => "unmask",
             ToolKind::MaskSmooth => "smooth the mask",
         }
@@ -125,10 +132,10 @@ impl ToolKind {
     }
 
     /// Whether the tool builds material up or carves it away where it acts (add, erase, clay,
-    /// inflate, and their inverses): a stroke of it must not pick the surface it made itself, or
+    /// inflate, stamp, and their inverses): a stroke of it must not pick the surface it made itself, or
     /// it would climb onto its own dabs (see [`crate::Editor::stroke_surface`]).
     pub fn builds_or_carves(self) -> bool {
-        matches!(self, ToolKind::Add | ToolKind::Erase | ToolKind::Clay | ToolKind::Inflate)
+        matches!(self, ToolKind::Add | ToolKind::Erase | ToolKind::Clay | ToolKind::Inflate | ToolKind::Stamp)
     }
 }
 
@@ -187,6 +194,8 @@ pub struct ToolSettings {
     /// convention; see [`crate::Editor::stroke_surface`]); off, it keeps the depth where it
     /// started (a flat path in the view, as the line tool draws). Grab always keeps its depth.
     pub follow_surface: bool,
+    /// The stamp tool's image, stroke and turn.
+    pub stamp: crate::stamps::StampSettings,
 }
 
 impl Default for ToolSettings {
@@ -208,6 +217,7 @@ impl Default for ToolSettings {
             orient_to_normal: false,
             material: 0,
             follow_surface: true,
+            stamp: crate::stamps::StampSettings::default(),
         }
     }
 }
@@ -284,6 +294,12 @@ impl ToolSettings {
             .into_iter()
             .map(|m| (layer.to_world(self.reflect_point(g, m)), layer.rotation * Self::reflect_rotation(q, m)))
             .collect()
+    }
+
+    /// For each image of [`ToolSettings::mirrored`] (the same order), whether it is reflected an
+    /// odd number of times (left and right swapped: a stamp's picture is mirrored on it).
+    pub fn mirror_parities(&self, layer: &LayerTransform, position: DVec3) -> Vec<bool> {
+        self.masks(layer.to_grid(position)).into_iter().map(|m| m.count_ones() % 2 == 1).collect()
     }
 
     /// [`ToolSettings::mirrored`] for a dab that also carries a world direction (a pinch's

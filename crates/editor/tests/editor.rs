@@ -808,3 +808,114 @@ fn the_stabiliser_draws_a_shaky_stroke_as_a_clean_line() {
     // The brush trails the pointer by the rope: the line ends short of where the pointer went.
     assert!(reach < 40.0 - 5.0 && reach > 20.0, "the strong brush reached x = {reach}");
 }
+
+/// An editor with a slab whose top face lies on the grid plane y = 0 (the layer placed at the
+/// origin, one cell per unit), and the slab's top height at `(x, z)`.
+fn slab_editor() -> Editor {
+    let mut e = Editor::default();
+    let slab = strata_volume::brush::Cuboid::new(DVec3::new(0.0, -8.0, 0.0), DVec3::new(30.0, 8.0, 30.0)).unwrap();
+    e.apply(0, strata_volume::CsgOp::Add, &slab).unwrap();
+    e.clear_history();
+    e
+}
+
+fn top(e: &Editor, x: f64, z: f64) -> f64 {
+    let v = &e.scene.layers[0].volume;
+    20.0 - v.raycast(DVec3::new(x, 20.0, z), -DVec3::Y, 60.0).unwrap().t
+}
+
+#[test]
+fn a_sprayed_stamp_raises_its_picture_along_the_stroke_as_one_undo_step() {
+    use strata_editor::{StampSource, StampStroke};
+    let mut e = slab_editor();
+    let before = e.scene.layers[0].volume.clone();
+    e.tool.kind = ToolKind::Stamp;
+    e.tool.radius = 6.0;
+    e.tool.field_strength = 1.0;
+    e.tool.stamp.source = StampSource::Builtin(strata_volume::tools::BuiltinStamp::Dome);
+    assert_eq!(e.tool.stamp.stroke, StampStroke::Spray);
+    drag(&mut e, DVec3::new(-10.0, 0.0, 0.0), DVec3::new(10.0, 0.0, 0.0), 10, DOWN);
+    e.scene.layers[0].volume.check_invariants().unwrap();
+    // A ridge of domes along the stroke (height up to half the radius each, overlapping).
+    let ridge = top(&e, 0.3, 0.2);
+    assert!(ridge > 2.5, "the stroke's middle rose by {ridge}");
+    assert!(top(&e, 0.3, 12.0).abs() < 0.01, "beside the stroke nothing moved");
+    assert!(e.undo());
+    assert_eq!(e.scene.layers[0].volume, before);
+    // The inverse tool carves.
+    drag(&mut e, DVec3::new(-10.0, 0.0, 0.0), DVec3::new(10.0, 0.0, 0.0), 10, ERASE);
+    assert!(top(&e, 0.3, 0.2) < -2.5);
+}
+
+#[test]
+fn a_dragged_stamp_is_sized_and_turned_by_the_drag_and_equals_the_cores_stamp() {
+    use strata_editor::StampStroke;
+    use strata_volume::tools::{BuiltinStamp, Dab, StampPlacement, stamp};
+    let mut e = slab_editor();
+    let before = e.scene.layers[0].volume.clone();
+    e.tool.kind = ToolKind::Stamp;
+    e.tool.stamp.stroke = StampStroke::Drag;
+    e.tool.stamp.source = strata_editor::StampSource::Builtin(BuiltinStamp::Star);
+    e.tool.stamp.angle = 30.0;
+    e.tool.field_strength = 0.8;
+    // Pressed at the middle, dragged out to 9 cells along x: nothing changes until release.
+    let centre = DVec3::new(1.0, 0.0, 2.0);
+    let end = centre + DVec3::new(9.0, 0.0, 0.0);
+    for i in 0..=6 {
+        let p = centre.lerp(end, i as f64 / 6.0);
+        e.frame(&ToolPose { position: p, buttons: DOWN, ..ToolPose::default() }, BUDGET).unwrap();
+        assert_eq!(e.scene.layers[0].volume, before, "nothing is applied while dragging");
+    }
+    let (c, r, up) = e.stamp_drag().expect("a stamp is being dragged");
+    assert_eq!((c, r, up), (centre, 9.0, end - centre));
+    e.frame(&ToolPose::at(end, false), BUDGET).unwrap();
+    assert!(e.stamp_drag().is_none());
+    // The core's stamp of the same image, radius, strength and turn.
+    let mut direct = before.clone();
+    let dab = Dab::new(centre, 9.0, 0.8).unwrap();
+    let placement = StampPlacement { up: DVec3::X, angle: 30f64.to_radians(), mirrored: false };
+    stamp(&mut direct, &dab, &BuiltinStamp::Star.image(), &placement, 0.5 * 9.0).unwrap();
+    assert_eq!(e.scene.layers[0].volume, direct);
+    assert!(e.undo());
+    assert_eq!(e.scene.layers[0].volume, before, "a dragged stamp is one undo step");
+}
+
+#[test]
+fn a_mirrored_stamp_is_the_mirror_image_and_loaded_stamps_are_checked() {
+    use strata_editor::{EditorError, StampSource};
+    let mut e = slab_editor();
+    // A picture white only in its top-right quarter.
+    let corner = strata_volume::tools::StampImage::from_fn(32, |u, v| if u > 0.15 && v > 0.15 { 1.0 } else { 0.0 });
+    e.tool.stamp.source = e.stamps.add("corner.png", corner);
+    e.tool.kind = ToolKind::Stamp;
+    e.tool.radius = 8.0;
+    e.tool.field_strength = 1.0;
+    e.tool.symmetry = [true, false, false];
+    // The pose's y axis is the stamp's top: seen from above (+y), turn it to −z.
+    let orientation = DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2);
+    let at = DVec3::new(10.0, 0.0, 0.0);
+    let pose = ToolPose { position: at, orientation, pressure: 1.0, buttons: DOWN, ..ToolPose::default() };
+    e.frame(&pose, BUDGET).unwrap();
+    e.frame(&ToolPose::at(at, false), BUDGET).unwrap();
+    e.scene.layers[0].volume.check_invariants().unwrap();
+    // Every sample and its mirror image across x = 0 rose alike (within half a cell: the
+    // field's distances are not bitwise symmetric far from the surface), and only one quarter
+    // rose: the picture is mirrored, not repeated.
+    let mut risen = 0;
+    for (dx, dz) in [(3.0, 3.0), (-3.0, 3.0), (3.0, -3.0), (-3.0, -3.0)] {
+        let (a, b) = (top(&e, 10.0 + dx, dz), top(&e, -10.0 - dx, dz));
+        assert!((a - b).abs() < 0.5, "({dx}, {dz}): {a} against its mirror image's {b}");
+        assert!(a > 3.0 || a.abs() < 0.5, "({dx}, {dz}): {a}");
+        risen += usize::from(a > 3.0);
+    }
+    assert_eq!(risen, 1);
+    // An image this editor does not hold, and a loaded image in a room, are refused.
+    let mut other = slab_editor();
+    other.tool = e.tool;
+    let refused = other.frame(&pose, BUDGET);
+    assert!(matches!(refused, Err(EditorError::UnknownStamp)), "{refused:?}");
+    e.record_ops(true);
+    assert!(matches!(e.frame(&pose, BUDGET), Err(EditorError::NotShared(_))));
+    e.tool.stamp.source = StampSource::default();
+    e.frame(&pose, BUDGET).unwrap();
+}

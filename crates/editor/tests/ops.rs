@@ -12,9 +12,12 @@ use std::time::Duration;
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use strata_editor::file::chunk_digests;
-use strata_editor::{Buttons, Editor, LayerTransform, Modifiers, ToolKind, ToolPose};
+use strata_editor::{
+    Buttons, Editor, LayerTransform, Modifiers, StampSettings, StampSource, StampStroke, ToolKind, ToolPose,
+};
 use strata_volume::CsgOp;
 use strata_volume::brush::Sphere;
+use strata_volume::tools::BuiltinStamp;
 
 #[derive(Clone, Debug)]
 struct StrokeCase {
@@ -70,6 +73,14 @@ fn run_stroke(e: &mut Editor, s: &StrokeCase) {
     e.tool.strength = 0.5;
     e.tool.symmetry = [s.mirror & 1 != 0, s.mirror & 2 != 0, s.mirror & 4 != 0];
     e.tool.symmetry_center = DVec3::new(1.0, 0.0, -2.0);
+    // Stamps of every built-in image, sprayed (following the stroke or not) or dragged out,
+    // turned.
+    e.tool.stamp = StampSettings {
+        source: StampSource::Builtin(BuiltinStamp::ALL[s.points.len() % BuiltinStamp::ALL.len()]),
+        stroke: if s.radius.is_multiple_of(2) { StampStroke::Drag } else { StampStroke::Spray },
+        follow_stroke: s.pressure.is_multiple_of(2),
+        angle: s.radius as f64 * 17.0,
+    };
     let scale = if s.snapped { 4.0 } else { 16.0 };
     let buttons = Buttons { primary: !s.inverted, secondary: s.inverted };
     let modifiers = Modifiers { inverted: false, smooth: s.smooth };

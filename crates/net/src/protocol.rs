@@ -8,8 +8,8 @@ use serde::{Deserialize, Serialize};
 use strata_editor::{EditOp, OpUndo};
 
 /// The protocol version this build speaks.
-/// (3: tools and undo records carry masks.)
-pub const PROTOCOL: u32 = 3;
+/// (3: tools and undo records carry masks; 4: tools carry the stamp settings.)
+pub const PROTOCOL: u32 = 4;
 
 /// The largest message a client may send after its hello (bytes); the server closes a
 /// connection that sends a larger one.
