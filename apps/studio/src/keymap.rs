@@ -56,6 +56,12 @@ pub enum Command {
     Mask(MaskAction),
     /// The next stroke stabiliser setting (off, weak, strong).
     Stabiliser,
+    /// The stamp tool's next image (the built-in ones, then those loaded).
+    NextStamp,
+    /// Spray stamps along the stroke, or drag out one.
+    StampStroke,
+    /// Load a PNG as a stamp image.
+    LoadStamp,
 }
 
 impl Command {
@@ -113,6 +119,18 @@ pub const BINDINGS: &[Binding] = &[
     bind(Command::Tool(ToolKind::Grab), &[(N, Key::G)], "grab: drag the surface with the pointer"),
     both(Command::Tool(ToolKind::Detail), &[(N, Key::D)], "detail: raise the chunks' resolution under the brush", FLY),
     bind(Command::Tool(ToolKind::Paint), &[(N, Key::V)], "paint the current material"),
+    bind(
+        Command::Tool(ToolKind::Stamp),
+        &[(N, Key::H)],
+        "stamp: raise a grey-scale picture on the surface (Ctrl or Alt: carve it in)",
+    ),
+    bind(Command::NextStamp, &[(A, Key::H)], "the stamp's next picture (built in, then loaded)"),
+    bind(
+        Command::StampStroke,
+        &[(N, Key::J)],
+        "stamp: spray along the stroke, or drag out one stamp (press at its middle, drag to size and turn it)",
+    ),
+    bind(Command::LoadStamp, &[(CS, Key::O)], "load a PNG as a stamp picture (or drop it on the window)"),
     bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
     bind(
         Command::Tool(ToolKind::Mask),

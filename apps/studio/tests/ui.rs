@@ -376,7 +376,18 @@ fn dropped_files_open_scenes_and_import_meshes_and_recent_files_are_remembered()
     std::fs::write(&txt, "hi").unwrap();
     h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(txt)));
     h.run();
-    assert!(h.state().studio.message.contains("not a scene or a mesh"));
+    assert!(h.state().studio.message.contains("not a scene, a mesh or a PNG stamp"));
+    // A dropped PNG becomes the stamp's picture.
+    let png_path = dir.join("drop.png");
+    {
+        let mut e = png::Encoder::new(std::io::BufWriter::new(std::fs::File::create(&png_path).unwrap()), 2, 2);
+        e.set_color(png::ColorType::Grayscale);
+        e.write_header().unwrap().write_image_data(&[0, 255, 255, 0]).unwrap();
+    }
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(png_path)));
+    h.run();
+    assert_eq!(h.state().studio.stamp_name(), "drop.png", "{}", h.state().studio.message);
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Stamp);
 }
 
 #[test]
@@ -1391,4 +1402,105 @@ fn a_stabilised_stroke_draws_a_shaky_drag_as_a_clean_line() {
     let steady = shaky(&mut h);
     assert!(plain > 0.3, "the drag did not zigzag: {plain}");
     assert!(steady < 0.3 * plain, "stabilised, the path wiggles {steady}; without, {plain}");
+}
+
+/// The solid nodes of the default scene's layer (what a stamp adds to or carves from).
+fn solid_nodes(h: &Harness<'static, StudioApp>) -> usize {
+    let v = &h.state().studio.editor.scene.layers[0].volume;
+    let (lo, hi) = v.chunk_bounds_grid().unwrap();
+    let mut n = 0;
+    for z in lo.z as i64..=hi.z as i64 {
+        for y in lo.y as i64..=hi.y as i64 {
+            for x in lo.x as i64..=hi.x as i64 {
+                n += usize::from(v.node_inside(glam::I64Vec3::new(x, y, z)));
+            }
+        }
+    }
+    n
+}
+
+/// Issue 32: `H` picks the stamp tool; a picture picked from its list is sprayed across the ball
+/// (material rises, one undo step); `J` switches to dragging one stamp out (nothing changes
+/// until the release, the preview grows with the drag); a PNG typed into the prompt that
+/// Ctrl+Shift+O opens becomes the picture.
+#[test]
+fn a_stamp_is_picked_sprayed_dragged_out_and_loaded_from_a_png() {
+    use strata_editor::{StampSource, StampStroke};
+    use strata_volume::tools::BuiltinStamp;
+    let dir = temp("stamp");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::H);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Stamp);
+    h.get_by_value("Dome").click();
+    h.run();
+    h.get_by_label("Ring").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.stamp.source, StampSource::Builtin(BuiltinStamp::Ring));
+    let cell = strata_studio::DEFAULT_CELL;
+    h.state_mut().studio.editor.tool.radius = 6.0 * cell;
+    h.state_mut().studio.editor.tool.field_strength = 1.0;
+    let before = solid_nodes(&h);
+    let steps = h.state().studio.editor.history().undo_len();
+    drag_over_the_ball(&mut h, 12);
+    let sprayed = solid_nodes(&h);
+    assert!(
+        sprayed > before + 50,
+        "the sprayed stamps raised {} nodes: {}",
+        sprayed - before,
+        h.state().studio.message
+    );
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 1);
+    // Dragging one out: J, then press at the ball's middle and drag 60 points right.
+    h.key_press(egui::Key::J);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.stamp.stroke, StampStroke::Drag);
+    let centre = egui::pos2(640.0, 400.0);
+    h.hover_at(centre);
+    h.step();
+    h.drag_at(centre);
+    h.step();
+    for i in 1..=15 {
+        h.hover_at(centre + egui::vec2(i as f32 * 4.0, 0.0));
+        h.step();
+    }
+    assert_eq!(solid_nodes(&h), sprayed, "nothing is stamped while dragging");
+    let (_, radius, _) = h.state().studio.editor.stamp_drag().expect("a stamp is being dragged out");
+    assert!(radius > 6.0 * cell, "the drag sized it to {radius}");
+    assert!(h.state().studio.preview_scale() > 1.0, "the preview shows the dragged size");
+    h.drop_at(centre + egui::vec2(60.0, 0.0));
+    h.step();
+    h.step();
+    assert!(h.state().studio.editor.stamp_drag().is_none());
+    assert!(solid_nodes(&h) > sprayed, "the released stamp raised nothing: {}", h.state().studio.message);
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 2);
+    // A PNG through the prompt: a white square on black.
+    let path = dir.join("square.png");
+    {
+        let file = std::fs::File::create(&path).unwrap();
+        let mut e = png::Encoder::new(std::io::BufWriter::new(file), 8, 8);
+        e.set_color(png::ColorType::Grayscale);
+        let pixels: Vec<u8> =
+            (0..64).map(|i| if (2..6).contains(&(i % 8)) && (2..6).contains(&(i / 8)) { 255 } else { 0 }).collect();
+        e.write_header().unwrap().write_image_data(&pixels).unwrap();
+    }
+    h.key_press_modifiers(egui::Modifiers { shift: true, ..egui::Modifiers::COMMAND }, egui::Key::O);
+    h.run();
+    enter_path(&mut h, &path);
+    assert!(
+        matches!(h.state().studio.editor.tool.stamp.source, StampSource::Loaded(_)),
+        "{}",
+        h.state().studio.message
+    );
+    assert!(h.state().studio.message.contains("square.png"), "{}", h.state().studio.message);
+    assert_eq!(h.state().studio.stamp_name(), "square.png");
+    // A file that is not a PNG is said, and the picture stays.
+    let bad = dir.join("bad.png");
+    std::fs::write(&bad, b"not a png").unwrap();
+    h.key_press_modifiers(egui::Modifiers { shift: true, ..egui::Modifiers::COMMAND }, egui::Key::O);
+    h.run();
+    enter_path(&mut h, &bad);
+    assert!(h.state().studio.notice.as_deref().is_some_and(|n| n.contains("bad.png")), "{:?}", h.state().studio.notice);
+    assert_eq!(h.state().studio.stamp_name(), "square.png");
 }

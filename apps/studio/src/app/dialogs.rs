@@ -13,6 +13,7 @@ pub(super) enum Prompt {
     Import,
     NewWorld,
     OpenWorld,
+    LoadStamp,
 }
 
 impl Prompt {
@@ -24,6 +25,7 @@ impl Prompt {
             Prompt::Import => "Import mesh as a new layer",
             Prompt::NewWorld => "New world",
             Prompt::OpenWorld => "Open world",
+            Prompt::LoadStamp => "Load a stamp picture (PNG)",
         }
     }
 
@@ -33,6 +35,7 @@ impl Prompt {
             Prompt::Export => "sculpt.glb",
             Prompt::Import => "mesh.ply",
             Prompt::NewWorld | Prompt::OpenWorld => "terrain.world",
+            Prompt::LoadStamp => "stamp.png",
         }
     }
 }
@@ -150,7 +153,8 @@ impl StudioApp {
         self.guard(ctx, Then::OpenFile);
     }
 
-    /// Files dropped on the window: a scene opens, a mesh is imported as a new layer.
+    /// Files dropped on the window: a scene opens, a mesh is imported as a new layer, a PNG
+    /// becomes the stamp's picture.
     pub(super) fn dropped(&mut self, ctx: &egui::Context) {
         let files = ctx.input(|i| i.raw.dropped_files.clone());
         for f in files {
@@ -164,7 +168,12 @@ impl StudioApp {
                 Some(e) if strata_mesh::import::MESH_EXTENSIONS.contains(&e) => {
                     self.import_path(path);
                 }
-                _ => self.studio.message = format!("Cannot open {}: not a scene or a mesh", path.display()),
+                Some("png") => {
+                    let _ = self.studio.act(Action::LoadStamp(path));
+                }
+                _ => {
+                    self.studio.message = format!("Cannot open {}: not a scene, a mesh or a PNG stamp", path.display())
+                }
             }
         }
     }
@@ -178,12 +187,13 @@ impl StudioApp {
         };
         let request = DialogRequest {
             title: kind.title(),
-            pick_existing: matches!(kind, Prompt::Open | Prompt::Import | Prompt::OpenWorld),
+            pick_existing: matches!(kind, Prompt::Open | Prompt::Import | Prompt::OpenWorld | Prompt::LoadStamp),
             filter: match kind {
                 Prompt::Open | Prompt::SaveAs => ("Strata scene", vec!["strata"]),
                 Prompt::Export => ("Mesh", vec!["glb", "obj", "stl", "ply"]),
                 Prompt::Import => ("Mesh", strata_mesh::import::MESH_EXTENSIONS.to_vec()),
                 Prompt::NewWorld | Prompt::OpenWorld => ("Strata world", vec!["world"]),
+                Prompt::LoadStamp => ("PNG image", vec!["png"]),
             },
             directory: self.studio.path.as_ref().and_then(|p| p.parent()).map(|p| p.to_path_buf()),
             file_name: kind.suggestion(),
@@ -233,6 +243,7 @@ impl StudioApp {
             Prompt::Import => self.import_path(path),
             Prompt::NewWorld => self.studio.act(Action::NewWorld(path, self.world_seed)).is_ok(),
             Prompt::OpenWorld => self.studio.act(Action::OpenWorld(path)).is_ok(),
+            Prompt::LoadStamp => self.studio.act(Action::LoadStamp(path)).is_ok(),
         };
         if done && let Some(then) = then {
             self.proceed(ctx, then);

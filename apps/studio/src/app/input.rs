@@ -100,6 +100,9 @@ impl StudioApp {
             C::Mask(a) => {
                 let _ = self.studio.act(Action::Mask(a));
             }
+            C::NextStamp => self.studio.next_stamp(),
+            C::StampStroke => self.studio.toggle_stamp_stroke(),
+            C::LoadStamp => self.ask_path(ctx, Prompt::LoadStamp, None),
         }
     }
 

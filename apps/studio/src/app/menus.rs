@@ -64,6 +64,13 @@ impl StudioApp {
                 {
                     self.ask_path(&ctx, Prompt::Import, None);
                 }
+                if ui
+                    .button(labelled("Load stamp picture…", Command::LoadStamp))
+                    .on_hover_text("Use a grey-scale PNG as the stamp tool's picture (or drop it on the window)")
+                    .clicked()
+                {
+                    self.ask_path(&ctx, Prompt::LoadStamp, None);
+                }
                 if ui.button(labelled("Save", Command::Save)).clicked() {
                     self.save(&ctx, None);
                 }

@@ -25,6 +25,10 @@ impl StudioApp {
             ),
             (ToolKind::Paint, "Paint the current material without changing the shape (Ctrl/Alt: the first material)"),
             (
+                ToolKind::Stamp,
+                "Stamp: raise a grey-scale picture on the surface, white highest (Ctrl/Alt: carve it in)",
+            ),
+            (
                 ToolKind::Mask,
                 "Mask: protect what the brush covers from every tool, drawn darker (Ctrl/Alt: unmask; Shift: smooth the mask)",
             ),
@@ -37,15 +41,15 @@ impl StudioApp {
                 }
             });
         }
-        // The tool's own options in a box of fixed height (the tallest tool's), so that nothing
-        // below moves under the pointer when the tool changes (a mis-click once landed in the
-        // material name field that way).
+        // The tool's own options in a box of fixed height (the tallest tool's: the stamp's), so
+        // that nothing below moves under the pointer when the tool changes (a mis-click once
+        // landed in the material name field that way).
         let row = ui.spacing().interact_size.y + ui.spacing().item_spacing.y;
         ui.allocate_ui_with_layout(
-            egui::vec2(ui.available_width(), 2.0 * row),
+            egui::vec2(ui.available_width(), 4.0 * row),
             egui::Layout::top_down(egui::Align::Min),
             |ui| {
-                ui.set_min_height(2.0 * row);
+                ui.set_min_height(4.0 * row);
                 let tool = &mut self.studio.editor.tool;
                 if tool.kind.is_field_tool() && tool.kind != ToolKind::Grab {
                     ui.add(egui::Slider::new(&mut tool.field_strength, 0.0..=1.0).text("tool strength"))
@@ -82,6 +86,9 @@ impl StudioApp {
                     if let Some(a) = run {
                         let _ = self.studio.act(Action::Mask(a));
                     }
+                }
+                if self.studio.editor.tool.kind == ToolKind::Stamp {
+                    self.stamp_options(ui);
                 }
                 let tool = &mut self.studio.editor.tool;
                 if tool.kind == ToolKind::Smooth {
@@ -235,6 +242,51 @@ impl StudioApp {
         });
         if changed {
             self.studio.editor.touch();
+        }
+    }
+
+    /// The stamp tool's options: its picture, spray or drag, and its turn.
+    fn stamp_options(&mut self, ui: &mut egui::Ui) {
+        let choices = self.studio.stamp_choices();
+        let mut load = false;
+        ui.horizontal(|ui| {
+            let current = self.studio.stamp_name();
+            let tip =
+                format!("The picture the stamp raises, white highest ({} picks the next)", keys_of(Command::NextStamp));
+            egui::ComboBox::from_id_salt("stamp picture")
+                .selected_text(current)
+                .show_ui(ui, |ui| {
+                    for (source, name) in &choices {
+                        ui.selectable_value(&mut self.studio.editor.tool.stamp.source, *source, name.as_str());
+                    }
+                })
+                .response
+                .on_hover_text(tip);
+            load = ui
+                .button("Load PNG…")
+                .on_hover_text(format!(
+                    "Use a grey-scale PNG as the stamp's picture ({}, or drop it on the window)",
+                    keys_of(Command::LoadStamp)
+                ))
+                .clicked();
+        });
+        let stamp = &mut self.studio.editor.tool.stamp;
+        ui.horizontal(|ui| {
+            let keys = keys_of(Command::StampStroke);
+            ui.selectable_value(&mut stamp.stroke, strata_editor::StampStroke::Spray, "Spray")
+                .on_hover_text(format!("A stamp every dab spacing along the stroke ({keys} switches)"));
+            ui.selectable_value(&mut stamp.stroke, strata_editor::StampStroke::Drag, "Drag")
+                .on_hover_text(format!(
+                    "One stamp: press at its middle, drag to size it and turn its top towards the pointer, release to apply ({keys} switches)"
+                ));
+            ui.checkbox(&mut stamp.follow_stroke, "Follow stroke")
+                .on_hover_text("A sprayed stamp's top points along the stroke (else up the screen)");
+        });
+        ui.add(egui::Slider::new(&mut stamp.angle, -180.0..=180.0).suffix("°").text("turn"))
+            .on_hover_text("Turn the picture about the surface normal, counter-clockwise");
+        if load {
+            let ctx = ui.ctx().clone();
+            self.ask_path(&ctx, Prompt::LoadStamp, None);
         }
     }
 }

@@ -282,18 +282,22 @@ impl StudioApp {
         }
         let inverse = self.studio.inverse_held;
         let kind = self.studio.editor.tool.kind;
-        let erase = matches!((kind, inverse), (ToolKind::Erase, false) | (ToolKind::Add | ToolKind::Clay, true));
+        let erase = matches!(
+            (kind, inverse),
+            (ToolKind::Erase, false) | (ToolKind::Add | ToolKind::Clay | ToolKind::Stamp, true)
+        );
         let field = kind.is_field_tool() || self.studio.smooth_held;
         let wireframe = self.studio.wireframe;
         let camera = self.studio.camera;
         let dabs = self.studio.preview_dabs();
+        let scale = glam::Vec3::splat(self.studio.preview_scale() as f32);
         let preview_mesh = strata_viewport::mesh_ref(self.studio.preview_mesh());
         let rgb = if erase { [1.0, 0.35, 0.3] } else { [0.35, 0.65, 1.0] };
         let mut previews = Vec::with_capacity(dabs.len() * 2);
         for (k, (p, q)) in dabs.into_iter().enumerate() {
             // The dab itself brighter than its mirror images.
             let alpha = if k == 0 { 0.22 } else { 0.12 };
-            let model = Mat4::from_rotation_translation(q.as_quat(), p.as_vec3());
+            let model = Mat4::from_scale_rotation_translation(scale, q.as_quat(), p.as_vec3());
             previews.push(Preview { mesh: preview_mesh, model, color: [rgb[0], rgb[1], rgb[2], alpha] });
             if field {
                 // The falloff: a core where the tool acts at half strength or more.

@@ -18,6 +18,7 @@ mod collab;
 mod import;
 mod pointer;
 mod preview;
+mod stamps;
 #[cfg(test)]
 mod tests;
 
@@ -83,6 +84,8 @@ pub enum Action {
     LeaveSession,
     /// Invert, clear, grow or shrink the active layer's mask (one undo step).
     Mask(strata_editor::MaskAction),
+    /// Load a PNG as the stamp tool's picture (File > Load stamp picture, or dropped).
+    LoadStamp(PathBuf),
 }
 
 impl Action {

@@ -252,9 +252,16 @@ impl Studio {
         }
     }
 
-    /// The brush's orientation for the next dab: onto the surface normal under the pointer
-    /// when the alignment tool orients brushes, else the world's axes.
+    /// The brush's orientation for the next dab: the camera's for the stamp tool (its y axis,
+    /// the stamp's top, is the screen's up), onto the surface normal under the pointer when the
+    /// alignment tool orients brushes, else the world's axes.
     pub fn brush_orientation(&self) -> DQuat {
+        if self.editor.tool.kind == ToolKind::Stamp {
+            let eye = self.camera.eye().as_dvec3();
+            let back = (eye - self.camera.target.as_dvec3()).normalize_or(DVec3::Z);
+            let right = DVec3::Y.cross(back).normalize_or(DVec3::X);
+            return DQuat::from_mat3(&glam::DMat3::from_cols(right, back.cross(right), back));
+        }
         match self.hover_normal.filter(|_| self.editor.tool.orient_to_normal) {
             Some(n) => strata_editor::orientation_for_normal(n),
             None => DQuat::IDENTITY,

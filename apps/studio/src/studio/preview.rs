@@ -6,9 +6,19 @@ impl Studio {
     /// Where the brush preview goes: the dab at the pointer and its mirror images, each as
     /// (world placement, erasing); the shape and radius are [`Studio::preview_mesh`]'s.
     pub fn preview_dabs(&self) -> Vec<(DVec3, DQuat)> {
-        let Some(p) = self.hover else { return Vec::new() };
+        // A stamp being dragged out shows where it will go, not the pointer.
+        let Some(p) = self.editor.stamp_drag().map(|(c, _, _)| c).or(self.hover) else { return Vec::new() };
         let Some(surface) = self.editor.surface(self.editor.active_surface()) else { return Vec::new() };
         self.editor.tool.mirrored(&surface.transform(), p, self.brush_orientation())
+    }
+
+    /// How much larger than [`Studio::preview_mesh`] the preview is drawn: a stamp being
+    /// dragged out shows its dragged size.
+    pub fn preview_scale(&self) -> f64 {
+        match self.editor.stamp_drag() {
+            Some((_, r, _)) if self.editor.tool.radius > 0.0 => r / self.editor.tool.radius,
+            _ => 1.0,
+        }
     }
 
     /// The brush preview mesh for the current shape and radius (rebuilt when they change),
