@@ -4,7 +4,9 @@
 //!
 //! Every tool runs with the studio's defaults: strength 0.5, four smoothing passes per dab, an
 //! inflate of a fifth of the radius, pinch 0.5 towards a line along the stroke, clay with a fillet
-//! of half the radius, and a grab dragged by a quarter of the radius per frame (one dab spacing).
+//! of half the radius, a grab dragged by a quarter of the radius per frame (one dab spacing), and
+//! the stamp tool's cobbles picture (its busiest) raised by half the radius, its top along the
+//! stroke (issue 32).
 
 use std::time::{Duration, Instant};
 
@@ -13,7 +15,9 @@ use serde::Serialize;
 use strata_fields::DenseField;
 use strata_mesh::MeshCache;
 use strata_volume::brush::Sphere;
-use strata_volume::tools::{Dab, Smoothing, clay, flatten, grab, inflate, pinch, smooth};
+use strata_volume::tools::{
+    BuiltinStamp, Dab, Smoothing, StampImage, StampPlacement, clay, flatten, grab, inflate, pinch, smooth, stamp,
+};
 use strata_volume::{Axis, EditReport, Volume};
 
 use crate::baselines::replay_dense;
@@ -38,11 +42,13 @@ pub enum Tool {
     Pinch,
     /// Grab, dragged by a quarter of the radius.
     Grab,
+    /// A stamp of the built-in cobbles, raised by half the radius, its top along the stroke.
+    Stamp,
 }
 
 impl Tool {
     /// Every tool, in table order.
-    pub const ALL: [Tool; 8] = [
+    pub const ALL: [Tool; 9] = [
         Tool::SmoothField,
         Tool::SmoothLaplacian,
         Tool::SmoothEndpoints,
@@ -51,6 +57,7 @@ impl Tool {
         Tool::Clay,
         Tool::Pinch,
         Tool::Grab,
+        Tool::Stamp,
     ];
 
     /// The table's name for it.
@@ -64,6 +71,7 @@ impl Tool {
             Tool::Clay => "clay",
             Tool::Pinch => "pinch",
             Tool::Grab => "grab",
+            Tool::Stamp => "stamp (cells)",
         }
     }
 
@@ -79,9 +87,19 @@ impl Tool {
             Tool::Clay => clay(v, &dab, 0.5 * radius, false),
             Tool::Pinch => pinch(v, &dab, Some(dir), 0.5),
             Tool::Grab => grab(v, &dab, dir * 0.25 * radius),
+            Tool::Stamp => {
+                let placement = StampPlacement { up: dir, angle: 0.0, mirrored: false };
+                stamp(v, &dab, cobbles(), &placement, 0.5 * radius)
+            }
         };
         r.expect("bench dabs are valid")
     }
+}
+
+/// The built-in cobbles picture, made once.
+fn cobbles() -> &'static StampImage {
+    static IMAGE: std::sync::OnceLock<StampImage> = std::sync::OnceLock::new();
+    IMAGE.get_or_init(|| BuiltinStamp::Cells.image())
 }
 
 /// A row of Table 6.
