@@ -93,6 +93,9 @@ enum Command {
         /// Workload seed.
         #[arg(long, default_value_t = 2021)]
         seed: u64,
+        /// Only the tools whose Table 6 names contain one of these (all when none is given).
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
     },
     /// Masked strokes against unmasked ones on the Table 6 canvas (issue 32), printed.
     Masks {
@@ -194,7 +197,7 @@ fn main() -> Result<()> {
             let config = strata_bench::collab::CollabConfig { clients, rate, seconds, burst, join_cells, pg };
             print!("{}", strata_bench::collab::run(&config)?);
         }
-        Command::Tools { canvas, radii, dabs, seed } => tools(canvas, &radii, dabs, seed),
+        Command::Tools { canvas, radii, dabs, seed, only } => tools(canvas, &radii, dabs, seed, &only),
         Command::Masks { canvas, radii, dabs, seed } => {
             let start = std::time::Instant::now();
             let md = strata_bench::masks::run(canvas, &radii, dabs, seed, &mut |step| {
@@ -297,9 +300,13 @@ fn materials(count: usize, res: u32, dabs: usize) -> Result<()> {
     Ok(())
 }
 
-fn tools(canvas: usize, radii: &[f64], dabs: usize, seed: u64) {
+fn tools(canvas: usize, radii: &[f64], dabs: usize, seed: u64, only: &[String]) {
     let start = std::time::Instant::now();
-    let r = strata_bench::tools::run(canvas, radii, dabs, (0, 0), seed, &mut |step| {
+    let chosen: Vec<strata_bench::tools::Tool> = strata_bench::tools::Tool::ALL
+        .into_iter()
+        .filter(|t| only.is_empty() || only.iter().any(|o| t.name().contains(o.as_str())))
+        .collect();
+    let r = strata_bench::tools::run_tools(&chosen, canvas, radii, dabs, (0, 0), seed, &mut |step| {
         eprintln!("[{:6.1} s] {step}", start.elapsed().as_secs_f64());
     });
     println!(

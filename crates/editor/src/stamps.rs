@@ -13,7 +13,7 @@ use thiserror::Error;
 
 /// The surface moves by this fraction of the radius, times the field strength, where a stamp
 /// is white.
-pub const STAMP_HEIGHT: f64 = 0.5;
+pub const STAMP_HEIGHT: f64 = 0.2;
 
 /// Which image the stamp tool uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
