@@ -2,7 +2,7 @@
 //! strokes (dabs a quarter radius apart, radius 1–30, centres on nodes, on half-cells and
 //! anywhere, mirrored across a node plane) of smoothing (all three methods), inflate and
 //! deflate, flatten, clay and its erase, pinch, grab, paint, and stamps raised and carved at
-//! any turn (issue 32), on volumes whose shapes sit on
+//! any turn (issue 32), with every falloff shape and an edited curve, on volumes whose shapes sit on
 //! nodes and grid planes, half of them with chunks at finer levels. After every dab:
 //! `check_invariants` (what the loader requires); after the stroke, undoing its dabs in reverse
 //! gives the volume back bit for bit.
@@ -13,7 +13,7 @@
 use glam::DVec3;
 use proptest::prelude::*;
 use strata_volume::brush::{Cuboid, Sphere};
-use strata_volume::tools::{self, BuiltinStamp, Dab, Smoothing, StampPlacement};
+use strata_volume::tools::{self, BuiltinStamp, Dab, Falloff, FalloffCurve, Smoothing, StampPlacement};
 use strata_volume::{ChunkKey, EditReport, Level, Volume};
 
 /// The tools, by number.
@@ -50,6 +50,14 @@ fn dab_of(v: &mut Volume, tool: u8, dab: &Dab, dir: DVec3) -> EditReport {
         // that changes nothing (the stroke's undo check sees any change), not a failure.
         Err(tools::ToolError::Region(tools::RegionError::TooLarge { .. })) => EditReport::default(),
         Err(e) => panic!("tool {tool} refused a valid dab {dab:?}: {e}"),
+    }
+}
+
+/// Every named falloff, and an edited curve with a plateau and a sharp drop near the rim.
+fn falloff_of(k: usize) -> Falloff {
+    match Falloff::NAMED.get(k) {
+        Some(&f) => f,
+        None => Falloff::Curve(FalloffCurve::new(&[(0.0, 0.6), (0.4, 1.0), (0.9, 0.95), (1.0, 0.0)]).unwrap()),
     }
 }
 
@@ -101,6 +109,7 @@ proptest! {
         strength in prop::sample::select(vec![0.25, 0.5, 1.0]),
         mirrored in any::<bool>(),
         material in 0u16..3,
+        falloff in 0usize..8,
     ) {
         let mut v = scene(&shapes, &fine);
         let before = v.clone();
@@ -121,7 +130,7 @@ proptest! {
                 centres.push(DVec3::new(48.0 - c.x, c.y, c.z));
             }
             for c in centres {
-                let dab = Dab { material: material as u8, ..Dab::new(c, r, strength).unwrap() };
+                let dab = Dab { material: material as u8, falloff: falloff_of(falloff), ..Dab::new(c, r, strength).unwrap() };
                 let report = dab_of(&mut v, tool, &dab, dir);
                 if let Err(e) = v.check_invariants() {
                     prop_assert!(false, "tool {} dab {} at {:?} radius {}: {}", tool, k, c, r, e);

@@ -4,7 +4,8 @@
 use glam::DVec3;
 use strata_volume::brush::{Cuboid, Sphere};
 use strata_volume::tools::{
-    BuiltinStamp, Dab, Smoothing, StampImage, StampPlacement, ToolError, falloff, flatten, inflate, smooth, stamp,
+    BuiltinStamp, Dab, Falloff, FalloffCurve, Smoothing, StampImage, StampPlacement, ToolError, falloff, flatten,
+    inflate, smooth, stamp,
 };
 use strata_volume::{Axis, Volume};
 
@@ -315,4 +316,27 @@ fn a_stamp_over_empty_space_or_with_bad_numbers_changes_nothing() {
     let huge = Dab::new(DVec3::ZERO, 1e6, 1.0).unwrap();
     assert!(matches!(stamp(&mut v, &huge, &dome, &StampPlacement::default(), 2.0), Err(ToolError::Region(_))));
     assert_eq!(v, before);
+}
+
+#[test]
+fn the_falloff_shapes_an_inflate_across_its_radius() {
+    let c = DVec3::new(24.0, 24.0, 16.0);
+    let curve = FalloffCurve::new(&[(0.0, 0.0), (0.5, 1.0), (1.0, 0.0)]).unwrap();
+    for falloff in [Falloff::Smooth, Falloff::Constant, Falloff::Linear, Falloff::Curve(curve)] {
+        let mut v = slab();
+        let fresh = v.clone();
+        let dab = Dab { falloff, ..Dab::new(c, 10.0, 1.0).unwrap() };
+        inflate(&mut v, &dab, 2.0).unwrap();
+        v.check_invariants().unwrap();
+        // The surface rose by the amount times the falloff at the risen point's distance from
+        // the centre (the dab is a ball: `h = 2 f(√((10 t)² + h²) / 10)`, solved by iteration).
+        for t in [0.1, 0.3, 0.5, 0.7] {
+            let moved = top(&v, 24.0 + 10.0 * t, 24.0) - top(&fresh, 24.0 + 10.0 * t, 24.0);
+            let mut want = 2.0 * falloff.at(t);
+            for _ in 0..100 {
+                want = 2.0 * falloff.at(((10.0 * t).powi(2) + want * want).sqrt() / 10.0);
+            }
+            assert!((moved - want).abs() < 0.12, "{} at {t}: moved {moved}, want {want}", falloff.name());
+        }
+    }
 }

@@ -4,7 +4,7 @@
 
 use glam::{DVec3, I64Vec3};
 
-use super::ops::{Dab, ToolError, falloff};
+use super::ops::{Dab, ToolError};
 use super::region::{MAX_REGION_NODES, RegionError};
 use crate::edit::{EditReport, UndoRecord};
 use crate::mask::{MaskUndo, MaskWeight, PROTECTED};
@@ -34,7 +34,7 @@ pub fn mask(volume: &mut Volume, dab: &Dab, stroke: MaskStroke) -> Result<EditRe
         return Err(RegionError::TooLarge { nodes, limit: MAX_REGION_NODES }.into());
     }
     let scale = |w: MaskWeight, t: f64, to: f64| {
-        let k = dab.strength * falloff(t);
+        let k = dab.strength * dab.falloff.at(t);
         (w as f64 + (to - w as f64) * k).round().clamp(0.0, PROTECTED as f64) as MaskWeight
     };
     let undo = match stroke {

@@ -8,6 +8,7 @@
 
 mod deform;
 mod endpoints;
+mod falloff;
 mod mask;
 mod ops;
 mod paint;
@@ -15,6 +16,7 @@ mod region;
 mod stamp;
 
 pub use deform::{MAX_STEP, MAX_STEPS, grab, pinch};
+pub use falloff::{Falloff, FalloffCurve, FalloffError, MAX_CURVE_POINTS};
 pub use mask::{MaskStroke, mask};
 pub use ops::{Dab, Smoothing, ToolError, clay, falloff, flatten, inflate, smooth};
 pub use paint::paint;

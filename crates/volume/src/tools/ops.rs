@@ -1,8 +1,9 @@
 //! Operators on a [`Region`]: a dab (centre, radius, strength, falloff) changes the region's
 //! signed distance field where the falloff is positive, and the region is written back.
 //!
-//! The falloff is SculptGL's `f(t) = 3t⁴ − 4t³ + 1` of the distance from the dab's centre over
-//! its radius (`f(0) = 1`, `f(1) = 0`, flat at both ends), times the strength; nodes where it is
+//! The falloff is by default SculptGL's `f(t) = 3t⁴ − 4t³ + 1` of the distance from the dab's
+//! centre over its radius (`f(0) = 1`, `f(1) = 0`, flat at both ends; others in
+//! [`super::Falloff`]), times the strength; nodes where it is
 //! 0 are left to the region's exact-preservation rule.
 
 use glam::DVec3;
@@ -44,6 +45,9 @@ pub struct Dab {
     /// The material of the matter the dab adds (clay) or paints ([`paint`]); 0 from
     /// [`Dab::new`]. Tools that only move the surface give new nodes their neighbours' material.
     pub material: crate::MaterialId,
+    /// How the strength falls from the centre to the rim ([`super::Falloff::Smooth`] from
+    /// [`Dab::new`]); grab and pinch keep the smooth one (see [`super::Falloff`]).
+    pub falloff: super::Falloff,
 }
 
 impl Dab {
@@ -58,12 +62,12 @@ impl Dab {
         if !(strength.is_finite() && (0.0..=1.0).contains(&strength)) {
             return Err(ToolError::BadParameter { what: "the dab strength (in [0, 1])", positive: false });
         }
-        Ok(Dab { center, radius, strength, material: 0 })
+        Ok(Dab { center, radius, strength, material: 0, falloff: super::Falloff::Smooth })
     }
 
     /// The dab's weight at grid point `p`: strength × falloff.
     pub fn weight(&self, p: DVec3) -> f64 {
-        self.strength * falloff((p - self.center).length() / self.radius)
+        self.strength * self.falloff.at((p - self.center).length() / self.radius)
     }
 
     /// Reads the region the dab covers (plus `apron` nodes), its field exact within `depth`
