@@ -162,7 +162,7 @@ fn latency(storage: Arc<dyn Storage>, n: usize, config: &CollabConfig) -> Result
         .take_ops()
         .into_iter()
         .map(|r| {
-            let ordered = Ordered { seq: 1, author: 1, number: 1, entry: Entry::Edit(r.op) };
+            let ordered = Ordered { seq: 1, author: 1, number: 1, entry: Entry::Edit(Box::new(r.op)) };
             encode(&ServerMsg::Op(ordered)).len() as f64
         })
         .collect();

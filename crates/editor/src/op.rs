@@ -76,6 +76,8 @@ impl EditOp {
         let tool = &self.tool;
         out.extend([tool.radius, tool.strength, tool.spacing, tool.field_strength, tool.fillet, tool.grid_snap]);
         out.extend(tool.symmetry_center.to_array());
+        out.push(tool.stamp.angle);
+        out.extend(tool.falloff.numbers());
         for d in &self.dabs {
             match *d {
                 DabRecord::Dab { at, from, orientation, pressure, .. } => {

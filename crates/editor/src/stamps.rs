@@ -153,7 +153,17 @@ fn luminance(r: f64, g: f64, b: f64) -> f64 {
 #[derive(Clone, Debug, Default)]
 pub struct StampLibrary {
     builtin: HashMap<BuiltinStamp, Arc<StampImage>>,
-    loaded: Vec<(u64, String, Arc<StampImage>)>,
+    loaded: Vec<Loaded>,
+}
+
+/// A picture loaded into the library.
+#[derive(Clone, Debug)]
+struct Loaded {
+    id: u64,
+    name: String,
+    /// The file it came from, if any.
+    path: Option<std::path::PathBuf>,
+    image: Arc<StampImage>,
 }
 
 impl StampLibrary {
@@ -161,29 +171,54 @@ impl StampLibrary {
     pub fn image(&mut self, source: StampSource) -> Option<Arc<StampImage>> {
         match source {
             StampSource::Builtin(b) => Some(self.builtin.entry(b).or_insert_with(|| Arc::new(b.image())).clone()),
-            StampSource::Loaded(id) => self.loaded.iter().find(|(i, _, _)| *i == id).map(|(_, _, img)| img.clone()),
+            StampSource::Loaded(id) => self.find(id).map(|l| l.image.clone()),
         }
+    }
+
+    fn find(&self, id: u64) -> Option<&Loaded> {
+        self.loaded.iter().find(|l| l.id == id)
     }
 
     /// Adds `image` under `name` (the same pixels again are not added twice) and names it.
     pub fn add(&mut self, name: &str, image: StampImage) -> StampSource {
+        self.insert(name.to_string(), None, image)
+    }
+
+    /// Adds `image` read from the file `path`, named by the file's name (see
+    /// [`StampLibrary::add`]); the library remembers the path ([`StampLibrary::path`]).
+    pub fn add_file(&mut self, path: &Path, image: StampImage) -> StampSource {
+        let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+        self.insert(name, Some(path.to_path_buf()), image)
+    }
+
+    fn insert(&mut self, name: String, path: Option<std::path::PathBuf>, image: StampImage) -> StampSource {
         let id = pixel_hash(&image);
-        if !self.loaded.iter().any(|(i, _, _)| *i == id) {
-            self.loaded.push((id, name.to_string(), Arc::new(image)));
+        match self.loaded.iter_mut().find(|l| l.id == id) {
+            Some(l) if l.path.is_none() => l.path = path,
+            Some(_) => {}
+            None => self.loaded.push(Loaded { id, name, path, image: Arc::new(image) }),
         }
         StampSource::Loaded(id)
     }
 
     /// The loaded stamps, in the order added: (source, name).
     pub fn loaded(&self) -> impl Iterator<Item = (StampSource, &str)> {
-        self.loaded.iter().map(|(id, name, _)| (StampSource::Loaded(*id), name.as_str()))
+        self.loaded.iter().map(|l| (StampSource::Loaded(l.id), l.name.as_str()))
     }
 
     /// A name for `source`: the built-in one's, or the loaded file's.
     pub fn name(&self, source: StampSource) -> Option<&str> {
         match source {
             StampSource::Builtin(b) => Some(b.name()),
-            StampSource::Loaded(id) => self.loaded.iter().find(|(i, _, _)| *i == id).map(|(_, n, _)| n.as_str()),
+            StampSource::Loaded(id) => self.find(id).map(|l| l.name.as_str()),
+        }
+    }
+
+    /// The file a loaded picture came from, if it came from one.
+    pub fn path(&self, source: StampSource) -> Option<&Path> {
+        match source {
+            StampSource::Builtin(_) => None,
+            StampSource::Loaded(id) => self.find(id).and_then(|l| l.path.as_deref()),
         }
     }
 }

@@ -122,8 +122,11 @@ pub(crate) fn field_tool_dab(
     };
     let (p, inverted) = (d.at, d.inverted);
     let radius = tool.radius_at(d.pressure) / transform.scale;
-    let dab =
-        Dab { material: tool.material, ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))? };
+    let dab = Dab {
+        material: tool.material,
+        falloff: tool.falloff,
+        ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))?
+    };
     match tool.kind {
         ToolKind::Paint => paint(volume, &Dab { material: if inverted { 0 } else { tool.material }, ..dab }),
         ToolKind::Mask => mask(volume, &dab, if inverted { MaskStroke::Subtract } else { MaskStroke::Add }),

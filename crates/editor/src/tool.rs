@@ -196,6 +196,10 @@ pub struct ToolSettings {
     pub follow_surface: bool,
     /// The stamp tool's image, stroke and turn.
     pub stamp: crate::stamps::StampSettings,
+    /// How the field tools' strength falls from the brush's centre to its rim (smooth, inflate,
+    /// flatten, paint and mask; grab and pinch keep the smooth falloff, clay and the stamp have
+    /// their own profiles).
+    pub falloff: strata_volume::tools::Falloff,
 }
 
 impl Default for ToolSettings {
@@ -218,6 +222,7 @@ impl Default for ToolSettings {
             material: 0,
             follow_surface: true,
             stamp: crate::stamps::StampSettings::default(),
+            falloff: strata_volume::tools::Falloff::Smooth,
         }
     }
 }

@@ -111,7 +111,7 @@ pub struct Ordered {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Entry {
     /// An edit operation, replayed.
-    Edit(EditOp),
+    Edit(Box<EditOp>),
     /// The undo of the author's stroke, entries `of` (newest first): the room's records of
     /// what they changed, restored in that order (no one else has edited those chunks since).
     Undo {

@@ -390,7 +390,7 @@ impl Replica {
             Entry::Edit(op) => {
                 let r = editor.replay(&op).map(drop).map_err(|e| format!("operation {seq}: {e}"));
                 if by_us {
-                    self.keep_mine(seq, op);
+                    self.keep_mine(seq, *op);
                 }
                 r
             }

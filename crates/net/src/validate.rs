@@ -78,7 +78,12 @@ pub fn validate(op: &EditOp, editor: &Editor, limits: &Limits) -> Result<(), Inv
         return Err(Invalid::Transform);
     }
     let tool = &op.tool;
-    if tool.axis_lock.is_some_and(|a| a > 2) || tool.spacing < 0.0 || tool.strength < 0.0 || tool.grid_snap < 0.0 {
+    if tool.axis_lock.is_some_and(|a| a > 2)
+        || tool.spacing < 0.0
+        || tool.strength < 0.0
+        || tool.grid_snap < 0.0
+        || !tool.falloff.is_valid()
+    {
         return Err(Invalid::Settings);
     }
     for dab in &op.dabs {

@@ -13,7 +13,7 @@ fn ordered(seq: u64) -> Ordered {
         seq,
         author: 7,
         number: seq,
-        entry: Entry::Edit(EditOp {
+        entry: Entry::Edit(Box::new(EditOp {
             surface: 0,
             transform: LayerTransform::default(),
             tool: ToolSettings::default(),
@@ -25,7 +25,7 @@ fn ordered(seq: u64) -> Ordered {
                 inverted: false,
             }],
             stroke: 0,
-        }),
+        })),
     }
 }
 

@@ -47,9 +47,9 @@ impl Studio {
     /// Reads a PNG as the stamp tool's picture and picks the stamp tool.
     pub(super) fn load_stamp(&mut self, path: &Path) -> Result<(), String> {
         let image = strata_editor::stamps::load_png(path).map_err(|e| format!("Could not load the stamp: {e}"))?;
-        let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
         let (w, h) = (image.width(), image.height());
-        self.editor.tool.stamp.source = self.editor.stamps.add(&name, image);
+        self.editor.tool.stamp.source = self.editor.stamps.add_file(path, image);
+        let name = self.stamp_name();
         self.editor.tool.kind = ToolKind::Stamp;
         self.message = format!("Stamp: {name} ({w} × {h})");
         if self.in_session() {
