@@ -616,6 +616,9 @@ fn paint_an_eyedropper_and_a_new_material_from_the_palette() {
     assert_eq!(h.state().studio.editor.tool.material, 2, "{}", h.state().studio.message);
     // A new material joins the palette and becomes current; its colour is editable.
     let before = h.state().studio.editor.scene.materials.len();
+    // (Below the tool panel's fold: scrolled to, as a user scrolls.)
+    h.get_by_label("New material").scroll_to_me();
+    h.run();
     h.get_by_label("New material").click();
     h.run();
     let s = &h.state().studio;
@@ -1503,4 +1506,90 @@ fn a_stamp_is_picked_sprayed_dragged_out_and_loaded_from_a_png() {
     enter_path(&mut h, &bad);
     assert!(h.state().studio.notice.as_deref().is_some_and(|n| n.contains("bad.png")), "{:?}", h.state().studio.notice);
     assert_eq!(h.state().studio.stamp_name(), "square.png");
+}
+
+/// Issue 32: a preset picked from the shelf sets the brush; each tool keeps its own falloff; a
+/// falloff point dragged makes a custom curve; the brush saved as a preset under a typed name is
+/// on the shelf of the next studio started on the same folder, and the Edit menu picks presets.
+#[test]
+fn presets_are_picked_saved_and_kept_and_each_tool_keeps_its_falloff() {
+    use strata_volume::tools::Falloff;
+    let dir = temp("presets");
+    let mut h = harness(&dir);
+    h.run();
+    h.get_by_label("Presets").click();
+    h.run();
+    h.get_by_label("Polish").click();
+    h.run();
+    let tool = h.state().studio.editor.tool;
+    assert_eq!((tool.kind, tool.falloff, tool.field_strength), (ToolKind::Smooth, Falloff::Sphere, 0.8));
+    // Inflate has its own falloff (smooth, never set); smoothing's comes back with it.
+    h.key_press(egui::Key::I);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.falloff, Falloff::Smooth);
+    h.key_press(egui::Key::S);
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.falloff, Falloff::Sphere);
+    // Dragging the curve's middle point down makes a custom falloff, lower in the middle.
+    let plot = h.get_by_label("Drag a point to shape the falloff: centre on the left, rim on the right").rect();
+    let middle =
+        egui::pos2(plot.left() + plot.width() * 0.5, plot.bottom() - plot.height() * Falloff::Sphere.at(0.5) as f32);
+    h.hover_at(middle);
+    h.step();
+    h.drag_at(middle);
+    h.step();
+    h.hover_at(middle + egui::vec2(0.0, 20.0));
+    h.step();
+    h.drop_at(middle + egui::vec2(0.0, 20.0));
+    h.run();
+    let custom = h.state().studio.editor.tool.falloff;
+    assert!(matches!(custom, Falloff::Curve(_)), "{custom:?}");
+    assert!(custom.at(0.5) < Falloff::Sphere.at(0.5) - 0.1, "{}", custom.at(0.5));
+    // Save it as "Low middle".
+    h.get_by_label("Save preset…").click();
+    h.run();
+    type_keys(&mut h, "Low middle");
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(h.state().studio.message.contains("Saved preset"), "{}", h.state().studio.message);
+    assert!(dir.join("recovery").join("presets.json").exists());
+    // Another tool, then the Edit menu's presets.
+    h.get_by_label("Edit").click();
+    h.run();
+    h.get_by_label("Brush presets").click();
+    h.run();
+    // (The shelf has a Rivets button too: the open menu's is found first.)
+    h.query_all_by_label("Rivets").next().unwrap().click();
+    h.run();
+    assert_eq!(h.state().studio.editor.tool.kind, ToolKind::Stamp);
+    // A studio started again on the folder has the preset; picking it brings the curve back.
+    let mut again = harness(&dir);
+    again.run();
+    again.get_by_label("Presets").click();
+    again.run();
+    again.get_by_label("Low middle").click();
+    again.run();
+    let tool = again.state().studio.editor.tool;
+    assert_eq!((tool.kind, tool.falloff), (ToolKind::Smooth, custom));
+    // A damaged presets file is said at start and never overwritten.
+    let damaged = temp("presets-damaged");
+    std::fs::create_dir_all(damaged.join("recovery")).unwrap();
+    let file = damaged.join("recovery").join("presets.json");
+    std::fs::write(&file, b"{ half a preset").unwrap();
+    let mut h = harness(&damaged);
+    h.run();
+    assert!(
+        h.state().studio.notice.as_deref().is_some_and(|n| n.contains("presets.json")),
+        "{:?}",
+        h.state().studio.notice
+    );
+    h.get_by_label("Presets").click();
+    h.run();
+    h.get_by_label("Save preset…").click();
+    h.run();
+    type_keys(&mut h, "x");
+    h.key_press(egui::Key::Enter);
+    h.run();
+    assert!(h.state().studio.message.contains("not overwritten"), "{}", h.state().studio.message);
+    assert_eq!(std::fs::read(&file).unwrap(), b"{ half a preset");
 }

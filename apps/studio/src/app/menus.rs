@@ -143,6 +143,24 @@ impl StudioApp {
                         ui.close();
                     }
                 }
+                ui.separator();
+                ui.menu_button("Brush presets", |ui| {
+                    for (preset, _) in self.shelf() {
+                        if ui.button(&preset.name).on_hover_text(preset.summary()).clicked() {
+                            self.pick_preset(&preset);
+                            ui.close();
+                        }
+                    }
+                    ui.separator();
+                    if ui
+                        .button("Save brush as preset…")
+                        .on_hover_text("Name it in the tool panel's presets shelf")
+                        .clicked()
+                    {
+                        self.name_new_preset();
+                        ui.close();
+                    }
+                });
             });
             ui.menu_button("View", |ui| {
                 if ui.checkbox(&mut self.studio.wireframe, labelled("Wireframe", Command::Wireframe)).changed() {

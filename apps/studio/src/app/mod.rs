@@ -26,6 +26,7 @@ mod input;
 mod jobs;
 mod layers_panel;
 mod menus;
+mod presets_panel;
 mod session;
 mod tool_panel;
 mod viewport;
@@ -78,6 +79,8 @@ pub struct StudioApp {
     session_params: Option<crate::studio::SessionParams>,
     /// The room to join once the unsaved-changes question is answered.
     join_next: Option<crate::studio::SessionParams>,
+    /// The brush presets shelf.
+    presets: presets_panel::Shelf,
 }
 
 /// Sizing the brush by dragging (Blender's F): the radius is the pointer's distance from
@@ -125,7 +128,13 @@ impl StudioApp {
     pub fn headless(studio: Studio, dialogs: Dialogs, recovery_dir: PathBuf) -> Self {
         let recovery = crate::recovery::find(&recovery_dir);
         let recent = crate::recent::Recent::load(recovery_dir.join(crate::recent::FILE_NAME));
+        let presets = presets_panel::Shelf::load(&recovery_dir);
+        let mut studio = studio;
+        if let Some(e) = &presets.load_error {
+            studio.fail(e.clone());
+        }
         StudioApp {
+            presets,
             world_seed: 1,
             last_frame: None,
             resize: None,
@@ -263,6 +272,7 @@ impl StudioApp {
             }
         }
         self.studio.expire_messages();
+        self.studio.sync_falloff();
         egui::Panel::top("menu").show(ui, |ui| self.menu(ui));
         egui::Panel::bottom("status").show(ui, |ui| {
             // One line, whatever its length: a long error must not grow the bar and shrink the

@@ -41,6 +41,9 @@ impl StudioApp {
                 }
             });
         }
+        // (A tool picked here brings its own falloff at once.)
+        self.studio.sync_falloff();
+        self.preset_shelf(ui);
         // The tool's own options in a box of fixed height (the tallest tool's: the stamp's), so
         // that nothing below moves under the pointer when the tool changes (a mis-click once
         // landed in the material name field that way).
@@ -98,6 +101,7 @@ impl StudioApp {
                 }
             },
         );
+        self.falloff_editor(ui);
         ui.horizontal(|ui| {
             ui.label(labelled("Stabiliser", Command::Stabiliser));
             for s in strata_editor::Stabiliser::ALL {

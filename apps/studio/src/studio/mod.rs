@@ -259,6 +259,10 @@ pub struct Studio {
     pub new_layer_level: strata_volume::Level,
     /// The shared room the studio is in, when it is in one.
     pub collab: Option<Collab>,
+    /// Each tool's own falloff, while another tool is current (see [`Studio::sync_falloff`]).
+    falloffs: Vec<(ToolKind, strata_volume::tools::Falloff)>,
+    /// The tool whose falloff the brush holds.
+    falloff_kind: ToolKind,
 }
 
 impl Studio {
@@ -296,6 +300,8 @@ impl Studio {
             stroke_depth: None,
             preview: None,
             saved_revision: 0,
+            falloffs: Vec::new(),
+            falloff_kind: ToolKind::default(),
             job: None,
             background_chunks: 1 << 15,
             last_background_dab: None,
@@ -496,5 +502,32 @@ impl Studio {
     /// Switches add/erase.
     pub fn set_kind(&mut self, kind: ToolKind) {
         self.editor.tool.kind = kind;
+        self.sync_falloff();
+    }
+
+    /// Gives each tool its own falloff: when the tool has changed since the last call, the
+    /// brush's falloff is kept as the old tool's and the new tool's comes back (smooth for one
+    /// not used yet). Call every frame.
+    pub fn sync_falloff(&mut self) {
+        let kind = self.editor.tool.kind;
+        if kind == self.falloff_kind {
+            return;
+        }
+        let old = (self.falloff_kind, self.editor.tool.falloff);
+        match self.falloffs.iter_mut().find(|(k, _)| *k == old.0) {
+            Some(slot) => *slot = old,
+            None => self.falloffs.push(old),
+        }
+        self.editor.tool.falloff =
+            self.falloffs.iter().find(|(k, _)| *k == kind).map_or_else(Default::default, |f| f.1);
+        self.falloff_kind = kind;
+    }
+
+    /// Makes `preset` the brush (its falloff the tool's own from now on).
+    pub fn apply_preset(&mut self, preset: &strata_editor::Preset) -> Result<(), strata_editor::PresetError> {
+        self.sync_falloff();
+        self.editor.apply_preset(preset)?;
+        self.falloff_kind = self.editor.tool.kind;
+        Ok(())
     }
 }
