@@ -218,7 +218,9 @@ fn throughput(storage: Arc<dyn Storage>, count: usize) -> Result<f64> {
     let t0 = Instant::now();
     let last = ops.len() as u64;
     for (k, op) in ops.into_iter().enumerate() {
-        ws.send(tungstenite::Message::Binary(encode(&ClientMsg::Submit { number: k as u64 + 1, op }).into()))?;
+        ws.send(tungstenite::Message::Binary(
+            encode(&ClientMsg::Submit { number: k as u64 + 1, op: Box::new(op) }).into(),
+        ))?;
     }
     loop {
         match read(&mut ws)? {

@@ -62,6 +62,8 @@ pub enum Command {
     StampStroke,
     /// Load a PNG as a stamp image.
     LoadStamp,
+    /// Pen pressure on or off.
+    Pressure,
 }
 
 impl Command {
@@ -131,6 +133,7 @@ pub const BINDINGS: &[Binding] = &[
         "stamp: spray along the stroke, or drag out one stamp (press at its middle, drag to size and turn it)",
     ),
     bind(Command::LoadStamp, &[(CS, Key::O)], "load a PNG as a stamp picture (or drop it on the window)"),
+    bind(Command::Pressure, &[(A, Key::P)], "pen pressure on or off (its curves in the tool panel)"),
     bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
     bind(
         Command::Tool(ToolKind::Mask),

@@ -1593,3 +1593,79 @@ fn presets_are_picked_saved_and_kept_and_each_tool_keeps_its_falloff() {
     assert!(h.state().studio.message.contains("not overwritten"), "{}", h.state().studio.message);
     assert_eq!(std::fs::read(&file).unwrap(), b"{ half a preset");
 }
+
+/// A left drag over the ball whose every move also brings a touch of force `force` (how
+/// eframe reports a pen's or a finger's pressure), then the release.
+fn pen_drag(h: &mut Harness<'static, StudioApp>, force: f32) {
+    let centre = egui::pos2(640.0, 400.0);
+    let touch = |phase, pos| egui::Event::Touch {
+        device_id: egui::TouchDeviceId(1),
+        id: egui::TouchId(1),
+        phase,
+        pos,
+        force: Some(force),
+    };
+    h.hover_at(centre);
+    h.step();
+    h.event(touch(egui::TouchPhase::Start, centre));
+    h.drag_at(centre);
+    h.step();
+    for i in 1..=6 {
+        let p = centre + egui::vec2(i as f32 * 4.0, 0.0);
+        h.event(touch(egui::TouchPhase::Move, p));
+        h.hover_at(p);
+        h.step();
+    }
+    let end = centre + egui::vec2(24.0, 0.0);
+    h.event(touch(egui::TouchPhase::End, end));
+    h.drop_at(end);
+    h.step();
+    h.step();
+}
+
+/// Issue 32: a pen's pressure (synthetic touch force) reaches the dabs and scales the brush
+/// through the curves; Alt+P turns it off (full pressure); a mouse dabs at full pressure.
+#[test]
+fn pen_pressure_scales_the_brush_through_its_curves_and_alt_p_turns_it_off() {
+    let dir = temp("pressure");
+    let mut h = harness(&dir);
+    h.run();
+    h.key_press(egui::Key::A);
+    h.run();
+    h.state_mut().studio.editor.tool.strength = 1.0;
+    h.state_mut().studio.editor.record_ops(true);
+    let pressures = |h: &mut Harness<'static, StudioApp>| -> Vec<f64> {
+        h.state_mut()
+            .studio
+            .editor
+            .take_ops()
+            .into_iter()
+            .flat_map(|o| o.op.dabs)
+            .map(|d| match d {
+                strata_editor::DabRecord::Dab { pressure, .. } | strata_editor::DabRecord::Grab { pressure, .. } => {
+                    pressure
+                }
+            })
+            .collect()
+    };
+    pen_drag(&mut h, 0.3);
+    let pen = pressures(&mut h);
+    assert!(!pen.is_empty() && pen.iter().all(|&p| (p - 0.3).abs() < 1e-6), "{pen:?}");
+    let tool = h.state().studio.editor.tool;
+    assert!((tool.radius_at(0.3) - 0.3 * tool.radius).abs() < 1e-6, "the linear size curve at 0.3");
+    drag_over_the_ball(&mut h, 4);
+    let mouse = pressures(&mut h);
+    assert!(!mouse.is_empty() && mouse.iter().all(|&p| p == 1.0), "a mouse dabs at full pressure: {mouse:?}");
+    h.key_press_modifiers(egui::Modifiers::ALT, egui::Key::P);
+    h.run();
+    assert!(!h.state().studio.editor.tool.pressure.enabled, "{}", h.state().studio.message);
+    let tool = h.state().studio.editor.tool;
+    assert_eq!(tool.radius_at(0.3), tool.radius, "off: as at full pressure");
+    // The tool panel's Pressure section holds the switch, the amounts and the curves.
+    h.get_by_label("Pressure (Alt+P)").click();
+    h.run();
+    h.get_by_label("Pressure on (Alt+P)").click();
+    h.run();
+    assert!(h.state().studio.editor.tool.pressure.enabled);
+    assert!(h.query_all_by_label("pressure to size").count() > 0);
+}

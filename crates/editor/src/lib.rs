@@ -40,5 +40,5 @@ pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError,
 pub use stabiliser::Stabiliser;
 pub use stamps::{StampLibrary, StampSettings, StampSource, StampStroke};
 pub use target::EditTarget;
-pub use tool::{BrushShape, ToolKind, ToolSettings, orientation_for_normal};
+pub use tool::{BrushShape, Pressure, ToolKind, ToolSettings, orientation_for_normal};
 pub use view_meshes::ChangeList;

@@ -77,7 +77,11 @@ impl EditOp {
         out.extend([tool.radius, tool.strength, tool.spacing, tool.field_strength, tool.fillet, tool.grid_snap]);
         out.extend(tool.symmetry_center.to_array());
         out.push(tool.stamp.angle);
+        out.push(tool.pressure_to_strength);
         out.extend(tool.falloff.numbers());
+        for curve in [tool.pressure.size, tool.pressure.strength] {
+            out.extend(curve.points().into_iter().flat_map(|(t, v)| [t, v]));
+        }
         for d in &self.dabs {
             match *d {
                 DabRecord::Dab { at, from, orientation, pressure, .. } => {

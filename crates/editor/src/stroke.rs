@@ -125,7 +125,7 @@ pub(crate) fn field_tool_dab(
     let dab = Dab {
         material: tool.material,
         falloff: tool.falloff,
-        ..Dab::new(transform.to_grid(p), radius, tool.field_strength.clamp(0.0, 1.0))?
+        ..Dab::new(transform.to_grid(p), radius, tool.field_strength_at(d.pressure))?
     };
     match tool.kind {
         ToolKind::Paint => paint(volume, &Dab { material: if inverted { 0 } else { tool.material }, ..dab }),

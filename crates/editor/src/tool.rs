@@ -196,6 +196,12 @@ pub struct ToolSettings {
     pub follow_surface: bool,
     /// The stamp tool's image, stroke and turn.
     pub stamp: crate::stamps::StampSettings,
+    /// How a pen's pressure scales the radius (by [`ToolSettings::strength`]) and the field
+    /// strength (by [`ToolSettings::pressure_to_strength`]), through curves; off, every dab is
+    /// made as at full pressure.
+    pub pressure: Pressure,
+    /// How much pressure scales the field tools' strength: 0 ignores pressure, 1 scales it fully.
+    pub pressure_to_strength: f64,
     /// How the field tools' strength falls from the brush's centre to its rim (smooth, inflate,
     /// flatten, paint and mask; grab and pinch keep the smooth falloff, clay and the stamp have
     /// their own profiles).
@@ -223,7 +229,54 @@ impl Default for ToolSettings {
             follow_surface: true,
             stamp: crate::stamps::StampSettings::default(),
             falloff: strata_volume::tools::Falloff::Smooth,
+            pressure: Pressure::default(),
+            pressure_to_strength: 0.0,
         }
+    }
+}
+
+/// How a pen's pressure (0 to 1) acts: a curve for the size and one for the strength, each
+/// mapping pressure to a factor (linear by default), and a switch.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Pressure {
+    /// Pressure counts at all (off: every dab as at full pressure).
+    pub enabled: bool,
+    /// Pressure → radius factor.
+    pub size: strata_volume::tools::FalloffCurve,
+    /// Pressure → strength factor.
+    pub strength: strata_volume::tools::FalloffCurve,
+}
+
+impl Default for Pressure {
+    fn default() -> Self {
+        let linear = strata_volume::tools::FalloffCurve::linear();
+        Pressure { enabled: true, size: linear, strength: linear }
+    }
+}
+
+impl Pressure {
+    fn factor(&self, curve: &strata_volume::tools::FalloffCurve, pressure: f64) -> f64 {
+        if !self.enabled {
+            return 1.0;
+        }
+        // (NaN pressure reads as none.)
+        let p = if pressure >= 0.0 { pressure.min(1.0) } else { 0.0 };
+        curve.at(p)
+    }
+
+    /// The size curve's factor at `pressure` (1 when off).
+    pub fn size_at(&self, pressure: f64) -> f64 {
+        self.factor(&self.size, pressure)
+    }
+
+    /// The strength curve's factor at `pressure` (1 when off).
+    pub fn strength_at(&self, pressure: f64) -> f64 {
+        self.factor(&self.strength, pressure)
+    }
+
+    /// Whether both curves are sound.
+    pub fn is_valid(&self) -> bool {
+        self.size.is_valid() && self.strength.is_valid()
     }
 }
 
@@ -361,10 +414,18 @@ impl ToolSettings {
         layer.to_world(g)
     }
 
-    /// The radius at `pressure`.
+    /// The radius at `pressure`: scaled by the size curve's value there, as far as
+    /// [`ToolSettings::strength`] says.
     pub fn radius_at(&self, pressure: f64) -> f64 {
         let s = self.strength.clamp(0.0, 1.0);
-        self.radius * (1.0 - s + s * pressure.clamp(0.0, 1.0))
+        self.radius * (1.0 - s + s * self.pressure.size_at(pressure))
+    }
+
+    /// The field tools' strength at `pressure`: scaled by the strength curve's value there, as
+    /// far as [`ToolSettings::pressure_to_strength`] says.
+    pub fn field_strength_at(&self, pressure: f64) -> f64 {
+        let k = self.pressure_to_strength.clamp(0.0, 1.0);
+        self.field_strength.clamp(0.0, 1.0) * (1.0 - k + k * self.pressure.strength_at(pressure))
     }
 
     /// Distance between dabs (world units), never below a hundredth of the radius.

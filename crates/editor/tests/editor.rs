@@ -920,3 +920,34 @@ fn a_mirrored_stamp_is_the_mirror_image_and_loaded_stamps_are_checked() {
     e.tool.stamp.source = StampSource::default();
     e.frame(&pose, BUDGET).unwrap();
 }
+
+#[test]
+fn pressure_curves_scale_size_and_strength_and_a_switch_turns_pressure_off() {
+    use strata_volume::tools::FalloffCurve;
+    let mut e = Editor::default();
+    e.tool.kind = ToolKind::Add;
+    e.tool.radius = 4.0;
+    e.tool.strength = 1.0;
+    e.tool.pressure_to_strength = 1.0;
+    // Size: a fifth of the radius at no pressure, rising steeply to full by half pressure.
+    e.tool.pressure.size = FalloffCurve::new(&[(0.0, 0.2), (0.5, 1.0), (1.0, 1.0)]).unwrap();
+    assert!((e.tool.radius_at(0.0) - 0.8).abs() < 1e-6, "(points are kept as f32)");
+    assert!((e.tool.radius_at(0.5) - 4.0).abs() < 1e-6);
+    assert!(e.tool.radius_at(0.25) > 0.8 && e.tool.radius_at(0.25) < 4.0);
+    assert_eq!(e.tool.radius_at(f64::NAN), e.tool.radius_at(0.0), "NaN pressure reads as none");
+    assert!((e.tool.field_strength_at(0.5) - 0.25).abs() < 1e-12, "the linear strength curve halves it");
+    // A dab at pressure 0.1 is the brush of the curve's radius there.
+    let p = DVec3::new(0.5, 0.25, -0.5);
+    let r = e.tool.radius_at(0.1);
+    let pose = ToolPose { position: p, pressure: 0.1, buttons: DOWN, ..ToolPose::default() };
+    e.frame(&pose, BUDGET).unwrap();
+    e.frame(&ToolPose::at(p, false), BUDGET).unwrap();
+    let mut direct = Volume::new();
+    let t = e.scene.layers[0].transform;
+    direct.add(&Sphere::new(t.to_grid(p), r / t.scale).unwrap()).unwrap();
+    assert_eq!(e.scene.layers[0].volume, direct);
+    // Off: every dab as at full pressure.
+    e.tool.pressure.enabled = false;
+    assert_eq!(e.tool.radius_at(0.1), 4.0);
+    assert_eq!(e.tool.field_strength_at(0.1), e.tool.field_strength);
+}

@@ -74,7 +74,7 @@ pub enum ClientMsg {
         /// The client's number for it.
         number: u64,
         /// The operation.
-        op: EditOp,
+        op: Box<EditOp>,
     },
     /// Where the client's brush is (drawn by the others; not stored).
     Presence(Presence),

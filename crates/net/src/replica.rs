@@ -217,7 +217,7 @@ impl Replica {
         self.unwind(editor);
         if self.welcomed {
             for p in self.pending.iter().filter(|p| p.number > self.sent) {
-                step.send.push(ClientMsg::Submit { number: p.number, op: p.op.clone() });
+                step.send.push(ClientMsg::Submit { number: p.number, op: Box::new(p.op.clone()) });
             }
             if let Some(last) = self.pending.back() {
                 self.sent = self.sent.max(last.number);

@@ -83,6 +83,8 @@ pub fn validate(op: &EditOp, editor: &Editor, limits: &Limits) -> Result<(), Inv
         || tool.strength < 0.0
         || tool.grid_snap < 0.0
         || !tool.falloff.is_valid()
+        || !tool.pressure.is_valid()
+        || !(0.0..=1.0).contains(&tool.pressure_to_strength)
     {
         return Err(Invalid::Settings);
     }

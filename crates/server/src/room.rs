@@ -384,8 +384,7 @@ impl Room {
                 self.clients.insert(client, number);
                 match self.editor.replay(&op) {
                     Ok(undo) => {
-                        let ordered =
-                            Ordered { seq: self.seq + 1, author: client, number, entry: Entry::Edit(Box::new(op)) };
+                        let ordered = Ordered { seq: self.seq + 1, author: client, number, entry: Entry::Edit(op) };
                         self.publish(ordered, Some(undo), h);
                     }
                     Err(e) => h.send(conn, &ServerMsg::Refused { number, reason: e.to_string() }),

@@ -111,18 +111,18 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
         // An operation carrying NaN.
         2 => {
             joined(&mut ws);
-            let msg = ClientMsg::Submit { number: 1, op: op(DVec3::new(f64::NAN, 0.0, 0.0), 2.0) };
+            let msg = ClientMsg::Submit { number: 1, op: Box::new(op(DVec3::new(f64::NAN, 0.0, 0.0), 2.0)) };
             send(&mut ws, encode(&msg));
             1 + BURST
         }
         // A submit before any hello, or one whose number skips ahead.
         3 => {
             if rng.chance(0.5) {
-                send(&mut ws, encode(&ClientMsg::Submit { number: 1, op: op(DVec3::ZERO, 2.0) }));
+                send(&mut ws, encode(&ClientMsg::Submit { number: 1, op: Box::new(op(DVec3::ZERO, 2.0)) }));
                 BURST
             } else {
                 joined(&mut ws);
-                send(&mut ws, encode(&ClientMsg::Submit { number: 5, op: op(DVec3::ZERO, 2.0) }));
+                send(&mut ws, encode(&ClientMsg::Submit { number: 5, op: Box::new(op(DVec3::ZERO, 2.0)) }));
                 1 + BURST
             }
         }
@@ -150,10 +150,10 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
                 1 => o.tool.material = 250,
                 _ => o.surface = 9,
             }
-            let _ = ws.send(Message::Binary(encode(&ClientMsg::Submit { number: 1, op: o }).into()));
+            let _ = ws.send(Message::Binary(encode(&ClientMsg::Submit { number: 1, op: Box::new(o) }).into()));
             let mut inf = op(DVec3::ZERO, 2.0);
             inf.transform.scale = f64::INFINITY;
-            send(&mut ws, encode(&ClientMsg::Submit { number: 2, op: inf }));
+            send(&mut ws, encode(&ClientMsg::Submit { number: 2, op: Box::new(inf) }));
             let (said, refused) = read_until_closed(&mut ws);
             assert!(said && refused, "an out-of-bounds operation was not refused, or infinity not closed");
             return 2 + BURST;
@@ -174,7 +174,7 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
         // A well-formed message cut short.
         _ => {
             joined(&mut ws);
-            let mut bytes = encode(&ClientMsg::Submit { number: 1, op: op(DVec3::ZERO, 2.0) });
+            let mut bytes = encode(&ClientMsg::Submit { number: 1, op: Box::new(op(DVec3::ZERO, 2.0)) });
             bytes.truncate(bytes.len() / 2);
             send(&mut ws, bytes);
             1 + BURST
@@ -189,7 +189,8 @@ fn attack(url: &str, room: &str, kind: u64, rng: &mut Rng) -> usize {
 fn replays(url: &str, room: &str, count: usize) -> usize {
     let mut ws = open(url);
     ws.send(Message::Binary(encode(&hello(room, "token")).into())).unwrap();
-    let submit = |n: u64| Message::Binary(encode(&ClientMsg::Submit { number: n, op: op(DVec3::ZERO, 1.0) }).into());
+    let submit =
+        |n: u64| Message::Binary(encode(&ClientMsg::Submit { number: n, op: Box::new(op(DVec3::ZERO, 1.0)) }).into());
     // One real operation (number 1), then the same number again and again.
     ws.send(submit(1)).unwrap();
     for _ in 0..count {

@@ -103,6 +103,11 @@ impl StudioApp {
             C::NextStamp => self.studio.next_stamp(),
             C::StampStroke => self.studio.toggle_stamp_stroke(),
             C::LoadStamp => self.ask_path(ctx, Prompt::LoadStamp, None),
+            C::Pressure => {
+                let p = &mut self.studio.editor.tool.pressure;
+                p.enabled = !p.enabled;
+                self.studio.message = format!("Pen pressure {}", if p.enabled { "on" } else { "off" });
+            }
         }
     }
 

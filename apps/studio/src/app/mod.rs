@@ -81,6 +81,9 @@ pub struct StudioApp {
     join_next: Option<crate::studio::SessionParams>,
     /// The brush presets shelf.
     presets: presets_panel::Shelf,
+    /// The pressure of the touch (a pen's, where the platform reads it) in progress, from
+    /// egui's touch events' force; `None` without one (a mouse: full pressure).
+    pub pen_pressure: Option<f64>,
 }
 
 /// Sizing the brush by dragging (Blender's F): the radius is the pointer's distance from
@@ -134,6 +137,7 @@ impl StudioApp {
             studio.fail(e.clone());
         }
         StudioApp {
+            pen_pressure: None,
             presets,
             world_seed: 1,
             last_frame: None,

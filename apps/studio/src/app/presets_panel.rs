@@ -206,31 +206,38 @@ impl StudioApp {
                     })
                     .response
                     .on_hover_text("A named shape; drag the curve's points for your own");
-                curve_plot(ui, falloff);
+                let shape = *falloff;
+                let tip = "Drag a point to shape the falloff: centre on the left, rim on the right";
+                let points = shape.to_curve().points();
+                if let Some(c) = curve_plot(ui, &|t| shape.at(t.min(0.9999)), &points, tip) {
+                    *falloff = Falloff::Curve(c);
+                }
             });
         });
     }
 }
 
-/// The falloff's curve, its points draggable (see [`StudioApp::falloff_editor`]).
-fn curve_plot(ui: &mut egui::Ui, falloff: &mut Falloff) {
+/// A curve on the unit square, drawn from `value` with `points` as handles; the handle nearest a
+/// press follows the pointer (the ends only up and down, the others between their neighbours).
+/// Returns the curve with the moved point while one is dragged.
+pub(super) fn curve_plot(
+    ui: &mut egui::Ui,
+    value: &dyn Fn(f64) -> f64,
+    points: &[(f64, f64)],
+    tip: &str,
+) -> Option<FalloffCurve> {
     let (rect, response) = ui.allocate_exact_size(egui::vec2(110.0, 36.0), egui::Sense::click_and_drag());
-    let response = response.on_hover_text("Drag a point to shape the falloff: centre on the left, rim on the right");
+    let response = response.on_hover_text(tip);
     let to_screen =
         |t: f64, v: f64| egui::pos2(rect.left() + t as f32 * rect.width(), rect.bottom() - v as f32 * rect.height());
     let painter = ui.painter_at(rect.expand(4.0));
     let visuals = ui.visuals();
     painter.rect_filled(rect, 2.0, visuals.extreme_bg_color);
-    let line: Vec<egui::Pos2> =
-        (0..=64).map(|i| i as f64 / 64.0).map(|t| to_screen(t, falloff.at(t.min(0.9999)))).collect();
+    let line: Vec<egui::Pos2> = (0..=64).map(|i| i as f64 / 64.0).map(|t| to_screen(t, value(t))).collect();
     painter.add(egui::Shape::line(line, egui::Stroke::new(1.5, visuals.widgets.active.fg_stroke.color)));
-    let curve = falloff.to_curve();
-    let points = curve.points();
-    for &(t, v) in &points {
+    for &(t, v) in points {
         painter.circle_filled(to_screen(t, v), 3.5, visuals.selection.bg_fill);
     }
-    // Dragging: the point nearest the press moves with the pointer (the ends only up and
-    // down, the others between their neighbours).
     let id = response.id.with("dragged point");
     if response.drag_started()
         && let Some(p) = response.interact_pointer_pos()
@@ -243,23 +250,25 @@ fn curve_plot(ui: &mut egui::Ui, falloff: &mut Falloff) {
             .map(|(i, _)| i);
         ui.data_mut(|d| d.insert_temp(id, nearest));
     }
-    if response.dragged()
-        && let (Some(Some(i)), Some(p)) =
-            (ui.data(|d| d.get_temp::<Option<usize>>(id)), response.interact_pointer_pos())
-    {
-        let mut pts = points.clone();
-        let v = ((rect.bottom() - p.y) / rect.height()).clamp(0.0, 1.0) as f64;
+    if !response.dragged() {
+        return None;
+    }
+    let (Some(Some(i)), Some(p)) = (ui.data(|d| d.get_temp::<Option<usize>>(id)), response.interact_pointer_pos())
+    else {
+        return None;
+    };
+    let mut pts = points.to_vec();
+    let n = pts.len();
+    if i >= n {
+        return None;
+    }
+    pts[i].1 = ((rect.bottom() - p.y) / rect.height()).clamp(0.0, 1.0) as f64;
+    if i > 0 && i + 1 < n {
         let t = ((p.x - rect.left()) / rect.width()).clamp(0.0, 1.0) as f64;
-        let n = pts.len();
-        pts[i].1 = v;
-        if i > 0 && i + 1 < n {
-            let (lo, hi) = (pts[i - 1].0 + 0.01, pts[i + 1].0 - 0.01);
-            if lo < hi {
-                pts[i].0 = t.clamp(lo, hi);
-            }
-        }
-        if let Ok(c) = FalloffCurve::new(&pts) {
-            *falloff = Falloff::Curve(c);
+        let (lo, hi) = (pts[i - 1].0 + 0.01, pts[i + 1].0 - 0.01);
+        if lo < hi {
+            pts[i].0 = t.clamp(lo, hi);
         }
     }
+    FalloffCurve::new(&pts).ok()
 }

@@ -168,8 +168,8 @@ impl StudioApp {
         ui.checkbox(&mut tool.follow_surface, "Follow the surface").on_hover_text(
             "Strokes follow the surface under the pointer; off, a stroke keeps the depth where it started",
         );
-        ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"))
-            .on_hover_text("How much a pen's pressure scales the radius (0: not at all)");
+        self.pressure_controls(ui);
+        let tool = &mut self.studio.editor.tool;
         ui.add(egui::Slider::new(&mut tool.spacing, 0.05..=1.0).text("dab spacing"))
             .on_hover_text("Distance between a stroke's dabs, as a fraction of the radius");
         ui.separator();
@@ -292,5 +292,49 @@ impl StudioApp {
             let ctx = ui.ctx().clone();
             self.ask_path(&ctx, Prompt::LoadStamp, None);
         }
+    }
+
+    /// Pressure: on or off, how much it scales the size and the strength, and the two curves.
+    fn pressure_controls(&mut self, ui: &mut egui::Ui) {
+        let keys = keys_of(Command::Pressure);
+        let header = egui::CollapsingHeader::new(format!("Pressure ({keys})"))
+            .id_salt("pressure")
+            .default_open(false)
+            .show(ui, |ui| self.pressure_body(ui));
+        header.header_response.on_hover_text("How a pen's or a touch's pressure scales the brush");
+    }
+
+    fn pressure_body(&mut self, ui: &mut egui::Ui) {
+        let tool = &mut self.studio.editor.tool;
+        let keys = keys_of(Command::Pressure);
+        let reading = match self.pen_pressure {
+            Some(p) => format!("the pen reads {p:.2}"),
+            None => "no pen pressure this touch: a mouse dabs at full pressure".into(),
+        };
+        ui.checkbox(&mut tool.pressure.enabled, format!("Pressure on ({keys})")).on_hover_text(format!(
+            "A pen's or a touch's pressure scales the brush through the curves below; off, every dab is as at full pressure ({reading})"
+        ));
+        ui.add_enabled_ui(tool.pressure.enabled, |ui| {
+            let tool = &mut self.studio.editor.tool;
+            ui.add(egui::Slider::new(&mut tool.strength, 0.0..=1.0).text("pressure to size"))
+                .on_hover_text("How much pressure scales the radius (0: not at all)");
+            ui.add(egui::Slider::new(&mut tool.pressure_to_strength, 0.0..=1.0).text("pressure to strength"))
+                .on_hover_text("How much pressure scales the tool strength (0: not at all)");
+            ui.horizontal(|ui| {
+                ui.label("curves").on_hover_text("Pressure left to right, its factor up: size, then strength");
+                for size in [true, false] {
+                    let curve = if size { &mut tool.pressure.size } else { &mut tool.pressure.strength };
+                    let shape = *curve;
+                    let tip = if size {
+                        "The size curve: pressure left to right, the radius's factor up; drag a point"
+                    } else {
+                        "The strength curve: pressure left to right, the strength's factor up; drag a point"
+                    };
+                    if let Some(c) = super::presets_panel::curve_plot(ui, &|t| shape.at(t), &shape.points(), tip) {
+                        *curve = c;
+                    }
+                }
+            });
+        });
     }
 }

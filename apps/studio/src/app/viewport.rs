@@ -185,15 +185,16 @@ impl StudioApp {
                 .collect()
         });
         let budget = Duration::from_millis(6);
+        let pressure = self.read_pressure(ui);
         let mut down = self.studio.editor.stroking();
         for (pos, pressed) in clicks {
             let on_viewport = rect.contains(pos) && ui.ctx().layer_id_at(pos) == Some(layer);
             if pressed && on_viewport && !self.modal_open() {
                 let held = Buttons { primary: true, secondary: false };
-                self.studio.pointer(Some(to_ndc(pos)), held, 1.0, aspect, budget);
+                self.studio.pointer(Some(to_ndc(pos)), held, pressure, aspect, budget);
                 down = true;
             } else if !pressed && down {
-                self.studio.pointer(Some(to_ndc(pos)), Buttons::default(), 1.0, aspect, budget);
+                self.studio.pointer(Some(to_ndc(pos)), Buttons::default(), pressure, aspect, budget);
                 down = false;
             }
         }
@@ -203,7 +204,40 @@ impl StudioApp {
                 && (response.dragged_by(egui::PointerButton::Primary) || response.is_pointer_button_down_on()),
             secondary,
         };
-        self.studio.pointer(ndc, buttons, 1.0, aspect, budget);
+        self.studio.pointer(ndc, buttons, pressure, aspect, budget);
+    }
+
+    /// The pressure this frame's dabs are made at: the force of the latest touch event that
+    /// gives one (egui's `Event::Touch`, which eframe makes of winit's touch events; winit
+    /// reports a pen's pressure as such a touch's force where the platform gives it to it), held
+    /// until the touch ends; full pressure without one (a mouse).
+    fn read_pressure(&mut self, ui: &egui::Ui) -> f64 {
+        let touches: Vec<(egui::TouchPhase, Option<f32>)> = ui.input(|i| {
+            i.events
+                .iter()
+                .filter_map(|e| match e {
+                    egui::Event::Touch { phase, force, .. } => Some((*phase, *force)),
+                    _ => None,
+                })
+                .collect()
+        });
+        let mut now = self.pen_pressure;
+        for (phase, force) in touches {
+            match (phase, force) {
+                (egui::TouchPhase::Start | egui::TouchPhase::Move, Some(f)) if f.is_finite() => {
+                    now = Some(f.clamp(0.0, 1.0) as f64)
+                }
+                (egui::TouchPhase::End | egui::TouchPhase::Cancel, _) => {
+                    // (This frame's dabs still take the touch's last pressure.)
+                    let last = now;
+                    self.pen_pressure = None;
+                    return last.unwrap_or(1.0);
+                }
+                _ => {}
+            }
+        }
+        self.pen_pressure = now;
+        now.unwrap_or(1.0)
     }
 
     pub(super) fn draw(&mut self, ui: &mut egui::Ui, frame: Option<&mut eframe::Frame>, rect: egui::Rect) {

@@ -76,7 +76,7 @@ impl Falloff {
     /// [`FalloffCurve::new`] checks them; a curve from the network may not be).
     pub fn is_valid(&self) -> bool {
         match self {
-            Falloff::Curve(c) => FalloffCurve::new(&c.points()).is_ok(),
+            Falloff::Curve(c) => c.is_valid(),
             _ => true,
         }
     }
@@ -115,9 +115,10 @@ pub enum FalloffError {
     Points,
 }
 
-/// An edited falloff: points `(t, value)` from `t = 0` to `t = 1`, `t` increasing, values in
-/// `[0, 1]`, joined by a monotone cubic (Fritsch–Butland tangents: no overshoot, flat where a
-/// point is a peak or a valley).
+/// An edited falloff (or any curve on the unit square: the editor's pressure curves are these
+/// too): points `(t, value)` from `t = 0` to `t = 1`, `t` increasing, values in `[0, 1]`, joined
+/// by a monotone cubic (Fritsch–Butland tangents: no overshoot, flat where a point is a peak or
+/// a valley).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FalloffCurve {
     points: [[f32; 2]; MAX_CURVE_POINTS],
@@ -146,6 +147,16 @@ impl FalloffCurve {
             return Err(FalloffError::Points);
         }
         Ok(FalloffCurve { points: out, len: points.len() as u8 })
+    }
+
+    /// The straight line from `(0, 0)` to `(1, 1)`.
+    pub fn linear() -> Self {
+        FalloffCurve::new(&[(0.0, 0.0), (1.0, 1.0)]).expect("two ordered points in the unit square")
+    }
+
+    /// Whether its points are sound (one that arrived through serde may not be).
+    pub fn is_valid(&self) -> bool {
+        FalloffCurve::new(&self.points()).is_ok()
     }
 
     /// Its points.
@@ -237,6 +248,12 @@ mod tests {
         }
         let f = Falloff::Curve(c);
         assert!(f.is_valid());
+        let line = FalloffCurve::linear();
+        for i in 0..=10 {
+            let t = i as f64 / 10.0;
+            assert!((line.at(t) - t).abs() < 1e-12);
+        }
+        assert_eq!(line.at(1.0), 1.0);
         assert_eq!(f.at(1.0), 0.0, "nothing from the rim on, whatever the curve");
         assert_eq!(f.numbers().len(), 10);
     }
