@@ -74,6 +74,9 @@ pub enum EditorError {
     /// operations for a room: the others would not see it.
     #[error("{0} cannot be shared with the room: leave the session first")]
     NotShared(&'static str),
+    /// A mesh that cannot be inserted, or a bad placement.
+    #[error(transparent)]
+    Insert(#[from] crate::insert::InsertError),
     /// The stamp tool names an image the editor does not hold (one loaded into another
     /// editor).
     #[error("the stamp tool's image is not loaded here: load it again or pick a built-in stamp")]

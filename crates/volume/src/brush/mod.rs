@@ -240,7 +240,7 @@ macro_rules! forward_brush {
     )*};
 }
 
-forward_brush!(&B, Box<B>);
+forward_brush!(&B, Box<B>, std::sync::Arc<B>);
 
 /// A brush parameter that cannot make a solid.
 #[derive(Debug, Error, Clone, PartialEq)]
