@@ -181,7 +181,11 @@ pub const BINDINGS: &[Binding] = &[
     bind(Command::SaveAs, &[(CS, Key::S)], "save as"),
     bind(Command::Open, &[(C, Key::O)], "open a scene"),
     bind(Command::New, &[(C, Key::N)], "new scene"),
-    bind(Command::CloseHelp, &[(N, Key::Escape)], "close the help, a prompt or a question; cancel a long job"),
+    bind(
+        Command::CloseHelp,
+        &[(N, Key::Escape)],
+        "close the help, a prompt or a question; cancel a long job or a waiting insert",
+    ),
     bind(Command::Help, &[(N, Key::F1)], "this help"),
 ];
 

@@ -1669,3 +1669,70 @@ fn pen_pressure_scales_the_brush_through_its_curves_and_alt_p_turns_it_off() {
     assert!(h.state().studio.editor.tool.pressure.enabled);
     assert!(h.query_all_by_label("pressure to size").count() > 0);
 }
+
+/// Issue 32: Edit → Insert mesh → Bunny waits as a preview; a press on the ball places it on
+/// the surface; the panel sizes it; Add insert applies it as one undo step; Escape cancels a
+/// waiting cube; an open mesh file is refused with its reason.
+#[test]
+fn the_bunny_is_inserted_placed_on_the_surface_added_and_undone() {
+    let dir = temp("insert");
+    let mut h = harness(&dir);
+    h.run();
+    let start = h.state().studio.editor.scene.layers[0].volume.clone();
+    let insert_from_menu = |h: &mut Harness<'static, StudioApp>, item: &str| {
+        h.get_by_label("Edit").click();
+        h.run();
+        h.get_by_label("Insert mesh").click();
+        h.run();
+        h.get_by_label(item).click();
+        h.run();
+    };
+    insert_from_menu(&mut h, "Bunny");
+    assert!(h.state().studio.insert.is_some(), "{}", h.state().studio.message);
+    // A press and release on the ball's middle places it there, on the surface.
+    let centre = egui::pos2(640.0, 400.0);
+    h.hover_at(centre);
+    h.step();
+    h.drag_at(centre);
+    h.step();
+    h.drop_at(centre);
+    h.step();
+    let placed = h.state().studio.insert.as_ref().unwrap().placement.position;
+    let layer = &h.state().studio.editor.scene.layers[0];
+    let g = layer.transform.to_grid(placed);
+    let sides: Vec<bool> = [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z]
+        .iter()
+        .flat_map(|&d| [layer.volume.is_inside(g + d * 0.7), layer.volume.is_inside(g - d * 0.7)])
+        .collect();
+    assert!(sides.contains(&true) && sides.contains(&false), "placed {placed:?}: not on the surface");
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume, start, "placing changes nothing");
+    h.state_mut().studio.insert.as_mut().unwrap().placement.size = 3.0;
+    let steps = h.state().studio.editor.history().undo_len();
+    h.get_by_label("Add insert").click();
+    h.run();
+    assert!(h.state().studio.insert.is_none(), "{}", h.state().studio.message);
+    let added = h.state().studio.editor.scene.layers[0].volume.clone();
+    assert!(added != start);
+    added.check_invariants().unwrap();
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume, start, "Ctrl+Z takes the insert back");
+    // Escape drops a waiting cube.
+    insert_from_menu(&mut h, "Cube");
+    assert!(h.state().studio.insert.is_some());
+    h.key_press(egui::Key::Escape);
+    h.run();
+    assert!(h.state().studio.insert.is_none());
+    // An open mesh from a file is refused, saying why.
+    let open = dir.join("open.obj");
+    std::fs::write(&open, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n").unwrap();
+    insert_from_menu(&mut h, "From file…");
+    enter_path(&mut h, &open);
+    assert!(h.state().studio.insert.is_none());
+    assert!(
+        h.state().studio.notice.as_deref().is_some_and(|n| n.contains("not closed")),
+        "{:?}",
+        h.state().studio.notice
+    );
+}

@@ -266,6 +266,14 @@ impl InsertMesh {
         Ok(InsertMesh { name: name.to_string(), brush: Arc::new(brush), centre, size, preview: Arc::new(preview) })
     }
 
+    /// The Stanford bunny (tests/data/bunny.ply, built into the program: see its README for
+    /// the source and credit).
+    pub fn bunny() -> Self {
+        let mesh = strata_mesh::import::parse_mesh("ply", include_bytes!("../../../tests/data/bunny.ply"))
+            .expect("the built-in bunny reads");
+        InsertMesh::new("Bunny", &mesh).expect("the built-in bunny is closed")
+    }
+
     /// A primitive.
     pub fn primitive(p: Primitive) -> Self {
         InsertMesh::new(p.name(), &p.mesh()).expect("the primitives are closed")
@@ -285,6 +293,11 @@ impl InsertMesh {
     /// `placement.size / size()`, turned and moved by the placement).
     pub fn preview(&self) -> &strata_mesh::Mesh {
         &self.preview
+    }
+
+    /// [`InsertMesh::preview`], shared (to keep beside other borrows while drawing).
+    pub fn preview_shared(&self) -> Arc<strata_mesh::Mesh> {
+        self.preview.clone()
     }
 
     /// The brush that `placement` makes of it in the grid of a layer placed by `layer`.

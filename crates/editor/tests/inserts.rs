@@ -29,6 +29,7 @@ fn every_primitive_is_closed_and_the_bunny_inserts() {
     }
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply");
     let bunny = InsertMesh::new("bunny", &strata_mesh::import::load_mesh(&path).unwrap()).unwrap();
+    assert_eq!(InsertMesh::bunny().size(), bunny.size(), "the built-in bunny is the file's");
     let mut e = ball_editor(false);
     let before = e.scene.layers[0].volume.clone();
     let at = Placement { position: DVec3::new(0.0, 12.0, 0.0), rotation: DQuat::from_rotation_y(1.0), size: 10.0 };

@@ -14,6 +14,7 @@ pub(super) enum Prompt {
     NewWorld,
     OpenWorld,
     LoadStamp,
+    InsertMesh,
 }
 
 impl Prompt {
@@ -26,6 +27,7 @@ impl Prompt {
             Prompt::NewWorld => "New world",
             Prompt::OpenWorld => "Open world",
             Prompt::LoadStamp => "Load a stamp picture (PNG)",
+            Prompt::InsertMesh => "Insert a mesh (a closed one)",
         }
     }
 
@@ -36,6 +38,7 @@ impl Prompt {
             Prompt::Import => "mesh.ply",
             Prompt::NewWorld | Prompt::OpenWorld => "terrain.world",
             Prompt::LoadStamp => "stamp.png",
+            Prompt::InsertMesh => "mesh.ply",
         }
     }
 }
@@ -187,11 +190,14 @@ impl StudioApp {
         };
         let request = DialogRequest {
             title: kind.title(),
-            pick_existing: matches!(kind, Prompt::Open | Prompt::Import | Prompt::OpenWorld | Prompt::LoadStamp),
+            pick_existing: matches!(
+                kind,
+                Prompt::Open | Prompt::Import | Prompt::OpenWorld | Prompt::LoadStamp | Prompt::InsertMesh
+            ),
             filter: match kind {
                 Prompt::Open | Prompt::SaveAs => ("Strata scene", vec!["strata"]),
                 Prompt::Export => ("Mesh", vec!["glb", "obj", "stl", "ply"]),
-                Prompt::Import => ("Mesh", strata_mesh::import::MESH_EXTENSIONS.to_vec()),
+                Prompt::Import | Prompt::InsertMesh => ("Mesh", strata_mesh::import::MESH_EXTENSIONS.to_vec()),
                 Prompt::NewWorld | Prompt::OpenWorld => ("Strata world", vec!["world"]),
                 Prompt::LoadStamp => ("PNG image", vec!["png"]),
             },
@@ -244,6 +250,7 @@ impl StudioApp {
             Prompt::NewWorld => self.studio.act(Action::NewWorld(path, self.world_seed)).is_ok(),
             Prompt::OpenWorld => self.studio.act(Action::OpenWorld(path)).is_ok(),
             Prompt::LoadStamp => self.studio.act(Action::LoadStamp(path)).is_ok(),
+            Prompt::InsertMesh => self.studio.act(Action::InsertFile(path)).is_ok(),
         };
         if done && let Some(then) = then {
             self.proceed(ctx, then);

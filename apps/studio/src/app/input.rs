@@ -53,7 +53,10 @@ impl StudioApp {
             C::Open => self.guard(ctx, Then::Open),
             C::New => self.guard(ctx, Then::New),
             C::Help => self.help_open = !self.help_open,
-            C::CloseHelp => self.help_open = false,
+            C::CloseHelp => {
+                self.help_open = false;
+                self.studio.cancel_insert();
+            }
             _ if self.studio.terrain.is_some()
                 && crate::keymap::binding(command).is_some_and(|b| b.terrain.is_some()) =>
             {

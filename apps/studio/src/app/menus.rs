@@ -144,6 +144,33 @@ impl StudioApp {
                     }
                 }
                 ui.separator();
+                ui.menu_button("Insert mesh", |ui| {
+                    let mut chosen = None;
+                    for p in strata_editor::Primitive::ALL {
+                        if ui
+                            .button(p.name())
+                            .on_hover_text("A closed primitive, placed with a press on the model")
+                            .clicked()
+                        {
+                            chosen = Some(strata_editor::InsertMesh::primitive(p));
+                        }
+                    }
+                    if ui.button("Bunny").on_hover_text("The Stanford bunny (built in)").clicked() {
+                        chosen = Some(strata_editor::InsertMesh::bunny());
+                    }
+                    if let Some(m) = chosen {
+                        self.studio.begin_insert(m);
+                        ui.close();
+                    }
+                    if ui.button("From file…").on_hover_text("A closed mesh: PLY, OBJ, STL, glTF or GLB").clicked() {
+                        self.ask_path(&ctx, Prompt::InsertMesh, None);
+                        ui.close();
+                    }
+                    if self.studio.insert.is_some() {
+                        ui.separator();
+                        self.insert_buttons(ui);
+                    }
+                });
                 ui.menu_button("Brush presets", |ui| {
                     for (preset, _) in self.shelf() {
                         if ui.button(&preset.name).on_hover_text(preset.summary()).clicked() {

@@ -5,6 +5,9 @@ use super::*;
 
 impl StudioApp {
     pub(super) fn palette(&mut self, ui: &mut egui::Ui) {
+        if self.studio.insert.is_some() {
+            self.insert_panel(ui);
+        }
         let tool = &mut self.studio.editor.tool;
         ui.heading("Tool");
         let tips = [
@@ -335,6 +338,57 @@ impl StudioApp {
                     }
                 }
             });
+        });
+    }
+
+    /// The waiting insert: its size and turn, and the operations that apply it.
+    fn insert_panel(&mut self, ui: &mut egui::Ui) {
+        ui.group(|ui| {
+            let Some(insert) = self.studio.insert.as_mut() else { return };
+            ui.heading(format!("Insert: {}", insert.mesh.name()));
+            ui.label("Press or drag on the model to place it");
+            ui.add(egui::DragValue::new(&mut insert.placement.size).range(1e-3..=1.0e5).speed(0.05).prefix("size "))
+                .on_hover_text("Its largest side, in world units");
+            let mut changed = false;
+            ui.horizontal(|ui| {
+                for (k, axis) in ["turn y", "x", "z"].into_iter().enumerate() {
+                    changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut insert.turn[k])
+                                .range(-180.0..=180.0)
+                                .speed(1.0)
+                                .prefix(format!("{axis} "))
+                                .suffix("°"),
+                        )
+                        .on_hover_text("Turn it about the world's y axis, then x, then z")
+                        .changed();
+                }
+            });
+            if changed {
+                insert.sync_rotation();
+            }
+            self.insert_buttons(ui);
+        });
+    }
+
+    /// Add, Subtract, Intersect and Cancel for the waiting insert (the panel's and the menu's).
+    pub(super) fn insert_buttons(&mut self, ui: &mut egui::Ui) {
+        use strata_volume::CsgOp;
+        ui.horizontal(|ui| {
+            for (op, name, tip) in [
+                (CsgOp::Add, "Add insert", "Add it to the active layer exactly (one undo step)"),
+                (CsgOp::Subtract, "Subtract insert", "Cut it out of the active layer exactly"),
+                (CsgOp::Intersect, "Intersect insert", "Keep only what lies inside it"),
+            ] {
+                if ui.button(name).on_hover_text(tip).clicked() {
+                    let _ = self.studio.apply_insert(op).map_err(|e| self.studio.fail(e));
+                    ui.close();
+                }
+            }
+            if ui.button("Cancel insert").on_hover_text("Drop it (Escape)").clicked() {
+                self.studio.cancel_insert();
+                ui.close();
+            }
         });
     }
 }

@@ -324,6 +324,16 @@ impl StudioApp {
         let wireframe = self.studio.wireframe;
         let camera = self.studio.camera;
         let dabs = self.studio.preview_dabs();
+        // The waiting insert's preview mesh and where it goes (world).
+        let insert = self.studio.insert.as_ref().map(|i| {
+            let p = &i.placement;
+            let model = Mat4::from_scale_rotation_translation(
+                glam::Vec3::splat((p.size / i.mesh.size()) as f32),
+                p.rotation.as_quat(),
+                p.position.as_vec3(),
+            );
+            (i.mesh.preview_shared(), model)
+        });
         let scale = glam::Vec3::splat(self.studio.preview_scale() as f32);
         let preview_mesh = strata_viewport::mesh_ref(self.studio.preview_mesh());
         let rgb = if erase { [1.0, 0.35, 0.3] } else { [0.35, 0.65, 1.0] };
@@ -342,6 +352,13 @@ impl StudioApp {
                     color: [rgb[0], rgb[1], rgb[2], alpha * 1.6],
                 });
             }
+        }
+        if let Some((mesh, model)) = &insert {
+            previews.push(Preview {
+                mesh: strata_viewport::mesh_ref(mesh),
+                model: *model,
+                color: [0.45, 0.9, 0.5, 0.35],
+            });
         }
         let settings = FrameSettings { camera, wireframe, previews: &previews, ..Default::default() };
         vp.present(ui, rs, rect, size, &settings);

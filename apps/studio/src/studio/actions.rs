@@ -145,6 +145,7 @@ impl Studio {
             }
             Action::ToggleWireframe => self.wireframe = !self.wireframe,
             Action::LoadStamp(path) => self.load_stamp(&path)?,
+            Action::InsertFile(path) => self.insert_file(&path)?,
             Action::Mask(a) => {
                 let layer = self.editor.active_layer;
                 self.editor.mask_all(layer, a).map_err(|e| format!("Could not {}: {e}", a.name().to_lowercase()))?;

@@ -16,6 +16,7 @@ use strata_volume::brush::Sphere;
 mod actions;
 mod collab;
 mod import;
+mod inserts;
 mod pointer;
 mod preview;
 mod stamps;
@@ -86,6 +87,8 @@ pub enum Action {
     Mask(strata_editor::MaskAction),
     /// Load a PNG as the stamp tool's picture (File > Load stamp picture, or dropped).
     LoadStamp(PathBuf),
+    /// Read a mesh file as an insert waiting to be placed (Edit > Insert mesh > From file).
+    InsertFile(PathBuf),
 }
 
 impl Action {
@@ -263,6 +266,8 @@ pub struct Studio {
     falloffs: Vec<(ToolKind, strata_volume::tools::Falloff)>,
     /// The tool whose falloff the brush holds.
     falloff_kind: ToolKind,
+    /// A mesh insert waiting to be placed and applied.
+    pub insert: Option<inserts::PendingInsert>,
 }
 
 impl Studio {
@@ -301,6 +306,7 @@ impl Studio {
             preview: None,
             saved_revision: 0,
             falloffs: Vec::new(),
+            insert: None,
             falloff_kind: ToolKind::default(),
             job: None,
             background_chunks: 1 << 15,

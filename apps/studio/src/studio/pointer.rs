@@ -65,7 +65,9 @@ impl Studio {
         // Holding Shift smooths, whatever the tool; Ctrl or Alt inverts it (the sculptors'
         // conventions): the pose says so, the tool and the buttons stay as they are.
         let modifiers = Modifiers { inverted: self.inverse_held, smooth: self.smooth_held };
-        if self.eyedropper && self.job.is_none() {
+        if self.insert.is_some() {
+            self.place_insert(ndc, buttons.primary, aspect);
+        } else if self.eyedropper && self.job.is_none() {
             self.eyedropper_click(ndc, buttons, aspect);
         } else if self.line_mode && self.job.is_none() {
             self.line_click(ndc, buttons, modifiers, pressure, aspect);

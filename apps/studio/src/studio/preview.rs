@@ -6,6 +6,10 @@ impl Studio {
     /// Where the brush preview goes: the dab at the pointer and its mirror images, each as
     /// (world placement, erasing); the shape and radius are [`Studio::preview_mesh`]'s.
     pub fn preview_dabs(&self) -> Vec<(DVec3, DQuat)> {
+        // A waiting insert is previewed instead of the brush.
+        if self.insert.is_some() {
+            return Vec::new();
+        }
         // A stamp being dragged out shows where it will go, not the pointer.
         let Some(p) = self.editor.stamp_drag().map(|(c, _, _)| c).or(self.hover) else { return Vec::new() };
         let Some(surface) = self.editor.surface(self.editor.active_surface()) else { return Vec::new() };
