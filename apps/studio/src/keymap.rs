@@ -64,6 +64,8 @@ pub enum Command {
     LoadStamp,
     /// Pen pressure on or off.
     Pressure,
+    /// The transform gizmo for the active layer on or off.
+    LayerGizmo,
 }
 
 impl Command {
@@ -134,6 +136,11 @@ pub const BINDINGS: &[Binding] = &[
     ),
     bind(Command::LoadStamp, &[(CS, Key::O)], "load a PNG as a stamp picture (or drop it on the window)"),
     bind(Command::Pressure, &[(A, Key::P)], "pen pressure on or off (its curves in the tool panel)"),
+    bind(
+        Command::LayerGizmo,
+        &[(C, Key::T)],
+        "transform gizmo for the active layer: drag an arrow to move, a ring knob to turn, the square to scale (Ctrl snaps)",
+    ),
     bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
     bind(
         Command::Tool(ToolKind::Mask),

@@ -15,6 +15,6 @@ pub mod recovery;
 mod studio;
 pub mod terrain;
 
-pub use app::{DialogRequest, DialogService, Dialogs, StudioApp, run_window};
+pub use app::{DialogRequest, DialogService, Dialogs, GizmoHandle, StudioApp, run_window};
 pub use headless::{screenshot, terrain_screenshot};
 pub use studio::{Action, DEFAULT_CELL, ImportJob, Islands, PendingImport, Studio, default_scene};

@@ -1736,3 +1736,85 @@ fn the_bunny_is_inserted_placed_on_the_surface_added_and_undone() {
         h.state().studio.notice
     );
 }
+
+/// Drags gizmo handle `handle` by `by` (points) in a few frames, then releases it.
+fn drag_handle(h: &mut Harness<'static, StudioApp>, handle: strata_studio::GizmoHandle, by: egui::Vec2) {
+    let (_, handles) = h.state().gizmo_on_screen().expect("the gizmo shows");
+    let at = handles.iter().find(|(k, _)| *k == handle).expect("the handle shows").1;
+    h.hover_at(at);
+    h.step();
+    h.drag_at(at);
+    h.step();
+    for i in 1..=5 {
+        h.hover_at(at + by * (i as f32 / 5.0));
+        h.step();
+    }
+    h.drop_at(at + by);
+    h.step();
+    h.step();
+}
+
+/// Issue 32: the gizmo moves the waiting bunny insert along an axis (nothing sculpted);
+/// Ctrl snaps the move to cells; `Ctrl+T` shows it on the active layer, whose move, turn and
+/// scale are one undo step a drag.
+#[test]
+fn the_gizmo_moves_an_insert_and_moves_and_turns_a_layer_one_undo_step_a_drag() {
+    use strata_studio::GizmoHandle;
+    let dir = temp("gizmo");
+    let mut h = harness(&dir);
+    h.run();
+    let start = h.state().studio.editor.scene.layers[0].volume.clone();
+    h.get_by_label("Edit").click();
+    h.run();
+    h.get_by_label("Insert mesh").click();
+    h.run();
+    h.get_by_label("Bunny").click();
+    h.run();
+    h.run();
+    let before = h.state().studio.insert.as_ref().unwrap().placement;
+    let (c, handles) = h.state().gizmo_on_screen().unwrap();
+    let tip = handles.iter().find(|(k, _)| *k == GizmoHandle::Move(0)).unwrap().1;
+    drag_handle(&mut h, GizmoHandle::Move(0), (tip - c).normalized() * 40.0);
+    let after = h.state().studio.insert.as_ref().unwrap().placement;
+    let moved = after.position - before.position;
+    assert!(moved.x > 0.1 && moved.y.abs() < 1e-9 && moved.z.abs() < 1e-9, "moved {moved:?}");
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume, start, "dragging the gizmo sculpts nothing");
+    // With Ctrl held the move snaps to cells of the active layer (0.25 units).
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::COMMAND));
+    drag_handle(&mut h, GizmoHandle::Move(0), (tip - c).normalized() * 33.0);
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    let snapped = h.state().studio.insert.as_ref().unwrap().placement.position.x - after.position.x;
+    let cells = snapped / strata_studio::DEFAULT_CELL;
+    assert!(snapped > 0.1 && (cells - cells.round()).abs() < 1e-9, "snapped by {snapped}");
+    h.key_press(egui::Key::Escape);
+    h.run();
+    // The layer gizmo: a move along y, then a turn about y, each one undo step.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::T);
+    h.run();
+    let t0 = h.state().studio.editor.scene.layers[0].transform;
+    let steps = h.state().studio.editor.history().undo_len();
+    let (c, handles) = h.state().gizmo_on_screen().unwrap();
+    let tip = handles.iter().find(|(k, _)| *k == GizmoHandle::Move(1)).unwrap().1;
+    drag_handle(&mut h, GizmoHandle::Move(1), (tip - c).normalized() * 30.0);
+    let t1 = h.state().studio.editor.scene.layers[0].transform;
+    assert!(t1.translation.y > t0.translation.y + 0.1, "{t0:?} -> {t1:?}");
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 1, "a drag is one step");
+    let (c, handles) = h.state().gizmo_on_screen().unwrap();
+    let ring = handles.iter().find(|(k, _)| *k == GizmoHandle::Turn(1)).unwrap().1;
+    let side = egui::vec2(-(ring - c).y, (ring - c).x);
+    drag_handle(&mut h, GizmoHandle::Turn(1), side * 0.8);
+    let t2 = h.state().studio.editor.scene.layers[0].transform;
+    assert!(t2.rotation.angle_between(t1.rotation) > 0.2, "turned by {}", t2.rotation.angle_between(t1.rotation));
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 2);
+    // The square scales about the layer's middle: up and right grows it.
+    drag_handle(&mut h, GizmoHandle::Scale, egui::vec2(30.0, -30.0));
+    let t3 = h.state().studio.editor.scene.layers[0].transform;
+    assert!(t3.scale > t2.scale * 1.3, "{} -> {}", t2.scale, t3.scale);
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 3);
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume, start, "the lists stay; only the placement changes");
+    for _ in 0..3 {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.run();
+    }
+    assert_eq!(h.state().studio.editor.scene.layers[0].transform, t0, "three undos give the layer back");
+}

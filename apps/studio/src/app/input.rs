@@ -106,6 +106,7 @@ impl StudioApp {
             C::NextStamp => self.studio.next_stamp(),
             C::StampStroke => self.studio.toggle_stamp_stroke(),
             C::LoadStamp => self.ask_path(ctx, Prompt::LoadStamp, None),
+            C::LayerGizmo => self.toggle_layer_gizmo(),
             C::Pressure => {
                 let p = &mut self.studio.editor.tool.pressure;
                 p.enabled = !p.enabled;

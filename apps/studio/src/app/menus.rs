@@ -144,6 +144,14 @@ impl StudioApp {
                     }
                 }
                 ui.separator();
+                let mut gizmo = self.layer_gizmo;
+                if ui
+                    .checkbox(&mut gizmo, labelled("Transform gizmo", Command::LayerGizmo))
+                    .on_hover_text("Handles on the active layer: drag to move, turn or scale it (one undo step a drag)")
+                    .changed()
+                {
+                    self.toggle_layer_gizmo();
+                }
                 ui.menu_button("Insert mesh", |ui| {
                     let mut chosen = None;
                     for p in strata_editor::Primitive::ALL {

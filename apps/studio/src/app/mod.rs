@@ -22,6 +22,8 @@ use crate::recovery::Autosave;
 use crate::studio::{Action, Studio};
 
 mod dialogs;
+mod gizmo;
+pub use gizmo::Handle as GizmoHandle;
 mod input;
 mod jobs;
 mod layers_panel;
@@ -81,6 +83,11 @@ pub struct StudioApp {
     join_next: Option<crate::studio::SessionParams>,
     /// The brush presets shelf.
     presets: presets_panel::Shelf,
+    /// The transform gizmo shows for the active layer (`Ctrl+T`; it always shows for a waiting
+    /// insert).
+    pub layer_gizmo: bool,
+    /// A drag of a gizmo handle in progress.
+    gizmo_drag: Option<gizmo::GizmoDrag>,
     /// The pressure of the touch (a pen's, where the platform reads it) in progress, from
     /// egui's touch events' force; `None` without one (a mouse: full pressure).
     pub pen_pressure: Option<f64>,
@@ -137,6 +144,8 @@ impl StudioApp {
             studio.fail(e.clone());
         }
         StudioApp {
+            layer_gizmo: false,
+            gizmo_drag: None,
             pen_pressure: None,
             presets,
             world_seed: 1,

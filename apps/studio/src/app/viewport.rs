@@ -53,10 +53,11 @@ impl StudioApp {
         let aspect = rect.width() / rect.height().max(1.0);
         if self.studio.terrain.is_some() {
             self.terrain_input(ui, &response, rect, aspect);
-        } else {
+        } else if !self.gizmo_input(ui, rect) {
             self.scene_input(ui, &response, rect, aspect);
         }
         self.draw(ui, frame, rect);
+        self.paint_gizmo(ui, rect);
         self.peer_cursors(ui, rect);
     }
 
