@@ -92,10 +92,10 @@ impl Editor {
         let op = tool.kind.op(inverted);
         let mut dabs = Vec::new();
         let parities = tool.mirror_parities(&l.transform, pose.position);
-        for ((at, orientation), mirrored) in
-            tool.mirrored(&l.transform, pose.position, pose.orientation).into_iter().zip(parities)
-        {
-            dabs.push((at, orientation, mirrored, tool.brush(&l.transform, at, orientation, pose.pressure)?));
+        let ups = tool.mirrored_directions(&l.transform, pose.position, pose.orientation * glam::DVec3::Y);
+        let images = tool.mirrored(&l.transform, pose.position, pose.orientation);
+        for (((at, orientation), mirrored), (_, up)) in images.into_iter().zip(parities).zip(ups) {
+            dabs.push((at, up, mirrored, tool.brush(&l.transform, at, orientation, pose.pressure)?));
         }
         let placeholder = Volume::with_level(l.volume.level());
         let mut volume = std::mem::replace(&mut l.volume, placeholder);
@@ -109,11 +109,11 @@ impl Editor {
         }
         let worker = std::thread::spawn(move || {
             let mut done: Vec<EditReport> = Vec::new();
-            for (at, orientation, mirrored, brush) in dabs {
+            for (at, up, mirrored, brush) in dabs {
                 // (A field tool's dab cannot stop half-way; a cancel is honoured when it ends.)
                 let result = if tool.kind.is_field_tool() {
                     let stamp = image.as_deref();
-                    let dab = FieldDab { at, orientation, pressure, inverted, direction: None, mirrored, stamp };
+                    let dab = FieldDab { at, up, pressure, inverted, direction: None, mirrored, stamp };
                     field_tool_dab(&tool, &transform, &mut volume, &dab).map_err(EditorError::from)
                 } else {
                     volume.apply(op, brush.as_ref(), &settings).map_err(EditorError::from)

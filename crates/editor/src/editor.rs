@@ -74,6 +74,10 @@ pub enum EditorError {
     /// operations for a room: the others would not see it.
     #[error("{0} cannot be shared with the room: leave the session first")]
     NotShared(&'static str),
+    /// Mesh inserts are for scenes: a world streams, and an intersection would keep what is on
+    /// disk.
+    #[error("mesh inserts are for scenes: a streamed world cannot take one")]
+    InsertOnWorld,
     /// A mesh that cannot be inserted, or a bad placement.
     #[error(transparent)]
     Insert(#[from] crate::insert::InsertError),

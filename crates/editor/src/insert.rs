@@ -203,6 +203,28 @@ fn revolve_closed(profile: &[(f64, f64)], segments: u32) -> TriangleMesh {
     TriangleMesh { vertices, triangles }
 }
 
+/// `mesh` with bitwise-equal positions merged and unused vertices dropped; `Err(t)` for a
+/// triangle `t` with an index out of range.
+fn weld(mesh: &TriangleMesh) -> Result<TriangleMesh, usize> {
+    let mut index: std::collections::HashMap<[u64; 3], u32> = std::collections::HashMap::new();
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let mut out = [0u32; 3];
+        for (o, &i) in out.iter_mut().zip(tri) {
+            let v = *mesh.vertices.get(i as usize).ok_or(t)?;
+            // (+0.0 and −0.0 are one position.)
+            let key = (v + DVec3::ZERO).to_array().map(f64::to_bits);
+            *o = *index.entry(key).or_insert_with(|| {
+                vertices.push(v);
+                vertices.len() as u32 - 1
+            });
+        }
+        triangles.push(out);
+    }
+    Ok(TriangleMesh { vertices, triangles })
+}
+
 /// A closed mesh ready to insert: its brush (built once), its box's centre and largest side
 /// (its own units), and its preview.
 #[derive(Clone, Debug)]
@@ -237,9 +259,12 @@ impl Placement {
 }
 
 impl InsertMesh {
-    /// `mesh` named `name`, checked: closed, with triangles of area, finite.
+    /// `mesh` named `name`, checked: closed, with triangles of area, finite. Vertices at the
+    /// same position are welded first (OBJ and glTF files repeat a position wherever its normal
+    /// or texture coordinates change), and vertices no triangle uses are left out.
     pub fn new(name: &str, mesh: &TriangleMesh) -> Result<Self, InsertError> {
         let bad = |reason: String| InsertError::Bad { name: name.to_string(), reason };
+        let mesh = &weld(mesh).map_err(|i| bad(format!("triangle {i} names a vertex the mesh does not have")))?;
         let brush =
             MeshBrush::new(&mesh.vertices, &mesh.triangles, MeshRule::default()).map_err(|e| bad(e.to_string()))?;
         if !brush.is_closed() {
@@ -320,7 +345,7 @@ impl Editor {
     /// Adds `mesh` to layer `layer` as `placement` places it (or subtracts it, or keeps only
     /// what lies inside it), exactly as the core's CSG with the placed mesh brush, as one undo
     /// step; the edit takes the current material. Refused while recording a room's operations
-    /// (an insert is not an operation the others could replay).
+    /// (an insert is not an operation the others could replay) and on a streamed world.
     pub fn insert_mesh(
         &mut self,
         layer: usize,
@@ -330,6 +355,10 @@ impl Editor {
     ) -> Result<strata_volume::EditReport, EditorError> {
         if self.records_ops() {
             return Err(EditorError::NotShared("a mesh insert"));
+        }
+        if self.surface(layer).is_some_and(|s| s.streamed()) {
+            // (An intersection would empty only the chunks in memory.)
+            return Err(EditorError::InsertOnWorld);
         }
         self.check_material()?;
         let transform = self.surface(layer).ok_or(EditorError::NoLayer(layer))?.transform();

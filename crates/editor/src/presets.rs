@@ -292,6 +292,12 @@ pub fn load_presets(path: &Path) -> Result<Vec<Preset>, PresetError> {
 
 /// Writes the user's presets to `path` atomically (a crash keeps the old file).
 pub fn save_presets(path: &Path, presets: &[Preset]) -> Result<(), PresetError> {
+    if presets.len() > MAX_PRESETS {
+        return Err(PresetError::Bad {
+            name: presets[MAX_PRESETS].name.clone(),
+            what: format!("a presets file holds at most {MAX_PRESETS} presets: delete some first"),
+        });
+    }
     for p in presets {
         p.check()?;
     }
@@ -380,6 +386,10 @@ mod tests {
         assert!(Preset::capture("   ", &tool, None).is_err());
         assert!(Preset::capture(&"x".repeat(MAX_NAME + 1), &tool, None).is_err());
         let mut p = Preset::capture("ok", &tool, None).unwrap();
+        let dir = temp("many");
+        let many = vec![p.clone(); MAX_PRESETS + 1];
+        assert!(save_presets(&dir.join("p.json"), &many).unwrap_err().to_string().contains("at most"));
+        assert!(!dir.join("p.json").exists());
         p.radius = Some(f64::NAN);
         assert!(p.check().unwrap_err().to_string().contains("\"ok\""));
         p.radius = None;

@@ -93,8 +93,9 @@ impl Stroke {
 pub(crate) struct FieldDab<'a> {
     /// The dab's centre.
     pub at: DVec3,
-    /// The pose's orientation (a stamp's top is its y axis unless it follows the stroke).
-    pub orientation: DQuat,
+    /// The pose's y axis, mirrored as the image's position is (a stamp's top unless it follows
+    /// the stroke).
+    pub up: DVec3,
     pub pressure: f64,
     /// The secondary button: the inverse tool.
     pub inverted: bool,
@@ -151,7 +152,7 @@ pub(crate) fn field_tool_dab(
             let image = d.stamp.ok_or(ToolError::BadParameter { what: "the stamp's image", positive: false })?;
             let s = &tool.stamp;
             let along = s.follow_stroke || s.stroke == crate::StampStroke::Drag;
-            let up = d.direction.filter(|_| along).unwrap_or(d.orientation * DVec3::Y);
+            let up = d.direction.filter(|_| along).unwrap_or(d.up);
             // A mirror image turns the other way.
             let angle = s.angle.to_radians() * if d.mirrored { -1.0 } else { 1.0 };
             let placement = StampPlacement { up: transform.rotation.inverse() * up, angle, mirrored: d.mirrored };
@@ -307,9 +308,16 @@ impl Editor {
     /// points (a zero vector until the pointer has moved); `None` unless one is.
     pub fn stamp_drag(&self) -> Option<(DVec3, f64, DVec3)> {
         let s = self.stroke.as_ref().filter(|s| s.drag)?;
-        let reach = s.brush - s.last;
-        let radius = if reach.length() > 0.0 { reach.length() } else { self.tool.radius };
+        let reach = self.drag_reach(s);
+        let radius = if reach == DVec3::ZERO { self.tool.radius } else { reach.length() };
         Some((s.last, radius, reach))
+    }
+
+    /// How far a dragged stamp's pointer went from the press (unsnapped, so grid snapping does
+    /// not make a drag of a click); zero for less than a tenth of the tool's radius (a click).
+    fn drag_reach(&self, s: &Stroke) -> DVec3 {
+        let reach = s.brush - s.start;
+        if reach.length() < 0.1 * self.tool.radius { DVec3::ZERO } else { reach }
     }
 
     /// Applies the stamp dragged out in the stroke in progress, if one is (the button was
@@ -318,12 +326,12 @@ impl Editor {
     /// size (the frame limit is for dragging). Its undo goes to the stroke.
     fn finish_stamp_drag(&mut self, report: &mut FrameReport) -> Result<(), EditorError> {
         let Some(s) = self.stroke.as_ref().filter(|s| s.drag) else { return Ok(()) };
-        let (layer, centre, pointer, inverted, orientation) = (s.layer, s.last, s.brush, s.inverted, s.orientation);
+        let (layer, centre, inverted, orientation) = (s.layer, s.last, s.inverted, s.orientation);
+        let reach = self.drag_reach(s);
         let mut tool = self.tool;
         tool.kind = ToolKind::Stamp;
         tool.stamp.stroke = crate::StampStroke::Drag;
-        let reach = pointer - centre;
-        if reach.length() > 0.0 {
+        if reach != DVec3::ZERO {
             // The drag is the radius: pressure does not scale it.
             (tool.radius, tool.strength) = (reach.length(), 0.0);
         }
@@ -399,6 +407,9 @@ impl Editor {
         // is mirrored.)
         let directions = tool.mirrored_directions(transform, p, p - last);
         let parities = tool.mirror_parities(transform, p);
+        // (A stamp's top: the pose's y axis reflected as a vector, which `M R M` applied to y
+        // is not where the reflection is along y.)
+        let ups = tool.mirrored_directions(transform, p, orientation * DVec3::Y);
         let image = self.stamp_image(tool)?;
         // Each image's brush (CSG tools) and box, built once; all are checked against the
         // frame's limit before any is applied, so a refused dab leaves no image behind.
@@ -421,14 +432,14 @@ impl Editor {
             self.check_dab_size(bounds)?;
         }
         let settings = EditSettings { material: tool.material, ..self.settings.clone() };
-        for (k, ((at, orientation), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
+        for (k, ((at, _), (brush, bounds, reach))) in images.into_iter().zip(planned).enumerate() {
             let target = self.surface_mut(layer).ok_or(EditorError::NoLayer(layer))?;
             let edit = match brush {
                 None => {
                     let direction = directions.get(k).map(|&(_, v)| v).filter(|v| v.length() > 1e-9);
                     let mirrored = parities.get(k).copied().unwrap_or(false);
-                    let dab =
-                        FieldDab { at, orientation, pressure, inverted, direction, mirrored, stamp: image.as_deref() };
+                    let up = ups.get(k).map_or(DVec3::Y, |&(_, v)| v);
+                    let dab = FieldDab { at, up, pressure, inverted, direction, mirrored, stamp: image.as_deref() };
                     target.edit(&bounds, &mut |v| Ok(field_tool_dab(tool, transform, v, &dab)?))?
                 }
                 Some(brush) => target.edit(&bounds, &mut |v| Ok(v.apply(op, brush.as_ref(), &settings)?))?,

@@ -235,6 +235,9 @@ impl Default for ToolSettings {
     }
 }
 
+/// The smallest share of the radius pressure leaves.
+pub const MIN_PRESSURE_SIZE: f64 = 0.02;
+
 /// How a pen's pressure (0 to 1) acts: a curve for the size and one for the strength, each
 /// mapping pressure to a factor (linear by default), and a switch.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -415,10 +418,11 @@ impl ToolSettings {
     }
 
     /// The radius at `pressure`: scaled by the size curve's value there, as far as
-    /// [`ToolSettings::strength`] says.
+    /// [`ToolSettings::strength`] says, and never below [`MIN_PRESSURE_SIZE`] of the radius (a
+    /// pen's lightest touch still dabs).
     pub fn radius_at(&self, pressure: f64) -> f64 {
         let s = self.strength.clamp(0.0, 1.0);
-        self.radius * (1.0 - s + s * self.pressure.size_at(pressure))
+        self.radius * (1.0 - s + s * self.pressure.size_at(pressure)).max(MIN_PRESSURE_SIZE)
     }
 
     /// The field tools' strength at `pressure`: scaled by the strength curve's value there, as

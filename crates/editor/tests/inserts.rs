@@ -136,3 +136,28 @@ fn open_meshes_bad_placements_and_rooms_are_refused() {
     assert!(matches!(e.insert_mesh(0, &ball, &at, CsgOp::Add), Err(EditorError::NotShared(_))));
     assert_eq!(e.scene.layers[0].volume, before);
 }
+
+#[test]
+fn a_mesh_with_repeated_positions_is_welded_and_inserts_are_refused_on_worlds() {
+    // The cube as OBJ and glTF files give it: every face with its own four vertices.
+    let cube = Primitive::Cube.mesh();
+    let mut split = strata_mesh::import::TriangleMesh { vertices: Vec::new(), triangles: Vec::new() };
+    for t in &cube.triangles {
+        let k = split.vertices.len() as u32;
+        split.vertices.extend(t.map(|i| cube.vertices[i as usize]));
+        split.triangles.push([k, k + 1, k + 2]);
+    }
+    // An unused far vertex does not count in its size.
+    split.vertices.push(DVec3::splat(100.0));
+    let welded = InsertMesh::new("split cube", &split).unwrap();
+    assert_eq!(welded.size(), 2.0);
+    let mut bad = split.clone();
+    bad.triangles.push([0, 1, 999]);
+    assert!(matches!(InsertMesh::new("bad", &bad), Err(InsertError::Bad { .. })));
+    let settings = strata_terrain::WorldSettings { threads: 1, ..Default::default() };
+    let world = strata_terrain::World::in_memory(&strata_terrain::Recipe::with_seed(7), settings).unwrap();
+    let mut e = Editor::on_world(world, strata_editor::Material::builtin());
+    let at = Placement { position: DVec3::ZERO, rotation: DQuat::IDENTITY, size: 4.0 };
+    let layer = e.active_surface();
+    assert!(matches!(e.insert_mesh(layer, &welded, &at, CsgOp::Intersect), Err(EditorError::InsertOnWorld)));
+}

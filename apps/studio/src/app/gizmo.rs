@@ -144,6 +144,13 @@ impl StudioApp {
             .filter(|&(_, d)| d <= GRAB)
             .min_by(|a, b| a.1.total_cmp(&b.1));
         let Some((handle, _)) = hit else { return false };
+        if matches!(target, Target::Layer(_))
+            && let Err(e) = self.studio.refuse_in_session("move, turn or scale a layer")
+        {
+            // (A layer's placement is not shared with a room: said, and the press is taken.)
+            self.studio.fail(e);
+            return true;
+        }
         let translation = match target {
             Target::Layer(k) => self.studio.editor.scene.layers[k].transform.translation,
             Target::Insert => centre,
@@ -206,6 +213,9 @@ impl StudioApp {
                     i.placement.position = centre;
                     i.placement.rotation = rotation;
                     i.placement.size = scale;
+                    // (The panel's turn numbers follow, so editing one keeps this turn.)
+                    let (y, x, z) = rotation.to_euler(glam::EulerRot::YXZ);
+                    i.turn = [y, x, z].map(f64::to_degrees);
                 }
             }
             Target::Layer(k) => {
@@ -213,9 +223,13 @@ impl StudioApp {
                 let relative = drag.rotation.inverse() * (drag.translation - drag.centre) / drag.scale;
                 let translation = centre + rotation * relative * scale;
                 let transform = strata_editor::LayerTransform { translation, rotation, scale };
-                // (A drag is one undo step: its first change makes the step, the rest join it.)
+                // (A drag is one undo step: its first change makes the step, the rest join it; a
+                // frame that changes nothing makes none, so it cannot join an older step.)
+                let before = self.studio.editor.scene.layers.get(k).map(|l| l.transform);
                 match self.studio.editor.set_layer_transform(k, transform, drag.stepped) {
-                    Ok(()) => drag.stepped = true,
+                    Ok(()) => {
+                        drag.stepped |= before != self.studio.editor.scene.layers.get(k).map(|l| l.transform);
+                    }
                     Err(e) => self.studio.message = format!("Could not transform the layer: {e}"),
                 }
             }

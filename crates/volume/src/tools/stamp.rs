@@ -169,23 +169,25 @@ impl BuiltinStamp {
         }
     }
 
-    /// Its image (made anew on each call: callers keep it).
+    /// Its image (made anew on each call: callers keep it). Its transcendental functions are
+    /// `libm`'s, not the platform's, so every machine makes the same pixels (a room's replicas
+    /// replay stamps bit for bit).
     pub fn image(self) -> StampImage {
         StampImage::from_fn(BUILTIN_SIDE, |u, v| {
             let t = (u * u + v * v).sqrt();
             // Every built-in stamp fades to black at the unit circle.
             let edge = smoothstep(0.97, 0.75, t);
             edge * match self {
-                BuiltinStamp::Dome => (t.min(1.0) * std::f64::consts::FRAC_PI_2).cos().powi(2),
-                BuiltinStamp::Ring => (-((t - 0.55) / 0.16).powi(2)).exp(),
+                BuiltinStamp::Dome => libm::cos(t.min(1.0) * std::f64::consts::FRAC_PI_2).powi(2),
+                BuiltinStamp::Ring => libm::exp(-((t - 0.55) / 0.16).powi(2)),
                 BuiltinStamp::Star => {
                     // The outline's radius at this angle: 0.75 at the points, 0.35 between them.
-                    let angle = u.atan2(v);
-                    let spoke = (angle * 5.0).cos() * 0.5 + 0.5;
+                    let angle = libm::atan2(u, v);
+                    let spoke = libm::cos(angle * 5.0) * 0.5 + 0.5;
                     let outline = 0.35 + 0.4 * spoke.powi(3);
                     smoothstep(outline + 0.06, outline - 0.06, t)
                 }
-                BuiltinStamp::Stripes => 0.5 + 0.5 * (u * std::f64::consts::PI * 5.0).cos(),
+                BuiltinStamp::Stripes => 0.5 + 0.5 * libm::cos(u * std::f64::consts::PI * 5.0),
                 BuiltinStamp::Dots => {
                     // Rivets on a 5 × 5 grid of spacing 0.36.
                     let cell = |x: f64| (x / 0.36).round() * 0.36;
@@ -262,8 +264,9 @@ pub struct StampFrame {
 
 impl StampFrame {
     /// The frame of `placement` on a surface of normal `normal` (unit): `up` projected onto the
-    /// plane and turned by the angle, right = up × normal (the image reads the right way round
-    /// seen from outside), or its opposite when mirrored.
+    /// plane and turned by the angle (its sine and cosine `libm`'s, the same on every machine),
+    /// right = up × normal (the image reads the right way round seen from outside), or its
+    /// opposite when mirrored.
     pub fn new(normal: DVec3, placement: &StampPlacement) -> Self {
         let along = placement.up - normal * normal.dot(placement.up);
         let up = if along.length() > 1e-6 * placement.up.length().max(1e-300) && along.is_finite() {
@@ -271,7 +274,7 @@ impl StampFrame {
         } else {
             normal.any_orthonormal_vector()
         };
-        let (s, c) = placement.angle.sin_cos();
+        let (s, c) = libm::sincos(placement.angle);
         let up = (up * c + normal.cross(up) * s).normalize();
         let right = up.cross(normal);
         StampFrame { normal, up, right: if placement.mirrored { -right } else { right } }
