@@ -102,3 +102,42 @@ pub fn validate(op: &EditOp, editor: &Editor, limits: &Limits) -> Result<(), Inv
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::{DQuat, DVec3};
+    use strata_editor::{DabRecord, EditOp, Editor, LayerTransform, ToolSettings};
+    use strata_volume::tools::{Falloff, FalloffCurve};
+
+    use super::*;
+
+    fn op(tool: ToolSettings) -> EditOp {
+        let at = DVec3::ZERO;
+        let dab = DabRecord::Dab { at, from: at, orientation: DQuat::IDENTITY, pressure: 1.0, inverted: false };
+        EditOp { surface: 0, transform: LayerTransform::default(), tool, dabs: vec![dab], stroke: 0 }
+    }
+
+    /// A hostile client's tool settings: a falloff curve or pressure curve damaged on the wire
+    /// (out of order, a length past its points) and a pressure amount out of range are refused
+    /// before any replay; sound ones pass.
+    #[test]
+    fn damaged_curves_and_amounts_in_an_operation_are_refused() {
+        let editor = Editor::default();
+        let limits = Limits::default();
+        assert_eq!(validate(&op(ToolSettings::default()), &editor, &limits), Ok(()));
+        let good = FalloffCurve::new(&[(0.0, 1.0), (0.5, 0.4), (1.0, 0.0)]).unwrap();
+        let mut bytes = postcard::to_allocvec(&good).unwrap();
+        // (The point count is the last byte: past the points it holds.)
+        *bytes.last_mut().unwrap() = 200;
+        let damaged: FalloffCurve = postcard::from_bytes(&bytes).unwrap();
+        let sound = ToolSettings { falloff: Falloff::Curve(good), ..ToolSettings::default() };
+        assert_eq!(validate(&op(sound), &editor, &limits), Ok(()));
+        let bad_falloff = ToolSettings { falloff: Falloff::Curve(damaged), ..ToolSettings::default() };
+        assert_eq!(validate(&op(bad_falloff), &editor, &limits), Err(Invalid::Settings));
+        let mut bad_pressure = ToolSettings::default();
+        bad_pressure.pressure.size = damaged;
+        assert_eq!(validate(&op(bad_pressure), &editor, &limits), Err(Invalid::Settings));
+        let too_much = ToolSettings { pressure_to_strength: 1.5, ..ToolSettings::default() };
+        assert_eq!(validate(&op(too_much), &editor, &limits), Err(Invalid::Settings));
+    }
+}
