@@ -165,7 +165,7 @@ impl Editor {
             records.push(edit.undo);
         }
         self.revision += 1;
-        self.history.push(HistoryEntry { layer, records, transform: None, layers: None });
+        self.history.push(HistoryEntry { layer, records, ..Default::default() });
         Ok(changed)
     }
 }

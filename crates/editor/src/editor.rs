@@ -74,6 +74,9 @@ pub enum EditorError {
     /// operations for a room: the others would not see it.
     #[error("{0} cannot be shared with the room: leave the session first")]
     NotShared(&'static str),
+    /// A reference image was refused (locked, out of range, too many, on a world).
+    #[error(transparent)]
+    Reference(#[from] crate::reference::ReferenceError),
     /// Mesh inserts are for scenes: a world streams, and an intersection would keep what is on
     /// disk.
     #[error("mesh inserts are for scenes: a streamed world cannot take one")]
@@ -327,6 +330,7 @@ impl Editor {
             records: vec![std::mem::take(&mut edit.undo)],
             transform: None,
             layers: None,
+            references: None,
         });
     }
 
@@ -425,7 +429,7 @@ impl Editor {
         let old = std::mem::replace(&mut l.transform, checked);
         if old != checked {
             if !(merge && self.history.last_is_transform_of(layer)) {
-                self.history.push(HistoryEntry { layer, records: Vec::new(), transform: Some(old), layers: None });
+                self.history.push(HistoryEntry { layer, transform: Some(old), ..Default::default() });
             }
             self.revision += 1;
         }
@@ -453,14 +457,28 @@ impl Editor {
     /// nothing and keeps the step.
     pub fn try_undo(&mut self) -> Result<bool, EditorError> {
         self.end_stroke();
-        let changed = self.history.undo(&mut self.scene.layers, &mut self.active_layer, self.world.as_mut())?;
+        let changed = self.history.undo(
+            crate::history::StepTarget {
+                layers: &mut self.scene.layers,
+                active: &mut self.active_layer,
+                references: &mut self.scene.references,
+            },
+            self.world.as_mut(),
+        )?;
         Ok(self.after_history(changed))
     }
 
     /// Redoes the newest undone step (see [`Editor::try_undo`]).
     pub fn try_redo(&mut self) -> Result<bool, EditorError> {
         self.end_stroke();
-        let changed = self.history.redo(&mut self.scene.layers, &mut self.active_layer, self.world.as_mut())?;
+        let changed = self.history.redo(
+            crate::history::StepTarget {
+                layers: &mut self.scene.layers,
+                active: &mut self.active_layer,
+                references: &mut self.scene.references,
+            },
+            self.world.as_mut(),
+        )?;
         Ok(self.after_history(changed))
     }
 
@@ -474,6 +492,7 @@ impl Editor {
                 self.reset_caches();
                 self.structure += 1;
             }
+            crate::history::Restored::References => {}
         }
         true
     }

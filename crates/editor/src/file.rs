@@ -8,9 +8,13 @@
 //! [`strata_volume::ChunkMaterials`]); the palette's entries carry texture, scale and roughness.
 //! Version 5 (written since masks) adds each layer's mask ([`strata_volume::mask`]): its weight
 //! outside the stored chunks, and every stored chunk of it framed the same way (a postcard
-//! [`strata_volume::ChunkMask`]). Versions 4 (no masks), 3 (no node materials: one material per
-//! layer) and 2 (the whole scene as one postcard value) are still read: a layer of version 2 or
-//! 3 gives its material to its every node, and the palette's entries get the plain texture.
+//! [`strata_volume::ChunkMask`]). Version 6 (written since reference images) adds the scene's
+//! [`crate::reference::ReferenceImage`]s after the view: each one's name, middle, turn, width,
+//! opacity, shown and locked flags, and its picture file's bytes as loaded (a PNG or a JPEG) with
+//! their CRC-32, so a scene file carries its references with it. Versions 5 (no references), 4
+//! (no masks), 3 (no node materials: one material per layer) and 2 (the whole scene as one
+//! postcard value) are still read: a layer of version 2 or 3 gives its material to its every
+//! node, and the palette's entries get the plain texture.
 //!
 //! What is guaranteed:
 //! - **Never refuse what can be saved, never write what cannot be read.** [`save`] runs the
@@ -29,7 +33,10 @@
 //!   stored twice, for an empty chunk or not fitting their chunk are dropped (its nodes use
 //!   material 0), a volume whose lists disagree is rebuilt from its x lines ([`Volume::repair`],
 //!   which keeps chunks stored at other levels than the layer's), an invalid view is reset, a chunk of a mask that fails its checksum or
-//!   does not decode is dropped (its nodes take the mask's outside weight) and named. A
+//!   does not decode is dropped (its nodes take the mask's outside weight) and named, a
+//!   reference whose picture fails its checksum or does not decode is dropped and named, a
+//!   reference whose numbers are out of range is brought to the nearest valid one, references
+//!   past [`crate::reference::MAX_REFERENCES`] are dropped. A
 //!   file whose payload checksum fails is still read chunk by chunk: chunks whose own CRC fails
 //!   are dropped and the report says so.
 //! - **Levels.** A layer stores its base level and every chunk of lists its own; any mix is
@@ -56,12 +63,13 @@ use serde::{Deserialize, Serialize};
 use strata_volume::{Chunk, ChunkKey, ChunkLists, ChunkMap, ChunkMask, ChunkMaterials, Level, Volume};
 use thiserror::Error;
 
+use crate::reference::{MAX_REFERENCES, Picture, ReferenceImage};
 use crate::scene::{Layer, LayerTransform, Material, Scene, View};
 
 /// The first eight bytes of every scene file.
 pub const MAGIC: [u8; 8] = *b"STRATA\x00S";
 /// The format version this build writes and the newest it reads.
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 /// The oldest version this build reads. Version 1 stored chunk lists with per-line start bits
 /// and unary counts (before the layout of `strata-volume`'s `ChunkLists` changed).
 pub const OLDEST_VERSION: u32 = 2;
@@ -308,13 +316,39 @@ impl ChunkRecord {
     }
 }
 
-/// The payload of a version 4 file (public for tests that craft files; not a stable API).
+/// The payload of a version 6 file (public for tests that craft files; not a stable API).
 #[doc(hidden)]
 #[derive(Debug, Serialize, Deserialize)]
 pub struct SceneRecord {
     pub layers: Vec<LayerRecord>,
     pub materials: Vec<Material>,
     pub view: View,
+    /// The reference images (version 6).
+    pub references: Vec<ReferenceRecord>,
+}
+
+/// The payload of a version 5 file: the same without references.
+#[derive(Serialize, Deserialize)]
+struct SceneRecordV5 {
+    layers: Vec<LayerRecord>,
+    materials: Vec<Material>,
+    view: View,
+}
+
+/// One reference image as version 6 stores it (public for tests that craft files; not a
+/// stable API): its placement and its picture file's bytes with their CRC-32.
+#[doc(hidden)]
+#[derive(Debug, Serialize, Deserialize)]
+pub struct ReferenceRecord {
+    pub name: String,
+    pub center: glam::DVec3,
+    pub rotation: glam::DQuat,
+    pub width: f64,
+    pub opacity: f32,
+    pub visible: bool,
+    pub locked: bool,
+    pub crc: u32,
+    pub bytes: Vec<u8>,
 }
 
 /// Checks `scene` as [`load`] does and repairs in place whatever would be refused; returns the
@@ -375,6 +409,23 @@ pub fn validate_scene(scene: &mut Scene) -> LoadReport {
             ));
         }
     }
+    if scene.references.len() > MAX_REFERENCES {
+        report.repairs.push(format!(
+            "the scene had {} reference images; those past the {MAX_REFERENCES}th were dropped",
+            scene.references.len()
+        ));
+        scene.references.truncate(MAX_REFERENCES);
+    }
+    for r in &mut scene.references {
+        if !r.is_valid() {
+            let fixed = r.repaired();
+            report.repairs.push(format!(
+                "reference image {:?}: its position, turn, width or opacity was not finite or out of range and became the nearest valid one",
+                r.name
+            ));
+            *r = fixed;
+        }
+    }
     let v = &mut scene.view;
     if !(v.target.is_finite() && v.distance.is_finite() && v.distance > 0.0 && v.yaw.is_finite() && v.pitch.is_finite())
     {
@@ -405,12 +456,19 @@ fn relevelled(r: &strata_volume::RepairReport, level: Level) -> String {
 /// The file's bytes for `scene`, which must be valid (see [`validate_scene`]; [`save`] makes
 /// sure of it).
 pub fn encode(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
-    encode_record(&scene_record(scene)?)
+    encode_record(&scene_record(scene, true)?)
 }
 
-/// What [`encode`] writes for `scene`, before it is framed (for tests that craft files).
+/// [`encode`] without the reference images: what a shared room's snapshot holds (references
+/// are each person's own).
+pub fn encode_shared(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
+    encode_record(&scene_record(scene, false)?)
+}
+
+/// What [`encode`] writes for `scene`, before it is framed (for tests that craft files); its
+/// reference images only `with_references`.
 #[doc(hidden)]
-pub fn scene_record(scene: &Scene) -> Result<SceneRecord, SceneFileError> {
+pub fn scene_record(scene: &Scene, with_references: bool) -> Result<SceneRecord, SceneFileError> {
     let payload_err = |e: postcard::Error| SceneFileError::Payload(e.to_string());
     let mut layers = Vec::with_capacity(scene.layers.len());
     for l in &scene.layers {
@@ -451,10 +509,27 @@ pub fn scene_record(scene: &Scene) -> Result<SceneRecord, SceneFileError> {
             masks,
         });
     }
-    Ok(SceneRecord { layers, materials: scene.materials.clone(), view: scene.view })
+    let references = if with_references { scene.references.iter().map(reference_record).collect() } else { Vec::new() };
+    Ok(SceneRecord { layers, materials: scene.materials.clone(), view: scene.view, references })
 }
 
-/// The file's bytes for a version 5 payload: `record` with the header (for tests that craft
+/// What version 6 stores of `r`.
+fn reference_record(r: &ReferenceImage) -> ReferenceRecord {
+    let bytes = r.picture.bytes().to_vec();
+    ReferenceRecord {
+        name: r.name.clone(),
+        center: r.center,
+        rotation: r.rotation,
+        width: r.width,
+        opacity: r.opacity,
+        visible: r.visible,
+        locked: r.locked,
+        crc: crc32fast::hash(&bytes),
+        bytes,
+    }
+}
+
+/// The file's bytes for a version 6 payload: `record` with the header (for tests that craft
 /// files; [`encode`] is `scene_record` then this).
 #[doc(hidden)]
 pub fn encode_record(record: &SceneRecord) -> Result<Vec<u8>, SceneFileError> {
@@ -462,11 +537,21 @@ pub fn encode_record(record: &SceneRecord) -> Result<Vec<u8>, SceneFileError> {
     Ok(frame(VERSION, payload))
 }
 
+/// A version 5 file of `scene` as the builds before reference images wrote it (its references
+/// left out), for tests of the reader.
+#[doc(hidden)]
+pub fn encode_version_5(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
+    let record = scene_record(scene, false)?;
+    let v5 = SceneRecordV5 { layers: record.layers, materials: record.materials, view: record.view };
+    let payload = postcard::to_allocvec(&v5).map_err(|e| SceneFileError::Payload(e.to_string()))?;
+    Ok(frame(5, payload))
+}
+
 /// A version 4 file of `scene` as the builds before masks wrote it (its masks left out), for
 /// tests of the reader.
 #[doc(hidden)]
 pub fn encode_version_4(scene: &Scene) -> Result<Vec<u8>, SceneFileError> {
-    let record = scene_record(scene)?;
+    let record = scene_record(scene, false)?;
     let layers = record
         .layers
         .into_iter()
@@ -545,7 +630,8 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
                     Ok(Layer { name: l.name, transform: l.transform, visible: l.visible, locked: l.locked, volume })
                 })
                 .collect::<Result<Vec<Layer>, SceneFileError>>()?;
-            (Scene { layers, materials: v2.materials.into_iter().map(material_v3).collect(), view: v2.view }, fills)
+            let materials = v2.materials.into_iter().map(material_v3).collect();
+            (Scene { layers, materials, view: v2.view, references: Vec::new() }, fills)
         }
         3 => {
             let record: SceneRecordV3 = postcard::from_bytes(payload).map_err(parse_err)?;
@@ -571,7 +657,8 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
                 })
                 .collect();
             let materials = record.materials.into_iter().map(material_v3).collect();
-            (scene_from_record(SceneRecord { layers, materials, view: record.view }, &mut report), fills)
+            let record = SceneRecord { layers, materials, view: record.view, references: Vec::new() };
+            (scene_from_record(record, &mut report), fills)
         }
         4 => {
             let record: SceneRecordV4 = postcard::from_bytes(payload).map_err(parse_err)?;
@@ -596,10 +683,22 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
                     masks: Vec::new(),
                 })
                 .collect();
-            (
-                scene_from_record(SceneRecord { layers, materials: record.materials, view: record.view }, &mut report),
-                fills,
-            )
+            let record = SceneRecord { layers, materials: record.materials, view: record.view, references: Vec::new() };
+            (scene_from_record(record, &mut report), fills)
+        }
+        5 => {
+            let record: SceneRecordV5 = postcard::from_bytes(payload).map_err(parse_err)?;
+            if !intact {
+                report.repairs.push(damaged.into());
+            }
+            let fills = vec![None; record.layers.len()];
+            let record = SceneRecord {
+                layers: record.layers,
+                materials: record.materials,
+                view: record.view,
+                references: Vec::new(),
+            };
+            (scene_from_record(record, &mut report), fills)
         }
         _ => {
             let record: SceneRecord = postcard::from_bytes(payload).map_err(parse_err)?;
@@ -733,7 +832,30 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
         volume.set_mask(strata_volume::Mask::from_parts(l.mask_outside, mask_chunks));
         layers.push(Layer { name, transform: l.transform, visible: l.visible, locked: l.locked, volume });
     }
-    Scene { layers, materials: record.materials, view: record.view }
+    let mut references = Vec::with_capacity(record.references.len().min(MAX_REFERENCES));
+    for r in record.references {
+        let picture = if crc32fast::hash(&r.bytes) != r.crc {
+            Err("failed its checksum".to_owned())
+        } else {
+            Picture::decode(r.bytes, &r.name).map_err(|e| format!("does not decode ({e})"))
+        };
+        match picture {
+            Err(why) => {
+                report.repairs.push(format!("reference image {:?}: its picture {why} and it was dropped", r.name))
+            }
+            Ok(picture) => references.push(ReferenceImage {
+                name: r.name,
+                picture,
+                center: r.center,
+                rotation: r.rotation,
+                width: r.width,
+                opacity: r.opacity,
+                visible: r.visible,
+                locked: r.locked,
+            }),
+        }
+    }
+    Scene { layers, materials: record.materials, view: record.view, references }
 }
 
 /// The chunks of layer `name`, one per key, from `entries` as the file lists them. A key stored
@@ -852,6 +974,8 @@ pub fn is_valid(scene: &Scene) -> bool {
         && v.distance > 0.0
         && v.yaw.is_finite()
         && v.pitch.is_finite()
+        && scene.references.len() <= MAX_REFERENCES
+        && scene.references.iter().all(ReferenceImage::is_valid)
 }
 
 pub use strata_files::{stale_temp_files, temp_path};
@@ -885,7 +1009,7 @@ pub struct ChunkDigest {
 
 /// The digest of every stored chunk of `scene` (list, solid or material), by layer and key: the same scene always gives the same digests.
 pub fn chunk_digests(scene: &Scene) -> Result<Vec<ChunkDigest>, SceneFileError> {
-    let record = scene_record(scene)?;
+    let record = scene_record(scene, false)?;
     let mut out = Vec::new();
     for (layer, l) in record.layers.iter().enumerate() {
         let layer = layer as u32;

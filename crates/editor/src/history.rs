@@ -4,6 +4,7 @@ use strata_terrain::World;
 use strata_volume::{ChunkKey, UndoRecord};
 
 use crate::editor::{EditorError, surface_mut};
+use crate::reference::ReferenceImage;
 use crate::scene::{Layer, LayerTransform};
 
 /// One undoable step: the records of every edit of a stroke on one surface (a layer, or an
@@ -21,6 +22,20 @@ pub struct HistoryEntry {
     /// The whole layer list and the active layer before the step, for a step that changed the
     /// list (layer numbers, which the other steps refer to, are those of the list restored).
     pub layers: Option<(Vec<Layer>, usize)>,
+    /// The reference images before the step, for a step that added, changed or deleted one
+    /// (their pictures are shared, not copied).
+    pub references: Option<Vec<ReferenceImage>>,
+}
+
+/// What a step restores: the scene's layers, its active layer and its reference images.
+#[derive(Debug)]
+pub struct StepTarget<'a> {
+    /// The layer list.
+    pub layers: &'a mut Vec<Layer>,
+    /// The active layer (restored with the list).
+    pub active: &'a mut usize,
+    /// The reference images.
+    pub references: &'a mut Vec<ReferenceImage>,
 }
 
 /// A step that could not be restored (a world's chunk unreadable), with why.
@@ -33,6 +48,8 @@ pub enum Restored {
     Chunks(usize, Vec<ChunkKey>),
     /// The layer list (and the active layer).
     Layers,
+    /// The reference images.
+    References,
 }
 
 impl HistoryEntry {
@@ -58,10 +75,14 @@ impl HistoryEntry {
     /// back with the error.
     fn apply(
         self,
-        layers: &mut Vec<Layer>,
-        active: &mut usize,
+        scene: StepTarget<'_>,
         world: Option<&mut World>,
     ) -> Result<Option<(HistoryEntry, Restored)>, Refused> {
+        let StepTarget { layers, active, references } = scene;
+        if let Some(list) = self.references {
+            let now = std::mem::replace(references, list);
+            return Ok(Some((HistoryEntry { references: Some(now), ..Default::default() }, Restored::References)));
+        }
         if let Some((list, was_active)) = self.layers {
             let now = std::mem::replace(layers, list);
             let now_active = std::mem::replace(active, was_active);
@@ -83,7 +104,7 @@ impl HistoryEntry {
             (Some(t), Some(layer)) => Some(std::mem::replace(&mut layer.transform, t)),
             _ => None,
         };
-        let entry = HistoryEntry { layer: self.layer, records, transform, layers: None };
+        let entry = HistoryEntry { layer: self.layer, records, transform, layers: None, references: None };
         let mut keys = entry.keys();
         if !everything.is_empty() {
             keys.extend(everything);
@@ -116,7 +137,11 @@ impl History {
 
     /// Records a finished step; clears the redo stack.
     pub fn push(&mut self, entry: HistoryEntry) {
-        if entry.records.iter().all(UndoRecord::is_empty) && entry.transform.is_none() && entry.layers.is_none() {
+        if entry.records.iter().all(UndoRecord::is_empty)
+            && entry.transform.is_none()
+            && entry.layers.is_none()
+            && entry.references.is_none()
+        {
             return;
         }
         self.redo.clear();
@@ -132,6 +157,12 @@ impl History {
             .is_some_and(|e| e.layer == layer && e.records.is_empty() && e.transform.is_some() && e.layers.is_none())
     }
 
+    /// Whether the newest undo step changed the reference images (which a continuing drag of
+    /// one may merge into).
+    pub fn last_is_references(&self) -> bool {
+        self.undo.last().is_some_and(|e| e.references.is_some())
+    }
+
     fn trim(&mut self) {
         let mut total = self.bytes();
         // Keep at least the newest step, whatever its size.
@@ -140,26 +171,16 @@ impl History {
         }
     }
 
-    /// Undoes the newest step on `layers` (`active` the active layer, restored with the list)
-    /// and `world` (an editor's world, the surface after the layers). Returns what it restored;
+    /// Undoes the newest step on `scene` (its layers, active layer and references) and `world`
+    /// (an editor's world, the surface after the layers). Returns what it restored;
     /// on an error (a world's chunk cannot be read) nothing changed and the step stays.
-    pub fn undo(
-        &mut self,
-        layers: &mut Vec<Layer>,
-        active: &mut usize,
-        world: Option<&mut World>,
-    ) -> Result<Option<Restored>, EditorError> {
-        Self::step(&mut self.undo, &mut self.redo, layers, active, world)
+    pub fn undo(&mut self, scene: StepTarget<'_>, world: Option<&mut World>) -> Result<Option<Restored>, EditorError> {
+        Self::step(&mut self.undo, &mut self.redo, scene, world)
     }
 
     /// Redoes the newest undone step (see [`History::undo`]).
-    pub fn redo(
-        &mut self,
-        layers: &mut Vec<Layer>,
-        active: &mut usize,
-        world: Option<&mut World>,
-    ) -> Result<Option<Restored>, EditorError> {
-        let restored = Self::step(&mut self.redo, &mut self.undo, layers, active, world)?;
+    pub fn redo(&mut self, scene: StepTarget<'_>, world: Option<&mut World>) -> Result<Option<Restored>, EditorError> {
+        let restored = Self::step(&mut self.redo, &mut self.undo, scene, world)?;
         self.trim();
         Ok(restored)
     }
@@ -169,12 +190,11 @@ impl History {
     fn step(
         from: &mut Vec<HistoryEntry>,
         to: &mut Vec<HistoryEntry>,
-        layers: &mut Vec<Layer>,
-        active: &mut usize,
+        scene: StepTarget<'_>,
         world: Option<&mut World>,
     ) -> Result<Option<Restored>, EditorError> {
         let Some(entry) = from.pop() else { return Ok(None) };
-        match entry.apply(layers, active, world) {
+        match entry.apply(scene, world) {
             Ok(Some((back, restored))) => {
                 to.push(back);
                 Ok(Some(restored))

@@ -52,7 +52,7 @@ pub fn is_shareable(world: &World) -> bool {
 /// The snapshot of what `editor` holds: its scene's file, or its world's content.
 pub fn encode(editor: &Editor) -> Result<Vec<u8>, String> {
     let Some(world) = editor.world() else {
-        return crate::file::encode(&editor.scene).map_err(|e| e.to_string());
+        return crate::file::encode_shared(&editor.scene).map_err(|e| e.to_string());
     };
     if !is_shareable(world) {
         return Err("a world that generates finer chunks near its viewer cannot be shared".into());

@@ -273,11 +273,20 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// The saved camera.
     pub view: View,
+    /// Pictures placed in the world to sculpt against (scene files store them beside the
+    /// layers; serde leaves them out: see [`crate::file`]).
+    #[serde(skip)]
+    pub references: Vec<crate::reference::ReferenceImage>,
 }
 
 impl Default for Scene {
     fn default() -> Self {
-        Scene { layers: vec![Layer::new("Layer 1")], materials: Material::builtin(), view: View::default() }
+        Scene {
+            layers: vec![Layer::new("Layer 1")],
+            materials: Material::builtin(),
+            view: View::default(),
+            references: Vec::new(),
+        }
     }
 }
 

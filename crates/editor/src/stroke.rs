@@ -621,7 +621,7 @@ impl Editor {
                 r.stroke += 1;
                 return;
             }
-            self.history.push(HistoryEntry { layer: s.layer, records: s.records, transform: None, layers: None });
+            self.history.push(HistoryEntry { layer: s.layer, records: s.records, ..Default::default() });
         }
     }
 }

@@ -553,7 +553,7 @@ fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query()
             let what = format!("{config}, layer level {stored}");
             let level = Level::new(stored).unwrap_or(Level::BASE);
             let crafted_volume = assemble(level, crafted.iter().cloned());
-            let mut record = file::scene_record(&scene_of(crafted_volume.clone())).unwrap();
+            let mut record = file::scene_record(&scene_of(crafted_volume.clone()), true).unwrap();
             record.layers[0].level = stored;
             let loaded = decode(&file::encode_record(&record).unwrap()).unwrap_or_else(|e| panic!("{what}: {e}"));
             // What must be repaired: a level that does not exist, and the solid chunk's runs of
@@ -624,11 +624,11 @@ fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query()
 fn a_chunk_whose_own_level_is_wrong_or_out_of_range_is_dropped_and_named() {
     for true_level in [0u8, 2] {
         let s = scene_of(ball(Level::new(true_level).unwrap()));
-        let record = file::scene_record(&s).unwrap();
+        let record = file::scene_record(&s, true).unwrap();
         let at = record.layers[0].lists.iter().position(|c| c.key == ChunkKey::new(0, 1, 1)).expect("a chunk of lists");
         for wrong in [0u8, 1, 2, 3, 255].into_iter().filter(|&w| w != true_level) {
             let what = format!("a level-{true_level} chunk labelled level {wrong}");
-            let mut record = file::scene_record(&s).unwrap();
+            let mut record = file::scene_record(&s, true).unwrap();
             let c = &mut record.layers[0].lists[at];
             let mut bytes = std::mem::take(&mut c.bytes);
             assert_eq!(bytes[0], true_level, "a chunk's bytes begin with its level");
@@ -693,7 +693,7 @@ fn every_pair_of_chunk_kinds_for_one_key_is_resolved_and_what_was_dropped_is_nam
     for first in kinds {
         for second in kinds {
             let what = format!("chunk {} stored as {first:?} and as {second:?}", key_text(key));
-            let mut record = file::scene_record(&s).unwrap();
+            let mut record = file::scene_record(&s, true).unwrap();
             let layer = &mut record.layers[0];
             layer.lists.retain(|c| c.key != key);
             layer.materials.retain(|c| c.key != key);
@@ -750,7 +750,7 @@ fn every_pair_of_chunk_kinds_for_one_key_is_resolved_and_what_was_dropped_is_nam
 #[test]
 fn materials_stored_twice_or_for_an_empty_chunk_are_dropped_and_named() {
     let s = scene_of(ball(Level::BASE));
-    let mut record = file::scene_record(&s).unwrap();
+    let mut record = file::scene_record(&s, true).unwrap();
     let layer = &mut record.layers[0];
     let painted = layer.materials.iter().position(|c| c.key == SOLID_KEY).unwrap();
     // A second, different copy of the solid chunk's materials, and materials of a chunk that is empty.
@@ -819,7 +819,7 @@ fn a_repair_keeps_the_chunks_stored_at_other_levels_than_the_layers() {
         let level = Level::new(stored).unwrap();
         let original = &sources[source];
         let crafted = assemble(level, original.chunks().map(|(k, c)| (k, c.clone(), None)));
-        let mut record = file::scene_record(&scene_of(crafted)).unwrap();
+        let mut record = file::scene_record(&scene_of(crafted), true).unwrap();
         let at = record.layers[0].lists.iter().position(|c| c.key == damaged).unwrap();
         record.layers[0].lists[at].crc ^= 1;
         let loaded = decode(&file::encode_record(&record).unwrap()).unwrap_or_else(|e| panic!("{what}: {e}"));

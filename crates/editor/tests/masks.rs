@@ -156,7 +156,7 @@ fn masks_survive_a_save_and_older_files_open_without_one() {
     unmasked.layers[0].volume.set_mask(Default::default());
     assert!(old.scene == unmasked);
     // A damaged chunk of a mask is dropped and named; the rest of the mask stays.
-    let mut record = file::scene_record(&scene).unwrap();
+    let mut record = file::scene_record(&scene, true).unwrap();
     assert!(record.layers[0].masks.len() >= 2);
     record.layers[0].masks[0].bytes[0] ^= 0x55;
     let damaged = file::decode(&file::encode_record(&record).unwrap()).unwrap();

@@ -79,7 +79,7 @@ impl Session {
     /// Joins room `room`, creating it with `scene` when the server has no room of that name:
     /// how a session is hosted.
     pub fn host(url: &str, room: &str, token: &str, name: &str, scene: &Scene) -> Result<Session, String> {
-        let bytes = strata_editor::file::encode(scene).map_err(|e| e.to_string())?;
+        let bytes = strata_editor::file::encode_shared(scene).map_err(|e| e.to_string())?;
         Session::host_snapshot(url, room, token, name, bytes)
     }
 
