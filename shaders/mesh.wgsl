@@ -268,3 +268,37 @@ fn fs_preview(in: VertexOut) -> @location(0) vec4<f32> {
     let rim = 1.0 - abs(dot(n, v));
     return vec4<f32>(in.color.rgb * (0.6 + 0.4 * rim), in.color.a * (0.5 + 0.5 * rim));
 }
+
+// Reference images: a picture on a quad in world space (its own texture in group 1), blended by
+// its opacity over what is behind it; depth-tested but not written, so the model in front of a
+// picture hides it and a picture hides nothing. Texels are straight-alpha sRGB (the texture's
+// format decodes them to linear).
+struct ReferenceIn {
+    @location(0) position: vec3<f32>,
+    @location(1) uv: vec2<f32>,
+    @location(2) opacity: f32,
+};
+
+struct ReferenceOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+    @location(1) opacity: f32,
+};
+
+@group(1) @binding(0) var picture: texture_2d<f32>;
+@group(1) @binding(1) var picture_sampler: sampler;
+
+@vertex
+fn vs_reference(v: ReferenceIn) -> ReferenceOut {
+    var out: ReferenceOut;
+    out.clip = frame.view_proj * vec4<f32>(v.position, 1.0);
+    out.uv = v.uv;
+    out.opacity = v.opacity;
+    return out;
+}
+
+@fragment
+fn fs_reference(in: ReferenceOut) -> @location(0) vec4<f32> {
+    let texel = textureSample(picture, picture_sampler, in.uv);
+    return vec4<f32>(texel.rgb, texel.a * in.opacity);
+}

@@ -8,17 +8,20 @@
 //! gives scale, a translucent brush preview shows where the tool will act, and a wireframe
 //! overlay shows the triangles. Meshes are textured by material: each vertex blends up to four
 //! entries of a palette ([`Renderer::set_palette`]: colour, procedural detail texture, scale,
-//! roughness), projected triplanar (see [`textures`]). The WGSL source is `shaders/mesh.wgsl`,
+//! roughness), projected triplanar (see [`textures`]). Reference pictures ([`ReferenceQuad`])
+//! are drawn as translucent quads in the world. The WGSL source is `shaders/mesh.wgsl`,
 //! embedded here.
 #![warn(missing_docs)]
 
 mod camera;
 mod gpu;
+mod references;
 mod renderer;
 pub mod textures;
 
 pub use camera::{AxisView, Camera};
 pub use gpu::{DrawMesh, Gpu, Image, RenderError, render_offscreen, screenshot};
+pub use references::{KEPT_TEXTURES, Pixels, ReferenceQuad};
 pub use renderer::{
     DEPTH_FORMAT, FrameSettings, MaterialBlend, MeshId, MeshRef, PALETTE_SIZE, PaletteEntry, Placement, Preview,
     Renderer, Vertex,
@@ -35,7 +38,17 @@ mod tests {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .expect("WGSL validates");
-        for entry in ["vs_mesh", "fs_mesh", "vs_line", "vs_grid", "fs_wire", "fs_grid", "fs_preview"] {
+        for entry in [
+            "vs_mesh",
+            "fs_mesh",
+            "vs_line",
+            "vs_grid",
+            "fs_wire",
+            "fs_grid",
+            "fs_preview",
+            "vs_reference",
+            "fs_reference",
+        ] {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }
     }

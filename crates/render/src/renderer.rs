@@ -165,6 +165,8 @@ pub struct FrameSettings<'a> {
     /// The brush previews (the dab and its mirror images, the falloff's core), drawn
     /// translucent over everything else.
     pub previews: &'a [Preview<'a>],
+    /// Reference pictures, drawn behind the previews and blended over what is behind them.
+    pub references: &'a [crate::ReferenceQuad<'a>],
 }
 
 impl Default for FrameSettings<'_> {
@@ -175,6 +177,7 @@ impl Default for FrameSettings<'_> {
             grid: true,
             background: [0.055, 0.06, 0.075, 1.0],
             previews: &[],
+            references: &[],
         }
     }
 }
@@ -204,6 +207,7 @@ pub struct Renderer {
     grid_vertices: wgpu::Buffer,
     grid_count: u32,
     preview_buffers: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    references: crate::references::ReferencePass,
     uploads: u64,
 }
 
@@ -331,6 +335,7 @@ impl Renderer {
         let wire = pipeline("strata wire", "vs_line", "fs_wire", wgpu::PrimitiveTopology::LineList, false);
         let grid = pipeline("strata grid", "vs_grid", "fs_grid", wgpu::PrimitiveTopology::LineList, true);
         let preview = pipeline("strata preview", "vs_mesh", "fs_preview", wgpu::PrimitiveTopology::TriangleList, true);
+        let references = crate::references::ReferencePass::new(device, &shader, &bind_layout, color_format);
         let grid_lines = grid_vertices();
         let grid_vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("strata grid"),
@@ -351,6 +356,7 @@ impl Renderer {
             grid_vertices,
             grid_count: grid_lines.len() as u32,
             preview_buffers: None,
+            references,
             uploads: 0,
         }
     }
@@ -449,6 +455,12 @@ impl Renderer {
         self.uploads
     }
 
+    /// Reference pictures uploaded since creation (each once while it is kept: see
+    /// [`crate::ReferenceQuad`]).
+    pub fn picture_uploads(&self) -> u64 {
+        self.references.uploads()
+    }
+
     /// Sets the materials meshes are drawn with: entry `i` for material id `i` (ids past the
     /// end are drawn with entry 0; at most [`PALETTE_SIZE`] entries are used).
     pub fn set_palette(&mut self, queue: &wgpu::Queue, entries: &[PaletteEntry]) {
@@ -492,6 +504,7 @@ impl Renderer {
             view_axis: toward_eye.extend(if cam.orthographic { 1.0 } else { 0.0 }).to_array(),
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
+        self.references.prepare(device, queue, settings.references, cam.eye());
         // All previews in one pair of buffers, each mesh's indices offset past the ones before.
         let (mut vertices, mut indices) = (Vec::new(), Vec::new());
         for p in settings.previews.iter().filter(|p| !p.mesh.indices.is_empty()) {
@@ -514,7 +527,8 @@ impl Renderer {
         });
     }
 
-    /// Records the draws into `pass` (surfaces, wireframe, grid, then the translucent preview).
+    /// Records the draws into `pass` (surfaces, wireframe, reference pictures, grid, then the
+    /// translucent preview).
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, settings: &FrameSettings<'_>) {
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&self.fill);
@@ -531,6 +545,7 @@ impl Renderer {
                 pass.draw_indexed(0..c.edge_indices, 0, 0..1);
             }
         }
+        self.references.draw(pass, &self.bind_group);
         if settings.grid {
             pass.set_pipeline(&self.grid);
             pass.set_vertex_buffer(0, self.grid_vertices.slice(..));

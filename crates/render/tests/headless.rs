@@ -362,3 +362,53 @@ fn thin_features_render_without_black_specks() {
         &specks[..specks.len().min(5)]
     );
 }
+
+/// A picture of two texels, red on the left, blue on the right, on a square quad `side` wide
+/// facing +z at depth `z`, centred on the sphere.
+fn red_blue(z: f32, side: f32, opacity: f32, rgba: &[u8]) -> strata_render::ReferenceQuad<'_> {
+    let h = side / 2.0;
+    let c = Vec3::new(CENTRE.x, CENTRE.y, z);
+    strata_render::ReferenceQuad {
+        key: 7,
+        pixels: strata_render::Pixels { width: 2, height: 1, rgba },
+        corners: [
+            c + Vec3::new(-h, -h, 0.0),
+            c + Vec3::new(h, -h, 0.0),
+            c + Vec3::new(h, h, 0.0),
+            c + Vec3::new(-h, h, 0.0),
+        ],
+        opacity,
+    }
+}
+
+#[test]
+fn reference_pictures_show_upright_behind_the_model_and_blend_in_front_of_it() {
+    let Some(gpu) = gpu() else { return };
+    let mut r = scene(&gpu);
+    let mut camera = Camera { target: CENTRE, distance: 60.0, orthographic: true, ..Camera::default() };
+    camera.axis_view(AxisView::Front, false);
+    let rgba = [255, 0, 0, 255, 0, 0, 255, 255];
+    let plain = FrameSettings { camera, grid: false, ..Default::default() };
+    let model = render_offscreen(&gpu, &mut r, W, H, &plain).unwrap();
+    // Behind the sphere, opaque: red on the left, blue on the right, the sphere in front.
+    let behind = [red_blue(CENTRE.z - 20.0, 80.0, 1.0, &rgba)];
+    let settings = FrameSettings { references: &behind, ..plain };
+    let img = render_offscreen(&gpu, &mut r, W, H, &settings).unwrap();
+    let (left, right, mid) = (img.pixel(10, H / 2), img.pixel(W - 10, H / 2), img.pixel(W / 2, H / 2));
+    assert!(left[0] > 240 && left[1] < 10 && left[2] < 10, "left {left:?}");
+    assert!(right[2] > 240 && right[0] < 10 && right[1] < 10, "right {right:?}");
+    assert_eq!(mid, model.pixel(W / 2, H / 2), "the model hides the picture behind it");
+    // The same picture in front at half opacity: over the model, a mix of the two.
+    let in_front = [red_blue(CENTRE.z + 20.0, 80.0, 0.5, &rgba)];
+    let settings = FrameSettings { references: &in_front, ..plain };
+    let img = render_offscreen(&gpu, &mut r, W, H, &settings).unwrap();
+    let (over, under) = (img.pixel(W / 4, H / 2), model.pixel(W / 4, H / 2));
+    assert!(over[0] > under[0] + 60 && over[0] < 240, "half red: blended {over:?} over {under:?}");
+    assert_ne!(img.pixel(W / 2 - 20, H / 2), model.pixel(W / 2 - 20, H / 2), "the sphere is tinted");
+    assert_eq!(r.picture_uploads(), 1, "the picture was uploaded once for both frames");
+    // Invisible (opacity 0) and damaged quads draw nothing.
+    let none = [red_blue(CENTRE.z + 20.0, 80.0, 0.0, &rgba), red_blue(f32::NAN, 80.0, 1.0, &rgba)];
+    let settings = FrameSettings { references: &none, ..plain };
+    let img = render_offscreen(&gpu, &mut r, W, H, &settings).unwrap();
+    assert_eq!(img.rgba, model.rgba);
+}

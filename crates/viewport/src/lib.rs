@@ -4,8 +4,9 @@
 //! mode and `strata render` (which links no GUI): a scene layer's chunk meshes named and placed
 //! for [`strata_render::Renderer`] ([`chunk_id`], [`chunk_placement`]), the scene's materials as
 //! the renderer's palette ([`palette`]), a layer's grid placed in the world ([`layer_model`]),
-//! the saved view as the renderer's camera and back ([`camera_of`], [`view_of`]), and the
-//! headless screenshot of a scene ([`render_scene`]).
+//! the saved view as the renderer's camera and back ([`camera_of`], [`view_of`]), the scene's
+//! reference images as the renderer's quads ([`reference_quads`]), and the headless screenshot
+//! of a scene ([`render_scene`]).
 //!
 //! The renderer knows nothing of volumes: this crate is where chunk keys become its opaque
 //! [`MeshId`]s, group `i` for scene layer `i`.
@@ -78,6 +79,24 @@ pub fn upload_chunk(
 /// The id of a mesh drawn over the surfaces that is not one of them (terrain mode's debris): a
 /// group no surface uses (surfaces are groups from 0 up).
 pub const OVERLAY_ID: MeshId = MeshId { group: u32::MAX, key: [0; 3] };
+
+/// The shown reference images of `scene` as the renderer draws them.
+pub fn reference_quads(scene: &Scene) -> Vec<strata_render::ReferenceQuad<'_>> {
+    scene
+        .references
+        .iter()
+        .filter(|r| r.visible && r.opacity > 0.0)
+        .map(|r| {
+            let (width, height, rgba) = r.picture.shown();
+            strata_render::ReferenceQuad {
+                key: r.picture.key(),
+                pixels: strata_render::Pixels { width, height, rgba },
+                corners: r.corners().map(|c| c.as_vec3()),
+                opacity: r.opacity,
+            }
+        })
+        .collect()
+}
 
 /// The scene's materials as the renderer's palette.
 pub fn palette(scene: &Scene) -> Vec<PaletteEntry> {
@@ -201,7 +220,8 @@ pub fn render_scene(scene: Scene, out: &Path, size: (u32, u32), wireframe: bool)
     let mut renderer = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
     let changes = editor.take_changes();
     apply_changes(&editor, &changes, &gpu.device, &gpu.queue, &mut renderer);
-    let settings = FrameSettings { camera, wireframe, ..Default::default() };
+    let references = reference_quads(&editor.scene);
+    let settings = FrameSettings { camera, wireframe, references: &references, ..Default::default() };
     let image = render_offscreen(&gpu, &mut renderer, size.0, size.1, &settings)?;
     image.save_png(out)?;
     Ok(gpu.info.name.clone())

@@ -183,3 +183,41 @@ fn change_lists_keep_a_renderer_equal_to_a_fresh_upload_on_a_streamed_world() {
     assert!(digs > 5, "the world was dug ({digs} digs)");
     assert!(mirror.triangle_count() > 0, "the world was drawn");
 }
+
+/// `strata render` and the studio's screenshot draw a scene's shown reference images.
+#[test]
+fn a_headless_render_shows_the_scenes_reference_images() {
+    if gpu().is_none() {
+        return;
+    }
+    let mut s = scene();
+    // A solid red PNG, in the front view's plane behind the spheres, filling the view.
+    let red = {
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, 2, 2);
+        enc.set_color(png::ColorType::Rgb);
+        let mut writer = enc.write_header().unwrap();
+        writer.write_image_data(&[255, 0, 0].repeat(4)).unwrap();
+        writer.finish().unwrap();
+        out
+    };
+    let picture = strata_editor::Picture::decode(red, "red.png").unwrap();
+    let bounds = Some((DVec3::new(8.0, 8.0, 8.0), DVec3::new(58.0, 32.0, 32.0)));
+    let mut front = strata_editor::ReferenceImage::new("red", picture, strata_editor::ReferencePlane::Front, bounds);
+    front.width = 1000.0;
+    front.opacity = 1.0;
+    s.references.push(front);
+    s.view = strata_editor::View { target: DVec3::new(35.0, 20.0, 20.0), distance: 90.0, yaw: 0.0, pitch: 0.0 };
+    let out = std::env::temp_dir().join(format!("strata-ref-render-{}.png", std::process::id()));
+    let shown = |s: Scene| {
+        strata_viewport::render_scene(s, &out, (64, 48), false).unwrap();
+        let img = strata_editor::Picture::load(&out).unwrap();
+        let (_, _, rgba) = img.shown();
+        rgba[..4].to_vec()
+    };
+    let corner = shown(s.clone());
+    assert!(corner[0] > 240 && corner[1] < 10 && corner[2] < 10, "the corner shows the picture: {corner:?}");
+    s.references[0].visible = false;
+    let corner = shown(s);
+    assert!(corner[0] < 100, "a hidden picture is not drawn: {corner:?}");
+}
