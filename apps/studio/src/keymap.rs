@@ -66,6 +66,10 @@ pub enum Command {
     Pressure,
     /// The transform gizmo for the active layer on or off.
     LayerGizmo,
+    /// Load a picture as a reference image.
+    LoadReference,
+    /// Show or hide the reference images.
+    ShowReferences,
 }
 
 impl Command {
@@ -141,6 +145,12 @@ pub const BINDINGS: &[Binding] = &[
         &[(C, Key::T)],
         "transform gizmo for the active layer: drag an arrow to move, a ring knob to turn, the square to scale (Ctrl snaps)",
     ),
+    bind(
+        Command::LoadReference,
+        &[(CS, Key::I)],
+        "load a PNG or JPEG as a reference image, square to the view the camera is in (or drop a JPEG on the window)",
+    ),
+    bind(Command::ShowReferences, &[(A, Key::R)], "show or hide the reference images"),
     bind(Command::Eyedropper, &[(N, Key::K)], "eyedropper: click the model to take its material"),
     bind(
         Command::Tool(ToolKind::Mask),

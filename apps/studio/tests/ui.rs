@@ -1818,3 +1818,106 @@ fn the_gizmo_moves_an_insert_and_moves_and_turns_a_layer_one_undo_step_a_drag() 
     }
     assert_eq!(h.state().studio.editor.scene.layers[0].transform, t0, "three undos give the layer back");
 }
+
+/// An 8 × 4 picture, red on the left half and blue on the right, as a PNG or a JPEG.
+fn red_blue_picture(path: &std::path::Path) {
+    let img =
+        image::RgbImage::from_fn(8, 4, |x, _| if x < 4 { image::Rgb([255, 0, 0]) } else { image::Rgb([0, 0, 255]) });
+    img.save(path).unwrap();
+}
+
+/// Issue 32: a PNG loaded with `Ctrl+Shift+I` in the right view lies square to it, selected;
+/// its opacity follows the panel's slider; the gizmo moves it (one undo step); locked, it keeps
+/// its place and cannot be deleted; it is saved with the scene and reopens equal; `Alt+R` hides
+/// them all; a dropped JPEG becomes one too, and a file that is not a picture is said.
+#[test]
+fn a_reference_image_is_loaded_faded_moved_locked_and_saved_with_the_scene() {
+    use strata_editor::ReferencePlane;
+    use strata_studio::GizmoHandle;
+    let dir = temp("reference");
+    let mut h = harness(&dir);
+    h.run();
+    let png = dir.join("side.png");
+    red_blue_picture(&png);
+    h.key_press(egui::Key::Num3);
+    h.run();
+    h.key_press_modifiers(egui::Modifiers { shift: true, ..egui::Modifiers::COMMAND }, egui::Key::I);
+    h.run();
+    enter_path(&mut h, &png);
+    h.run();
+    let r = h.state().studio.editor.scene.references.first().cloned().expect("loaded");
+    assert_eq!(r.plane(), Some(ReferencePlane::Side), "square to the right view");
+    assert_eq!(r.name, "side.png");
+    assert_eq!(h.state().studio.selected_reference, Some(0));
+    assert!(h.state().studio.message.contains("side.png"), "{}", h.state().studio.message);
+    assert!(h.state().studio.is_modified(), "a reference is unsaved work");
+    // The panel opened on it: the opacity slider takes the arrow keys.
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "opacity").focus();
+    h.run();
+    for _ in 0..3 {
+        h.key_press(egui::Key::ArrowRight);
+        h.run();
+    }
+    let faded = h.state().studio.editor.scene.references[0].opacity;
+    assert!(faded > r.opacity, "opacity {} -> {faded}", r.opacity);
+    // The gizmo sits on the selected, unlocked picture: an upward drag moves it up, one step.
+    h.key_press(egui::Key::Escape);
+    h.run();
+    let steps = h.state().studio.editor.history().undo_len();
+    let (c, handles) = h.state().gizmo_on_screen().expect("the gizmo is on the picture");
+    let tip = handles.iter().find(|(k, _)| *k == GizmoHandle::Move(1)).unwrap().1;
+    drag_handle(&mut h, GizmoHandle::Move(1), (tip - c).normalized() * 30.0);
+    let moved = h.state().studio.editor.scene.references[0].clone();
+    assert!(moved.center.y > r.center.y + 0.1, "{:?} -> {:?}", r.center, moved.center);
+    assert_eq!(h.state().studio.editor.history().undo_len(), steps + 1, "a drag is one step");
+    // Locked: no gizmo, and Delete does nothing.
+    h.query_all_by_label("locked").last().expect("the picture's lock").click();
+    h.run();
+    assert!(h.state().studio.editor.scene.references[0].locked);
+    assert!(h.state().gizmo_on_screen().is_none(), "a locked picture has no gizmo");
+    h.query_all_by_label("Delete").last().expect("the picture's Delete").click();
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.references.len(), 1, "a locked picture stays");
+    // Saved with the scene and reopened equal.
+    let scene_path = dir.join("with-reference.strata");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.run();
+    enter_path(&mut h, &scene_path);
+    let saved = h.state().studio.editor.scene.references.clone();
+    let loaded = strata_editor::file::load(&scene_path).unwrap();
+    assert!(loaded.report.is_clean(), "{}", loaded.report);
+    assert_eq!(loaded.scene.references, saved);
+    h.state_mut().studio.act(strata_studio::Action::Open(scene_path.clone())).unwrap();
+    assert_eq!(h.state().studio.editor.scene.references, saved);
+    // Alt+R hides them all (a view setting: the scene is unchanged).
+    h.key_press_modifiers(egui::Modifiers::ALT, egui::Key::R);
+    h.run();
+    assert!(!h.state().studio.show_references);
+    assert!(!h.state().studio.is_modified());
+    // A dropped JPEG becomes a reference; a file that is not a picture is said.
+    let jpeg = dir.join("top.jpg");
+    red_blue_picture(&jpeg);
+    h.key_press(egui::Key::Num7);
+    h.run();
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(jpeg)));
+    h.run();
+    let refs = &h.state().studio.editor.scene.references;
+    assert_eq!(refs.len(), 2, "{}", h.state().studio.message);
+    assert_eq!(refs[1].plane(), Some(ReferencePlane::Top));
+    assert!(h.state().studio.show_references, "loading one shows them again");
+    let bad = dir.join("notes.png");
+    std::fs::write(&bad, b"not a picture").unwrap();
+    h.key_press_modifiers(egui::Modifiers { shift: true, ..egui::Modifiers::COMMAND }, egui::Key::I);
+    h.run();
+    enter_path(&mut h, &bad);
+    assert!(
+        h.state().studio.notice.as_deref().is_some_and(|n| n.contains("notes.png")),
+        "{:?}",
+        h.state().studio.notice
+    );
+    assert_eq!(h.state().studio.editor.scene.references.len(), 2);
+    // Undo takes the dropped one back.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert_eq!(h.state().studio.editor.scene.references.len(), 1);
+}

@@ -40,7 +40,7 @@ pub use pick::{PICK_CHUNK_STEPS, Pick};
 pub use pose::{Buttons, Modifiers, ToolPose};
 pub use presets::{Preset, PresetError};
 pub use reference::{Picture, PictureError, ReferenceError, ReferenceImage, ReferencePlane};
-pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View};
+pub use scene::{Layer, LayerTransform, Material, Scene, Texture, TransformError, View, world_bounds};
 pub use stabiliser::Stabiliser;
 pub use stamps::{StampLibrary, StampSettings, StampSource, StampStroke};
 pub use target::EditTarget;

@@ -233,27 +233,8 @@ impl View {
     /// A view of the stored chunks of `layers` (world bounds of their chunk boxes), at the
     /// default angles; the default view when there is nothing to frame. Always finite.
     pub fn framing<'a>(layers: impl IntoIterator<Item = &'a Layer>) -> View {
-        let mut bounds: Option<(DVec3, DVec3)> = None;
-        for l in layers {
-            if !l.transform.is_valid() {
-                continue;
-            }
-            let Some((lo, hi)) = l.volume.chunk_bounds_grid() else { continue };
-            for k in 0..8 {
-                let c = DVec3::new(
-                    if k & 1 == 0 { lo.x } else { hi.x },
-                    if k & 2 == 0 { lo.y } else { hi.y },
-                    if k & 4 == 0 { lo.z } else { hi.z },
-                );
-                let w = l.transform.to_world(c);
-                bounds = Some(match bounds {
-                    None => (w, w),
-                    Some((a, b)) => (a.min(w), b.max(w)),
-                });
-            }
-        }
         let d = View::default();
-        match bounds {
+        match world_bounds(layers) {
             Some((lo, hi)) if lo.is_finite() && hi.is_finite() => {
                 let size = (hi - lo).length();
                 let distance = (size * 1.2).max(1e-6);
@@ -262,6 +243,31 @@ impl View {
             _ => d,
         }
     }
+}
+
+/// The world box around the stored chunks of `layers` (their chunk boxes' corners placed by
+/// their transforms; layers with an invalid transform left out), if they have any.
+pub fn world_bounds<'a>(layers: impl IntoIterator<Item = &'a Layer>) -> Option<(DVec3, DVec3)> {
+    let mut bounds: Option<(DVec3, DVec3)> = None;
+    for l in layers {
+        if !l.transform.is_valid() {
+            continue;
+        }
+        let Some((lo, hi)) = l.volume.chunk_bounds_grid() else { continue };
+        for k in 0..8 {
+            let c = DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let w = l.transform.to_world(c);
+            bounds = Some(match bounds {
+                None => (w, w),
+                Some((a, b)) => (a.min(w), b.max(w)),
+            });
+        }
+    }
+    bounds
 }
 
 /// Everything a scene file holds.

@@ -15,6 +15,7 @@ pub(super) enum Prompt {
     OpenWorld,
     LoadStamp,
     InsertMesh,
+    LoadReference,
 }
 
 impl Prompt {
@@ -28,6 +29,7 @@ impl Prompt {
             Prompt::OpenWorld => "Open world",
             Prompt::LoadStamp => "Load a stamp picture (PNG)",
             Prompt::InsertMesh => "Insert a mesh (a closed one)",
+            Prompt::LoadReference => "Load a reference image (PNG or JPEG)",
         }
     }
 
@@ -39,6 +41,7 @@ impl Prompt {
             Prompt::NewWorld | Prompt::OpenWorld => "terrain.world",
             Prompt::LoadStamp => "stamp.png",
             Prompt::InsertMesh => "mesh.ply",
+            Prompt::LoadReference => "front.png",
         }
     }
 }
@@ -157,7 +160,7 @@ impl StudioApp {
     }
 
     /// Files dropped on the window: a scene opens, a mesh is imported as a new layer, a PNG
-    /// becomes the stamp's picture.
+    /// becomes the stamp's picture, a JPEG a reference image.
     pub(super) fn dropped(&mut self, ctx: &egui::Context) {
         let files = ctx.input(|i| i.raw.dropped_files.clone());
         for f in files {
@@ -174,8 +177,14 @@ impl StudioApp {
                 Some("png") => {
                     let _ = self.studio.act(Action::LoadStamp(path));
                 }
+                Some("jpg" | "jpeg") => {
+                    let _ = self.studio.act(Action::LoadReference(path));
+                }
                 _ => {
-                    self.studio.message = format!("Cannot open {}: not a scene, a mesh or a PNG stamp", path.display())
+                    self.studio.message = format!(
+                        "Cannot open {}: not a scene, a mesh, a PNG stamp or a JPEG reference image",
+                        path.display()
+                    )
                 }
             }
         }
@@ -192,7 +201,12 @@ impl StudioApp {
             title: kind.title(),
             pick_existing: matches!(
                 kind,
-                Prompt::Open | Prompt::Import | Prompt::OpenWorld | Prompt::LoadStamp | Prompt::InsertMesh
+                Prompt::Open
+                    | Prompt::Import
+                    | Prompt::OpenWorld
+                    | Prompt::LoadStamp
+                    | Prompt::InsertMesh
+                    | Prompt::LoadReference
             ),
             filter: match kind {
                 Prompt::Open | Prompt::SaveAs => ("Strata scene", vec!["strata"]),
@@ -200,6 +214,7 @@ impl StudioApp {
                 Prompt::Import | Prompt::InsertMesh => ("Mesh", strata_mesh::import::MESH_EXTENSIONS.to_vec()),
                 Prompt::NewWorld | Prompt::OpenWorld => ("Strata world", vec!["world"]),
                 Prompt::LoadStamp => ("PNG image", vec!["png"]),
+                Prompt::LoadReference => ("Picture", vec!["png", "jpg", "jpeg"]),
             },
             directory: self.studio.path.as_ref().and_then(|p| p.parent()).map(|p| p.to_path_buf()),
             file_name: kind.suggestion(),
@@ -251,6 +266,7 @@ impl StudioApp {
             Prompt::OpenWorld => self.studio.act(Action::OpenWorld(path)).is_ok(),
             Prompt::LoadStamp => self.studio.act(Action::LoadStamp(path)).is_ok(),
             Prompt::InsertMesh => self.studio.act(Action::InsertFile(path)).is_ok(),
+            Prompt::LoadReference => self.studio.act(Action::LoadReference(path)).is_ok(),
         };
         if done && let Some(then) = then {
             self.proceed(ctx, then);

@@ -1,7 +1,8 @@
-//! The transform gizmo: handles drawn over the viewport for the waiting mesh insert, or for the
-//! active layer while the layer gizmo is on (`Ctrl+T`). Drag an axis's arrow to move along it,
-//! its ring knob around the centre to turn about it, the centre square to scale; hold Ctrl to
-//! snap (a cell of the active layer, 15°, tenths of the size). A layer's drag is one undo step.
+//! The transform gizmo: handles drawn over the viewport for the waiting mesh insert, the
+//! selected reference image while it is unlocked, or the active layer while the layer gizmo is
+//! on (`Ctrl+T`). Drag an axis's arrow to move along it, its ring knob around the centre to
+//! turn about it, the centre square to scale; hold Ctrl to snap (a cell of the active layer,
+//! 15°, tenths of the size). A layer's or a reference's drag is one undo step.
 
 use glam::{DQuat, DVec3};
 
@@ -29,6 +30,7 @@ pub enum Handle {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Target {
     Insert,
+    Reference(usize),
     Layer(usize),
 }
 
@@ -62,10 +64,17 @@ impl StudioApp {
     }
 
     /// What the gizmo acts on, its pivot (world), turn and scale: the waiting insert, else the
-    /// active layer while the layer gizmo is on (pivoting about the middle of its chunks).
+    /// selected reference image while it is shown and unlocked, else the active layer while the
+    /// layer gizmo is on (pivoting about the middle of its chunks).
     fn gizmo_target(&self) -> Option<(Target, DVec3, DQuat, f64)> {
         if let Some(i) = &self.studio.insert {
             return Some((Target::Insert, i.placement.position, i.placement.rotation, i.placement.size));
+        }
+        if let Some((i, r)) = self.studio.reference().filter(|(_, r)| !r.locked && r.visible)
+            && self.studio.show_references
+            && self.studio.terrain.is_none()
+        {
+            return Some((Target::Reference(i), r.center, r.rotation, r.width));
         }
         if !self.layer_gizmo || self.studio.terrain.is_some() {
             return None;
@@ -153,7 +162,7 @@ impl StudioApp {
         }
         let translation = match target {
             Target::Layer(k) => self.studio.editor.scene.layers[k].transform.translation,
-            Target::Insert => centre,
+            Target::Insert | Target::Reference(_) => centre,
         };
         self.gizmo_drag =
             Some(GizmoDrag { handle, target, from: p, centre, rotation, scale, translation, stepped: false });
@@ -216,6 +225,15 @@ impl StudioApp {
                     // (The panel's turn numbers follow, so editing one keeps this turn.)
                     let (y, x, z) = rotation.to_euler(glam::EulerRot::YXZ);
                     i.turn = [y, x, z].map(f64::to_degrees);
+                }
+            }
+            Target::Reference(k) => {
+                let Some(r) = self.studio.editor.scene.references.get(k) else { return };
+                let moved = strata_editor::ReferenceImage { center: centre, rotation, width: scale, ..r.clone() };
+                // (As a layer's: the first change of a drag makes its undo step, the rest join it.)
+                let before = r.clone();
+                if self.studio.set_reference(k, moved.repaired(), drag.stepped) {
+                    drag.stepped |= self.studio.editor.scene.references.get(k) != Some(&before);
                 }
             }
             Target::Layer(k) => {

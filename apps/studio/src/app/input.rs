@@ -107,6 +107,8 @@ impl StudioApp {
             C::StampStroke => self.studio.toggle_stamp_stroke(),
             C::LoadStamp => self.ask_path(ctx, Prompt::LoadStamp, None),
             C::LayerGizmo => self.toggle_layer_gizmo(),
+            C::LoadReference => self.ask_path(ctx, Prompt::LoadReference, None),
+            C::ShowReferences => self.studio.toggle_references(),
             C::Pressure => {
                 let p = &mut self.studio.editor.tool.pressure;
                 p.enabled = !p.enabled;

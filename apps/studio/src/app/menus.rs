@@ -71,6 +71,15 @@ impl StudioApp {
                 {
                     self.ask_path(&ctx, Prompt::LoadStamp, None);
                 }
+                if ui
+                    .button(labelled("Load reference image…", Command::LoadReference))
+                    .on_hover_text(
+                        "A PNG or JPEG placed as a plane square to the view the camera is in, behind the model, to sculpt against",
+                    )
+                    .clicked()
+                {
+                    self.ask_path(&ctx, Prompt::LoadReference, None);
+                }
                 if ui.button(labelled("Save", Command::Save)).clicked() {
                     self.save(&ctx, None);
                 }
@@ -216,6 +225,15 @@ impl StudioApp {
                         let _ = self.studio.act(action);
                         ui.close();
                     }
+                }
+                let mut shown = self.studio.show_references;
+                if ui
+                    .checkbox(&mut shown, labelled("Reference images", Command::ShowReferences))
+                    .on_hover_text("Draw the scene's reference images (each has its own switch in its panel)")
+                    .changed()
+                {
+                    self.studio.toggle_references();
+                    ui.close();
                 }
                 let mut ortho = self.studio.camera.orthographic;
                 if ui.checkbox(&mut ortho, labelled("Orthographic", Command::Orthographic)).changed() {

@@ -29,6 +29,7 @@ mod jobs;
 mod layers_panel;
 mod menus;
 mod presets_panel;
+mod references_panel;
 mod session;
 mod tool_panel;
 mod viewport;
@@ -86,6 +87,8 @@ pub struct StudioApp {
     /// The transform gizmo shows for the active layer (`Ctrl+T`; it always shows for a waiting
     /// insert).
     pub layer_gizmo: bool,
+    /// Reference images the panel has seen (one more opens it).
+    references_seen: usize,
     /// A drag of a gizmo handle in progress.
     gizmo_drag: Option<gizmo::GizmoDrag>,
     /// The pressure of the touch (a pen's, where the platform reads it) in progress, from
@@ -145,6 +148,7 @@ impl StudioApp {
         }
         StudioApp {
             layer_gizmo: false,
+            references_seen: 0,
             gizmo_drag: None,
             pen_pressure: None,
             presets,
@@ -299,6 +303,7 @@ impl StudioApp {
         egui::Panel::right("layers").show(ui, |ui| {
             self.people(ui);
             self.layers(ui);
+            self.references_panel(ui);
         });
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, frame));
         self.dropped(&ctx);

@@ -336,7 +336,8 @@ impl StudioApp {
             (i.mesh.preview_shared(), model)
         });
         let scale = glam::Vec3::splat(self.studio.preview_scale() as f32);
-        let preview_mesh = strata_viewport::mesh_ref(self.studio.preview_mesh());
+        self.studio.refresh_preview();
+        let preview_mesh = strata_viewport::mesh_ref(self.studio.built_preview());
         let rgb = if erase { [1.0, 0.35, 0.3] } else { [0.35, 0.65, 1.0] };
         let mut previews = Vec::with_capacity(dabs.len() * 2);
         for (k, (p, q)) in dabs.into_iter().enumerate() {
@@ -361,7 +362,13 @@ impl StudioApp {
                 color: [0.45, 0.9, 0.5, 0.35],
             });
         }
-        let settings = FrameSettings { camera, wireframe, previews: &previews, ..Default::default() };
+        let references = if self.studio.show_references {
+            strata_viewport::reference_quads(&self.studio.editor.scene)
+        } else {
+            Vec::new()
+        };
+        let settings =
+            FrameSettings { camera, wireframe, previews: &previews, references: &references, ..Default::default() };
         vp.present(ui, rs, rect, size, &settings);
         // Repaint on our own only while meshing catches up or a stroke is in progress; pointer
         // and key events repaint anyway, so an idle editor uses no CPU.

@@ -146,6 +146,7 @@ impl Studio {
             Action::ToggleWireframe => self.wireframe = !self.wireframe,
             Action::LoadStamp(path) => self.load_stamp(&path)?,
             Action::InsertFile(path) => self.insert_file(&path)?,
+            Action::LoadReference(path) => self.load_reference(&path)?,
             Action::Mask(a) => {
                 let layer = self.editor.active_layer;
                 self.editor.mask_all(layer, a).map_err(|e| format!("Could not {}: {e}", a.name().to_lowercase()))?;
@@ -332,6 +333,7 @@ impl Studio {
 
     pub(super) fn replace_scene(&mut self, scene: Scene) {
         self.camera = strata_viewport::camera_of(&scene.view);
+        self.selected_reference = None;
         self.editor.set_scene(scene);
     }
 }

@@ -19,6 +19,7 @@ mod import;
 mod inserts;
 mod pointer;
 mod preview;
+mod references;
 mod stamps;
 #[cfg(test)]
 mod tests;
@@ -89,6 +90,8 @@ pub enum Action {
     LoadStamp(PathBuf),
     /// Read a mesh file as an insert waiting to be placed (Edit > Insert mesh > From file).
     InsertFile(PathBuf),
+    /// Read a PNG or JPEG as a reference image (File > Load reference image).
+    LoadReference(PathBuf),
 }
 
 impl Action {
@@ -107,6 +110,7 @@ impl Action {
             Action::FrameAll | Action::AxisView(..) | Action::ToggleOrthographic => "use the scene's views",
             Action::ViewMesher(_) => "change the viewport's mesher (a world is meshed by marching cubes as it streams)",
             Action::Mask(_) => "change a mask (masks are for scenes)",
+            Action::LoadReference(_) => "load a reference image (they are kept with scenes)",
             _ => return None,
         })
     }
@@ -268,6 +272,10 @@ pub struct Studio {
     falloff_kind: ToolKind,
     /// A mesh insert waiting to be placed and applied.
     pub insert: Option<inserts::PendingInsert>,
+    /// The reference image selected in its panel (the gizmo moves it while it is unlocked).
+    pub selected_reference: Option<usize>,
+    /// Reference images are drawn (View > Reference images).
+    pub show_references: bool,
 }
 
 impl Studio {
@@ -307,6 +315,8 @@ impl Studio {
             saved_revision: 0,
             falloffs: Vec::new(),
             insert: None,
+            selected_reference: None,
+            show_references: true,
             falloff_kind: ToolKind::default(),
             job: None,
             background_chunks: 1 << 15,

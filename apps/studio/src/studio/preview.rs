@@ -28,6 +28,20 @@ impl Studio {
     /// The brush preview mesh for the current shape and radius (rebuilt when they change),
     /// centred on the origin, in world units.
     pub fn preview_mesh(&mut self) -> &Mesh {
+        self.refresh_preview();
+        self.built_preview()
+    }
+
+    /// The preview mesh as last built by [`Studio::preview_mesh`] or [`Studio::refresh_preview`]
+    /// (empty before).
+    pub fn built_preview(&self) -> &Mesh {
+        static EMPTY: Mesh =
+            Mesh { positions: Vec::new(), normals: Vec::new(), materials: Vec::new(), indices: Vec::new() };
+        self.preview.as_ref().map_or(&EMPTY, |p| &p.2)
+    }
+
+    /// Rebuilds the preview mesh if the shape or the radius changed.
+    pub fn refresh_preview(&mut self) {
         let mut tool = self.editor.tool;
         if tool.kind.is_field_tool() || self.smooth_held {
             // Field tools act in a ball of the radius, whatever the CSG shape.
@@ -56,6 +70,5 @@ impl Studio {
             };
             self.preview = Some((key.0, key.1, mesh));
         }
-        &self.preview.as_ref().expect("set above").2
     }
 }
