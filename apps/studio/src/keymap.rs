@@ -219,6 +219,176 @@ pub const POINTER_AND_HELD: &[(&str, &str)] = &[
     ("Terrain mode: left drag", "sculpt the world with the current tool (it starts as a dig: erase; Ctrl raises)"),
 ];
 
+/// How a control of the panels and dialogs is reached besides pointing at it: the rest of the
+/// binding table. A control whose label ends with its keys in brackets (`Clay (C)`, `Load…
+/// (Ctrl+Shift+I)`) is reached by them; an item of a list the scene or the user makes (a layer,
+/// a material, a preset, a reference image, a stamp picture) by Tab and Space, as egui focuses
+/// any control; every other control has a row of [`CONTROLS`]. A UI test walks every panel and
+/// dialog and checks that each control has a tooltip and a way in here, and that each row's
+/// key is bound and its menu entry exists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reach {
+    /// A key command.
+    Key(Command),
+    /// A menu entry: its menus and its label, `Brush > Mirror > Y` (a segment ending in `*`
+    /// names the entry whose label starts with the rest).
+    Menu(&'static str),
+    /// A value (a slider, a number, a text field, a choice among values): Tab reaches it, the
+    /// arrow keys or typing set it.
+    Value,
+    /// A dialog's answer: Enter or Escape, or Tab to it.
+    Answer,
+}
+
+/// One panel or dialog control: its label (a label ending in `*` names every control whose
+/// label starts with the rest) and how it is reached.
+#[derive(Clone, Copy, Debug)]
+pub struct Control {
+    /// The control's label as it shows (for screen readers too).
+    pub label: &'static str,
+    /// How it is reached.
+    pub reach: Reach,
+}
+
+const fn control(label: &'static str, reach: Reach) -> Control {
+    Control { label, reach }
+}
+
+use Reach::{Answer, Menu, Value};
+
+/// The panels' and dialogs' controls that do not name their keys (see [`Reach`]).
+pub const CONTROLS: &[Control] = &[
+    // The tool panel.
+    control("Off", Reach::Key(Command::Stabiliser)),
+    control("Weak", Reach::Key(Command::Stabiliser)),
+    control("Strong", Reach::Key(Command::Stabiliser)),
+    control("Sphere", Reach::Key(Command::NextShape)),
+    control("Box", Reach::Key(Command::NextShape)),
+    control("Capsule", Reach::Key(Command::NextShape)),
+    control("Cylinder", Reach::Key(Command::NextShape)),
+    control("Y", Menu("Brush > Mirror > Y")),
+    control("Z", Menu("Brush > Mirror > Z")),
+    control("off", Menu("Brush > Lock stroke > Off")),
+    control("along X", Menu("Brush > Lock stroke > Along X")),
+    control("along Y", Menu("Brush > Lock stroke > Along Y")),
+    control("along Z", Menu("Brush > Lock stroke > Along Z")),
+    control("Radius on screen", Menu("Brush > Radius on screen")),
+    control("Follow the surface", Menu("Brush > Follow the surface")),
+    control("Orient brush to surface", Menu("Brush > Orient brush to surface")),
+    control("Paper's smoothing (Eq. 1)", Menu("Brush > Paper's smoothing (Eq. 1)")),
+    control("32³ cells", Menu("Brush > Detail raises to > 32³ cells")),
+    control("64³ cells", Menu("Brush > Detail raises to > 64³ cells")),
+    control("A named shape; drag the curve's points for your own", Menu("Brush > Falloff")),
+    control("Invert", Reach::Key(Command::Mask(MaskAction::Invert))),
+    control("Clear", Reach::Key(Command::Mask(MaskAction::Clear))),
+    control("Grow", Reach::Key(Command::Mask(MaskAction::Grow))),
+    control("Shrink", Reach::Key(Command::Mask(MaskAction::Shrink))),
+    control("Load PNG…", Reach::Key(Command::LoadStamp)),
+    control("Spray", Reach::Key(Command::StampStroke)),
+    control("Drag", Reach::Key(Command::StampStroke)),
+    control("The picture the stamp raises*", Reach::Key(Command::NextStamp)),
+    control("Follow stroke", Menu("Brush > Stamp follows the stroke")),
+    control("Save preset…", Menu("Edit > Brush presets > Save brush as preset…")),
+    control("New material", Menu("Brush > New material")),
+    control("tool strength", Value),
+    control("fillet (× radius)", Value),
+    control("radius [ ] F", Value),
+    control("radius (points) [ ] F", Value),
+    control("dab spacing", Value),
+    control("cells", Value),
+    control("turn", Value),
+    control("pressure to size", Value),
+    control("pressure to strength", Value),
+    control("material name", Value),
+    control("texture", Value),
+    control("texture scale", Value),
+    control("roughness", Value),
+    // A waiting insert.
+    control("size", Value),
+    control("turn y °", Value),
+    control("x °", Value),
+    control("z °", Value),
+    control("Add insert", Menu("Edit > Insert mesh > Add insert")),
+    control("Subtract insert", Menu("Edit > Insert mesh > Subtract insert")),
+    control("Intersect insert", Menu("Edit > Insert mesh > Intersect insert")),
+    control("Cancel insert", Reach::Key(Command::CloseHelp)),
+    // The layers panel.
+    control("visible", Menu("Layer > Layer visible")),
+    control("locked", Menu("Layer > Layer locked")),
+    control("Name", Value),
+    control("x", Value),
+    control("y", Value),
+    control("z", Value),
+    control("turn °", Value),
+    control("scale", Value),
+    control("16³", Menu("Layer > New layers' resolution > 16³ cells")),
+    control("32³", Menu("Layer > New layers' resolution > 32³ cells")),
+    control("64³", Menu("Layer > New layers' resolution > 64³ cells")),
+    control("Add", Menu("Layer > Add layer")),
+    control("Duplicate", Menu("Layer > Duplicate layer")),
+    control("Delete", Menu("Layer > Delete layer")),
+    control("Up", Menu("Layer > Move layer up")),
+    control("Down", Menu("Layer > Move layer down")),
+    control("Merge down", Menu("Layer > Merge down")),
+    // The reference images panel (the selected picture's controls).
+    control("shown", Menu("Layer > Reference image* > Shown")),
+    control("locked", Menu("Layer > Reference image* > Locked")),
+    control("Front", Menu("Layer > Reference image* > Lay square to the Front view")),
+    control("Side", Menu("Layer > Reference image* > Lay square to the Side view")),
+    control("Top", Menu("Layer > Reference image* > Lay square to the Top view")),
+    control("Look at it", Menu("Layer > Reference image* > Look at it")),
+    control("Delete", Menu("Layer > Reference image* > Delete reference image")),
+    control("opacity", Value),
+    control("width", Value),
+    // Dialogs and prompts.
+    control("Close window", Reach::Key(Command::CloseHelp)),
+    control("Path:", Value),
+    control("Listen on", Value),
+    control("Server", Value),
+    control("cells along the longest side", Value),
+    control("Address", Value),
+    control("Room", Value),
+    control("Token", Value),
+    control("Your name", Value),
+    control("OK", Answer),
+    control("Cancel", Answer),
+    control("Host", Answer),
+    control("Join", Answer),
+    control("Import", Answer),
+    control("Save", Answer),
+    control("Don't save", Answer),
+    control("Recover", Answer),
+    control("Discard", Answer),
+    control("Dismiss", Answer),
+];
+
+/// Whether `label` is the one `row_label` names (exactly, or by its start for a row ending in
+/// `*`).
+pub fn label_matches(row_label: &str, label: &str) -> bool {
+    match row_label.strip_suffix('*') {
+        Some(start) => label.starts_with(start),
+        None => label == row_label,
+    }
+}
+
+/// The rows of [`CONTROLS`] for a control labelled `label`.
+pub fn controls_for(label: &str) -> impl Iterator<Item = &'static Control> + '_ {
+    CONTROLS.iter().filter(move |c| label_matches(c.label, label))
+}
+
+/// The chords a label names at its end in brackets (`Redo (Ctrl+Shift+Z or Ctrl+Y)`), if each
+/// of them is bound; `None` for a label without them.
+pub fn keys_in_label(label: &str) -> Option<Vec<Command>> {
+    let inner = label.strip_suffix(')')?.rsplit_once('(')?.1;
+    let chords: Vec<&str> = inner.split(" or ").collect();
+    let mut commands = Vec::new();
+    for chord in chords {
+        let b = BINDINGS.iter().find(|b| b.keys.iter().any(|&k| chord_text(k) == chord))?;
+        commands.push(b.command);
+    }
+    Some(commands)
+}
+
 /// The number of modifiers a chord asks for: among the bindings a press matches, the one that
 /// asks for the most wins (Ctrl+Shift+Z is redo, though Ctrl+Z also matches it).
 fn specificity(m: Modifiers) -> u8 {
@@ -319,6 +489,22 @@ mod tests {
         for b in BINDINGS {
             for &(m, k) in b.keys {
                 assert_eq!(command_for(m, k), Some(b.command), "{}", chord_text((m, k)));
+            }
+        }
+    }
+
+    #[test]
+    fn labels_name_their_keys_and_rows_their_labels() {
+        assert_eq!(keys_in_label("Clay (C)"), Some(vec![Command::Tool(ToolKind::Clay)]));
+        assert_eq!(keys_in_label("Redo (Ctrl+Shift+Z or Ctrl+Y)"), Some(vec![Command::Redo, Command::Redo]));
+        assert_eq!(keys_in_label("fillet (× radius)"), None, "not a key");
+        assert_eq!(keys_in_label("Sphere"), None);
+        assert!(label_matches("The picture the stamp raises*", "The picture the stamp raises, white highest"));
+        assert!(!label_matches("Off", "Offset"));
+        assert_eq!(controls_for("Delete").count(), 2, "a layer's and a reference image's");
+        for c in CONTROLS {
+            if let Reach::Key(command) = c.reach {
+                assert!(binding(command).is_some(), "{}: {command:?} has no key", c.label);
             }
         }
     }

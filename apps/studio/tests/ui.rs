@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use eframe::egui;
 use egui_kittest::Harness;
-use egui_kittest::kittest::Queryable;
+use egui_kittest::kittest::{NodeT, Queryable};
 use strata_editor::ToolKind;
 use strata_studio::{Dialogs, Studio, StudioApp, default_scene};
 
@@ -376,7 +376,7 @@ fn dropped_files_open_scenes_and_import_meshes_and_recent_files_are_remembered()
     std::fs::write(&txt, "hi").unwrap();
     h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(txt)));
     h.run();
-    assert!(h.state().studio.message.contains("not a scene, a mesh or a PNG stamp"));
+    assert!(h.state().studio.message.contains("not a scene, a mesh, a PNG stamp or a JPEG reference image"));
     // A dropped PNG becomes the stamp's picture.
     let png_path = dir.join("drop.png");
     {
@@ -1920,4 +1920,249 @@ fn a_reference_image_is_loaded_faded_moved_locked_and_saved_with_the_scene() {
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.run();
     assert_eq!(h.state().studio.editor.scene.references.len(), 1);
+}
+
+/// Every interactive control now on screen: (role, label, description).
+fn controls_on_screen(h: &Harness<'static, StudioApp>) -> Vec<(egui::accesskit::Role, String, Option<String>)> {
+    use egui::accesskit::Role;
+    let interactive = [
+        Role::Button,
+        Role::CheckBox,
+        Role::RadioButton,
+        Role::Slider,
+        Role::SpinButton,
+        Role::ComboBox,
+        Role::TextInput,
+        Role::MultilineTextInput,
+        Role::Switch,
+        Role::Link,
+    ];
+    let mut out = Vec::new();
+    for role in interactive {
+        for n in h.query_all_by_role(role) {
+            let a = n.accesskit_node();
+            out.push((role, a.label().unwrap_or_default(), a.description()));
+        }
+    }
+    out
+}
+
+/// The menu bar's menus.
+const MENUS: [&str; 7] = ["File", "Edit", "Brush", "Layer", "View", "Terrain", "Help"];
+
+/// The submenus (by the start of their titles).
+const SUBMENUS: [&str; 11] = [
+    "Open recent",
+    "Insert mesh",
+    "Brush presets",
+    "Shape",
+    "Stabiliser",
+    "Mirror",
+    "Lock stroke",
+    "Falloff",
+    "Detail raises to",
+    "New layers' resolution",
+    "Reference image ",
+];
+
+/// Opens the menu entry `path` (`Brush > Mirror > Y`; a segment ending in `*` by its start)
+/// and says whether its last entry shows; the menus are closed again.
+fn menu_entry_shows(h: &mut Harness<'static, StudioApp>, path: &str) -> bool {
+    let segments: Vec<&str> = path.split(" > ").collect();
+    let labels = |h: &Harness<'static, StudioApp>| -> Vec<String> {
+        controls_on_screen(h).into_iter().map(|(_, label, _)| label).collect()
+    };
+    // (Only what the menus add counts: the panels show controls of the same names.)
+    let before = labels(h);
+    let find = |h: &Harness<'static, StudioApp>, segment: &str| {
+        let now = labels(h);
+        let count = |list: &[String], l: &str| list.iter().filter(|x| *x == l).count();
+        now.iter()
+            .find(|label| {
+                (strata_studio::keymap::label_matches(segment, label) || label.starts_with(&format!("{segment} (")))
+                    && count(&now, label) > count(&before, label)
+            })
+            .cloned()
+    };
+    h.get_by_role_and_label(egui::accesskit::Role::Button, segments[0]).click();
+    h.run();
+    let mut shown = true;
+    for (k, segment) in segments.iter().enumerate().skip(1) {
+        let Some(label) = find(h, segment) else {
+            shown = false;
+            break;
+        };
+        if k + 1 < segments.len() {
+            h.get_by_role_and_label(egui::accesskit::Role::Button, &label).hover();
+            h.run();
+        }
+    }
+    h.key_press(egui::Key::Escape);
+    h.run();
+    h.key_press(egui::Key::Escape);
+    h.run();
+    shown
+}
+
+/// Issue 32: every control of the panels, menus and dialogs has a tooltip, and every panel
+/// and dialog control is reached by a key or a menu entry recorded in the binding table
+/// (`keymap::CONTROLS`; items of the scene's lists by Tab, values by Tab and the arrow keys),
+/// whose keys are bound and whose menu entries exist. Walked with every tool, the collapsible
+/// sections open, a reference image selected, an insert waiting, and each dialog up.
+#[test]
+fn every_control_has_a_tooltip_and_a_key_or_menu_entry_in_the_binding_table() {
+    use egui::accesskit::Role;
+    use strata_studio::keymap::{Reach, controls_for, keys_in_label};
+    let dir = temp("audit");
+    let mut h = harness(&dir);
+    h.run();
+    // (state, role, label, description), each control once per state.
+    let mut seen: Vec<(String, Role, String, Option<String>)> = Vec::new();
+    let look =
+        |h: &Harness<'static, StudioApp>, state: &str, seen: &mut Vec<(String, Role, String, Option<String>)>| {
+            for (role, label, d) in controls_on_screen(h) {
+                if !seen.iter().any(|(s, r, l, _)| s == state && *r == role && *l == label) {
+                    seen.push((state.to_string(), role, label, d));
+                }
+            }
+        };
+    let png = dir.join("r.png");
+    red_blue_picture(&png);
+    h.state_mut().studio.act(strata_studio::Action::LoadReference(png)).unwrap();
+    h.run();
+    h.run();
+    look(&h, "panel", &mut seen);
+    for key in [
+        egui::Key::A,
+        egui::Key::E,
+        egui::Key::S,
+        egui::Key::I,
+        egui::Key::T,
+        egui::Key::P,
+        egui::Key::G,
+        egui::Key::D,
+        egui::Key::V,
+        egui::Key::H,
+        egui::Key::M,
+        egui::Key::C,
+    ] {
+        h.key_press(key);
+        h.run();
+        look(&h, "panel", &mut seen);
+    }
+    for header in ["Presets", "Pressure (Alt+P)"] {
+        h.get_by_label(header).click();
+        h.run();
+    }
+    look(&h, "panel", &mut seen);
+    h.state_mut().studio.begin_insert(strata_editor::InsertMesh::bunny());
+    h.run();
+    look(&h, "panel", &mut seen);
+    for menu in MENUS {
+        h.get_by_role_and_label(Role::Button, menu).click();
+        h.run();
+        look(&h, "menu", &mut seen);
+        let submenus: Vec<String> = controls_on_screen(&h)
+            .into_iter()
+            .filter(|(_, l, _)| SUBMENUS.iter().any(|s| l.starts_with(s)))
+            .map(|(_, l, _)| l)
+            .collect();
+        for sub in submenus {
+            h.get_by_role_and_label(Role::Button, &sub).hover();
+            h.run();
+            look(&h, "menu", &mut seen);
+        }
+        h.key_press(egui::Key::Escape);
+        h.run();
+        h.key_press(egui::Key::Escape);
+        h.run();
+    }
+    h.key_press(egui::Key::Escape);
+    h.run();
+    // Dialogs: the help, the path prompt, the unsaved-changes question, the session dialog and
+    // the import dialog.
+    h.key_press(egui::Key::F1);
+    h.run();
+    look(&h, "dialog", &mut seen);
+    h.key_press(egui::Key::Escape);
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.run();
+    look(&h, "dialog", &mut seen);
+    h.key_press(egui::Key::Escape);
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::N);
+    h.run();
+    look(&h, "dialog", &mut seen);
+    h.query_all_by_label("Cancel").last().unwrap().click();
+    h.run();
+    for entry in ["Host session…", "Join session…"] {
+        h.get_by_label("File").click();
+        h.run();
+        h.get_by_label(entry).click();
+        h.run();
+        look(&h, "dialog", &mut seen);
+        h.query_all_by_label("Cancel").last().unwrap().click();
+        h.run();
+    }
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(bunny_path())));
+    h.run();
+    look(&h, "dialog", &mut seen);
+    h.get_by_label("Cancel").click();
+    h.run();
+    // The data the lists show: layers, materials, presets, stamp pictures, reference images.
+    let studio = &h.state().studio;
+    let mut items: Vec<String> = studio.editor.scene.layers.iter().map(|l| l.name.clone()).collect();
+    items.extend(studio.editor.scene.materials.iter().map(|m| m.name.clone()));
+    items.extend(studio.editor.scene.references.iter().map(|r| r.name.clone()));
+    items.extend(strata_editor::Preset::builtin().into_iter().map(|p| p.name));
+    items.extend(studio.stamp_choices().into_iter().map(|(_, n)| n));
+    let mut failures = Vec::new();
+    let sliders: Vec<String> =
+        seen.iter().filter(|(_, r, _, d)| *r == Role::Slider && d.is_some()).map(|(_, _, l, _)| l.clone()).collect();
+    for (state, role, label, description) in &seen {
+        // (A menu's title opens it: it is not a control of its own.)
+        let menu_title = *role == Role::Button
+            && (MENUS.contains(&label.as_str()) || state == "menu" && SUBMENUS.iter().any(|s| label.starts_with(s)));
+        // (A slider's number box is part of the slider, whose tooltip it shares.)
+        let slider_box = *role == Role::SpinButton && sliders.contains(label);
+        if description.is_none() && !menu_title && !slider_box && label != "Close window" {
+            failures.push(format!("[{state}] {role:?} {label:?} has no tooltip"));
+        }
+        if state == "menu" || menu_title {
+            continue; // (a menu entry is one)
+        }
+        let value_role = matches!(
+            role,
+            Role::Slider | Role::SpinButton | Role::TextInput | Role::MultilineTextInput | Role::ComboBox
+        );
+        let reached = keys_in_label(label).is_some()
+            || items.contains(label)
+            || controls_for(label).any(|c| match c.reach {
+                Reach::Value => value_role,
+                Reach::Answer => state == "dialog",
+                Reach::Key(_) | Reach::Menu(_) => true,
+            });
+        if !reached {
+            failures.push(format!("[{state}] {role:?} {label:?} has no key or menu entry in the binding table"));
+        }
+    }
+    assert!(failures.is_empty(), "{} controls:\n{}", failures.len(), failures.join("\n"));
+    // Each row's menu entry exists (with the insert waiting and the reference selected).
+    h.state_mut().studio.begin_insert(strata_editor::InsertMesh::bunny());
+    h.run();
+    let mut missing = Vec::new();
+    for c in strata_studio::keymap::CONTROLS {
+        if h.state().studio.insert.is_none() {
+            // (The Escape that closes a menu also drops the waiting insert.)
+            h.state_mut().studio.begin_insert(strata_editor::InsertMesh::bunny());
+            h.run();
+        }
+        if let Reach::Menu(path) = c.reach
+            && !menu_entry_shows(&mut h, path)
+        {
+            missing.push(path);
+        }
+    }
+    assert!(missing.is_empty(), "menu entries of the binding table that do not show: {missing:?}");
 }

@@ -406,7 +406,8 @@ impl crate::Editor {
     fn replace_references(&mut self, list: Vec<ReferenceImage>, merge: bool) {
         self.end_stroke();
         let old = std::mem::replace(&mut self.scene.references, list);
-        if !self.records_ops() && !(merge && self.history.last_is_references()) {
+        let joins = merge && self.history.last_is_references();
+        if !(self.records_ops() || joins) {
             self.history.push(crate::HistoryEntry { references: Some(old), ..Default::default() });
         }
         self.revision += 1;
@@ -453,7 +454,7 @@ mod tests {
         let p = Picture::decode(bytes.clone(), "wide.png").unwrap();
         let (w, h, _) = p.shown();
         assert_eq!(w, SHOWN_SIDE);
-        assert!(h >= 9 && h <= 10, "{h}");
+        assert!((9..=10).contains(&h), "{h}");
         assert_eq!(p.bytes().len(), bytes.len());
     }
 

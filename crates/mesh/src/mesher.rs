@@ -49,6 +49,19 @@ impl Mesher {
         }
     }
 
+    /// What it makes, in a line (for tooltips).
+    pub fn summary(self) -> &'static str {
+        match self {
+            Mesher::MarchingCubes => "Vertices on the stored crossings: closed and manifold, fast, many slivers",
+            Mesher::DualContouring => {
+                "A vertex per surface piece of a cell: sharp edges and corners, closed and manifold"
+            }
+            Mesher::SingleVertexDualContouring => "One vertex a cell (the first wave's): a few edges are not manifold",
+            Mesher::Tetrahedra => "Marching tetrahedra on the cubic lattice, without clustering",
+            Mesher::ClusteredTetrahedra => "Marching tetrahedra with vertex clustering: fewer, better-shaped triangles",
+        }
+    }
+
     /// The short name the CLI and the bench take (`mc`, `dc`, `dc1`, `mt`, `rmt`).
     pub fn key(self) -> &'static str {
         match self {

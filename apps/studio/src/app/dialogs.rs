@@ -336,7 +336,10 @@ impl StudioApp {
             ui.heading(p.kind.title());
             let label = ui.label("Path:");
             let id = egui::Id::unique("path prompt field");
-            let r = ui.add(egui::TextEdit::singleline(&mut p.text).id(id).desired_width(420.0)).labelled_by(label.id);
+            let r = ui
+                .add(egui::TextEdit::singleline(&mut p.text).id(id).desired_width(420.0))
+                .labelled_by(label.id)
+                .on_hover_text("Type the file's path; Enter answers, Escape cancels");
             if !p.focused {
                 r.request_focus();
                 if let Some(mut state) = egui::text_edit::TextEditState::load(ui.ctx(), id) {
@@ -350,8 +353,8 @@ impl StudioApp {
             }
             go = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
             ui.horizontal(|ui| {
-                go |= ui.button("OK").clicked();
-                cancel |= ui.button("Cancel").clicked();
+                go |= ui.button("OK").on_hover_text("Use this path (Enter)").clicked();
+                cancel |= ui.button("Cancel").on_hover_text("Do nothing (Escape)").clicked();
             });
         });
         cancel |= modal.should_close();
@@ -437,13 +440,13 @@ impl StudioApp {
             ui.heading("Unsaved changes");
             ui.label(format!("Save the changes to {name} before {what}?"));
             ui.horizontal(|ui| {
-                if ui.button("Save").clicked() {
+                if ui.button("Save").on_hover_text("Save first, then go on").clicked() {
                     choice = Some(0);
                 }
-                if ui.button("Don't save").clicked() {
+                if ui.button("Don't save").on_hover_text("Go on and lose the unsaved changes").clicked() {
                     choice = Some(1);
                 }
-                if ui.button("Cancel").clicked() {
+                if ui.button("Cancel").on_hover_text("Stay with the scene as it is (Escape)").clicked() {
                     choice = Some(2);
                 }
             });
@@ -477,10 +480,10 @@ impl StudioApp {
                 found.origin.as_ref().map_or(String::new(), |p| format!(" (from {})", p.display()))
             ));
             ui.horizontal(|ui| {
-                if ui.button("Recover").clicked() {
+                if ui.button("Recover").on_hover_text("Open the autosaved work").clicked() {
                     choice = Some(true);
                 }
-                if ui.button("Discard").clicked() {
+                if ui.button("Discard").on_hover_text("Delete the autosaved work and start afresh").clicked() {
                     choice = Some(false);
                 }
             });
@@ -515,7 +518,7 @@ impl StudioApp {
             .default_width(460.0)
             .show(ctx, |ui| {
                 ui.add(egui::Label::new(text.as_str()).wrap());
-                close = ui.button("Dismiss").clicked();
+                close = ui.button("Dismiss").on_hover_text("Close this notice (Escape)").clicked();
             });
         if close {
             self.studio.notice = None;

@@ -51,8 +51,8 @@ impl StudioApp {
                 Err(e) => ui.label(e.to_string()),
             };
             ui.horizontal(|ui| {
-                go = ui.button("Import").clicked();
-                cancel = ui.button("Cancel").clicked();
+                go = ui.button("Import").on_hover_text("Convert the mesh into a new layer (Enter)").clicked();
+                cancel = ui.button("Cancel").on_hover_text("Do not import it (Escape)").clicked();
             });
         });
         if cancel || modal.should_close() {

@@ -41,6 +41,7 @@ impl StudioApp {
                 edited |= ui
                     .add_enabled(!shared, egui::TextEdit::singleline(&mut layer.name))
                     .labelled_by(label.id)
+                    .on_hover_text("The active layer's name")
                     .changed();
             });
         }
@@ -53,16 +54,22 @@ impl StudioApp {
             ui.horizontal(|ui| {
                 ui.label("Move");
                 for (k, name) in ["x ", "y ", "z "].into_iter().enumerate() {
-                    let r = ui.add(egui::DragValue::new(&mut t.translation[k]).speed(0.1).prefix(name));
+                    let r = ui
+                        .add(egui::DragValue::new(&mut t.translation[k]).speed(0.1).prefix(name))
+                        .on_hover_text("Where the layer's grid point 0 is (world units); a drag is one undo step");
                     changed_t |= r.changed();
                     dragging |= r.dragged() && !r.drag_started();
                 }
             });
             ui.horizontal(|ui| {
-                let r = ui.add(egui::DragValue::new(&mut yaw).speed(0.5).suffix("°").prefix("turn "));
+                let r = ui
+                    .add(egui::DragValue::new(&mut yaw).speed(0.5).suffix("°").prefix("turn "))
+                    .on_hover_text("The layer's turn about the vertical");
                 changed_t |= r.changed();
                 dragging |= r.dragged() && !r.drag_started();
-                let r = ui.add(egui::DragValue::new(&mut t.scale).speed(0.01).range(1e-3..=1e3).prefix("scale "));
+                let r = ui
+                    .add(egui::DragValue::new(&mut t.scale).speed(0.01).range(1e-3..=1e3).prefix("scale "))
+                    .on_hover_text("World units per cell of the layer");
                 changed_t |= r.changed();
                 dragging |= r.dragged() && !r.drag_started();
             });

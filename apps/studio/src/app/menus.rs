@@ -15,7 +15,7 @@ pub(super) fn mesher_choice(
 ) -> bool {
     ui.label(label);
     for m in strata_mesh::Mesher::ALL {
-        ui.radio_value(&mut options.mesher, m, m.name());
+        ui.radio_value(&mut options.mesher, m, m.name()).on_hover_text(m.summary());
     }
     let can_simplify = !viewport || options.mesher.block().is_some();
     if !can_simplify {
@@ -23,12 +23,18 @@ pub(super) fn mesher_choice(
     }
     let mut on = options.simplify.is_some();
     let text = if viewport { "Simplify chunks (borders kept)" } else { "Simplify (meshoptimizer)" };
-    if ui.add_enabled(can_simplify, egui::Checkbox::new(&mut on, text)).changed() {
+    if ui
+        .add_enabled(can_simplify, egui::Checkbox::new(&mut on, text))
+        .on_hover_text("Fewer triangles, within the error below")
+        .changed()
+    {
         options.simplify = on.then_some(0.1);
     }
     let mut settled = true;
     if let Some(e) = options.simplify.as_mut() {
-        let r = ui.add(egui::Slider::new(e, 0.01..=1.0).logarithmic(true).text("error (cells)"));
+        let r = ui
+            .add(egui::Slider::new(e, 0.01..=1.0).logarithmic(true).text("error (cells)"))
+            .on_hover_text("How far the simplified surface may stray, in cells");
         // While the slider is dragged nothing is remeshed; its last value counts.
         settled = !r.dragged() || r.drag_stopped();
     }
@@ -40,19 +46,20 @@ impl StudioApp {
         let ctx = ui.ctx().clone();
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
-                if ui.button(labelled("New", Command::New)).clicked() {
+                if ui.button(labelled("New", Command::New)).on_hover_text("Start a new scene (asks first if there is unsaved work)").clicked() {
                     self.guard(&ctx, Then::New);
                 }
-                if ui.button(labelled("Open…", Command::Open)).clicked() {
+                if ui.button(labelled("Open…", Command::Open)).on_hover_text("Open a scene file (.strata)").clicked() {
                     self.guard(&ctx, Then::Open);
                 }
                 ui.menu_button("Open recent", |ui| {
+                    ui.label("Scenes opened or saved lately").on_hover_text("Kept in the recovery folder's recent.txt");
                     let recent: Vec<PathBuf> = self.recent.paths().to_vec();
                     if recent.is_empty() {
                         ui.label("No recent scenes");
                     }
                     for path in recent {
-                        if ui.button(path.display().to_string()).clicked() {
+                        if ui.button(path.display().to_string()).on_hover_text("Open this scene").clicked() {
                             self.open_file(&ctx, path);
                         }
                     }
@@ -80,14 +87,18 @@ impl StudioApp {
                 {
                     self.ask_path(&ctx, Prompt::LoadReference, None);
                 }
-                if ui.button(labelled("Save", Command::Save)).clicked() {
+                if ui.button(labelled("Save", Command::Save)).on_hover_text("Save the scene (asks for a path the first time)").clicked() {
                     self.save(&ctx, None);
                 }
-                if ui.button(labelled("Save as…", Command::SaveAs)).clicked() {
+                if ui.button(labelled("Save as…", Command::SaveAs)).on_hover_text("Save the scene to a new file").clicked() {
                     self.ask_path(&ctx, Prompt::SaveAs, None);
                 }
                 ui.separator();
-                if ui.button("Export mesh… (glb, obj, stl, ply)").clicked() {
+                if ui
+                    .button("Export mesh… (glb, obj, stl, ply)")
+                    .on_hover_text("Write the visible layers as one mesh, with the mesher chosen below")
+                    .clicked()
+                {
                     self.ask_path(&ctx, Prompt::Export, None);
                 }
                 mesher_choice(ui, false, "Export with", &mut self.studio.export);
@@ -106,7 +117,8 @@ impl StudioApp {
                         .speed(0.5)
                         .prefix("smaller than ")
                         .suffix(" cells³"),
-                );
+                )
+                .on_hover_text("The smallest piece an export keeps, in cells³ of its layer's grid");
                 ui.separator();
                 let in_room = self.studio.in_session();
                 if ui
@@ -134,15 +146,15 @@ impl StudioApp {
                     ui.close();
                 }
                 ui.separator();
-                if ui.button("Quit").clicked() {
+                if ui.button("Quit").on_hover_text("Close the studio (asks first if there is unsaved work)").clicked() {
                     self.guard(&ctx, Then::Quit);
                 }
             });
             ui.menu_button("Edit", |ui| {
-                if ui.button(labelled("Undo", Command::Undo)).clicked() {
+                if ui.button(labelled("Undo", Command::Undo)).on_hover_text("Take back the last step (a whole stroke)").clicked() {
                     let _ = self.studio.act(Action::Undo);
                 }
-                if ui.button(labelled("Redo", Command::Redo)).clicked() {
+                if ui.button(labelled("Redo", Command::Redo)).on_hover_text("Do again the last step taken back").clicked() {
                     let _ = self.studio.act(Action::Redo);
                 }
                 ui.separator();
@@ -162,6 +174,8 @@ impl StudioApp {
                     self.toggle_layer_gizmo();
                 }
                 ui.menu_button("Insert mesh", |ui| {
+                    ui.label("Placed with a press on the model, then added, subtracted or intersected")
+                        .on_hover_text("Exactly: the core's CSG with the mesh as a brush");
                     let mut chosen = None;
                     for p in strata_editor::Primitive::ALL {
                         if ui
@@ -189,6 +203,7 @@ impl StudioApp {
                     }
                 });
                 ui.menu_button("Brush presets", |ui| {
+                    ui.label("Pick a named brush").on_hover_text("Also the Presets shelf in the tool panel");
                     for (preset, _) in self.shelf() {
                         if ui.button(&preset.name).on_hover_text(preset.summary()).clicked() {
                             self.pick_preset(&preset);
@@ -206,8 +221,14 @@ impl StudioApp {
                     }
                 });
             });
+            ui.menu_button("Brush", |ui| self.brush_menu(ui));
+            ui.menu_button("Layer", |ui| self.layer_menu(ui));
             ui.menu_button("View", |ui| {
-                if ui.checkbox(&mut self.studio.wireframe, labelled("Wireframe", Command::Wireframe)).changed() {
+                if ui
+                    .checkbox(&mut self.studio.wireframe, labelled("Wireframe", Command::Wireframe))
+                    .on_hover_text("Draw the triangles' edges over the surfaces")
+                    .changed()
+                {
                     ui.close();
                 }
                 use strata_render::AxisView::{Front, Right, Top};
@@ -221,7 +242,7 @@ impl StudioApp {
                     ("Bottom", Action::AxisView(Top, true), Command::View(Top, true)),
                 ];
                 for (label, action, command) in views {
-                    if ui.button(labelled(label, command)).clicked() {
+                    if ui.button(labelled(label, command)).on_hover_text("Look along a world axis at the model").clicked() {
                         let _ = self.studio.act(action);
                         ui.close();
                     }
@@ -236,7 +257,11 @@ impl StudioApp {
                     ui.close();
                 }
                 let mut ortho = self.studio.camera.orthographic;
-                if ui.checkbox(&mut ortho, labelled("Orthographic", Command::Orthographic)).changed() {
+                if ui
+                    .checkbox(&mut ortho, labelled("Orthographic", Command::Orthographic))
+                    .on_hover_text("Parallel projection (no perspective), as for axis views")
+                    .changed()
+                {
                     let _ = self.studio.act(Action::ToggleOrthographic);
                     ui.close();
                 }
@@ -256,19 +281,25 @@ impl StudioApp {
             ui.menu_button("Terrain", |ui| {
                 ui.horizontal(|ui| {
                     let label = ui.label("Seed");
-                    ui.add(egui::DragValue::new(&mut self.world_seed)).labelled_by(label.id);
+                    ui.add(egui::DragValue::new(&mut self.world_seed))
+                        .labelled_by(label.id)
+                        .on_hover_text("The seed new worlds are generated from");
                 });
                 if ui.button("New world…").on_hover_text("Create a world file from the seed and fly in it").clicked()
                 {
                     self.ask_path(&ctx, Prompt::NewWorld, None);
                     ui.close();
                 }
-                if ui.button("Open world…").clicked() {
+                if ui.button("Open world…").on_hover_text("Open a world file (.world) and fly in it").clicked() {
                     self.ask_path(&ctx, Prompt::OpenWorld, None);
                     ui.close();
                 }
                 let open = self.studio.terrain.is_some();
-                if ui.add_enabled(open, egui::Button::new(labelled("Bomb", Command::NextShape))).clicked() {
+                if ui
+                    .add_enabled(open, egui::Button::new(labelled("Bomb", Command::NextShape)))
+                    .on_hover_text("Launch a bomb along the view: it blasts a crater")
+                    .clicked()
+                {
                     let _ = self.studio.act(Action::Bomb);
                     ui.close();
                 }
@@ -280,13 +311,21 @@ impl StudioApp {
                     let _ = self.studio.act(Action::SaveWorld);
                     ui.close();
                 }
-                if ui.add_enabled(open, egui::Button::new("Close world")).clicked() {
+                if ui
+                    .add_enabled(open, egui::Button::new("Close world"))
+                    .on_hover_text("Write the world and go back to the scene")
+                    .clicked()
+                {
                     let _ = self.studio.act(Action::CloseWorld);
                     ui.close();
                 }
             });
             ui.menu_button("Help", |ui| {
-                if ui.button(labelled("Keyboard shortcuts", Command::Help)).clicked() {
+                if ui
+                    .button(labelled("Keyboard shortcuts", Command::Help))
+                    .on_hover_text("Every key, and what the pointer does")
+                    .clicked()
+                {
                     self.help_open = true;
                     ui.close();
                 }

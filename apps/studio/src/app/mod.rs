@@ -24,6 +24,7 @@ use crate::studio::{Action, Studio};
 mod dialogs;
 mod gizmo;
 pub use gizmo::Handle as GizmoHandle;
+mod brush_menus;
 mod input;
 mod jobs;
 mod layers_panel;

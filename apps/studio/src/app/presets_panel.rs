@@ -138,7 +138,7 @@ impl StudioApp {
                 }
                 if mine {
                     r.context_menu(|ui| {
-                        if ui.button("Delete preset").clicked() {
+                        if ui.button("Delete preset").on_hover_text("Delete this preset of yours").clicked() {
                             delete = Some(preset.name.clone());
                             ui.close();
                         }
@@ -159,7 +159,9 @@ impl StudioApp {
                 }
             }
             Some(name) => {
-                let field = ui.add(egui::TextEdit::singleline(name).hint_text("preset name").desired_width(120.0));
+                let field = ui
+                    .add(egui::TextEdit::singleline(name).hint_text("preset name").desired_width(120.0))
+                    .on_hover_text("The preset's name (Enter saves, Escape cancels)");
                 if !self.presets.focused {
                     field.request_focus();
                     self.presets.focused = true;
@@ -168,7 +170,9 @@ impl StudioApp {
                 if ui.button("Save").on_hover_text("Save the preset under this name").clicked() || enter {
                     save = Some(name.clone());
                 }
-                if ui.button("Cancel").clicked() || ui.input(|i| i.key_pressed(egui::Key::Escape)) {
+                if ui.button("Cancel").on_hover_text("Do not save it (Escape)").clicked()
+                    || ui.input(|i| i.key_pressed(egui::Key::Escape))
+                {
                     self.presets.naming = None;
                 }
             }

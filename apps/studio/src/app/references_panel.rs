@@ -134,19 +134,13 @@ impl StudioApp {
             });
         });
         ui.horizontal(|ui| {
-            if let Some(plane) = r.plane()
+            if r.plane().is_some()
                 && ui
                     .button("Look at it")
                     .on_hover_text("The view the picture is square to, centred on it (the front, right or top view)")
                     .clicked()
             {
-                let view = match plane {
-                    ReferencePlane::Front => strata_render::AxisView::Front,
-                    ReferencePlane::Side => strata_render::AxisView::Right,
-                    ReferencePlane::Top => strata_render::AxisView::Top,
-                };
-                self.studio.camera.target = r.center.as_vec3();
-                let _ = self.studio.act(Action::AxisView(view, false));
+                self.look_at_reference(i);
             }
             if ui
                 .add_enabled(free, egui::Button::new("Delete"))

@@ -97,8 +97,15 @@ impl StudioApp {
                 ui.colored_label(ui.visuals().error_fg_color, e);
             }
             ui.horizontal(|ui| {
-                go |= ui.button(if d.host { "Host" } else { "Join" }).clicked();
-                cancel |= ui.button("Cancel").clicked();
+                go |= ui
+                    .button(if d.host { "Host" } else { "Join" })
+                    .on_hover_text(if d.host {
+                        "Start the room and share this scene (Enter)"
+                    } else {
+                        "Join the room (Enter)"
+                    })
+                    .clicked();
+                cancel |= ui.button("Cancel").on_hover_text("Close this dialog (Escape)").clicked();
             });
         });
         cancel |= modal.should_close();

@@ -184,7 +184,7 @@ impl StudioApp {
         });
         ui.horizontal(|ui| {
             ui.label("lock stroke");
-            ui.selectable_value(&mut tool.axis_lock, None, "off");
+            ui.selectable_value(&mut tool.axis_lock, None, "off").on_hover_text("Strokes go where the pointer goes");
             for (axis, name) in ["along X", "along Y", "along Z"].into_iter().enumerate() {
                 ui.selectable_value(&mut tool.axis_lock, Some(axis), name)
                     .on_hover_text("Keep a stroke on the line through its start along this axis of the layer");
@@ -221,29 +221,48 @@ impl StudioApp {
         if let Some(m) = palette.get_mut(*current as usize).filter(|_| !shared) {
             ui.horizontal(|ui| {
                 let label = ui.label("material name");
-                changed |= ui.text_edit_singleline(&mut m.name).labelled_by(label.id).changed();
+                changed |= ui
+                    .text_edit_singleline(&mut m.name)
+                    .labelled_by(label.id)
+                    .on_hover_text("The current material's name")
+                    .changed();
             });
             ui.horizontal(|ui| {
                 ui.label("colour");
-                changed |= ui.color_edit_button_rgb(&mut m.color).changed();
-                egui::ComboBox::from_label("texture").selected_text(m.texture.name()).show_ui(ui, |ui| {
-                    for t in strata_editor::Texture::ALL {
-                        changed |= ui.selectable_value(&mut m.texture, t, t.name()).changed();
-                    }
-                });
+                changed |=
+                    ui.color_edit_button_rgb(&mut m.color).on_hover_text("The current material's colour").changed();
+                egui::ComboBox::from_label("texture")
+                    .selected_text(m.texture.name())
+                    .show_ui(ui, |ui| {
+                        for t in strata_editor::Texture::ALL {
+                            changed |= ui
+                                .selectable_value(&mut m.texture, t, t.name())
+                                .on_hover_text("A procedural pattern, projected on three axes")
+                                .changed();
+                        }
+                    })
+                    .response
+                    .on_hover_text("The current material's surface pattern");
             });
             changed |= ui
                 .add(egui::Slider::new(&mut m.scale, 1.0..=128.0).logarithmic(true).text("texture scale"))
                 .on_hover_text("World units per repeat of the texture")
                 .changed();
-            changed |= ui.add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness")).changed();
+            changed |= ui
+                .add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness"))
+                .on_hover_text("How blurred its highlights are: 0 glossy, 1 matte")
+                .changed();
         }
         ui.horizontal(|ui| {
             let dropper = if self.studio.eyedropper { "Eyedropper (armed)" } else { "Eyedropper (K)" };
             if ui.button(dropper).on_hover_text("Click the model to take the material under the pointer").clicked() {
                 self.studio.toggle_eyedropper();
             }
-            if ui.button("New material").clicked() {
+            if ui
+                .button("New material")
+                .on_hover_text("Add a material to the palette and make it current (also Brush menu)")
+                .clicked()
+            {
                 self.studio.add_material();
             }
         });
