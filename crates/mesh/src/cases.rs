@@ -116,9 +116,49 @@ pub(crate) fn cases() -> &'static [CaseLoops] {
     CASES.get_or_init(|| (0..256).map(build).collect())
 }
 
+/// One edge of a cell as a triangle names it: its axis (0 x, 1 y, 2 z) and its lower corner's
+/// offset in the cell.
+pub type TriangleEdge = (usize, [usize; 3]);
+
+/// The triangles [`crate::mesh_block`] makes in a cell of `case` (bit `k` set: corner `k`,
+/// at `(k & 1, (k >> 1) & 1, (k >> 2) & 1)`, is inside), in the order it makes them, each as
+/// the three cell edges its vertices lie on, counter-clockwise seen from outside: what a GPU
+/// mesher needs to make the same mesh.
+pub fn case_triangles(case: u8) -> Vec<[TriangleEdge; 3]> {
+    let mut out = Vec::new();
+    for lp in &cases()[case as usize] {
+        let e: Vec<TriangleEdge> = lp.edges.iter().map(|e| (e.axis, e.lower)).collect();
+        let (k, a) = (e.len(), lp.apex);
+        for d in 1..k - 1 {
+            // As `mesh_block`: [apex, q, p] with p = loop[a + d], q = loop[a + d + 1].
+            out.push([e[a], e[(a + d + 1) % k], e[(a + d) % k]]);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn case_triangles_fan_each_loop_and_cross_only_crossed_edges() {
+        let mut most = 0;
+        for case in 0..=255u8 {
+            let tris = case_triangles(case);
+            let edges: usize = cases()[case as usize].iter().map(|l| l.edges.len()).sum();
+            let loops = cases()[case as usize].len();
+            assert_eq!(tris.len(), edges - 2 * loops, "case {case}");
+            let inside = |c: [usize; 3]| (case >> (c[0] | (c[1] << 1) | (c[2] << 2))) & 1 == 1;
+            for (axis, lower) in tris.iter().flatten() {
+                let mut upper = *lower;
+                upper[*axis] += 1;
+                assert_ne!(inside(*lower), inside(upper), "case {case}: edge {axis} {lower:?} is not crossed");
+            }
+            most = most.max(tris.len());
+        }
+        assert_eq!(most, 5, "a cell makes at most five triangles");
+    }
 
     #[test]
     fn every_crossed_edge_appears_in_exactly_one_loop_of_its_case() {

@@ -50,6 +50,7 @@ mod weld;
 mod workers;
 
 pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS};
+pub use cases::{TriangleEdge, case_triangles};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh};
 pub use marching::{mesh_block, surface_chunks};
 pub use mesh::{Mesh, VertexMaterial};

@@ -1,0 +1,441 @@
+//! # strata-gpu-mesh
+//!
+//! Surface extraction in wgpu compute. [`GpuMarcher`] meshes many voxel blocks in one batch of
+//! dispatches into GPU buffers a renderer can draw from directly: the same mesh as the CPU's
+//! [`strata_mesh::mesh_block`], bit for bit in its positions and triangles (normals are
+//! unpacked in `f32` on the GPU and in `f64` on the CPU, so they agree to a few ulps). The WGSL
+//! is `shaders/marching_cubes.wgsl` (its passes are described there); it binds at most four
+//! storage buffers a stage, so it runs on downlevel adapters too, lavapipe included.
+//!
+//! What is uploaded per block: its node bits (a word a row of up to 32 nodes), its crossing
+//! lookup (per axis, the crossing index of every node's edge) and its crossings (lower node,
+//! `t`, packed normal). Blocks with seams (a face shared with a finer neighbour, whose
+//! triangles the CPU splits) are not meshed here: [`GpuMarcher::mesh`] refuses them, and the
+//! caller meshes them on the CPU.
+//!
+//! Not built yet (issue 33 lists them): keeping unchanged blocks resident across frames, dual
+//! contouring, the viewport's choice, materials on the vertices.
+#![warn(missing_docs)]
+
+use bytemuck::{Pod, Zeroable};
+use strata_mesh::Mesh;
+use strata_volume::{Axis, VoxelBlock};
+use thiserror::Error;
+use wgpu::util::DeviceExt;
+
+/// The WGSL source.
+pub const SHADER: &str = include_str!("../../../shaders/marching_cubes.wgsl");
+
+/// Threads of a chunk's workgroup (the shader's `THREADS`).
+const THREADS: u32 = 256;
+/// Words of the case table at the start of the data buffer.
+const TABLE_WORDS: usize = 256 * 16;
+/// The most workgroups in one dimension of a dispatch (WebGPU's and downlevel's limit).
+const MAX_GROUPS: u32 = 65_535;
+/// A crossing's lookup entry where a node's edge has none.
+const NONE: u32 = u32::MAX;
+
+/// Why the GPU did not mesh.
+#[derive(Debug, Error, PartialEq)]
+pub enum GpuMeshError {
+    /// The device lacks a limit the shader needs.
+    #[error("the GPU lacks what meshing needs: {0}")]
+    Limits(String),
+    /// A block has seams with a finer neighbour (mesh it on the CPU).
+    #[error("block {0} has seams with a finer neighbour: it is meshed on the CPU")]
+    Seams(usize),
+    /// A block is larger than the shader takes (255 cells a side) or the batch too large.
+    #[error("the batch is too large for one dispatch: {0}")]
+    TooLarge(String),
+    /// Reading the results back failed (the device was lost).
+    #[error("reading the GPU's mesh back failed: {0}")]
+    Readback(String),
+}
+
+/// What the shader needs of a device, checked by [`GpuMarcher::new`].
+pub fn check_limits(limits: &wgpu::Limits) -> Result<(), GpuMeshError> {
+    let needs = [
+        ("storage buffers a compute stage", limits.max_storage_buffers_per_shader_stage, 4),
+        ("compute workgroup size x", limits.max_compute_workgroup_size_x, THREADS),
+        ("compute invocations a workgroup", limits.max_compute_invocations_per_workgroup, THREADS),
+        ("compute workgroups a dimension", limits.max_compute_workgroups_per_dimension, 1),
+    ];
+    for (what, has, need) in needs {
+        if has < need {
+            return Err(GpuMeshError::Limits(format!("{what}: {has}, needs {need}")));
+        }
+    }
+    Ok(())
+}
+
+/// A block as the shader reads it (the WGSL `Chunk`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ChunkInfo {
+    n: u32,
+    m: u32,
+    words: u32,
+    node_base: u32,
+    lookup_base: u32,
+    vertex_base: u32,
+    y_base: u32,
+    z_base: u32,
+    spacing: f32,
+    offset: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct Params {
+    chunk_count: u32,
+    crossing_count: u32,
+    place_row: u32,
+    unused: u32,
+}
+
+/// The case table as the shader reads it (see the WGSL).
+fn case_table() -> Vec<u32> {
+    let mut out = vec![0u32; TABLE_WORDS];
+    for case in 0..=255u8 {
+        let tris = strata_mesh::case_triangles(case);
+        let at = case as usize * 16;
+        out[at] = tris.len() as u32;
+        for (j, (axis, lower)) in tris.iter().flatten().enumerate() {
+            out[at + 1 + j] = *axis as u32 | (lower[0] as u32) << 2 | (lower[1] as u32) << 3 | (lower[2] as u32) << 4;
+        }
+    }
+    out
+}
+
+/// A batch meshed on the GPU: one vertex buffer (position and normal, six `f32` a vertex) and
+/// one index buffer for all its blocks, and where each block's part is.
+#[derive(Debug)]
+pub struct GpuBatch {
+    /// Six `f32` a vertex: position (grid units from the block's chunk origin), normal.
+    pub vertices: wgpu::Buffer,
+    /// Three `u32` a triangle, indexing `vertices` (the whole batch's).
+    pub indices: wgpu::Buffer,
+    /// Per block: its first vertex and its vertex count.
+    pub vertex_ranges: Vec<(u32, u32)>,
+    /// Words of `indices` written at most (the batch's capacity).
+    pub index_capacity: u64,
+    scratch: wgpu::Buffer,
+    chunk_count: u32,
+}
+
+/// The pipelines of the marching-cubes passes.
+#[derive(Debug)]
+pub struct GpuMarcher {
+    count: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    emit: wgpu::ComputePipeline,
+    place: wgpu::ComputePipeline,
+    table: Vec<u32>,
+}
+
+impl GpuMarcher {
+    /// The pipelines on `device`, refused with [`GpuMeshError::Limits`] when it lacks what the
+    /// shader needs.
+    pub fn new(device: &wgpu::Device) -> Result<Self, GpuMeshError> {
+        check_limits(&device.limits())?;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("strata marching_cubes.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Ok(GpuMarcher {
+            count: pipeline("count"),
+            scan: pipeline("scan_chunks"),
+            emit: pipeline("emit"),
+            place: pipeline("place"),
+            table: case_table(),
+        })
+    }
+
+    /// Meshes `blocks` (their cells `0..n`, as [`strata_mesh::mesh_block`] does) into one
+    /// batch, submitted to `queue`. Blocks with seams are refused (the batch is not made).
+    pub fn mesh(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+    ) -> Result<GpuBatch, GpuMeshError> {
+        let chunk_count = blocks.len() as u32;
+        if chunk_count as usize != blocks.len() || chunk_count > MAX_GROUPS {
+            return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {MAX_GROUPS})", blocks.len())));
+        }
+        let mut infos = Vec::with_capacity(blocks.len());
+        let mut data = self.table.clone();
+        let mut crossings: Vec<[u32; 4]> = Vec::new();
+        let mut ranges = Vec::with_capacity(blocks.len());
+        let mut index_capacity = 0u64;
+        for (k, block) in blocks.iter().enumerate() {
+            if !block.seams().is_empty() {
+                return Err(GpuMeshError::Seams(k));
+            }
+            let n = block.cells();
+            if n > 255 {
+                return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most 255)")));
+            }
+            let m = n + 1;
+            let words = m.div_ceil(32);
+            let node_base = data.len();
+            for z in 0..m {
+                for y in 0..m {
+                    let row = block.row(y, z);
+                    for w in 0..words {
+                        data.push((row >> (32 * w)) as u32);
+                    }
+                }
+            }
+            let lookup_base = data.len();
+            for axis in Axis::ALL {
+                for z in 0..m {
+                    for y in 0..m {
+                        for x in 0..m {
+                            data.push(block.crossing_index(axis, x, y, z).unwrap_or(NONE));
+                        }
+                    }
+                }
+            }
+            let vertex_base = crossings.len() as u32;
+            let mut axis_base = [0u32; 3];
+            for axis in Axis::ALL {
+                axis_base[axis.index()] = crossings.len() as u32 - vertex_base;
+                for c in block.crossings(axis) {
+                    let [x, y, z] = c.lower.map(u32::from);
+                    let lower = x | y << 8 | z << 16 | (axis.index() as u32) << 24;
+                    crossings.push([lower, c.t.to_bits(), c.normal.0 as u32, k as u32]);
+                }
+            }
+            let vertices = crossings.len() as u32 - vertex_base;
+            ranges.push((vertex_base, vertices));
+            // At most five triangles a mixed cell.
+            let mixed: u64 = (0..n)
+                .flat_map(|z| (0..n).map(move |y| (y, z)))
+                .map(|(y, z)| block.mixed_cells(y, z).count_ones() as u64)
+                .sum();
+            index_capacity += mixed * 15;
+            let offset = block.offset().map(|o| o as u32);
+            infos.push(ChunkInfo {
+                n: n as u32,
+                m: m as u32,
+                words: words as u32,
+                node_base: node_base as u32,
+                lookup_base: lookup_base as u32,
+                vertex_base,
+                y_base: axis_base[1],
+                z_base: axis_base[2],
+                spacing: block.level().spacing() as f32,
+                offset,
+            });
+        }
+        if data.len() > u32::MAX as usize || crossings.len() > u32::MAX as usize / 6 {
+            return Err(GpuMeshError::TooLarge("more than 2³² words of blocks".into()));
+        }
+        let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
+            // (An empty binding is not allowed: at least one word.)
+            let contents: &[u8] = if bytes.is_empty() { &[0; 4] } else { bytes };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | extra,
+            })
+        };
+        let empty = |label: &str, words: u64, extra: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: words.max(1) * 4,
+                usage: wgpu::BufferUsages::STORAGE | extra,
+                mapped_at_creation: false,
+            })
+        };
+        let crossing_count = crossings.len() as u32;
+        let place_groups = crossing_count.div_ceil(64);
+        let place_x = place_groups.clamp(1, MAX_GROUPS);
+        let place_y = place_groups.div_ceil(place_x).max(1);
+        if place_y > MAX_GROUPS {
+            return Err(GpuMeshError::TooLarge(format!("{crossing_count} crossings")));
+        }
+        let params = Params { chunk_count, crossing_count, place_row: place_x * 64, unused: 0 };
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("gpu mesh params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let chunks = storage("gpu mesh chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::empty());
+        let data = storage("gpu mesh data", bytemuck::cast_slice(&data), wgpu::BufferUsages::empty());
+        let crossing_buffer =
+            storage("gpu mesh crossings", bytemuck::cast_slice(&crossings), wgpu::BufferUsages::empty());
+        let scratch_words = chunk_count as u64 * (THREADS as u64 + 2) + 1;
+        let scratch = empty("gpu mesh scratch", scratch_words, wgpu::BufferUsages::COPY_SRC);
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX;
+        let indices = empty("gpu mesh indices", index_capacity, copy);
+        let vertices = empty("gpu mesh vertices", crossing_count as u64 * 6, copy);
+        let all = [
+            (0, &uniform),
+            (1, &chunks),
+            (2, &data),
+            (3, &crossing_buffer),
+            (4, &scratch),
+            (5, &indices),
+            (6, &vertices),
+        ];
+        // Each pass binds only what its entry point uses (its layout is derived from it).
+        let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
+            let entries: Vec<wgpu::BindGroupEntry<'_>> = all
+                .iter()
+                .filter(|(b, _)| used.contains(b))
+                .map(|(b, buffer)| wgpu::BindGroupEntry { binding: *b, resource: buffer.as_entire_binding() })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            })
+        };
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("gpu mesh") });
+        {
+            let mut pass =
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            if chunk_count > 0 {
+                pass.set_pipeline(&self.count);
+                pass.set_bind_group(0, &group(&self.count, &[0, 1, 2, 4]), &[]);
+                pass.dispatch_workgroups(chunk_count, 1, 1);
+            }
+            pass.set_pipeline(&self.scan);
+            pass.set_bind_group(0, &group(&self.scan, &[0, 4]), &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+            if chunk_count > 0 {
+                pass.set_pipeline(&self.emit);
+                pass.set_bind_group(0, &group(&self.emit, &[0, 1, 2, 4, 5]), &[]);
+                pass.dispatch_workgroups(chunk_count, 1, 1);
+            }
+            if crossing_count > 0 {
+                pass.set_pipeline(&self.place);
+                pass.set_bind_group(0, &group(&self.place, &[0, 1, 3, 6]), &[]);
+                pass.dispatch_workgroups(place_x, place_y, 1);
+            }
+        }
+        queue.submit([encoder.finish()]);
+        Ok(GpuBatch { vertices, indices, vertex_ranges: ranges, index_capacity, scratch, chunk_count })
+    }
+}
+
+/// Copies `buffer`'s first `words` words back to the CPU (waiting for the GPU).
+fn read_words(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    words: u64,
+) -> Result<Vec<u32>, GpuMeshError> {
+    if words == 0 {
+        return Ok(Vec::new());
+    }
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("gpu mesh readback"),
+        size: words * 4,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder =
+        device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("gpu mesh readback") });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, words * 4);
+    queue.submit([encoder.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuMeshError::Readback(e.to_string()))?;
+    rx.recv().map_err(|e| GpuMeshError::Readback(e.to_string()))?.map_err(|e| GpuMeshError::Readback(e.to_string()))?;
+    let view = staging.slice(..).get_mapped_range().map_err(|e| GpuMeshError::Readback(e.to_string()))?;
+    let words = bytemuck::cast_slice(&view).to_vec();
+    drop(view);
+    staging.unmap();
+    Ok(words)
+}
+
+impl GpuBatch {
+    /// The triangles of the whole batch (read back: waits for the GPU).
+    pub fn triangle_count(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<u32, GpuMeshError> {
+        let scratch = read_words(device, queue, &self.scratch, self.scratch_words())?;
+        Ok(scratch[self.first_at(self.chunk_count)])
+    }
+
+    fn scratch_words(&self) -> u64 {
+        self.chunk_count as u64 * (THREADS as u64 + 2) + 1
+    }
+
+    fn first_at(&self, k: u32) -> usize {
+        (self.chunk_count * (THREADS + 1) + k) as usize
+    }
+
+    /// Each block's mesh as the CPU keeps it (vertices and indices local to the block), read
+    /// back: for tests and exports, not for drawing.
+    pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<Mesh>, GpuMeshError> {
+        let scratch = read_words(device, queue, &self.scratch, self.scratch_words())?;
+        let total = scratch[self.first_at(self.chunk_count)] as u64 * 3;
+        if total > self.index_capacity {
+            return Err(GpuMeshError::Readback(format!("{total} indices past the capacity {}", self.index_capacity)));
+        }
+        let indices = read_words(device, queue, &self.indices, total)?;
+        let vertex_words = self.vertex_ranges.last().map_or(0, |(b, n)| (*b + *n) as u64 * 6);
+        let vertices: Vec<f32> =
+            bytemuck::cast_slice(&read_words(device, queue, &self.vertices, vertex_words)?).to_vec();
+        let mut out = Vec::with_capacity(self.vertex_ranges.len());
+        for (k, &(base, count)) in self.vertex_ranges.iter().enumerate() {
+            let mut mesh = Mesh::default();
+            for v in vertices[base as usize * 6..(base + count) as usize * 6].chunks_exact(6) {
+                mesh.positions.push([v[0], v[1], v[2]]);
+                mesh.normals.push([v[3], v[4], v[5]]);
+            }
+            let (from, to) =
+                (scratch[self.first_at(k as u32)] as usize * 3, scratch[self.first_at(k as u32 + 1)] as usize * 3);
+            mesh.indices.extend(indices[from..to].iter().map(|i| i - base));
+            out.push(mesh);
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shader_parses_and_validates() {
+        let module = naga::front::wgsl::parse_str(SHADER).expect("WGSL parses");
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+            .validate(&module)
+            .expect("WGSL validates");
+        for entry in ["count", "scan_chunks", "emit", "place"] {
+            assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
+        }
+    }
+
+    #[test]
+    fn the_case_table_holds_every_case_in_its_sixteen_words() {
+        let t = case_table();
+        assert_eq!(t.len(), TABLE_WORDS);
+        assert_eq!((t[0], t[255 * 16]), (0, 0), "no triangles in an empty or a full cell");
+        assert_eq!(t[16], 1, "one corner inside: one triangle");
+        assert!((0..256).all(|c| t[c * 16] <= 5));
+    }
+
+    #[test]
+    fn downlevel_limits_are_enough_and_fewer_are_refused() {
+        assert!(check_limits(&wgpu::Limits::downlevel_defaults()).is_ok());
+        let poor = wgpu::Limits { max_storage_buffers_per_shader_stage: 2, ..wgpu::Limits::downlevel_defaults() };
+        let e = check_limits(&poor).unwrap_err();
+        assert!(e.to_string().contains("storage buffers"), "{e}");
+    }
+}

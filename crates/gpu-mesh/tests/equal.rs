@@ -1,0 +1,142 @@
+//! The GPU's marching cubes equals the CPU's: for the 256 corner cases of one cell, for random
+//! edits (grid-snapped ones too) meshed chunk by chunk across chunk borders, and for blocks of
+//! finer levels; positions and triangles bit for bit, normals within 1e-5.
+//!
+//! Without a GPU adapter (not even lavapipe) these tests skip with a message, unless
+//! `STRATA_REQUIRE_GPU=1` is set (CI sets it), which makes a missing adapter a failure.
+
+use glam::{DVec3, Vec3};
+use proptest::prelude::*;
+use strata_gpu_mesh::{GpuMarcher, GpuMeshError};
+use strata_mesh::{Mesh, mesh_block};
+use strata_render::Gpu;
+use strata_volume::brush::{Cuboid, Sphere};
+use strata_volume::{ChunkKey, Level, Volume, VoxelBlock};
+
+fn gpu() -> Option<Gpu> {
+    match Gpu::headless() {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var("STRATA_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("STRATA_REQUIRE_GPU=1 but no adapter: {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping the GPU meshing test: {e}");
+            None
+        }
+    }
+}
+
+/// Asserts the GPU meshes of `blocks` equal the CPU's.
+fn assert_equal(gpu: &Gpu, marcher: &GpuMarcher, blocks: &[VoxelBlock], what: &str) {
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    let batch = marcher.mesh(&gpu.device, &gpu.queue, &refs).unwrap();
+    let meshes = batch.read_back(&gpu.device, &gpu.queue).unwrap();
+    let mut triangles = 0;
+    for (k, (block, got)) in blocks.iter().zip(&meshes).enumerate() {
+        let mut want = Mesh::default();
+        mesh_block(block, &mut want);
+        assert_eq!(got.positions, want.positions, "{what}: block {k}'s positions");
+        assert_eq!(got.indices, want.indices, "{what}: block {k}'s triangles");
+        for (a, b) in got.normals.iter().zip(&want.normals) {
+            let d = Vec3::from(*a) - Vec3::from(*b);
+            assert!(d.length() < 1e-5, "{what}: block {k}: normal {a:?} against {b:?}");
+        }
+        triangles += want.triangle_count();
+    }
+    assert_eq!(batch.triangle_count(&gpu.device, &gpu.queue).unwrap() as usize, triangles, "{what}");
+}
+
+#[test]
+fn all_256_corner_cases_of_one_cell_in_one_batch() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let blocks: Vec<VoxelBlock> = (0..256usize)
+        .map(|case| {
+            let inside = move |x: usize, y: usize, z: usize| {
+                (1..=2).contains(&x) && (1..=2).contains(&y) && (1..=2).contains(&z) && {
+                    let k = (x - 1) | ((y - 1) << 1) | ((z - 1) << 2);
+                    (case >> k) & 1 == 1
+                }
+            };
+            VoxelBlock::from_fn(ChunkKey::new(case as i32, 0, 0), Level::BASE, inside, |axis, lower| {
+                let t = 0.3 + 0.1 * ((lower[0] + 2 * lower[1] + 3 * lower[2] + axis.index()) % 5) as f32;
+                (t, Vec3::new(0.3, -0.5, 0.8).normalize())
+            })
+        })
+        .collect();
+    assert_equal(&gpu, &marcher, &blocks, "corner cases");
+}
+
+#[test]
+fn an_empty_batch_and_empty_blocks_make_nothing() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    assert_equal(&gpu, &marcher, &[], "no blocks");
+    let empty = Volume::new().extract_block(ChunkKey::new(0, 0, 0));
+    assert_equal(&gpu, &marcher, &[empty.clone(), empty], "empty blocks");
+}
+
+/// Every block with a surface of `v`.
+fn surface_blocks(v: &Volume) -> Vec<VoxelBlock> {
+    strata_mesh::surface_chunks(v).into_iter().map(|k| v.extract_block(k)).collect()
+}
+
+#[test]
+fn a_sphere_across_chunk_borders_and_finer_levels() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    for level in [Level::BASE, Level::new(1).unwrap(), Level::new(2).unwrap()] {
+        let mut v = Volume::with_level(level);
+        v.add(&Sphere::new(DVec3::new(16.0, 15.5, 17.25), 11.3).unwrap()).unwrap();
+        let blocks = surface_blocks(&v);
+        assert!(blocks.len() >= 8, "the sphere spans chunk borders");
+        assert_equal(&gpu, &marcher, &blocks, &format!("sphere at level {}", level.get()));
+    }
+}
+
+#[test]
+fn blocks_with_seams_are_refused_for_the_cpu() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(16.0, 16.0, 16.0), 10.0).unwrap()).unwrap();
+    // A finer chunk beside coarser ones: the coarse blocks facing it have seams.
+    let surface = v.chunks().find(|(_, c)| matches!(c, strata_volume::Chunk::Lists(_))).map(|(k, _)| k).unwrap();
+    v.set_chunk_level(surface, Level::new(1).unwrap());
+    let blocks = surface_blocks(&v);
+    assert!(blocks.iter().any(|b| !b.seams().is_empty()), "a block faces the finer chunk");
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    assert!(matches!(marcher.mesh(&gpu.device, &gpu.queue, &refs), Err(GpuMeshError::Seams(_))));
+    // Without them the batch is meshed, equal to the CPU's.
+    let plain: Vec<VoxelBlock> = blocks.into_iter().filter(|b| b.seams().is_empty()).collect();
+    assert_equal(&gpu, &marcher, &plain, "the blocks without seams");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Random unions and differences of spheres and boxes, their centres and sizes snapped to
+    /// the grid (faces on grid planes, crossings at node ends) or not.
+    #[test]
+    fn random_edits_mesh_alike(
+        edits in prop::collection::vec((any::<bool>(), any::<bool>(), prop::array::uniform3(2.0f64..40.0), 1.0f64..9.0, any::<bool>()), 1..6),
+    ) {
+        let Some(gpu) = gpu() else { return Ok(()) };
+        let marcher = GpuMarcher::new(&gpu.device).unwrap();
+        let mut v = Volume::new();
+        for (add, sphere, at, size, snapped) in edits {
+            let (c, r) = if snapped { (DVec3::from_array(at).round(), size.round()) } else { (DVec3::from_array(at), size) };
+            let r = r.max(1.0);
+            let result = if sphere {
+                let b = Sphere::new(c, r).unwrap();
+                if add { v.add(&b) } else { v.subtract(&b) }
+            } else {
+                let b = Cuboid::new(c, DVec3::splat(r)).unwrap();
+                if add { v.add(&b) } else { v.subtract(&b) }
+            };
+            result.unwrap();
+        }
+        let blocks = surface_blocks(&v);
+        assert_equal(&gpu, &marcher, &blocks, "random edits");
+    }
+}

@@ -1,0 +1,226 @@
+// Marching cubes on voxel blocks, many chunks a dispatch, for strata-gpu-mesh.
+//
+// The same mesh as the CPU's `strata_mesh::mesh_block`, bit for bit in its positions and
+// triangles: a vertex per stored edge crossing (the block's x crossings, then y, then z, placed
+// exactly where the crossing is), and per mixed cell the triangles of its case from the same
+// table (`strata_mesh::case_triangles`), cells in the CPU's order (x fastest, then y, then z), so
+// that a prefix sum over the cells puts every triangle where the CPU puts it.
+//
+// Passes, each a dispatch:
+//   count         one workgroup a chunk: each of 256 threads counts the triangles of a run of
+//                 consecutive cells; a workgroup scan gives each thread's first triangle within
+//                 the chunk and the chunk's total.
+//   scan_chunks   one workgroup: the chunks' first triangles, the last entry the batch's total.
+//   emit          one workgroup a chunk: each thread writes its cells' triangles.
+//   place         one thread a crossing: its vertex's position and normal.
+
+struct Chunk {
+    // Cells a side, nodes a side (n + 1), u32 words a row of node bits.
+    n: u32,
+    m: u32,
+    words: u32,
+    // Where this chunk's node bits and crossing lookup start.
+    node_base: u32,
+    lookup_base: u32,
+    // The chunk's first vertex in the batch, and where its y and z crossings start after it.
+    vertex_base: u32,
+    y_base: u32,
+    z_base: u32,
+    // Grid units per cell (the block's level spacing) and the block's node 0 in its chunk.
+    spacing: f32,
+    off_x: u32,
+    off_y: u32,
+    off_z: u32,
+};
+
+struct Params {
+    chunk_count: u32,
+    crossing_count: u32,
+    // Threads a row of the place dispatch (its x workgroups × 64).
+    place_row: u32,
+    unused: u32,
+};
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> chunks: array<Chunk>;
+// Read-only words (at most four storage buffers a stage, as downlevel adapters allow):
+//   0..4096   the case table: per case 16 words, the triangle count, then three edges a
+//             triangle, each axis | dx << 2 | dy << 3 | dz << 4;
+//   node bits per chunk at `node_base`: row (y + m z) is `words` words, bit x node (x, y, z);
+//   the crossing lookup per chunk at `lookup_base`: per axis m³ entries, the index among the
+//             chunk's crossings of that axis of the edge whose lower node is (x, y, z), or
+//             0xffffffff.
+@group(0) @binding(2) var<storage, read> data: array<u32>;
+// Per crossing: lower node x | y << 8 | z << 16 | axis << 24, t's bits, the packed normal, the
+// chunk.
+@group(0) @binding(3) var<storage, read> crossings: array<vec4<u32>>;
+// Scratch: each chunk's threads' first triangles (256 a chunk), then the chunks' triangle
+// counts, then their first triangles and the batch's total.
+@group(0) @binding(4) var<storage, read_write> scratch: array<u32>;
+@group(0) @binding(5) var<storage, read_write> indices: array<u32>;
+// Per vertex: position (3), normal (3).
+@group(0) @binding(6) var<storage, read_write> vertices: array<f32>;
+
+const THREADS: u32 = 256u;
+
+// Where the scratch's parts start.
+fn chunk_triangles_at(k: u32) -> u32 {
+    return params.chunk_count * THREADS + k;
+}
+
+fn chunk_first_at(k: u32) -> u32 {
+    return params.chunk_count * (THREADS + 1u) + k;
+}
+
+var<workgroup> sums: array<u32, 256>;
+
+// Whether node (x, y, z) of chunk `c` is inside.
+fn inside(c: Chunk, x: u32, y: u32, z: u32) -> u32 {
+    let word = data[c.node_base + (y + c.m * z) * c.words + x / 32u];
+    return (word >> (x % 32u)) & 1u;
+}
+
+// Cell `i` (x fastest) of chunk `c`: its corner pattern, bit k for corner
+// (k & 1, (k >> 1) & 1, (k >> 2) & 1).
+fn case_of(c: Chunk, cell: vec3<u32>) -> u32 {
+    var case_bits = 0u;
+    for (var k = 0u; k < 8u; k++) {
+        let corner = cell + vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u);
+        case_bits |= inside(c, corner.x, corner.y, corner.z) << k;
+    }
+    return case_bits;
+}
+
+fn cell_at(c: Chunk, i: u32) -> vec3<u32> {
+    return vec3<u32>(i % c.n, (i / c.n) % c.n, i / (c.n * c.n));
+}
+
+// The cells thread `t` of a chunk's workgroup takes: a run of consecutive cells.
+fn cell_run(c: Chunk, t: u32) -> vec2<u32> {
+    let cells = c.n * c.n * c.n;
+    let per = (cells + THREADS - 1u) / THREADS;
+    return vec2<u32>(min(cells, t * per), min(cells, (t + 1u) * per));
+}
+
+// The exclusive prefix sum of `value` over the workgroup's threads (all of them must call it);
+// afterwards `sums[THREADS - 1]` holds the total until the next call.
+fn scan(t: u32, value: u32) -> u32 {
+    sums[t] = value;
+    workgroupBarrier();
+    for (var d = 1u; d < THREADS; d = d * 2u) {
+        var add = 0u;
+        if (t >= d) {
+            add = sums[t - d];
+        }
+        workgroupBarrier();
+        sums[t] = sums[t] + add;
+        workgroupBarrier();
+    }
+    return sums[t] - value;
+}
+
+@compute @workgroup_size(256)
+fn count(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let k = wg.x;
+    let c = chunks[k];
+    let run = cell_run(c, t);
+    var total = 0u;
+    for (var i = run.x; i < run.y; i++) {
+        total += data[case_of(c, cell_at(c, i)) * 16u];
+    }
+    let first = scan(t, total);
+    scratch[k * THREADS + t] = first;
+    if (t == THREADS - 1u) {
+        scratch[chunk_triangles_at(k)] = first + total;
+    }
+}
+
+@compute @workgroup_size(256)
+fn scan_chunks(@builtin(local_invocation_index) t: u32) {
+    let count = params.chunk_count;
+    var carry = 0u;
+    for (var start = 0u; start < count; start += THREADS) {
+        let i = start + t;
+        var value = 0u;
+        if (i < count) {
+            value = scratch[chunk_triangles_at(i)];
+        }
+        let first = scan(t, value);
+        if (i < count) {
+            scratch[chunk_first_at(i)] = carry + first;
+        }
+        carry += sums[THREADS - 1u];
+        workgroupBarrier();
+    }
+    if (t == 0u) {
+        scratch[chunk_first_at(count)] = carry;
+    }
+}
+
+@compute @workgroup_size(256)
+fn emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let k = wg.x;
+    let c = chunks[k];
+    let run = cell_run(c, t);
+    let m3 = c.m * c.m * c.m;
+    var at = (scratch[chunk_first_at(k)] + scratch[k * THREADS + t]) * 3u;
+    for (var i = run.x; i < run.y; i++) {
+        let cell = cell_at(c, i);
+        let case_index = case_of(c, cell) * 16u;
+        let triangles = data[case_index];
+        for (var j = 0u; j < triangles * 3u; j++) {
+            let code = data[case_index + 1u + j];
+            let axis = code & 3u;
+            let node = cell + vec3<u32>((code >> 2u) & 1u, (code >> 3u) & 1u, (code >> 4u) & 1u);
+            let index = data[c.lookup_base + axis * m3 + node.x + c.m * (node.y + c.m * node.z)];
+            var base = c.vertex_base;
+            if (axis == 1u) {
+                base += c.y_base;
+            } else if (axis == 2u) {
+                base += c.z_base;
+            }
+            indices[at] = base + index;
+            at += 1u;
+        }
+    }
+}
+
+// The unit normal of an octahedral-packed one (`strata_volume::normal::unpack_normal`).
+fn unpack_normal(p: u32) -> vec3<f32> {
+    let x = f32(p & 0xffu) / 255.0 * 2.0 - 1.0;
+    let y = f32((p >> 8u) & 0xffu) / 255.0 * 2.0 - 1.0;
+    let z = 1.0 - abs(x) - abs(y);
+    var n = vec3<f32>(x, y, z);
+    if (z < 0.0) {
+        let sx = select(-1.0, 1.0, x >= 0.0);
+        let sy = select(-1.0, 1.0, y >= 0.0);
+        n = vec3<f32>((1.0 - abs(y)) * sx, (1.0 - abs(x)) * sy, z);
+    }
+    return normalize(n);
+}
+
+@compute @workgroup_size(64)
+fn place(@builtin(global_invocation_id) g: vec3<u32>) {
+    let i = g.x + g.y * params.place_row;
+    if (i >= params.crossing_count) {
+        return;
+    }
+    let q = crossings[i];
+    let c = chunks[q.w];
+    let axis = q.x >> 24u;
+    var p = vec3<f32>(
+        f32((q.x & 0xffu) + c.off_x),
+        f32(((q.x >> 8u) & 0xffu) + c.off_y),
+        f32(((q.x >> 16u) & 0xffu) + c.off_z),
+    );
+    p[axis] = p[axis] + bitcast<f32>(q.y);
+    p = p * c.spacing;
+    let n = unpack_normal(q.z);
+    let at = i * 6u;
+    vertices[at] = p.x;
+    vertices[at + 1u] = p.y;
+    vertices[at + 2u] = p.z;
+    vertices[at + 3u] = n.x;
+    vertices[at + 4u] = n.y;
+    vertices[at + 5u] = n.z;
+}
