@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 pub mod baselines;
 pub mod collab;
+pub mod gpu;
 pub mod lod;
 pub mod masks;
 pub mod materials;

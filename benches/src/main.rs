@@ -178,6 +178,19 @@ enum Command {
         #[arg(long)]
         pg: Option<String>,
     },
+    /// Marching cubes on the GPU against the CPU: per frame of the Table 2 workload and a full
+    /// remesh of the bunny (lavapipe where there is no GPU).
+    Gpu {
+        /// Frames measured (after ten of warm-up).
+        #[arg(long, default_value_t = 100)]
+        frames: usize,
+        /// The workload's radius.
+        #[arg(long, default_value_t = 20.0)]
+        radius: f64,
+        /// The bunny's cells along its longest side.
+        #[arg(long, default_value_t = 256)]
+        bunny: u32,
+    },
     /// Meshing throughput on the Table 1 canvas after the radius-20 workload: marching cubes and
     /// dual contouring over every chunk that can hold surface, one thread and all cores.
     MeshSpeed {
@@ -192,6 +205,7 @@ fn main() -> Result<()> {
         Command::Table1 { count, radii, seed, single } => table1(count, &radii, seed, single),
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
+        Command::Gpu { frames, radius, bunny } => print!("{}", strata_bench::gpu::run(frames, radius, bunny)?),
         Command::Collab { clients, rate, seconds, burst, join_cells, pg } => {
             let pg = pg.or_else(|| std::env::var("STRATA_PG_URL").ok());
             let config = strata_bench::collab::CollabConfig { clients, rate, seconds, burst, join_cells, pg };

@@ -1,0 +1,114 @@
+//! `strata-bench gpu`: marching cubes on the GPU (`strata-gpu-mesh`) against the CPU's, per
+//! frame of the Table 2 workload and for a full remesh of the bunny.
+//!
+//! A frame: one instruction of the Table 1 workload at the radius, then the voxel blocks of
+//! every chunk whose mesh depends on a changed chunk (extracted on the CPU, both sides), meshed
+//! by the CPU (`mesh_block` per block, on all cores) or by the GPU (one batch: upload, four
+//! dispatches, waiting for it to finish; nothing read back, as the viewport would draw it). Times
+//! are wall-clock from the first block to the end (the GPU's wait included), after a warm-up of
+//! ten frames; medians and 95th percentiles over the frames.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use rayon::prelude::*;
+use strata_mesh::{Mesh, mesh_block};
+use strata_volume::{EditSettings, Volume, VoxelBlock};
+
+/// Median and 95th percentile of `d` (ms).
+fn quantiles(d: &mut [Duration]) -> (f64, f64) {
+    d.sort();
+    let at = |q: f64| d[((d.len() - 1) as f64 * q).round() as usize].as_secs_f64() * 1e3;
+    (at(0.5), at(0.95))
+}
+
+/// Meshes `blocks` on the GPU and waits for it.
+fn gpu_mesh(gpu: &strata_render::Gpu, marcher: &strata_gpu_mesh::GpuMarcher, blocks: &[&VoxelBlock]) -> Result<()> {
+    marcher.mesh(&gpu.device, &gpu.queue, blocks)?;
+    gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU")?;
+    Ok(())
+}
+
+fn cpu_mesh(blocks: &[&VoxelBlock]) -> usize {
+    blocks
+        .par_iter()
+        .map(|b| {
+            let mut m = Mesh::default();
+            mesh_block(b, &mut m);
+            m.triangle_count()
+        })
+        .sum()
+}
+
+/// The report, as markdown.
+pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
+    let gpu = strata_render::Gpu::headless().context("a GPU adapter (or lavapipe)")?;
+    let marcher = strata_gpu_mesh::GpuMarcher::new(&gpu.device)?;
+    let mut out = format!("Adapter: {} ({:?})\n\n", gpu.info.name, gpu.info.backend);
+    // Table 2's frames.
+    let warm = 10;
+    let ins = crate::table1_instructions(frames + warm, radius, 2021);
+    let mut volume = Volume::new();
+    let settings = EditSettings { parallel: true, ..Default::default() };
+    let (mut cpu, mut gpus, mut chunks) = (Vec::new(), Vec::new(), 0usize);
+    for (i, instruction) in ins.iter().enumerate() {
+        let report = volume.apply(instruction.op, &instruction.brush(), &settings)?;
+        let keys = strata_mesh::MeshCache::dependents(&report.changed);
+        let blocks: Vec<VoxelBlock> = keys.par_iter().map(|&k| volume.extract_block(k)).collect();
+        // (A chunk whose block has seams is meshed on the CPU either way; this workload has one
+        // level, so none has.)
+        let refs: Vec<&VoxelBlock> = blocks.iter().filter(|b| b.seams().is_empty()).collect();
+        let t = Instant::now();
+        cpu_mesh(&refs);
+        let c = t.elapsed();
+        let t = Instant::now();
+        gpu_mesh(&gpu, &marcher, &refs)?;
+        let g = t.elapsed();
+        if i >= warm {
+            cpu.push(c);
+            gpus.push(g);
+            chunks += refs.len();
+        }
+    }
+    let per = chunks as f64 / frames as f64;
+    let ((cm, cp), (gm, gp)) = (quantiles(&mut cpu), quantiles(&mut gpus));
+    out += &format!(
+        "Table 2 workload, radius {radius}, {frames} frames after {warm} of warm-up, {per:.1} chunks meshed a frame:\n\n"
+    );
+    out += "| mesher | median (ms) | p95 (ms) | chunks per ms (median) |\n|---|---:|---:|---:|\n";
+    out += &format!("| CPU marching cubes, all cores | {cm:.2} | {cp:.2} | {:.1} |\n", per / cm.max(1e-9));
+    out += &format!("| GPU marching cubes | {gm:.2} | {gp:.2} | {:.1} |\n\n", per / gm.max(1e-9));
+    // The bunny, every surface chunk at once.
+    let path = crate::suite::repo_root().join("tests/data/bunny.ply");
+    let m = strata_mesh::import::load_mesh(&path)?;
+    let (lo, hi) = m.bounds().context("the bunny has vertices")?;
+    let scale = bunny_cells as f64 / (hi - lo).max_element();
+    let verts: Vec<glam::DVec3> = m.vertices.iter().map(|&v| (v - lo) * scale + glam::DVec3::splat(2.0)).collect();
+    let brush = strata_volume::brush::MeshBrush::new(&verts, &m.triangles, strata_volume::brush::MeshRule::EvenOdd)?;
+    let mut bunny = Volume::new();
+    bunny.apply(strata_volume::CsgOp::Add, &brush, &settings)?;
+    let keys = strata_mesh::surface_chunks(&bunny);
+    let blocks: Vec<VoxelBlock> = keys.par_iter().map(|&k| bunny.extract_block(k)).collect();
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    let (mut cpu, mut gpus) = (Vec::new(), Vec::new());
+    let mut triangles = 0;
+    for _ in 0..7 {
+        let t = Instant::now();
+        triangles = cpu_mesh(&refs);
+        cpu.push(t.elapsed());
+        let t = Instant::now();
+        // (At most 65,535 blocks a batch.)
+        for batch in refs.chunks(65_535) {
+            gpu_mesh(&gpu, &marcher, batch)?;
+        }
+        gpus.push(t.elapsed());
+    }
+    let ((cm, _), (gm, _)) = (quantiles(&mut cpu), quantiles(&mut gpus));
+    out += &format!(
+        "Full remesh of the bunny at {bunny_cells} cells ({} chunks, {triangles} triangles; blocks extracted beforehand), median of 7:\n\n",
+        refs.len()
+    );
+    out += "| mesher | ms |\n|---|---:|\n";
+    out += &format!("| CPU marching cubes, all cores | {cm:.1} |\n| GPU marching cubes | {gm:.1} |\n");
+    Ok(out)
+}
