@@ -25,7 +25,7 @@ use thiserror::Error;
 /// The largest picture file read (bytes).
 pub const MAX_PICTURE_BYTES: u64 = 64 << 20;
 /// The largest picture decoded, a side (pixels).
-pub const MAX_PICTURE_SIDE: u32 = 16_384;
+pub const MAX_PICTURE_SIDE: u32 = 8192;
 /// The largest side of the pixels shown: larger pictures are shown scaled down to it (the file's
 /// bytes are kept whole).
 pub const SHOWN_SIDE: u32 = 4096;
