@@ -325,13 +325,7 @@ impl Editor {
     fn commit_edit(&mut self, layer: usize, edit: &mut EditReport) {
         self.queue(layer, &edit.changed, edit.reach);
         self.revision += 1;
-        self.history.push(HistoryEntry {
-            layer,
-            records: vec![std::mem::take(&mut edit.undo)],
-            transform: None,
-            layers: None,
-            references: None,
-        });
+        self.history.push(HistoryEntry { layer, records: vec![std::mem::take(&mut edit.undo)], ..Default::default() });
     }
 
     /// Refuses a mask tool on a streamed surface, and a stamp loaded from a file that this

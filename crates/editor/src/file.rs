@@ -68,7 +68,8 @@ use crate::scene::{Layer, LayerTransform, Material, Scene, View};
 
 /// The first eight bytes of every scene file.
 pub const MAGIC: [u8; 8] = *b"STRATA\x00S";
-/// The format version this build writes and the newest it reads.
+/// The format version this build writes for a scene with reference images, and the newest it
+/// reads (a scene without them is written as version 5, which older builds read).
 pub const VERSION: u32 = 6;
 /// The oldest version this build reads. Version 1 stored chunk lists with per-line start bits
 /// and unary counts (before the layout of `strata-volume`'s `ChunkLists` changed).
@@ -529,12 +530,27 @@ fn reference_record(r: &ReferenceImage) -> ReferenceRecord {
     }
 }
 
-/// The file's bytes for a version 6 payload: `record` with the header (for tests that craft
-/// files; [`encode`] is `scene_record` then this).
+/// The file's bytes for `record` with the header: version 6, or version 5 when it holds no
+/// reference images (for tests that craft files; [`encode`] is `scene_record` then this).
 #[doc(hidden)]
 pub fn encode_record(record: &SceneRecord) -> Result<Vec<u8>, SceneFileError> {
+    if record.references.is_empty() {
+        // (Without references a scene is written as version 5, which builds before reference
+        // images read too: a room's snapshot always is.)
+        let v5 = SceneRecordV5Ref { layers: &record.layers, materials: &record.materials, view: &record.view };
+        let payload = postcard::to_allocvec(&v5).map_err(|e| SceneFileError::Payload(e.to_string()))?;
+        return Ok(frame(5, payload));
+    }
     let payload = postcard::to_allocvec(record).map_err(|e| SceneFileError::Payload(e.to_string()))?;
     Ok(frame(VERSION, payload))
+}
+
+/// [`SceneRecordV5`] by reference, to write.
+#[derive(Serialize)]
+struct SceneRecordV5Ref<'a> {
+    layers: &'a [LayerRecord],
+    materials: &'a [Material],
+    view: &'a View,
 }
 
 /// A version 5 file of `scene` as the builds before reference images wrote it (its references
@@ -585,6 +601,17 @@ fn frame(version: u32, payload: Vec<u8>) -> Vec<u8> {
 
 /// The scene in `bytes`, with whatever had to be repaired (see the module docs).
 pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
+    decode_with(bytes, true)
+}
+
+/// [`decode`] for a shared room's snapshot: reference images, which a snapshot never holds,
+/// are skipped without decoding their pictures (an untrusted snapshot cannot make its reader
+/// decode pictures).
+pub fn decode_shared(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
+    decode_with(bytes, false)
+}
+
+fn decode_with(bytes: &[u8], with_references: bool) -> Result<Loaded, SceneFileError> {
     if bytes.len() < 8 || bytes[..8] != MAGIC {
         return Err(SceneFileError::BadMagic);
     }
@@ -701,9 +728,16 @@ pub fn decode(bytes: &[u8]) -> Result<Loaded, SceneFileError> {
             (scene_from_record(record, &mut report), fills)
         }
         _ => {
-            let record: SceneRecord = postcard::from_bytes(payload).map_err(parse_err)?;
+            let mut record: SceneRecord = postcard::from_bytes(payload).map_err(parse_err)?;
             if !intact {
                 report.repairs.push(damaged.into());
+            }
+            if !with_references && !record.references.is_empty() {
+                report.repairs.push(format!(
+                    "{} reference images in a shared snapshot were left out (references are each person's own)",
+                    record.references.len()
+                ));
+                record.references.clear();
             }
             let fills = vec![None; record.layers.len()];
             (scene_from_record(record, &mut report), fills)
@@ -833,7 +867,13 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
         layers.push(Layer { name, transform: l.transform, visible: l.visible, locked: l.locked, volume });
     }
     let mut references = Vec::with_capacity(record.references.len().min(MAX_REFERENCES));
-    for r in record.references {
+    if record.references.len() > MAX_REFERENCES {
+        report.repairs.push(format!(
+            "the scene had {} reference images; those past the {MAX_REFERENCES}th were dropped unread",
+            record.references.len()
+        ));
+    }
+    for r in record.references.into_iter().take(MAX_REFERENCES) {
         let picture = if crc32fast::hash(&r.bytes) != r.crc {
             Err("failed its checksum".to_owned())
         } else {

@@ -25,6 +25,8 @@ pub struct HistoryEntry {
     /// The reference images before the step, for a step that added, changed or deleted one
     /// (their pictures are shared, not copied).
     pub references: Option<Vec<ReferenceImage>>,
+    /// For a step that changed one reference image alone, its number (a drag of it joins it).
+    pub reference: Option<usize>,
 }
 
 /// What a step restores: the scene's layers, its active layer and its reference images.
@@ -104,7 +106,7 @@ impl HistoryEntry {
             (Some(t), Some(layer)) => Some(std::mem::replace(&mut layer.transform, t)),
             _ => None,
         };
-        let entry = HistoryEntry { layer: self.layer, records, transform, layers: None, references: None };
+        let entry = HistoryEntry { layer: self.layer, records, transform, ..Default::default() };
         let mut keys = entry.keys();
         if !everything.is_empty() {
             keys.extend(everything);
@@ -157,10 +159,16 @@ impl History {
             .is_some_and(|e| e.layer == layer && e.records.is_empty() && e.transform.is_some() && e.layers.is_none())
     }
 
-    /// Whether the newest undo step changed the reference images (which a continuing drag of
-    /// one may merge into).
-    pub fn last_is_references(&self) -> bool {
-        self.undo.last().is_some_and(|e| e.references.is_some())
+    /// Whether the newest undo step changed reference image `i` alone (which a continuing drag
+    /// of it may merge into).
+    pub fn last_is_reference(&self, i: usize) -> bool {
+        self.undo.last().is_some_and(|e| e.references.is_some() && e.reference == Some(i))
+    }
+
+    /// Forgets the redo steps (a change merged into the newest step makes them stale, as a
+    /// new step does).
+    pub fn forget_redo(&mut self) {
+        self.redo.clear();
     }
 
     fn trim(&mut self) {

@@ -70,6 +70,8 @@ pub enum PictureError {
 pub struct Picture {
     bytes: Arc<Vec<u8>>,
     key: u64,
+    /// Height over width of the picture as decoded (the pixels shown may be rounded).
+    aspect: f64,
     width: u32,
     height: u32,
     rgba: Arc<Vec<u8>>,
@@ -114,7 +116,15 @@ impl Picture {
         limits.max_alloc = Some(2 * 4 * width as u64 * height as u64 + (16 << 20));
         let mut reader = reader()?;
         reader.limits(limits);
-        let mut rgba = reader.decode().map_err(decode_err)?.to_rgba8();
+        // (Through the decoder, for its orientation: a phone's photo stores its pixels as the
+        // sensor saw them and says in EXIF how to turn them.)
+        let mut decoder = reader.into_decoder().map_err(decode_err)?;
+        let orientation =
+            image::ImageDecoder::orientation(&mut decoder).unwrap_or(image::metadata::Orientation::NoTransforms);
+        let mut decoded = image::DynamicImage::from_decoder(decoder).map_err(decode_err)?;
+        decoded.apply_orientation(orientation);
+        let mut rgba = decoded.to_rgba8();
+        let (width, height) = (rgba.width(), rgba.height());
         let side = width.max(height);
         if side > SHOWN_SIDE {
             let scale = SHOWN_SIDE as f64 / side as f64;
@@ -126,6 +136,7 @@ impl Picture {
         bytes.hash(&mut hasher);
         Ok(Picture {
             key: hasher.finish(),
+            aspect: height as f64 / width as f64,
             width: rgba.width(),
             height: rgba.height(),
             rgba: Arc::new(rgba.into_raw()),
@@ -157,9 +168,10 @@ impl Picture {
         (self.width, self.height, &self.rgba)
     }
 
-    /// Height over width.
+    /// Height over width (of the picture, not of the pixels shown, which are rounded when
+    /// scaled down).
     pub fn aspect(&self) -> f64 {
-        self.height as f64 / self.width as f64
+        self.aspect
     }
 }
 
@@ -315,9 +327,10 @@ impl ReferenceImage {
     /// width 64, a NaN opacity ½).
     pub fn repaired(&self) -> ReferenceImage {
         let l = self.rotation.length();
+        let turned = self.rotation.is_finite() && l.is_finite() && l > 1e-9;
         ReferenceImage {
             center: if self.center.is_finite() { self.center } else { DVec3::ZERO },
-            rotation: if self.rotation.is_finite() && l > 1e-9 { self.rotation / l } else { DQuat::IDENTITY },
+            rotation: if turned { self.rotation / l } else { DQuat::IDENTITY },
             width: if self.width.is_nan() { 64.0 } else { self.width.clamp(WIDTH_RANGE.0, WIDTH_RANGE.1) },
             opacity: if self.opacity.is_nan() { 0.5 } else { self.opacity.clamp(0.0, 1.0) },
             ..self.clone()
@@ -346,12 +359,13 @@ impl crate::Editor {
         }
         let mut list = self.scene.references.clone();
         list.push(reference);
-        self.replace_references(list, false);
+        self.replace_references(list, None, false);
         Ok(self.scene.references.len() - 1)
     }
 
     /// Replaces reference `i` with `reference`. A locked reference takes only a new name,
-    /// opacity, visibility or lock: its place, turn and width stay. With `merge`, a change
+    /// opacity, visibility or lock: its place, turn and width stay (unlock it first, then move
+    /// it). With `merge`, a change
     /// that follows another change of the references (as while a handle or a value is dragged)
     /// joins its undo step, so a drag is one step.
     pub fn set_reference(
@@ -369,7 +383,7 @@ impl crate::Editor {
             || old.rotation != reference.rotation
             || old.width != reference.width
             || old.picture != reference.picture;
-        if old.locked && reference.locked && moved {
+        if old.locked && moved {
             return Err(ReferenceError::Locked(old.name.clone()).into());
         }
         if *old == reference {
@@ -377,7 +391,7 @@ impl crate::Editor {
         }
         let mut list = self.scene.references.clone();
         list[i] = reference;
-        self.replace_references(list, merge);
+        self.replace_references(list, Some(i), merge);
         Ok(())
     }
 
@@ -390,7 +404,7 @@ impl crate::Editor {
         }
         let mut list = self.scene.references.clone();
         let removed = list.remove(i);
-        self.replace_references(list, false);
+        self.replace_references(list, None, false);
         Ok(removed)
     }
 
@@ -401,14 +415,19 @@ impl crate::Editor {
         Ok(())
     }
 
-    /// Puts `list` in place of the references as an undo step (joining the newest step when
-    /// `merge` and it changed the references too).
-    fn replace_references(&mut self, list: Vec<ReferenceImage>, merge: bool) {
+    /// Puts `list` in place of the references as an undo step (`changed`: the one reference it
+    /// changes, if it changes one alone). With `merge`, a change of one reference joins the
+    /// newest step when that changed the same reference alone (a drag continuing); a joined
+    /// change forgets the redo steps, as a new step does.
+    fn replace_references(&mut self, list: Vec<ReferenceImage>, changed: Option<usize>, merge: bool) {
         self.end_stroke();
         let old = std::mem::replace(&mut self.scene.references, list);
-        let joins = merge && self.history.last_is_references();
-        if !(self.records_ops() || joins) {
-            self.history.push(crate::HistoryEntry { references: Some(old), ..Default::default() });
+        let joins = merge && changed.is_some_and(|i| self.history.last_is_reference(i));
+        if self.records_ops() {
+        } else if joins {
+            self.history.forget_redo();
+        } else {
+            self.history.push(crate::HistoryEntry { references: Some(old), reference: changed, ..Default::default() });
         }
         self.revision += 1;
     }
@@ -542,11 +561,27 @@ mod tests {
         assert_eq!(e.scene.references, vec![r.clone()], "the drag was one step");
         assert!(e.redo());
         assert_eq!(e.scene.references[0].center, DVec3::X * 5.0);
+        // A drag's change never joins a step of another reference, nor the add.
+        e.add_reference(ReferenceImage::new("second", p.clone(), ReferencePlane::Top, None)).unwrap();
+        let steps = e.history().undo_len();
+        e.set_reference(1, ReferenceImage { opacity: 0.9, ..e.scene.references[1].clone() }, true).unwrap();
+        assert_eq!(e.history().undo_len(), steps + 1, "its own step");
+        e.set_reference(0, ReferenceImage { opacity: 0.9, ..e.scene.references[0].clone() }, true).unwrap();
+        assert_eq!(e.history().undo_len(), steps + 2, "its own step");
+        assert!(e.undo() && e.undo() && e.undo());
+        assert_eq!(e.scene.references.len(), 1);
+        // A merged change after an undo forgets the stale redo step.
+        e.set_reference(0, ReferenceImage { width: 3.0, ..e.scene.references[0].clone() }, false).unwrap();
+        assert!(e.undo());
+        e.set_reference(0, ReferenceImage { width: 4.0, ..e.scene.references[0].clone() }, false).unwrap();
+        e.set_reference(0, ReferenceImage { width: 5.0, ..e.scene.references[0].clone() }, true).unwrap();
+        assert!(!e.redo(), "nothing stale to redo");
+        assert_eq!(e.scene.references[0].width, 5.0);
         let gone = e.remove_reference(0).unwrap();
         assert!(e.scene.references.is_empty());
         assert!(e.undo());
         assert_eq!(e.scene.references, vec![gone]);
-        assert!(e.undo() && e.undo());
+        assert!(e.undo() && e.undo() && e.undo(), "the widths, the drag and the add");
         assert!(e.scene.references.is_empty(), "back before the add");
     }
 
@@ -561,6 +596,8 @@ mod tests {
             e.set_reference(0, moved, false),
             Err(crate::EditorError::Reference(ReferenceError::Locked(_)))
         ));
+        let unlocked_and_moved = ReferenceImage { width: 3.0, locked: false, ..r.clone() };
+        assert!(e.set_reference(0, unlocked_and_moved, false).is_err(), "unlock first, then move");
         assert!(matches!(e.remove_reference(0), Err(crate::EditorError::Reference(ReferenceError::Locked(_)))));
         e.set_reference(0, ReferenceImage { opacity: 0.9, visible: false, ..r.clone() }, false).unwrap();
         let unlocked = ReferenceImage { locked: false, ..e.scene.references[0].clone() };

@@ -72,7 +72,7 @@ pub fn encode(editor: &Editor) -> Result<Vec<u8>, String> {
 /// use materials of its palette (a snapshot may come from anyone who can reach a server).
 pub fn decode(bytes: &[u8]) -> Result<RoomContent, String> {
     let Some(rest) = bytes.strip_prefix(&WORLD_MAGIC) else {
-        let loaded = crate::file::decode(bytes).map_err(|e| e.to_string())?;
+        let loaded = crate::file::decode_shared(bytes).map_err(|e| e.to_string())?;
         return Ok(RoomContent::Scene(loaded.scene));
     };
     if rest.len() < 4 {
@@ -135,7 +135,10 @@ impl Editor {
     pub fn load_room(&mut self, content: &RoomContent) -> Result<bool, String> {
         match (content, self.world.as_mut()) {
             (RoomContent::Scene(scene), None) => {
-                self.set_scene(scene.clone());
+                // (Reference images are each person's own: a room's scene never holds them,
+                // and loading it keeps this editor's.)
+                let references = std::mem::take(&mut self.scene.references);
+                self.set_scene(Scene { references, ..scene.clone() });
                 Ok(true)
             }
             (RoomContent::World(w), Some(world)) if *world.recipe() == w.recipe && is_shareable(world) => {

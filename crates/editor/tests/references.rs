@@ -80,12 +80,23 @@ fn version_5_files_open_without_references_and_equal_otherwise() {
 }
 
 #[test]
-fn a_shared_rooms_snapshot_leaves_the_references_out() {
+fn a_shared_rooms_snapshot_leaves_the_references_out_and_loading_one_keeps_your_own() {
     let s = scene();
-    let shared = decode(&file::encode_shared(&s).unwrap()).unwrap();
+    let bytes = file::encode_shared(&s).unwrap();
+    let shared = decode(&bytes).unwrap();
+    assert_eq!(shared.version, 5, "a snapshot is version 5, which builds before references read");
     assert!(shared.scene.references.is_empty());
     assert_eq!(shared.scene.layers, s.layers);
     assert_eq!(file::chunk_digests(&s).unwrap(), file::chunk_digests(&shared.scene).unwrap());
+    // A hostile snapshot with pictures: they are left out unread, and said.
+    let full = file::decode_shared(&encode(&s).unwrap()).unwrap();
+    assert!(full.scene.references.is_empty());
+    assert!(full.report.to_string().contains("left out"), "{}", full.report);
+    // An editor loading a room's scene keeps its own references (hosting, a resync).
+    let mut e = strata_editor::Editor::new(s.clone());
+    let content = strata_editor::room::decode(&bytes).unwrap();
+    assert!(e.load_room(&content).unwrap());
+    assert_eq!(e.scene.references, s.references);
 }
 
 #[test]
