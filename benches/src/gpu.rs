@@ -97,8 +97,9 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         triangles = cpu_mesh(&refs);
         cpu.push(t.elapsed());
         let t = Instant::now();
-        // (At most 65,535 blocks a batch.)
-        for batch in refs.chunks(65_535) {
+        // (Batches of 1,000 blocks: 60 MB of block data for 16³ blocks, within every device's
+        // buffer limits.)
+        for batch in refs.chunks(1000) {
             gpu_mesh(&gpu, &marcher, batch)?;
         }
         gpus.push(t.elapsed());

@@ -332,12 +332,12 @@ pub const CONTROLS: &[Control] = &[
     control("Merge down", Menu("Layer > Merge down")),
     // The reference images panel (the selected picture's controls).
     control("shown", Menu("Layer > Reference image* > Shown")),
-    control("locked", Menu("Layer > Reference image* > Locked")),
+    control("locked in place", Menu("Layer > Reference image* > Locked in place")),
     control("Front", Menu("Layer > Reference image* > Lay square to the Front view")),
     control("Side", Menu("Layer > Reference image* > Lay square to the Side view")),
     control("Top", Menu("Layer > Reference image* > Lay square to the Top view")),
     control("Look at it", Menu("Layer > Reference image* > Look at it")),
-    control("Delete", Menu("Layer > Reference image* > Delete reference image")),
+    control("Delete image", Menu("Layer > Reference image* > Delete reference image")),
     control("opacity", Value),
     control("width", Value),
     // Dialogs and prompts.
@@ -501,7 +501,7 @@ mod tests {
         assert_eq!(keys_in_label("Sphere"), None);
         assert!(label_matches("The picture the stamp raises*", "The picture the stamp raises, white highest"));
         assert!(!label_matches("Off", "Offset"));
-        assert_eq!(controls_for("Delete").count(), 2, "a layer's and a reference image's");
+        assert_eq!(controls_for("Delete").count(), 1, "each control its own row");
         for c in CONTROLS {
             if let Reach::Key(command) = c.reach {
                 assert!(binding(command).is_some(), "{}: {command:?} has no key", c.label);

@@ -1871,11 +1871,11 @@ fn a_reference_image_is_loaded_faded_moved_locked_and_saved_with_the_scene() {
     assert!(moved.center.y > r.center.y + 0.1, "{:?} -> {:?}", r.center, moved.center);
     assert_eq!(h.state().studio.editor.history().undo_len(), steps + 1, "a drag is one step");
     // Locked: no gizmo, and Delete does nothing.
-    h.query_all_by_label("locked").last().expect("the picture's lock").click();
+    h.get_by_label("locked in place").click();
     h.run();
     assert!(h.state().studio.editor.scene.references[0].locked);
     assert!(h.state().gizmo_on_screen().is_none(), "a locked picture has no gizmo");
-    h.query_all_by_label("Delete").last().expect("the picture's Delete").click();
+    h.get_by_label("Delete image").click();
     h.run();
     assert_eq!(h.state().studio.editor.scene.references.len(), 1, "a locked picture stays");
     // Saved with the scene and reopened equal.
@@ -1905,6 +1905,16 @@ fn a_reference_image_is_loaded_faded_moved_locked_and_saved_with_the_scene() {
     assert_eq!(refs.len(), 2, "{}", h.state().studio.message);
     assert_eq!(refs[1].plane(), Some(ReferencePlane::Top));
     assert!(h.state().studio.show_references, "loading one shows them again");
+    // In the back view (Ctrl+1) a picture faces the back, behind the model from there.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Num1);
+    h.run();
+    h.state_mut().studio.act(strata_studio::Action::LoadReference(png.clone())).unwrap();
+    let back = h.state().studio.editor.scene.references[2].clone();
+    assert_eq!(back.view(), Some((ReferencePlane::Front, true)));
+    assert!(back.center.z > 20.0, "behind the ball (z about 18) seen from the back: {:?}", back.center);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert_eq!(h.state().studio.selected_reference, None, "an undone picture is not selected");
     let bad = dir.join("notes.png");
     std::fs::write(&bad, b"not a picture").unwrap();
     h.key_press_modifiers(egui::Modifiers { shift: true, ..egui::Modifiers::COMMAND }, egui::Key::I);

@@ -213,6 +213,16 @@ impl ReferencePlane {
     pub fn normal(self) -> DVec3 {
         self.rotation() * DVec3::Z
     }
+
+    /// The turn that lays a picture square to the opposite view (back, left, bottom), upright
+    /// and not mirrored as that view's camera sees it.
+    pub fn opposite_rotation(self) -> DQuat {
+        let half = match self {
+            ReferencePlane::Front | ReferencePlane::Side => DQuat::from_rotation_y(std::f64::consts::PI),
+            ReferencePlane::Top => DQuat::from_rotation_x(std::f64::consts::PI),
+        };
+        half * self.rotation()
+    }
 }
 
 /// Why a reference was refused (the scene is unchanged).
@@ -266,8 +276,13 @@ impl ReferenceImage {
         plane: ReferencePlane,
         bounds: Option<(DVec3, DVec3)>,
     ) -> Self {
-        let rotation = plane.rotation();
-        let normal = plane.normal();
+        ReferenceImage::facing(name, picture, plane.rotation(), bounds)
+    }
+
+    /// [`ReferenceImage::new`] turned by `rotation` (unit; its z axis the way the picture
+    /// faces), placed behind `bounds` as seen from that side.
+    pub fn facing(name: impl Into<String>, picture: Picture, rotation: DQuat, bounds: Option<(DVec3, DVec3)>) -> Self {
+        let normal = rotation * DVec3::Z;
         let (center, width) = match bounds.filter(|(lo, hi)| lo.is_finite() && hi.is_finite()) {
             Some((lo, hi)) => {
                 let mid = (lo + hi) * 0.5;
@@ -305,11 +320,20 @@ impl ReferenceImage {
         [c - right - up, c + right - up, c + right + up, c - right + up]
     }
 
-    /// The view the picture lies square to, if it does (within a thousandth of a radian),
-    /// whatever its turn within the plane.
+    /// The plane the picture lies in, if it lies square to a view (within a thousandth of a
+    /// radian), whatever its turn within the plane and whichever way it faces.
     pub fn plane(&self) -> Option<ReferencePlane> {
+        self.view().map(|(p, _)| p)
+    }
+
+    /// The view the picture faces, if it lies square to one: its plane, and whether it faces
+    /// the opposite view (back, left, bottom).
+    pub fn view(&self) -> Option<(ReferencePlane, bool)> {
         let facing = self.rotation * DVec3::Z;
-        ReferencePlane::ALL.into_iter().find(|p| facing.dot(p.normal()) > 1.0 - 5e-7)
+        ReferencePlane::ALL.into_iter().find_map(|p| {
+            let d = facing.dot(p.normal());
+            (d.abs() > 1.0 - 5e-7).then_some((p, d < 0.0))
+        })
     }
 
     /// Whether its middle, turn, width and opacity are finite and in range.
@@ -515,6 +539,23 @@ mod tests {
             };
             assert!(((br - bl).normalize() - right).length() < 1e-9, "{plane:?}");
             assert!(((tl - bl).normalize() - up).length() < 1e-9, "{plane:?}");
+        }
+        // The opposite views (back, left, bottom): facing them, behind the bounds as they see
+        // them, upright and not mirrored.
+        for plane in ReferencePlane::ALL {
+            let r = ReferenceImage::facing("r", p.clone(), plane.opposite_rotation(), bounds);
+            assert_eq!(r.view(), Some((plane, true)));
+            let n = -plane.normal();
+            let lo_along = DVec3::ZERO.dot(n).min(DVec3::new(10.0, 20.0, 30.0).dot(n));
+            assert!(r.center.dot(n) < lo_along, "{plane:?} opposite: {:?}", r.center);
+            let [bl, br, _, tl] = r.corners();
+            let (right, up) = match plane {
+                ReferencePlane::Front => (DVec3::NEG_X, DVec3::Y),
+                ReferencePlane::Side => (DVec3::Z, DVec3::Y),
+                ReferencePlane::Top => (DVec3::X, DVec3::Z),
+            };
+            assert!(((br - bl).normalize() - right).length() < 1e-9, "{plane:?} opposite");
+            assert!(((tl - bl).normalize() - up).length() < 1e-9, "{plane:?} opposite");
         }
         let lone = ReferenceImage::new("r", p, ReferencePlane::Front, None);
         assert_eq!((lone.center, lone.width), (DVec3::ZERO, 64.0));

@@ -30,10 +30,10 @@ pub const SHADER: &str = include_str!("../../../shaders/marching_cubes.wgsl");
 const THREADS: u32 = 256;
 /// Words of the case table at the start of the data buffer.
 const TABLE_WORDS: usize = 256 * 16;
-/// The most workgroups in one dimension of a dispatch (WebGPU's and downlevel's limit).
-const MAX_GROUPS: u32 = 65_535;
 /// A crossing's lookup entry where a node's edge has none.
 const NONE: u32 = u32::MAX;
+/// The largest block taken, in cells a side (its rows of nodes are `u128`s).
+pub const MAX_CELLS: usize = 127;
 
 /// Why the GPU did not mesh.
 #[derive(Debug, Error, PartialEq)]
@@ -44,7 +44,8 @@ pub enum GpuMeshError {
     /// A block has seams with a finer neighbour (mesh it on the CPU).
     #[error("block {0} has seams with a finer neighbour: it is meshed on the CPU")]
     Seams(usize),
-    /// A block is larger than the shader takes (255 cells a side) or the batch too large.
+    /// A block is larger than the shader takes ([`MAX_CELLS`] a side) or the batch larger than
+    /// the device's buffers or dispatches allow (mesh it in smaller batches).
     #[error("the batch is too large for one dispatch: {0}")]
     TooLarge(String),
     /// Reading the results back failed (the device was lost).
@@ -58,7 +59,7 @@ pub fn check_limits(limits: &wgpu::Limits) -> Result<(), GpuMeshError> {
         ("storage buffers a compute stage", limits.max_storage_buffers_per_shader_stage, 4),
         ("compute workgroup size x", limits.max_compute_workgroup_size_x, THREADS),
         ("compute invocations a workgroup", limits.max_compute_invocations_per_workgroup, THREADS),
-        ("compute workgroups a dimension", limits.max_compute_workgroups_per_dimension, 1),
+        ("compute workgroups a dimension", limits.max_compute_workgroups_per_dimension, 1024),
     ];
     for (what, has, need) in needs {
         if has < need {
@@ -162,16 +163,40 @@ impl GpuMarcher {
     }
 
     /// Meshes `blocks` (their cells `0..n`, as [`strata_mesh::mesh_block`] does) into one
-    /// batch, submitted to `queue`. Blocks with seams are refused (the batch is not made).
+    /// batch, submitted to `queue`. Blocks with seams are refused (the batch is not made), and
+    /// so is a batch whose buffers or dispatches would pass the device's limits
+    /// ([`GpuMeshError::TooLarge`], checked before anything is built: mesh it in parts).
     pub fn mesh(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         blocks: &[&VoxelBlock],
     ) -> Result<GpuBatch, GpuMeshError> {
+        let limits = device.limits();
+        let max_groups = limits.max_compute_workgroups_per_dimension;
         let chunk_count = blocks.len() as u32;
-        if chunk_count as usize != blocks.len() || chunk_count > MAX_GROUPS {
-            return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {MAX_GROUPS})", blocks.len())));
+        if chunk_count as usize != blocks.len() || chunk_count > max_groups {
+            return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
+        }
+        // Each buffer within the device's limits, checked before anything is built.
+        let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        let words: u64 = blocks.iter().map(|b| block_words(b)).sum::<u64>() + TABLE_WORDS as u64;
+        let crossing_words: u64 = blocks.iter().map(|b| 4 * crossing_count(b)).sum();
+        let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1;
+        for (what, w) in [
+            ("block data", words),
+            ("crossings", crossing_words),
+            ("vertices", crossing_words / 4 * 6),
+            ("indices", blocks.iter().map(|b| 15 * mixed_cells(b)).sum()),
+            ("scratch", scratch_words),
+        ] {
+            if w * 4 > binding {
+                return Err(GpuMeshError::TooLarge(format!(
+                    "its {what} take {} MiB, more than the device's {} MiB a buffer",
+                    (w * 4) >> 20,
+                    binding >> 20
+                )));
+            }
         }
         let mut infos = Vec::with_capacity(blocks.len());
         let mut data = self.table.clone();
@@ -183,8 +208,8 @@ impl GpuMarcher {
                 return Err(GpuMeshError::Seams(k));
             }
             let n = block.cells();
-            if n > 255 {
-                return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most 255)")));
+            if n > MAX_CELLS {
+                return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most {MAX_CELLS})")));
             }
             let m = n + 1;
             let words = m.div_ceil(32);
@@ -220,11 +245,7 @@ impl GpuMarcher {
             let vertices = crossings.len() as u32 - vertex_base;
             ranges.push((vertex_base, vertices));
             // At most five triangles a mixed cell.
-            let mixed: u64 = (0..n)
-                .flat_map(|z| (0..n).map(move |y| (y, z)))
-                .map(|(y, z)| block.mixed_cells(y, z).count_ones() as u64)
-                .sum();
-            index_capacity += mixed * 15;
+            index_capacity += mixed_cells(block) * 15;
             let offset = block.offset().map(|o| o as u32);
             infos.push(ChunkInfo {
                 n: n as u32,
@@ -261,9 +282,9 @@ impl GpuMarcher {
         };
         let crossing_count = crossings.len() as u32;
         let place_groups = crossing_count.div_ceil(64);
-        let place_x = place_groups.clamp(1, MAX_GROUPS);
+        let place_x = place_groups.clamp(1, max_groups);
         let place_y = place_groups.div_ceil(place_x).max(1);
-        if place_y > MAX_GROUPS {
+        if place_y > max_groups {
             return Err(GpuMeshError::TooLarge(format!("{crossing_count} crossings")));
         }
         let params = Params { chunk_count, crossing_count, place_row: place_x * 64, unused: 0 };
@@ -276,7 +297,6 @@ impl GpuMarcher {
         let data = storage("gpu mesh data", bytemuck::cast_slice(&data), wgpu::BufferUsages::empty());
         let crossing_buffer =
             storage("gpu mesh crossings", bytemuck::cast_slice(&crossings), wgpu::BufferUsages::empty());
-        let scratch_words = chunk_count as u64 * (THREADS as u64 + 2) + 1;
         let scratch = empty("gpu mesh scratch", scratch_words, wgpu::BufferUsages::COPY_SRC);
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX;
         let indices = empty("gpu mesh indices", index_capacity, copy);
@@ -329,6 +349,23 @@ impl GpuMarcher {
         queue.submit([encoder.finish()]);
         Ok(GpuBatch { vertices, indices, vertex_ranges: ranges, index_capacity, scratch, chunk_count })
     }
+}
+
+/// Words of the data buffer a block takes: its node bits and its crossing lookup.
+fn block_words(block: &VoxelBlock) -> u64 {
+    let m = block.cells() as u64 + 1;
+    m * m * m.div_ceil(32) + 3 * m * m * m
+}
+
+/// The block's crossings, all axes.
+fn crossing_count(block: &VoxelBlock) -> u64 {
+    Axis::ALL.iter().map(|&a| block.crossings(a).len() as u64).sum()
+}
+
+/// The block's cells whose corners differ.
+fn mixed_cells(block: &VoxelBlock) -> u64 {
+    let n = block.cells();
+    (0..n).flat_map(|z| (0..n).map(move |y| (y, z))).map(|(y, z)| block.mixed_cells(y, z).count_ones() as u64).sum()
 }
 
 /// Copies `buffer`'s first `words` words back to the CPU (waiting for the GPU).

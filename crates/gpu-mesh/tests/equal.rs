@@ -140,3 +140,19 @@ proptest! {
         assert_equal(&gpu, &marcher, &blocks, "random edits");
     }
 }
+
+#[test]
+fn a_batch_larger_than_the_devices_buffers_is_refused_before_it_is_built() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    // Blocks of 64³ cells take 3.3 MB of lookup each: enough of them pass any binding limit.
+    let limit = gpu.device.limits().max_storage_buffer_binding_size;
+    let v = Volume::with_level(Level::new(2).unwrap());
+    let one = v.extract_block(ChunkKey::new(0, 0, 0));
+    let count = (limit / (3 * 65 * 65 * 65 * 4) + 2) as usize;
+    let blocks: Vec<&VoxelBlock> = std::iter::repeat_n(&one, count).collect();
+    match marcher.mesh(&gpu.device, &gpu.queue, &blocks) {
+        Err(GpuMeshError::TooLarge(why)) => assert!(why.contains("block data"), "{why}"),
+        other => panic!("{count} blocks of 64³: {other:?}"),
+    }
+}

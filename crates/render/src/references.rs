@@ -1,10 +1,11 @@
 //! Reference pictures: a picture on a quad in the world, drawn after the opaque surfaces and
-//! before the translucent previews, blended by its opacity, depth-tested but not writing depth
+//! the grid and before the translucent previews, blended by its opacity, depth-tested but not writing depth
 //! (the model in front of a picture hides it; a picture hides nothing). Pictures overlapping
 //! on screen are drawn farthest first.
 //!
 //! Each picture is a texture kept by the caller's key (a hash of the picture) across frames, so
-//! it is uploaded once, with its mip chain made on the CPU (a 2×2 box filter) so a large
+//! it is uploaded once, with its mip chain made on the CPU (a 2×2 box filter in linear light,
+//! weighted by alpha, so smaller levels neither darken nor fringe) so a large
 //! picture seen small does not shimmer; pictures larger than the device allows are halved until
 //! they fit. Textures of pictures no longer drawn are dropped once more than
 //! [`KEPT_TEXTURES`] are held.
@@ -271,9 +272,23 @@ impl ReferencePass {
     }
 }
 
+/// sRGB byte to linear light.
+fn to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+/// Linear light to an sRGB byte.
+fn to_srgb(l: f32) -> u8 {
+    let c = if l <= 0.003_130_8 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 };
+    (c.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
 /// `pixels` and each half-size level below them down to 1 × 1 (a 2×2 box filter, an odd row or
-/// column folded into the last), as (width, height, bytes).
+/// column folded into the last; colours averaged in linear light weighted by their alpha, alpha
+/// plainly), as (width, height, bytes).
 fn mip_chain(pixels: Pixels<'_>) -> Vec<(u32, u32, Vec<u8>)> {
+    let linear: Vec<f32> = (0..=255u8).map(to_linear).collect();
     let mut levels = vec![(pixels.width, pixels.height, pixels.rgba.to_vec())];
     loop {
         let (w, h, ref src) = *levels.last().expect("one level");
@@ -287,21 +302,27 @@ fn mip_chain(pixels: Pixels<'_>) -> Vec<(u32, u32, Vec<u8>)> {
                 // The source texels this one covers (two or three a side).
                 let xs = (x * 2)..if x + 1 == nw { w } else { x * 2 + 2 };
                 let ys = (y * 2)..if y + 1 == nh { h } else { y * 2 + 2 };
-                let mut sum = [0u32; 4];
-                let mut n = 0;
+                let (mut rgb, mut alpha, mut plain, mut n) = ([0f32; 3], 0f32, [0f32; 3], 0f32);
                 for sy in ys {
                     for sx in xs.clone() {
                         let at = (sy as usize * w as usize + sx as usize) * 4;
-                        for c in 0..4 {
-                            sum[c] += src[at + c] as u32;
+                        let a = src[at + 3] as f32 / 255.0;
+                        for c in 0..3 {
+                            let l = linear[src[at + c] as usize];
+                            rgb[c] += l * a;
+                            plain[c] += l;
                         }
-                        n += 1;
+                        alpha += a;
+                        n += 1.0;
                     }
                 }
                 let at = (y as usize * nw as usize + x as usize) * 4;
-                for c in 0..4 {
-                    out[at + c] = ((sum[c] + n / 2) / n) as u8;
+                for c in 0..3 {
+                    // (Fully transparent texels: their plain mean, so the colour stays defined.)
+                    let l = if alpha > 0.0 { rgb[c] / alpha } else { plain[c] / n };
+                    out[at + c] = to_srgb(l);
                 }
+                out[at + 3] = (alpha / n * 255.0).round() as u8;
             }
         }
         levels.push((nw, nh, out));
@@ -323,8 +344,18 @@ mod tests {
             assert_eq!(bytes.len(), (*w * *h * 4) as usize);
             assert!(bytes.chunks(4).all(|p| p[1] == 200 && p[3] == 255), "constant channels stay");
         }
-        // The last level is the mean of all (70 = mean of 0..140 step 10), up to rounding.
-        assert!((levels[2].2[0] as i32 - 70).abs() <= 2, "{}", levels[2].2[0]);
+        // The last level is the mean of all in linear light: above the sRGB bytes' plain mean.
+        let mean_linear = (0..15).map(|i| to_linear((i * 10) as u8)).sum::<f32>() / 15.0;
+        assert!((levels[2].2[0] as i32 - to_srgb(mean_linear) as i32).abs() <= 2, "{}", levels[2].2[0]);
+    }
+
+    #[test]
+    fn transparent_texels_do_not_darken_the_colour_of_smaller_levels() {
+        // White opaque beside black transparent: the half level is white at half alpha.
+        let rgba = [255, 255, 255, 255, 0, 0, 0, 0];
+        let levels = mip_chain(Pixels { width: 2, height: 1, rgba: &rgba });
+        assert_eq!(levels[1].2, vec![255, 255, 255, 128]);
+        assert_eq!((to_srgb(to_linear(200)), to_srgb(to_linear(3))), (200, 3));
     }
 
     #[test]

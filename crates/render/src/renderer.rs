@@ -527,7 +527,7 @@ impl Renderer {
         });
     }
 
-    /// Records the draws into `pass` (surfaces, wireframe, reference pictures, grid, then the
+    /// Records the draws into `pass` (surfaces, wireframe, grid, reference pictures, then the
     /// translucent preview).
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, settings: &FrameSettings<'_>) {
         pass.set_bind_group(0, &self.bind_group, &[]);
@@ -545,12 +545,13 @@ impl Renderer {
                 pass.draw_indexed(0..c.edge_indices, 0, 0..1);
             }
         }
-        self.references.draw(pass, &self.bind_group);
         if settings.grid {
             pass.set_pipeline(&self.grid);
             pass.set_vertex_buffer(0, self.grid_vertices.slice(..));
             pass.draw(0..self.grid_count, 0..1);
         }
+        // (After the grid: grid lines behind a picture are covered by it, not drawn over it.)
+        self.references.draw(pass, &self.bind_group);
         if let Some((vb, ib, n)) = &self.preview_buffers {
             pass.set_pipeline(&self.preview);
             pass.set_vertex_buffer(0, vb.slice(..));

@@ -151,7 +151,7 @@ impl StudioApp {
         ui.menu_button(format!("Reference image {}", r.name), |ui| {
             let mut next = r.clone();
             ui.checkbox(&mut next.visible, "Shown").on_hover_text("Draw this reference image");
-            ui.checkbox(&mut next.locked, "Locked").on_hover_text("Keep its place, turn and size");
+            ui.checkbox(&mut next.locked, "Locked in place").on_hover_text("Keep its place, turn and size");
             if next != r {
                 self.studio.set_reference(i, next, false);
             }
@@ -187,13 +187,13 @@ impl StudioApp {
     /// The axis view reference `i` lies square to, centred on it.
     pub(super) fn look_at_reference(&mut self, i: usize) {
         let Some(r) = self.studio.editor.scene.references.get(i) else { return };
-        let Some(plane) = r.plane() else { return };
+        let Some((plane, opposite)) = r.view() else { return };
         let view = match plane {
             ReferencePlane::Front => strata_render::AxisView::Front,
             ReferencePlane::Side => strata_render::AxisView::Right,
             ReferencePlane::Top => strata_render::AxisView::Top,
         };
         self.studio.camera.target = r.center.as_vec3();
-        let _ = self.studio.act(Action::AxisView(view, false));
+        let _ = self.studio.act(Action::AxisView(view, opposite));
     }
 }

@@ -1,6 +1,6 @@
 //! The transform gizmo: handles drawn over the viewport for the waiting mesh insert, the
-//! selected reference image while it is unlocked, or the active layer while the layer gizmo is
-//! on (`Ctrl+T`). Drag an axis's arrow to move along it, its ring knob around the centre to
+//! active layer while the layer gizmo is on (`Ctrl+T`), or the selected reference image while
+//! it is shown and unlocked. Drag an axis's arrow to move along it, its ring knob around the centre to
 //! turn about it, the centre square to scale; hold Ctrl to snap (a cell of the active layer,
 //! 15°, tenths of the size). A layer's or a reference's drag is one undo step.
 
@@ -64,20 +64,19 @@ impl StudioApp {
     }
 
     /// What the gizmo acts on, its pivot (world), turn and scale: the waiting insert, else the
-    /// selected reference image while it is shown and unlocked, else the active layer while the
-    /// layer gizmo is on (pivoting about the middle of its chunks).
+    /// active layer while the layer gizmo is on (pivoting about the middle of its chunks), else
+    /// the selected reference image while it is shown and unlocked.
     fn gizmo_target(&self) -> Option<(Target, DVec3, DQuat, f64)> {
         if let Some(i) = &self.studio.insert {
             return Some((Target::Insert, i.placement.position, i.placement.rotation, i.placement.size));
         }
-        if let Some((i, r)) = self.studio.reference().filter(|(_, r)| !r.locked && r.visible)
-            && self.studio.show_references
-            && self.studio.terrain.is_none()
-        {
-            return Some((Target::Reference(i), r.center, r.rotation, r.width));
-        }
-        if !self.layer_gizmo || self.studio.terrain.is_some() {
+        if self.studio.terrain.is_some() {
             return None;
+        }
+        if !self.layer_gizmo {
+            let (i, r) =
+                self.studio.reference().filter(|(_, r)| !r.locked && r.visible && self.studio.show_references)?;
+            return Some((Target::Reference(i), r.center, r.rotation, r.width));
         }
         let k = self.studio.editor.active_layer;
         let layer = self.studio.editor.scene.layers.get(k)?;

@@ -90,6 +90,9 @@ pub struct StudioApp {
     pub layer_gizmo: bool,
     /// Reference images the panel has seen (one more opens it).
     references_seen: usize,
+    /// The reference image whose value a drag in the panel is changing, once it made its undo
+    /// step (the rest of the drag joins that step).
+    reference_drag: Option<usize>,
     /// A drag of a gizmo handle in progress.
     gizmo_drag: Option<gizmo::GizmoDrag>,
     /// The pressure of the touch (a pen's, where the platform reads it) in progress, from
@@ -150,6 +153,7 @@ impl StudioApp {
         StudioApp {
             layer_gizmo: false,
             references_seen: 0,
+            reference_drag: None,
             gizmo_drag: None,
             pen_pressure: None,
             presets,

@@ -56,7 +56,7 @@ impl StudioApp {
                 }
                 let mut locked = r.locked;
                 if ui
-                    .checkbox(&mut locked, "locked")
+                    .checkbox(&mut locked, "locked in place")
                     .on_hover_text("Keep it where it is: no moving, turning, scaling or deleting until unlocked")
                     .changed()
                 {
@@ -107,7 +107,10 @@ impl StudioApp {
             ui.horizontal(|ui| {
                 let w = ui
                     .add(
-                        egui::DragValue::new(&mut next.width).range(1e-3..=1e6).speed(r.width * 0.005).prefix("width "),
+                        egui::DragValue::new(&mut next.width)
+                            .range(strata_editor::reference::WIDTH_RANGE.0..=strata_editor::reference::WIDTH_RANGE.1)
+                            .speed(r.width * 0.005)
+                            .prefix("width "),
                     )
                     .on_hover_text("Its width in world units (its height follows the picture)");
                 dragging |= w.dragged() && !w.drag_started();
@@ -143,17 +146,25 @@ impl StudioApp {
                 self.look_at_reference(i);
             }
             if ui
-                .add_enabled(free, egui::Button::new("Delete"))
+                .add_enabled(free, egui::Button::new("Delete image"))
                 .on_hover_text("Delete this reference image (Ctrl+Z brings it back)")
                 .clicked()
             {
                 self.studio.delete_reference(i);
             }
         });
+        // (A drag is one undo step: its first change makes the step, the rest join it; the
+        // first frame that changes nothing makes none, so nothing joins an older step.)
+        let dragging = dragging || ui.ctx().dragged_id().is_some();
         if let Some(plane) = lay {
             self.studio.lay_reference(i, plane);
         } else if next != r {
-            self.studio.set_reference(i, next, dragging);
+            let join = dragging && self.reference_drag == Some(i);
+            if self.studio.set_reference(i, next, join) {
+                self.reference_drag = dragging.then_some(i);
+            }
+        } else if !dragging {
+            self.reference_drag = None;
         }
     }
 }

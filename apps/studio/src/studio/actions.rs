@@ -123,8 +123,13 @@ impl Studio {
             }
             Action::Undo | Action::Redo => {
                 let undo = action == Action::Undo;
+                // (The selection is by number: a picture added or deleted back renumbers them.)
+                let pictures = self.editor.scene.references.len();
                 let done = if undo { self.editor.try_undo() } else { self.editor.try_redo() }
                     .map_err(|e| format!("Could not {}: {e}", if undo { "undo" } else { "redo" }))?;
+                if self.editor.scene.references.len() != pictures {
+                    self.selected_reference = None;
+                }
                 self.message = match (undo, done) {
                     (true, true) => "Undone".into(),
                     (true, false) => "Nothing to undo".into(),

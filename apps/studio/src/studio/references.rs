@@ -6,17 +6,19 @@ use super::*;
 use strata_editor::{Picture, ReferenceImage, ReferencePlane};
 
 impl Studio {
-    /// The plane a picture loaded now is laid in: the axis view the camera looks along (front
-    /// and back: front; right and left: side; top and bottom: top), else the front.
-    pub fn reference_plane_for_view(&self) -> ReferencePlane {
+    /// The view a picture loaded now faces: the axis view the camera looks along (its plane,
+    /// and whether it is the opposite view: back, left or bottom), else the front.
+    pub fn reference_view(&self) -> (ReferencePlane, bool) {
         let c = &self.camera;
         let toward_eye = (c.eye() - c.target).normalize_or(glam::Vec3::Z);
         if toward_eye.y.abs() > 0.99 {
-            ReferencePlane::Top
+            (ReferencePlane::Top, toward_eye.y < 0.0)
         } else if toward_eye.x.abs() > 0.99 {
-            ReferencePlane::Side
+            (ReferencePlane::Side, toward_eye.x < 0.0)
+        } else if toward_eye.z.abs() > 0.99 {
+            (ReferencePlane::Front, toward_eye.z < 0.0)
         } else {
-            ReferencePlane::Front
+            (ReferencePlane::Front, false)
         }
     }
 
@@ -24,16 +26,17 @@ impl Studio {
     /// camera is in, behind the visible layers, and selects it.
     pub(super) fn load_reference(&mut self, path: &Path) -> Result<(), String> {
         let picture = Picture::load(path).map_err(|e| format!("Could not load the reference image: {e}"))?;
-        let plane = self.reference_plane_for_view();
+        let (plane, opposite) = self.reference_view();
         let bounds = strata_editor::world_bounds(self.editor.scene.layers.iter().filter(|l| l.visible));
         let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
         let (w, h, _) = picture.shown();
-        let reference = ReferenceImage::new(name.clone(), picture, plane, bounds);
+        let rotation = if opposite { plane.opposite_rotation() } else { plane.rotation() };
+        let reference = ReferenceImage::facing(name.clone(), picture, rotation, bounds);
         let i = self.editor.add_reference(reference).map_err(|e| format!("Could not add the reference image: {e}"))?;
         self.selected_reference = Some(i);
         self.show_references = true;
         self.message = format!(
-            "Reference image {name} ({w} × {h}) in the {} plane: drag the gizmo to move, turn or scale it, or lock it in the Reference images panel",
+            "Reference image {name} ({w} × {h}) in the {} plane: the gizmo moves, turns and scales it; lock it, or click its name in the Reference images panel to put the gizmo away",
             plane.name().to_lowercase()
         );
         Ok(())
@@ -71,7 +74,12 @@ impl Studio {
         match self.editor.remove_reference(i) {
             Ok(r) => {
                 self.selected_reference = None;
-                self.message = format!("Deleted the reference image {} (Ctrl+Z brings it back)", r.name);
+                self.message = if self.in_session() {
+                    // (In a room, reference changes make no undo steps: Ctrl+Z is the room's.)
+                    format!("Deleted the reference image {}", r.name)
+                } else {
+                    format!("Deleted the reference image {} (Ctrl+Z brings it back)", r.name)
+                };
             }
             Err(e) => self.message = format!("Could not delete the reference image: {e}"),
         }
