@@ -492,6 +492,27 @@ mod tests {
     }
 
     #[test]
+    fn a_photo_is_turned_as_its_exif_orientation_says() {
+        use image::ImageEncoder;
+        // A TIFF header and one IFD entry: orientation (0x0112), a SHORT, 6 (turn 90° clockwise).
+        let exif = vec![
+            0x49, 0x49, 0x2a, 0, 8, 0, 0, 0, 1, 0, 0x12, 0x01, 3, 0, 1, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0,
+        ];
+        let rgb: Vec<u8> = (0..8 * 4).flat_map(|i| if i % 8 < 4 { [255, 0, 0] } else { [0, 0, 255] }).collect();
+        let mut bytes = Vec::new();
+        let mut encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 95);
+        encoder.set_exif_metadata(exif).unwrap();
+        encoder.write_image(&rgb, 8, 4, image::ExtendedColorType::Rgb8).unwrap();
+        let p = Picture::decode(bytes, "photo.jpg").unwrap();
+        let (w, h, rgba) = p.shown();
+        assert_eq!((w, h), (4, 8), "stored 8 × 4, shown turned");
+        assert_eq!(p.aspect(), 2.0);
+        // Turned clockwise, the stored left (red) is at the top.
+        assert!(rgba[0] > 200 && rgba[2] < 60, "{:?}", &rgba[..4]);
+        assert!(rgba[(7 * 4) * 4 + 2] > 200, "the bottom is blue");
+    }
+
+    #[test]
     fn large_pictures_are_shown_scaled_down_and_kept_whole() {
         let bytes = test_png(SHOWN_SIDE + 100, 10);
         let p = Picture::decode(bytes.clone(), "wide.png").unwrap();
