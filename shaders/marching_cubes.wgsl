@@ -12,7 +12,8 @@
 //                 the chunk and the chunk's total.
 //   scan_chunks   one workgroup: the chunks' first triangles, the last entry the batch's total.
 //   emit          one workgroup a chunk: each thread writes its cells' triangles.
-//   place         one thread a crossing: its vertex's position and normal.
+//   place         one thread a crossing: its vertex's position, normal and material (the
+//                 material of the edge's solid end, as the CPU's `edge_material`).
 
 struct Chunk {
     // Cells a side, nodes a side (n + 1), u32 words a row of node bits.
@@ -31,6 +32,12 @@ struct Chunk {
     off_x: u32,
     off_y: u32,
     off_z: u32,
+    // Where the node materials start in `data` (four a word, node x + m (y + m z)), or
+    // 0xffffffff when every node is material 0.
+    material_base: u32,
+    unused_a: u32,
+    unused_b: u32,
+    unused_c: u32,
 };
 
 struct Params {
@@ -58,7 +65,7 @@ struct Params {
 // counts, then their first triangles and the batch's total.
 @group(0) @binding(4) var<storage, read_write> scratch: array<u32>;
 @group(0) @binding(5) var<storage, read_write> indices: array<u32>;
-// Per vertex: position (3), normal (3).
+// Per vertex: position (3), normal (3), material id (its bits).
 @group(0) @binding(6) var<storage, read_write> vertices: array<f32>;
 
 const THREADS: u32 = 256u;
@@ -216,11 +223,22 @@ fn place(@builtin(global_invocation_id) g: vec3<u32>) {
     p[axis] = p[axis] + bitcast<f32>(q.y);
     p = p * c.spacing;
     let n = unpack_normal(q.z);
-    let at = i * 6u;
+    // The edge's solid end: its lower node if inside, else its upper one.
+    var end = vec3<u32>(q.x & 0xffu, (q.x >> 8u) & 0xffu, (q.x >> 16u) & 0xffu);
+    if (inside(c, end.x, end.y, end.z) == 0u) {
+        end[axis] = end[axis] + 1u;
+    }
+    var material = 0u;
+    if (c.material_base != 0xffffffffu) {
+        let node = end.x + c.m * (end.y + c.m * end.z);
+        material = (data[c.material_base + node / 4u] >> (8u * (node % 4u))) & 0xffu;
+    }
+    let at = i * 7u;
     vertices[at] = p.x;
     vertices[at + 1u] = p.y;
     vertices[at + 2u] = p.z;
     vertices[at + 3u] = n.x;
     vertices[at + 4u] = n.y;
     vertices[at + 5u] = n.z;
+    vertices[at + 6u] = bitcast<f32>(material);
 }

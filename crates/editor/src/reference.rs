@@ -495,9 +495,7 @@ mod tests {
     fn a_photo_is_turned_as_its_exif_orientation_says() {
         use image::ImageEncoder;
         // A TIFF header and one IFD entry: orientation (0x0112), a SHORT, 6 (turn 90° clockwise).
-        let exif = vec![
-            0x49, 0x49, 0x2a, 0, 8, 0, 0, 0, 1, 0, 0x12, 0x01, 3, 0, 1, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0,
-        ];
+        let exif = vec![0x49, 0x49, 0x2a, 0, 8, 0, 0, 0, 1, 0, 0x12, 0x01, 3, 0, 1, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0];
         let rgb: Vec<u8> = (0..8 * 4).flat_map(|i| if i % 8 < 4 { [255, 0, 0] } else { [0, 0, 255] }).collect();
         let mut bytes = Vec::new();
         let mut encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 95);

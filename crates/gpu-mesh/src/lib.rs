@@ -8,13 +8,14 @@
 //! storage buffers a stage, so it runs on downlevel adapters too, lavapipe included.
 //!
 //! What is uploaded per block: its node bits (a word a row of up to 32 nodes), its crossing
-//! lookup (per axis, the crossing index of every node's edge) and its crossings (lower node,
-//! `t`, packed normal). Blocks with seams (a face shared with a finer neighbour, whose
+//! lookup (per axis, the crossing index of every node's edge), its node materials (four a word,
+//! for a block that has any but material 0) and its crossings (lower node, `t`, packed normal).
+//! Each vertex gets the material of its edge's solid end, as the CPU's vertices do. Blocks with seams (a face shared with a finer neighbour, whose
 //! triangles the CPU splits) are not meshed here: [`GpuMarcher::mesh`] refuses them, and the
 //! caller meshes them on the CPU.
 //!
 //! Not built yet (issue 33 lists them): keeping unchanged blocks resident across frames, dual
-//! contouring, the viewport's choice, materials on the vertices.
+//! contouring, the viewport's choice, the renderer drawing the buffers.
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};
@@ -32,6 +33,8 @@ const THREADS: u32 = 256;
 const TABLE_WORDS: usize = 256 * 16;
 /// A crossing's lookup entry where a node's edge has none.
 const NONE: u32 = u32::MAX;
+/// Words of a vertex in [`GpuBatch::vertices`]: position, normal, the material id's bits.
+pub const VERTEX_WORDS: u64 = 7;
 /// The largest block taken, in cells a side (its rows of nodes are `u128`s).
 pub const MAX_CELLS: usize = 127;
 
@@ -83,6 +86,8 @@ struct ChunkInfo {
     z_base: u32,
     spacing: f32,
     offset: [u32; 3],
+    material_base: u32,
+    unused: [u32; 3],
 }
 
 #[repr(C)]
@@ -108,16 +113,20 @@ fn case_table() -> Vec<u32> {
     out
 }
 
-/// A batch meshed on the GPU: one vertex buffer (position and normal, six `f32` a vertex) and
-/// one index buffer for all its blocks, and where each block's part is.
+/// A batch meshed on the GPU: one vertex buffer ([`VERTEX_WORDS`] words a vertex: position,
+/// normal, the bits of its material id) and one index buffer for all its blocks, and where each
+/// block's part is.
 #[derive(Debug)]
 pub struct GpuBatch {
-    /// Six `f32` a vertex: position (grid units from the block's chunk origin), normal.
+    /// [`VERTEX_WORDS`] words a vertex: position (grid units from the block's chunk origin),
+    /// normal, then the material id's bits (the material of its edge's solid end).
     pub vertices: wgpu::Buffer,
     /// Three `u32` a triangle, indexing `vertices` (the whole batch's).
     pub indices: wgpu::Buffer,
     /// Per block: its first vertex and its vertex count.
     pub vertex_ranges: Vec<(u32, u32)>,
+    /// Per block: whether its nodes have materials (its vertices' material ids mean something).
+    pub with_materials: Vec<bool>,
     /// Words of `indices` written at most (the batch's capacity).
     pub index_capacity: u64,
     scratch: wgpu::Buffer,
@@ -186,7 +195,7 @@ impl GpuMarcher {
         for (what, w) in [
             ("block data", words),
             ("crossings", crossing_words),
-            ("vertices", crossing_words / 4 * 6),
+            ("vertices", crossing_words / 4 * VERTEX_WORDS),
             ("indices", blocks.iter().map(|b| 15 * mixed_cells(b)).sum()),
             ("scratch", scratch_words),
         ] {
@@ -202,6 +211,7 @@ impl GpuMarcher {
         let mut data = self.table.clone();
         let mut crossings: Vec<[u32; 4]> = Vec::new();
         let mut ranges = Vec::with_capacity(blocks.len());
+        let mut with_materials = Vec::with_capacity(blocks.len());
         let mut index_capacity = 0u64;
         for (k, block) in blocks.iter().enumerate() {
             if !block.seams().is_empty() {
@@ -232,6 +242,21 @@ impl GpuMarcher {
                     }
                 }
             }
+            let material_base = if block.has_materials() {
+                let base = data.len();
+                let mut word = 0u32;
+                for node in 0..m * m * m {
+                    let (x, y, z) = (node % m, (node / m) % m, node / (m * m));
+                    word |= (block.material(x, y, z) as u32) << (8 * (node % 4));
+                    if node % 4 == 3 || node + 1 == m * m * m {
+                        data.push(word);
+                        word = 0;
+                    }
+                }
+                base as u32
+            } else {
+                NONE
+            };
             let vertex_base = crossings.len() as u32;
             let mut axis_base = [0u32; 3];
             for axis in Axis::ALL {
@@ -244,6 +269,7 @@ impl GpuMarcher {
             }
             let vertices = crossings.len() as u32 - vertex_base;
             ranges.push((vertex_base, vertices));
+            with_materials.push(block.has_materials());
             // At most five triangles a mixed cell.
             index_capacity += mixed_cells(block) * 15;
             let offset = block.offset().map(|o| o as u32);
@@ -258,6 +284,8 @@ impl GpuMarcher {
                 z_base: axis_base[2],
                 spacing: block.level().spacing() as f32,
                 offset,
+                material_base,
+                unused: [0; 3],
             });
         }
         if data.len() > u32::MAX as usize || crossings.len() > u32::MAX as usize / 6 {
@@ -300,7 +328,7 @@ impl GpuMarcher {
         let scratch = empty("gpu mesh scratch", scratch_words, wgpu::BufferUsages::COPY_SRC);
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX;
         let indices = empty("gpu mesh indices", index_capacity, copy);
-        let vertices = empty("gpu mesh vertices", crossing_count as u64 * 6, copy);
+        let vertices = empty("gpu mesh vertices", crossing_count as u64 * VERTEX_WORDS, copy);
         let all = [
             (0, &uniform),
             (1, &chunks),
@@ -342,19 +370,20 @@ impl GpuMarcher {
             }
             if crossing_count > 0 {
                 pass.set_pipeline(&self.place);
-                pass.set_bind_group(0, &group(&self.place, &[0, 1, 3, 6]), &[]);
+                pass.set_bind_group(0, &group(&self.place, &[0, 1, 2, 3, 6]), &[]);
                 pass.dispatch_workgroups(place_x, place_y, 1);
             }
         }
         queue.submit([encoder.finish()]);
-        Ok(GpuBatch { vertices, indices, vertex_ranges: ranges, index_capacity, scratch, chunk_count })
+        Ok(GpuBatch { vertices, indices, vertex_ranges: ranges, with_materials, index_capacity, scratch, chunk_count })
     }
 }
 
 /// Words of the data buffer a block takes: its node bits and its crossing lookup.
 fn block_words(block: &VoxelBlock) -> u64 {
     let m = block.cells() as u64 + 1;
-    m * m * m.div_ceil(32) + 3 * m * m * m
+    let materials = if block.has_materials() { (m * m * m).div_ceil(4) } else { 0 };
+    m * m * m.div_ceil(32) + 3 * m * m * m + materials
 }
 
 /// The block's crossings, all axes.
@@ -425,15 +454,19 @@ impl GpuBatch {
             return Err(GpuMeshError::Readback(format!("{total} indices past the capacity {}", self.index_capacity)));
         }
         let indices = read_words(device, queue, &self.indices, total)?;
-        let vertex_words = self.vertex_ranges.last().map_or(0, |(b, n)| (*b + *n) as u64 * 6);
-        let vertices: Vec<f32> =
-            bytemuck::cast_slice(&read_words(device, queue, &self.vertices, vertex_words)?).to_vec();
+        let vertex_words = self.vertex_ranges.last().map_or(0, |(b, n)| (*b + *n) as u64 * VERTEX_WORDS);
+        let vertices = read_words(device, queue, &self.vertices, vertex_words)?;
+        let w = VERTEX_WORDS as usize;
         let mut out = Vec::with_capacity(self.vertex_ranges.len());
         for (k, &(base, count)) in self.vertex_ranges.iter().enumerate() {
             let mut mesh = Mesh::default();
-            for v in vertices[base as usize * 6..(base + count) as usize * 6].chunks_exact(6) {
-                mesh.positions.push([v[0], v[1], v[2]]);
-                mesh.normals.push([v[3], v[4], v[5]]);
+            for v in vertices[base as usize * w..(base + count) as usize * w].chunks_exact(w) {
+                let f = |i: usize| f32::from_bits(v[i]);
+                mesh.positions.push([f(0), f(1), f(2)]);
+                mesh.normals.push([f(3), f(4), f(5)]);
+                if self.with_materials[k] {
+                    mesh.materials.push(strata_mesh::VertexMaterial::single(v[6] as u8));
+                }
             }
             let (from, to) =
                 (scratch[self.first_at(k as u32)] as usize * 3, scratch[self.first_at(k as u32 + 1)] as usize * 3);

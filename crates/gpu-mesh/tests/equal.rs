@@ -37,6 +37,7 @@ fn assert_equal(gpu: &Gpu, marcher: &GpuMarcher, blocks: &[VoxelBlock], what: &s
         mesh_block(block, &mut want);
         assert_eq!(got.positions, want.positions, "{what}: block {k}'s positions");
         assert_eq!(got.indices, want.indices, "{what}: block {k}'s triangles");
+        assert_eq!(got.materials, want.materials, "{what}: block {k}'s vertex materials");
         for (a, b) in got.normals.iter().zip(&want.normals) {
             let d = Vec3::from(*a) - Vec3::from(*b);
             assert!(d.length() < 1e-5, "{what}: block {k}: normal {a:?} against {b:?}");
@@ -88,8 +89,11 @@ fn a_sphere_across_chunk_borders_and_finer_levels() {
     for level in [Level::BASE, Level::new(1).unwrap(), Level::new(2).unwrap()] {
         let mut v = Volume::with_level(level);
         v.add(&Sphere::new(DVec3::new(16.0, 15.5, 17.25), 11.3).unwrap()).unwrap();
+        // Half of it painted material 7: the vertices on the paint's border take either.
+        v.paint(&Cuboid::new(DVec3::new(24.0, 15.5, 17.25), DVec3::new(8.0, 20.0, 20.0)).unwrap(), 7).unwrap();
         let blocks = surface_blocks(&v);
         assert!(blocks.len() >= 8, "the sphere spans chunk borders");
+        assert!(blocks.iter().any(|b| b.has_materials()), "painted blocks carry materials");
         assert_equal(&gpu, &marcher, &blocks, &format!("sphere at level {}", level.get()));
     }
 }
@@ -136,6 +140,9 @@ proptest! {
             };
             result.unwrap();
         }
+        // Painted: the vertices take their edges' solid ends' materials.
+        v.paint(&Sphere::new(DVec3::new(20.0, 20.0, 20.0), 9.0).unwrap(), 3).unwrap();
+        v.paint(&Cuboid::new(DVec3::new(10.0, 12.0, 30.0), DVec3::splat(6.0)).unwrap(), 200).unwrap();
         let blocks = surface_blocks(&v);
         assert_equal(&gpu, &marcher, &blocks, "random edits");
     }
