@@ -20,7 +20,8 @@ struct Chunk {
     n: u32,
     m: u32,
     words: u32,
-    // Where this chunk's node bits and crossing lookup start.
+    // Where this chunk's node bits start, and its crossing lookup (0xffffffff: none, the
+    // crossing's index is its rank: see `crossing_index`).
     node_base: u32,
     lookup_base: u32,
     // The chunk's first vertex in the batch, and where its y and z crossings start after it.
@@ -35,7 +36,9 @@ struct Chunk {
     // Where the node materials start in `data` (four a word, node x + m (y + m z)), or
     // 0xffffffff when every node is material 0.
     material_base: u32,
-    unused_a: u32,
+    // Where the per-line crossing counts start (per axis and line along it: the crossings on the
+    // lines before, then `words` words of the crossed edges along it).
+    rows_base: u32,
     unused_b: u32,
     unused_c: u32,
 };
@@ -54,9 +57,12 @@ struct Params {
 //   0..4096   the case table: per case 16 words, the triangle count, then three edges a
 //             triangle, each axis | dx << 2 | dy << 3 | dz << 4;
 //   node bits per chunk at `node_base`: row (y + m z) is `words` words, bit x node (x, y, z);
-//   the crossing lookup per chunk at `lookup_base`: per axis m³ entries, the index among the
-//             chunk's crossings of that axis of the edge whose lower node is (x, y, z), or
-//             0xffffffff.
+//   the crossing lookup per chunk at `lookup_base`, for a block whose crossings are not in
+//             rank order: per axis m³ entries, the index among the chunk's crossings of that
+//             axis of the edge whose lower node is (x, y, z), or 0xffffffff;
+//   otherwise, at `rows_base`, per axis and line along it the crossings on the lines before and
+//             the crossed edges' bits along it; an edge's index is those before its line plus
+//             the crossed edges before it on the line (`crossing_index`).
 @group(0) @binding(2) var<storage, read> data: array<u32>;
 // Per crossing: lower node x | y << 8 | z << 16 | axis << 24, t's bits, the packed normal, the
 // chunk.
@@ -100,6 +106,34 @@ fn case_of(c: Chunk, cell: vec3<u32>) -> u32 {
 
 fn cell_at(c: Chunk, i: u32) -> vec3<u32> {
     return vec3<u32>(i % c.n, (i / c.n) % c.n, i / (c.n * c.n));
+}
+
+// The index among the chunk's crossings of `axis` of the edge from `node`: from the lookup, or
+// its rank: the crossings on the lines along the axis before its line (line u + m v, u and v its
+// coordinates across the axis as `Axis::across` orders them), then the crossed edges before it
+// on its line.
+fn crossing_index(c: Chunk, axis: u32, node: vec3<u32>, m3: u32) -> u32 {
+    if (c.lookup_base != 0xffffffffu) {
+        return data[c.lookup_base + axis * m3 + node.x + c.m * (node.y + c.m * node.z)];
+    }
+    var e = node.x;
+    var line = node.y + c.m * node.z;
+    if (axis == 1u) {
+        e = node.y;
+        line = node.z + c.m * node.x;
+    } else if (axis == 2u) {
+        e = node.z;
+        line = node.x + c.m * node.y;
+    }
+    let stride = 1u + c.words;
+    let at = c.rows_base + axis * c.m * c.m * stride + line * stride;
+    var index = data[at];
+    let last = e / 32u;
+    for (var w = 0u; w < last; w++) {
+        index += countOneBits(data[at + 1u + w]);
+    }
+    index += countOneBits(data[at + 1u + last] & ((1u << (e % 32u)) - 1u));
+    return index;
 }
 
 // The cells thread `t` of a chunk's workgroup takes: a run of consecutive cells.
@@ -179,7 +213,7 @@ fn emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t
             let code = data[case_index + 1u + j];
             let axis = code & 3u;
             let node = cell + vec3<u32>((code >> 2u) & 1u, (code >> 3u) & 1u, (code >> 4u) & 1u);
-            let index = data[c.lookup_base + axis * m3 + node.x + c.m * (node.y + c.m * node.z)];
+            let index = crossing_index(c, axis, node, m3);
             var base = c.vertex_base;
             if (axis == 1u) {
                 base += c.y_base;

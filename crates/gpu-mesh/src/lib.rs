@@ -7,8 +7,10 @@
 //! is `shaders/marching_cubes.wgsl` (its passes are described there); it binds at most four
 //! storage buffers a stage, so it runs on downlevel adapters too, lavapipe included.
 //!
-//! What is uploaded per block: its node bits (a word a row of up to 32 nodes), its crossing
-//! lookup (per axis, the crossing index of every node's edge), its node materials (four a word,
+//! What is uploaded per block: its node bits (a word a row of up to 32 nodes), the crossings
+//! before each row of nodes per axis (a crossing's index is its rank: those plus the crossed
+//! edges before it in its row, counted on the GPU; a block whose crossings are not listed in
+//! that order uploads the whole lookup instead), its node materials (four a word,
 //! for a block that has any but material 0) and its crossings (lower node, `t`, packed normal).
 //! Each vertex gets the material of its edge's solid end, as the CPU's vertices do. Blocks with seams (a face shared with a finer neighbour, whose
 //! triangles the CPU splits) are not meshed here: [`GpuMarcher::mesh`] refuses them, and the
@@ -87,7 +89,8 @@ struct ChunkInfo {
     spacing: f32,
     offset: [u32; 3],
     material_base: u32,
-    unused: [u32; 3],
+    rows_base: u32,
+    unused: [u32; 2],
 }
 
 #[repr(C)]
@@ -141,6 +144,9 @@ pub struct GpuMarcher {
     emit: wgpu::ComputePipeline,
     place: wgpu::ComputePipeline,
     table: Vec<u32>,
+    /// Upload every block's whole crossing lookup, as for blocks whose crossings are not listed
+    /// in rank order (off: the smaller row counts where they serve; on: for tests of that path).
+    pub whole_lookups: bool,
 }
 
 impl GpuMarcher {
@@ -168,6 +174,7 @@ impl GpuMarcher {
             emit: pipeline("emit"),
             place: pipeline("place"),
             table: case_table(),
+            whole_lookups: false,
         })
     }
 
@@ -232,16 +239,30 @@ impl GpuMarcher {
                     }
                 }
             }
-            let lookup_base = data.len();
-            for axis in Axis::ALL {
-                for z in 0..m {
-                    for y in 0..m {
-                        for x in 0..m {
-                            data.push(block.crossing_index(axis, x, y, z).unwrap_or(NONE));
+            // The crossings' indices: their rank (per axis, the crossings of the lines before and
+            // the crossed edges before them on their line), when the block lists them so, which
+            // extraction does; else the whole lookup.
+            let rows = if self.whole_lookups { None } else { line_counts(block) };
+            let (lookup_base, rows_base) = match rows {
+                Some(rows) => {
+                    let base = data.len();
+                    data.extend(rows);
+                    (NONE, base as u32)
+                }
+                None => {
+                    let base = data.len();
+                    for axis in Axis::ALL {
+                        for z in 0..m {
+                            for y in 0..m {
+                                for x in 0..m {
+                                    data.push(block.crossing_index(axis, x, y, z).unwrap_or(NONE));
+                                }
+                            }
                         }
                     }
+                    (base as u32, NONE)
                 }
-            }
+            };
             let material_base = if block.has_materials() {
                 let base = data.len();
                 let mut word = 0u32;
@@ -278,14 +299,15 @@ impl GpuMarcher {
                 m: m as u32,
                 words: words as u32,
                 node_base: node_base as u32,
-                lookup_base: lookup_base as u32,
+                lookup_base,
                 vertex_base,
                 y_base: axis_base[1],
                 z_base: axis_base[2],
                 spacing: block.level().spacing() as f32,
                 offset,
                 material_base,
-                unused: [0; 3],
+                rows_base,
+                unused: [0; 2],
             });
         }
         if data.len() > u32::MAX as usize || crossings.len() > u32::MAX as usize / 6 {
@@ -379,11 +401,48 @@ impl GpuMarcher {
     }
 }
 
-/// Words of the data buffer a block takes: its node bits and its crossing lookup.
+/// Words of the data buffer a block takes at most: its node bits, its crossing lookup (or the
+/// smaller row counts) and its materials.
 fn block_words(block: &VoxelBlock) -> u64 {
     let m = block.cells() as u64 + 1;
     let materials = if block.has_materials() { (m * m * m).div_ceil(4) } else { 0 };
     m * m * m.div_ceil(32) + 3 * m * m * m + materials
+}
+
+/// Per axis and line along it (line `u + m v`, with `(u, v)` the block coordinates across the
+/// axis as `strata_volume::Axis::across` orders them), the crossings of that axis on the lines
+/// before it, then the bits of the crossed edges along it (`words` words, bit `e` for the edge
+/// from node `e`): when the block lists each axis's crossings line by line in that order and
+/// along each line in order, which extraction does, a crossing's index is those before its line
+/// plus the crossed edges before it on the line, which the shader counts. `None` for a block
+/// listed otherwise (a repaired one appends the crossings it fills in).
+fn line_counts(block: &VoxelBlock) -> Option<Vec<u32>> {
+    let m = block.cells() + 1;
+    let words = m.div_ceil(32);
+    let mut out = vec![0u32; 3 * m * m * (1 + words)];
+    for axis in Axis::ALL {
+        let a = axis.index();
+        let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+        let axis_base = a * m * m * (1 + words);
+        let mut last: Option<(usize, usize)> = None;
+        let mut seen = vec![0u32; m * m];
+        for c in block.crossings(axis) {
+            let lower = c.lower.map(usize::from);
+            let (e, line) = (lower[a], lower[ua] + m * lower[va]);
+            if last.is_some_and(|prev| prev >= (line, e)) {
+                return None;
+            }
+            last = Some((line, e));
+            seen[line] += 1;
+            out[axis_base + line * (1 + words) + 1 + e / 32] |= 1 << (e % 32);
+        }
+        let mut before = 0u32;
+        for (line, count) in seen.iter().enumerate() {
+            out[axis_base + line * (1 + words)] = before;
+            before += count;
+        }
+    }
+    Some(out)
 }
 
 /// The block's crossings, all axes.
@@ -499,6 +558,42 @@ mod tests {
         assert_eq!((t[0], t[255 * 16]), (0, 0), "no triangles in an empty or a full cell");
         assert_eq!(t[16], 1, "one corner inside: one triangle");
         assert!((0..256).all(|c| t[c * 16] <= 5));
+    }
+
+    #[test]
+    fn extracted_blocks_list_their_crossings_line_by_line_and_the_counts_give_their_indices() {
+        use strata_volume::brush::Sphere;
+        let mut v = strata_volume::Volume::new();
+        v.add(&Sphere::new(glam::DVec3::new(16.0, 15.5, 17.25), 11.3).unwrap()).unwrap();
+        let mut blocks = 0;
+        for key in strata_mesh::surface_chunks(&v) {
+            let b = v.extract_block(key);
+            let counts = line_counts(&b).expect("line by line");
+            let m = b.cells() + 1;
+            let words = m.div_ceil(32);
+            // What the shader computes equals the CPU's lookup for every node of every axis.
+            for axis in Axis::ALL {
+                let a = axis.index();
+                for z in 0..m {
+                    for y in 0..m {
+                        for x in 0..m {
+                            let node = [x, y, z];
+                            let (e, line) = (node[a], node[(a + 1) % 3] + m * node[(a + 2) % 3]);
+                            let at = a * m * m * (1 + words) + line * (1 + words);
+                            let mask = counts[at + 1] as u64 | (counts.get(at + 2).copied().unwrap_or(0) as u64) << 32;
+                            let crossed = (mask >> e) & 1 == 1;
+                            let rank = counts[at] + (mask & ((1u64 << e) - 1)).count_ones();
+                            match b.crossing_index(axis, x, y, z) {
+                                Some(i) => assert!(crossed && rank == i, "{axis:?} {node:?}"),
+                                None => assert!(!crossed, "{axis:?} {node:?}"),
+                            }
+                        }
+                    }
+                }
+            }
+            blocks += 1;
+        }
+        assert!(blocks > 8);
     }
 
     #[test]

@@ -26,8 +26,16 @@ fn gpu() -> Option<Gpu> {
     }
 }
 
-/// Asserts the GPU meshes of `blocks` equal the CPU's.
+/// Asserts the GPU meshes of `blocks` equal the CPU's, with crossing indices by rank and by
+/// whole lookups alike.
 fn assert_equal(gpu: &Gpu, marcher: &GpuMarcher, blocks: &[VoxelBlock], what: &str) {
+    assert_equal_by(gpu, marcher, blocks, what);
+    let mut lookups = GpuMarcher::new(&gpu.device).unwrap();
+    lookups.whole_lookups = true;
+    assert_equal_by(gpu, &lookups, blocks, &format!("{what}, whole lookups"));
+}
+
+fn assert_equal_by(gpu: &Gpu, marcher: &GpuMarcher, blocks: &[VoxelBlock], what: &str) {
     let refs: Vec<&VoxelBlock> = blocks.iter().collect();
     let batch = marcher.mesh(&gpu.device, &gpu.queue, &refs).unwrap();
     let meshes = batch.read_back(&gpu.device, &gpu.queue).unwrap();
