@@ -7,10 +7,11 @@
 //! is `shaders/marching_cubes.wgsl` (its passes are described there); it binds at most four
 //! storage buffers a stage, so it runs on downlevel adapters too, lavapipe included.
 //!
-//! What is uploaded per block: its node bits (a word a row of up to 32 nodes), the crossings
-//! before each row of nodes per axis (a crossing's index is its rank: those plus the crossed
-//! edges before it in its row, counted on the GPU; a block whose crossings are not listed in
-//! that order uploads the whole lookup instead), its node materials (four a word,
+//! What is uploaded per block: its node bits (a word a row of up to 32 nodes), per axis and
+//! line along it the crossings on the lines before and the crossed edges' bits (a crossing's
+//! index is its rank: those plus the crossed edges before it on its line, counted on the GPU; a
+//! block whose crossings are not listed line by line uploads the whole lookup instead), its
+//! node materials (four a word,
 //! for a block that has any but material 0) and its crossings (lower node, `t`, packed normal).
 //! Each vertex gets the material of its edge's solid end, as the CPU's vertices do. Blocks with seams (a face shared with a finer neighbour, whose
 //! triangles the CPU splits) are not meshed here: [`GpuMarcher::mesh`] refuses them, and the
