@@ -914,6 +914,7 @@ fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_o
         ("File", "Import mesh… (PLY, OBJ, STL, glTF)"),
         ("File", "Export mesh… (glb, obj, stl, ply)"),
         ("Terrain", "New world…"),
+        ("File", "Load reference image… (Ctrl+Shift+I)"),
     ] {
         let mut h = harness_with(&dir, default_scene(), no_portal());
         h.run();

@@ -450,29 +450,24 @@ impl Editor {
     /// Undoes the newest step; an error (a world's chunk it restores cannot be read) changes
     /// nothing and keeps the step.
     pub fn try_undo(&mut self) -> Result<bool, EditorError> {
-        self.end_stroke();
-        let changed = self.history.undo(
-            crate::history::StepTarget {
-                layers: &mut self.scene.layers,
-                active: &mut self.active_layer,
-                references: &mut self.scene.references,
-            },
-            self.world.as_mut(),
-        )?;
-        Ok(self.after_history(changed))
+        self.history_step(false)
     }
 
     /// Redoes the newest undone step (see [`Editor::try_undo`]).
     pub fn try_redo(&mut self) -> Result<bool, EditorError> {
+        self.history_step(true)
+    }
+
+    /// Undoes (or with `redo`, redoes) the newest step on the scene and the world.
+    fn history_step(&mut self, redo: bool) -> Result<bool, EditorError> {
         self.end_stroke();
-        let changed = self.history.redo(
-            crate::history::StepTarget {
-                layers: &mut self.scene.layers,
-                active: &mut self.active_layer,
-                references: &mut self.scene.references,
-            },
-            self.world.as_mut(),
-        )?;
+        let target = crate::history::StepTarget {
+            layers: &mut self.scene.layers,
+            active: &mut self.active_layer,
+            references: &mut self.scene.references,
+        };
+        let world = self.world.as_mut();
+        let changed = if redo { self.history.redo(target, world)? } else { self.history.undo(target, world)? };
         Ok(self.after_history(changed))
     }
 

@@ -339,7 +339,7 @@ struct SceneRecordV5 {
 /// One reference image as version 6 stores it (public for tests that craft files; not a
 /// stable API): its placement and its picture file's bytes with their CRC-32.
 #[doc(hidden)]
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ReferenceRecord {
     pub name: String,
     pub center: glam::DVec3,

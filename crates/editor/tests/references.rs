@@ -142,25 +142,11 @@ fn references_out_of_range_are_repaired_and_said_and_too_many_are_cut() {
     let mut many = file::scene_record(&s, true).unwrap();
     let one = file::scene_record(&s, true).unwrap().references.remove(2);
     many.references = (0..strata_editor::reference::MAX_REFERENCES + 3)
-        .map(|i| file::ReferenceRecord { name: format!("r{i}"), bytes: one.bytes.clone(), ..clone_record(&one) })
+        .map(|i| file::ReferenceRecord { name: format!("r{i}"), bytes: one.bytes.clone(), ..one.clone() })
         .collect();
     let back = decode(&file::encode_record(&many).unwrap()).unwrap();
     assert_eq!(back.scene.references.len(), strata_editor::reference::MAX_REFERENCES);
     assert!(back.report.to_string().contains("were dropped"), "{}", back.report);
-}
-
-fn clone_record(r: &file::ReferenceRecord) -> file::ReferenceRecord {
-    file::ReferenceRecord {
-        name: r.name.clone(),
-        center: r.center,
-        rotation: r.rotation,
-        width: r.width,
-        opacity: r.opacity,
-        visible: r.visible,
-        locked: r.locked,
-        crc: r.crc,
-        bytes: r.bytes.clone(),
-    }
 }
 
 fn plane() -> impl Strategy<Value = ReferencePlane> {

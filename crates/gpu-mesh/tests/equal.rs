@@ -14,16 +14,7 @@ use strata_volume::brush::{Cuboid, Sphere};
 use strata_volume::{ChunkKey, Level, Volume, VoxelBlock};
 
 fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("STRATA_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("STRATA_REQUIRE_GPU=1 but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping the GPU meshing test: {e}");
-            None
-        }
-    }
+    Gpu::for_tests("the GPU meshing test")
 }
 
 /// Asserts the GPU meshes of `blocks` equal the CPU's, with crossing indices by rank and by

@@ -42,6 +42,22 @@ pub struct Gpu {
 }
 
 impl Gpu {
+    /// [`Gpu::headless`] for a test suite that needs a GPU: `None` (the suite skips, saying
+    /// which) where there is no adapter, unless `STRATA_REQUIRE_GPU=1` (CI sets it), where a
+    /// missing adapter panics: a CI run never passes by skipping.
+    pub fn for_tests(suite: &str) -> Option<Gpu> {
+        match Gpu::headless() {
+            Ok(g) => Some(g),
+            Err(e) if std::env::var("STRATA_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+                panic!("STRATA_REQUIRE_GPU=1 but no adapter: {e}")
+            }
+            Err(e) => {
+                eprintln!("skipping {suite}: {e}");
+                None
+            }
+        }
+    }
+
     /// A headless context on the first adapter found (`WGPU_BACKEND` etc. are honoured).
     pub fn headless() -> Result<Gpu, RenderError> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());

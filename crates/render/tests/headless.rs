@@ -16,16 +16,7 @@ use strata_volume::tools::{Dab, grab};
 use strata_volume::{ChunkKey, Volume};
 
 fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("STRATA_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("STRATA_REQUIRE_GPU=1 but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping the render test: {e}");
-            None
-        }
-    }
+    Gpu::for_tests("the render test")
 }
 
 /// `mesh` as the renderer reads it.

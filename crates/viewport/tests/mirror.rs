@@ -16,16 +16,7 @@ use strata_viewport::{apply_changes, upload_scene};
 use strata_volume::brush::Sphere;
 
 fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("STRATA_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("STRATA_REQUIRE_GPU=1 but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping the mirror test: {e}");
-            None
-        }
-    }
+    Gpu::for_tests("the mirror test")
 }
 
 fn scene() -> Scene {
