@@ -14,6 +14,11 @@
 //   emit          one workgroup a chunk: each thread writes its cells' triangles.
 //   place         one thread a crossing: its vertex's position, normal and material (the
 //                 material of the edge's solid end, as the CPU's `edge_material`).
+// And for drawing (`GpuMarcher::mesh_for_drawing`), after those:
+//   world         one thread a vertex: the renderer's vertex (world position, normal, tint,
+//                 material), placed by its block's placement.
+//   draw_args     one thread a chunk: its indirect draw arguments (triangles, then edges).
+//   edge_lines    one thread a triangle: its three edges as line-list indices (the wireframe).
 
 struct Chunk {
     // Cells a side, nodes a side (n + 1), u32 words a row of node bits.
@@ -46,9 +51,25 @@ struct Chunk {
 struct Params {
     chunk_count: u32,
     crossing_count: u32,
-    // Threads a row of the place dispatch (its x workgroups × 64).
+    // Threads a row of the place and world dispatches (their x workgroups × 64).
     place_row: u32,
-    unused: u32,
+    // Threads a row of the edge_lines dispatch.
+    edge_row: u32,
+};
+
+// Where a chunk's mesh is drawn: world = model · (origin + position), the sum in f32 (exact
+// operands, so two chunks put a shared vertex on one world position bit for bit); normals by
+// the inverse transpose; `tint` multiplies the materials' colours.
+struct Placement {
+    m0: vec4<f32>,
+    m1: vec4<f32>,
+    m2: vec4<f32>,
+    m3: vec4<f32>,
+    n0: vec4<f32>,
+    n1: vec4<f32>,
+    n2: vec4<f32>,
+    origin: vec4<f32>,
+    tint: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -73,6 +94,14 @@ struct Params {
 @group(0) @binding(5) var<storage, read_write> indices: array<u32>;
 // Per vertex: position (3), normal (3), material id (its bits).
 @group(0) @binding(6) var<storage, read_write> vertices: array<f32>;
+
+// For drawing: per chunk its placement; the renderer's vertices (12 words: position, normal,
+// RGBA, material ids (a byte each), their weights); per chunk ten words of indirect draw
+// arguments (indexed triangles, then indexed edges); two line indices an edge.
+@group(0) @binding(7) var<storage, read> placements: array<Placement>;
+@group(0) @binding(8) var<storage, read_write> drawn: array<u32>;
+@group(0) @binding(9) var<storage, read_write> args: array<u32>;
+@group(0) @binding(10) var<storage, read_write> edge_indices: array<u32>;
 
 const THREADS: u32 = 256u;
 
@@ -275,4 +304,78 @@ fn place(@builtin(global_invocation_id) g: vec3<u32>) {
     vertices[at + 4u] = n.y;
     vertices[at + 5u] = n.z;
     vertices[at + 6u] = bitcast<f32>(material);
+}
+
+@compute @workgroup_size(64)
+fn world(@builtin(global_invocation_id) g: vec3<u32>) {
+    let i = g.x + g.y * params.place_row;
+    if (i >= params.crossing_count) {
+        return;
+    }
+    let p = placements[crossings[i].w];
+    let at = i * 7u;
+    let grid = p.origin.xyz + vec3<f32>(vertices[at], vertices[at + 1u], vertices[at + 2u]);
+    let w = p.m0 * grid.x + p.m1 * grid.y + p.m2 * grid.z + p.m3;
+    let local_normal = vec3<f32>(vertices[at + 3u], vertices[at + 4u], vertices[at + 5u]);
+    var n = p.n0.xyz * local_normal.x + p.n1.xyz * local_normal.y + p.n2.xyz * local_normal.z;
+    let length_squared = dot(n, n);
+    if (length_squared > 0.0) {
+        n = n * inverseSqrt(length_squared);
+    } else {
+        n = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let out = i * 12u;
+    drawn[out] = bitcast<u32>(w.x);
+    drawn[out + 1u] = bitcast<u32>(w.y);
+    drawn[out + 2u] = bitcast<u32>(w.z);
+    drawn[out + 3u] = bitcast<u32>(n.x);
+    drawn[out + 4u] = bitcast<u32>(n.y);
+    drawn[out + 5u] = bitcast<u32>(n.z);
+    drawn[out + 6u] = bitcast<u32>(p.tint.x);
+    drawn[out + 7u] = bitcast<u32>(p.tint.y);
+    drawn[out + 8u] = bitcast<u32>(p.tint.z);
+    drawn[out + 9u] = bitcast<u32>(p.tint.w);
+    // One material, whole, in every slot as the CPU's `VertexMaterial::single` (material 0
+    // where the block has none).
+    drawn[out + 10u] = (bitcast<u32>(vertices[at + 6u]) & 0xffu) * 0x01010101u;
+    drawn[out + 11u] = 255u;
+}
+
+@compute @workgroup_size(64)
+fn draw_args(@builtin(global_invocation_id) g: vec3<u32>) {
+    let k = g.x;
+    if (k >= params.chunk_count) {
+        return;
+    }
+    let first = scratch[chunk_first_at(k)];
+    let triangles = scratch[chunk_first_at(k + 1u)] - first;
+    let a = k * 10u;
+    args[a] = triangles * 3u;
+    args[a + 1u] = 1u;
+    args[a + 2u] = first * 3u;
+    args[a + 3u] = 0u;
+    args[a + 4u] = 0u;
+    args[a + 5u] = triangles * 6u;
+    args[a + 6u] = 1u;
+    args[a + 7u] = first * 6u;
+    args[a + 8u] = 0u;
+    args[a + 9u] = 0u;
+}
+
+@compute @workgroup_size(64)
+fn edge_lines(@builtin(global_invocation_id) g: vec3<u32>) {
+    let t = g.x + g.y * params.edge_row;
+    if (t >= scratch[chunk_first_at(params.chunk_count)]) {
+        return;
+    }
+    let a = indices[t * 3u];
+    let b = indices[t * 3u + 1u];
+    let c = indices[t * 3u + 2u];
+    let at = t * 6u;
+    edge_indices[at] = a;
+    edge_indices[at + 1u] = b;
+    edge_indices[at + 2u] = b;
+    edge_indices[at + 3u] = c;
+    edge_indices[at + 4u] = c;
+    edge_indices[at + 5u] = a;
 }

@@ -23,6 +23,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use strata_mesh::Mesh;
+use strata_render::{IndirectMesh, Placement};
 use strata_volume::{Axis, VoxelBlock};
 use thiserror::Error;
 use wgpu::util::DeviceExt;
@@ -75,6 +76,16 @@ pub fn check_limits(limits: &wgpu::Limits) -> Result<(), GpuMeshError> {
     Ok(())
 }
 
+/// Whether an adapter can draw what [`GpuMarcher::mesh_for_drawing`] makes: besides
+/// [`check_limits`], indirect draws (WebGL and some downlevel adapters lack them).
+pub fn check_drawing(adapter: &wgpu::Adapter) -> Result<(), GpuMeshError> {
+    check_limits(&adapter.limits())?;
+    if !adapter.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::INDIRECT_EXECUTION) {
+        return Err(GpuMeshError::Limits("indirect draws".into()));
+    }
+    Ok(())
+}
+
 /// A block as the shader reads it (the WGSL `Chunk`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -100,7 +111,57 @@ struct Params {
     chunk_count: u32,
     crossing_count: u32,
     place_row: u32,
-    unused: u32,
+    edge_row: u32,
+}
+
+/// A block's placement as the shader reads it (the WGSL `Placement`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct PlacementInfo {
+    model: [[f32; 4]; 4],
+    normal: [[f32; 4]; 3],
+    origin: [f32; 4],
+    tint: [f32; 4],
+}
+
+impl PlacementInfo {
+    fn of(placement: &Placement, tint: [f32; 3]) -> Result<Self, GpuMeshError> {
+        let o = placement.origin;
+        // The origin is added in f32: exact for whole grid units below 2²⁴ (chunk origins).
+        if !(o.is_finite() && o.abs().max_element() < (1u32 << 24) as f64 && o == o.round()) {
+            return Err(GpuMeshError::TooLarge(format!("an origin the GPU cannot add exactly: {o}")));
+        }
+        let n = glam::Mat3::from_mat4(placement.model).inverse().transpose();
+        Ok(PlacementInfo {
+            model: placement.model.to_cols_array_2d(),
+            normal: [n.x_axis.extend(0.0).to_array(), n.y_axis.extend(0.0).to_array(), n.z_axis.extend(0.0).to_array()],
+            origin: [o.x as f32, o.y as f32, o.z as f32, 0.0],
+            tint: [tint[0], tint[1], tint[2], 1.0],
+        })
+    }
+}
+
+/// Where [`GpuMarcher::mesh_for_drawing`] draws a block: as the renderer places an uploaded
+/// chunk mesh ([`Placement`]: `model · (origin + position)`, `origin` whole grid units), tinted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DrawPlacement {
+    /// The block's chunk placed in the world.
+    pub placement: Placement,
+    /// Multiplies the materials' colours (white: as they are).
+    pub tint: [f32; 3],
+}
+
+/// A batch meshed on the GPU for drawing ([`GpuMarcher::mesh_for_drawing`]): per block, the
+/// renderer's [`IndirectMesh`] (sharing the batch's buffers), and the batch itself (for reading
+/// back in tests).
+#[derive(Debug)]
+pub struct DrawBatch {
+    /// The batch.
+    pub batch: GpuBatch,
+    /// Per block, what the renderer draws.
+    pub meshes: Vec<IndirectMesh>,
+    /// The renderer's vertices of the whole batch (12 words a vertex, as [`strata_render::Vertex`]).
+    pub drawn: wgpu::Buffer,
 }
 
 /// The case table as the shader reads it (see the WGSL).
@@ -144,6 +205,9 @@ pub struct GpuMarcher {
     scan: wgpu::ComputePipeline,
     emit: wgpu::ComputePipeline,
     place: wgpu::ComputePipeline,
+    world: wgpu::ComputePipeline,
+    draw_args: wgpu::ComputePipeline,
+    edge_lines: wgpu::ComputePipeline,
     table: Vec<u32>,
     /// Upload every block's whole crossing lookup, as for blocks whose crossings are not listed
     /// in rank order (off: the smaller row counts where they serve; on: for tests of that path).
@@ -174,6 +238,9 @@ impl GpuMarcher {
             scan: pipeline("scan_chunks"),
             emit: pipeline("emit"),
             place: pipeline("place"),
+            world: pipeline("world"),
+            draw_args: pipeline("draw_args"),
+            edge_lines: pipeline("edge_lines"),
             table: case_table(),
             whole_lookups: false,
         })
@@ -189,6 +256,47 @@ impl GpuMarcher {
         queue: &wgpu::Queue,
         blocks: &[&VoxelBlock],
     ) -> Result<GpuBatch, GpuMeshError> {
+        Ok(self.build(device, queue, blocks, None)?.0)
+    }
+
+    /// [`GpuMarcher::mesh`], then the renderer's vertices placed by `placements` (one a block),
+    /// each block's indirect draw arguments and the wireframe's edges, all on the GPU: the
+    /// meshes are drawn from where they were made ([`strata_render::Renderer::show_indirect`]),
+    /// nothing read back. The adapter must execute indirect draws ([`check_drawing`]).
+    pub fn mesh_for_drawing(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+        placements: &[DrawPlacement],
+    ) -> Result<DrawBatch, GpuMeshError> {
+        if placements.len() != blocks.len() {
+            return Err(GpuMeshError::TooLarge(format!("{} placements for {} blocks", placements.len(), blocks.len())));
+        }
+        let (batch, draw) = self.build(device, queue, blocks, Some(placements))?;
+        let (drawn, args, edges) = draw.expect("asked for");
+        let stride = 40u64;
+        let meshes = (0..blocks.len() as u64)
+            .map(|k| IndirectMesh {
+                vertices: drawn.clone(),
+                triangles: batch.indices.clone(),
+                edges: edges.clone(),
+                args: args.clone(),
+                triangle_args: k * stride,
+                edge_args: k * stride + 20,
+            })
+            .collect();
+        Ok(DrawBatch { batch, meshes, drawn })
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn build(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+        draw: Option<&[DrawPlacement]>,
+    ) -> Result<(GpuBatch, Option<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer)>), GpuMeshError> {
         let limits = device.limits();
         let max_groups = limits.max_compute_workgroups_per_dimension;
         let chunk_count = blocks.len() as u32;
@@ -204,7 +312,9 @@ impl GpuMarcher {
             ("block data", words),
             ("crossings", crossing_words),
             ("vertices", crossing_words / 4 * VERTEX_WORDS),
+            ("drawn vertices", if draw.is_some() { crossing_words / 4 * 12 } else { 0 }),
             ("indices", blocks.iter().map(|b| 15 * mixed_cells(b)).sum()),
+            ("edge indices", if draw.is_some() { blocks.iter().map(|b| 30 * mixed_cells(b)).sum() } else { 0 }),
             ("scratch", scratch_words),
         ] {
             if w * 4 > binding {
@@ -338,7 +448,17 @@ impl GpuMarcher {
         if place_y > max_groups {
             return Err(GpuMeshError::TooLarge(format!("{crossing_count} crossings")));
         }
-        let params = Params { chunk_count, crossing_count, place_row: place_x * 64, unused: 0 };
+        let edge_groups = (index_capacity / 3).div_ceil(64).min(u32::MAX as u64) as u32;
+        let edge_x = edge_groups.clamp(1, max_groups);
+        let edge_y = edge_groups.div_ceil(edge_x).max(1);
+        if draw.is_some() && edge_y > max_groups {
+            return Err(GpuMeshError::TooLarge(format!("{} triangles at most", index_capacity / 3)));
+        }
+        let placement_infos = match draw {
+            Some(p) => p.iter().map(|d| PlacementInfo::of(&d.placement, d.tint)).collect::<Result<Vec<_>, _>>()?,
+            None => Vec::new(),
+        };
+        let params = Params { chunk_count, crossing_count, place_row: place_x * 64, edge_row: edge_x * 64 };
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("gpu mesh params"),
             contents: bytemuck::bytes_of(&params),
@@ -352,7 +472,16 @@ impl GpuMarcher {
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX;
         let indices = empty("gpu mesh indices", index_capacity, copy);
         let vertices = empty("gpu mesh vertices", crossing_count as u64 * VERTEX_WORDS, copy);
-        let all = [
+        // For drawing: placements, the renderer's vertices, indirect arguments, edges.
+        let drawing = draw.map(|_| {
+            (
+                storage("gpu mesh placements", bytemuck::cast_slice(&placement_infos), wgpu::BufferUsages::empty()),
+                empty("gpu mesh drawn vertices", crossing_count as u64 * 12, copy),
+                empty("gpu mesh draw args", chunk_count as u64 * 10, wgpu::BufferUsages::INDIRECT | copy),
+                empty("gpu mesh edges", index_capacity * 2, copy),
+            )
+        });
+        let mut all = vec![
             (0, &uniform),
             (1, &chunks),
             (2, &data),
@@ -361,6 +490,9 @@ impl GpuMarcher {
             (5, &indices),
             (6, &vertices),
         ];
+        if let Some((p, d, a, e)) = &drawing {
+            all.extend([(7, p), (8, d), (9, a), (10, e)]);
+        }
         // Each pass binds only what its entry point uses (its layout is derived from it).
         let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
             let entries: Vec<wgpu::BindGroupEntry<'_>> = all
@@ -396,9 +528,28 @@ impl GpuMarcher {
                 pass.set_bind_group(0, &group(&self.place, &[0, 1, 2, 3, 6]), &[]);
                 pass.dispatch_workgroups(place_x, place_y, 1);
             }
+            if drawing.is_some() {
+                if crossing_count > 0 {
+                    pass.set_pipeline(&self.world);
+                    pass.set_bind_group(0, &group(&self.world, &[0, 3, 6, 7, 8]), &[]);
+                    pass.dispatch_workgroups(place_x, place_y, 1);
+                }
+                if chunk_count > 0 {
+                    pass.set_pipeline(&self.draw_args);
+                    pass.set_bind_group(0, &group(&self.draw_args, &[0, 4, 9]), &[]);
+                    pass.dispatch_workgroups(chunk_count.div_ceil(64), 1, 1);
+                }
+                if index_capacity > 0 {
+                    pass.set_pipeline(&self.edge_lines);
+                    pass.set_bind_group(0, &group(&self.edge_lines, &[0, 4, 5, 10]), &[]);
+                    pass.dispatch_workgroups(edge_x, edge_y, 1);
+                }
+            }
         }
         queue.submit([encoder.finish()]);
-        Ok(GpuBatch { vertices, indices, vertex_ranges: ranges, with_materials, index_capacity, scratch, chunk_count })
+        let batch =
+            GpuBatch { vertices, indices, vertex_ranges: ranges, with_materials, index_capacity, scratch, chunk_count };
+        Ok((batch, drawing.map(|(_, d, a, e)| (d, a, e))))
     }
 }
 
@@ -490,6 +641,49 @@ fn read_words(
     Ok(words)
 }
 
+/// One block's part of a [`DrawBatch`] read back: what the renderer draws of it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DrawnBlock {
+    /// The block's vertices as the renderer reads them (in the world).
+    pub vertices: Vec<strata_render::Vertex>,
+    /// Its triangles, by its indirect arguments, indexing `vertices`.
+    pub triangles: Vec<u32>,
+    /// Its wireframe's line indices, by its indirect arguments, indexing `vertices`.
+    pub edges: Vec<u32>,
+}
+
+impl DrawBatch {
+    /// What the renderer draws of each block, read back through the indirect arguments (for
+    /// tests: drawing reads nothing back).
+    pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<DrawnBlock>, GpuMeshError> {
+        let Some(first) = self.meshes.first() else { return Ok(Vec::new()) };
+        let blocks = self.meshes.len() as u64;
+        let args = read_words(device, queue, &first.args, blocks * 10)?;
+        let vertex_words = self.batch.vertex_ranges.last().map_or(0, |(b, n)| (*b + *n) as u64 * 12);
+        let drawn = read_words(device, queue, &self.drawn, vertex_words)?;
+        let indices = read_words(device, queue, &first.triangles, self.batch.index_capacity)?;
+        let edges = read_words(device, queue, &first.edges, self.batch.index_capacity * 2)?;
+        let mut out = Vec::with_capacity(self.meshes.len());
+        for (k, &(base, count)) in self.batch.vertex_ranges.iter().enumerate() {
+            let a = &args[k * 10..k * 10 + 10];
+            let slice = |from: u32, n: u32, all: &[u32]| -> Result<Vec<u32>, GpuMeshError> {
+                let (from, to) = (from as usize, from as usize + n as usize);
+                let part = all.get(from..to).ok_or_else(|| {
+                    GpuMeshError::Readback(format!("block {k}'s draw arguments {from}..{to} pass the buffer"))
+                })?;
+                Ok(part.iter().map(|i| i.wrapping_sub(base)).collect())
+            };
+            let vertices = bytemuck::cast_slice(&drawn[base as usize * 12..(base + count) as usize * 12]).to_vec();
+            out.push(DrawnBlock {
+                vertices,
+                triangles: slice(a[2], a[0], &indices)?,
+                edges: slice(a[7], a[5], &edges)?,
+            });
+        }
+        Ok(out)
+    }
+}
+
 impl GpuBatch {
     /// The triangles of the whole batch (read back: waits for the GPU).
     pub fn triangle_count(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<u32, GpuMeshError> {
@@ -547,7 +741,7 @@ mod tests {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .expect("WGSL validates");
-        for entry in ["count", "scan_chunks", "emit", "place"] {
+        for entry in ["count", "scan_chunks", "emit", "place", "world", "draw_args", "edge_lines"] {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }
     }

@@ -162,3 +162,66 @@ fn a_batch_larger_than_the_devices_buffers_is_refused_before_it_is_built() {
         other => panic!("{count} blocks of 64³: {other:?}"),
     }
 }
+
+#[test]
+fn meshes_for_drawing_are_placed_as_the_renderer_places_uploaded_ones() {
+    use strata_gpu_mesh::DrawPlacement;
+    use strata_render::{MeshRef, Placement, placed_vertices};
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(14.0, 17.5, 15.25), 12.3).unwrap()).unwrap();
+    v.paint(&Sphere::new(DVec3::new(20.0, 20.0, 20.0), 7.0).unwrap(), 3).unwrap();
+    let blocks = surface_blocks(&v);
+    // A layer turned, scaled and moved far from the origin, as the studio's layers can be.
+    let model = glam::Mat4::from_scale_rotation_translation(
+        Vec3::splat(0.7),
+        glam::Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 0.2),
+        Vec3::new(123.4, -56.7, 88.9),
+    );
+    let placements: Vec<DrawPlacement> = blocks
+        .iter()
+        .map(|b| DrawPlacement {
+            placement: Placement { model, origin: b.key().unwrap().origin_grid().as_dvec3() },
+            tint: [1.0, 0.8, 0.6],
+        })
+        .collect();
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    let batch = marcher.mesh_for_drawing(&gpu.device, &gpu.queue, &refs, &placements).unwrap();
+    let drawn = batch.read_back(&gpu.device, &gpu.queue).unwrap();
+    assert_eq!(drawn.len(), blocks.len());
+    // Every vertex at one grid position lands on one world position, whichever block made it.
+    let mut seen: std::collections::HashMap<[u64; 3], [u32; 3]> = Default::default();
+    let (mut shared, mut painted) = (0, 0);
+    for ((block, got), place) in blocks.iter().zip(&drawn).zip(&placements) {
+        let mut want = Mesh::default();
+        mesh_block(block, &mut want);
+        assert_eq!(got.triangles, want.indices, "the triangles the indirect arguments draw");
+        let lines: Vec<u32> = want.indices.chunks_exact(3).flat_map(|t| [t[0], t[1], t[1], t[2], t[2], t[0]]).collect();
+        assert_eq!(got.edges, lines, "the wireframe's lines");
+        let materials: &[strata_render::MaterialBlend] = bytemuck::cast_slice(&want.materials);
+        let cpu = MeshRef {
+            positions: &want.positions,
+            normals: &want.normals,
+            materials,
+            indices: &want.indices,
+            shade: &[],
+        };
+        let cpu = placed_vertices(&cpu, place.placement, place.tint);
+        assert_eq!(got.vertices.len(), cpu.len());
+        for (i, (g, c)) in got.vertices.iter().zip(&cpu).enumerate() {
+            let d = Vec3::from(g.position) - Vec3::from(c.position);
+            assert!(d.length() < 1e-4, "vertex {i}: {:?} against the CPU's {:?}", g.position, c.position);
+            assert!((Vec3::from(g.normal) - Vec3::from(c.normal)).length() < 1e-5, "normal {i}");
+            assert_eq!((g.color, g.ids, g.weights), (c.color, c.ids, c.weights), "vertex {i}'s tint and material");
+            painted += usize::from(g.ids[0] == 3);
+            let grid = place.placement.origin + Vec3::from(want.positions[i]).as_dvec3();
+            let bits = g.position.map(f32::to_bits);
+            if let Some(before) = seen.insert(grid.to_array().map(f64::to_bits), bits) {
+                assert_eq!(before, bits, "a vertex two blocks share lands on two world positions (a crack)");
+                shared += 1;
+            }
+        }
+    }
+    assert!(shared > 50 && painted > 0, "{shared} shared vertices, {painted} painted");
+}

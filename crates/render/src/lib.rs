@@ -23,8 +23,8 @@ pub use camera::{AxisView, Camera};
 pub use gpu::{DrawMesh, Gpu, Image, RenderError, render_offscreen, screenshot};
 pub use references::{KEPT_TEXTURES, Pixels, ReferenceQuad};
 pub use renderer::{
-    DEPTH_FORMAT, FrameSettings, MaterialBlend, MeshId, MeshRef, PALETTE_SIZE, PaletteEntry, Placement, Preview,
-    Renderer, Vertex,
+    DEPTH_FORMAT, FrameSettings, IndirectMesh, MaterialBlend, MeshId, MeshRef, PALETTE_SIZE, PaletteEntry, Placement,
+    Preview, Renderer, Vertex, placed_vertices,
 };
 
 /// The WGSL source of every pipeline.

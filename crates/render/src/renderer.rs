@@ -182,6 +182,25 @@ impl Default for FrameSettings<'_> {
     }
 }
 
+/// A mesh made on the GPU and drawn where it lies, without coming back to the CPU (the
+/// viewport's GPU meshing: `strata_gpu_mesh`): buffers shared by a batch's meshes (clones of a
+/// `wgpu::Buffer` share it), its draw counts written on the GPU as indirect arguments.
+#[derive(Clone, Debug)]
+pub struct IndirectMesh {
+    /// [`Vertex`]es, already in the world.
+    pub vertices: wgpu::Buffer,
+    /// Triangle-list indices into `vertices`.
+    pub triangles: wgpu::Buffer,
+    /// Line-list indices into `vertices`: every triangle's three edges (the wireframe).
+    pub edges: wgpu::Buffer,
+    /// Indirect indexed-draw arguments (`wgpu::util::DrawIndexedIndirectArgs`).
+    pub args: wgpu::Buffer,
+    /// Byte offset in `args` of this mesh's triangle draw.
+    pub triangle_args: u64,
+    /// Byte offset in `args` of this mesh's edge draw.
+    pub edge_args: u64,
+}
+
 struct GpuChunk {
     vertices: wgpu::Buffer,
     triangles: wgpu::Buffer,
@@ -204,6 +223,8 @@ pub struct Renderer {
     detail_filled: bool,
     bind_group: wgpu::BindGroup,
     meshes: HashMap<MeshId, GpuChunk>,
+    /// Meshes made on the GPU (a mesh id is in `meshes` or here, never both).
+    indirect: HashMap<MeshId, IndirectMesh>,
     grid_vertices: wgpu::Buffer,
     grid_count: u32,
     preview_buffers: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
@@ -353,6 +374,7 @@ impl Renderer {
             detail_filled: false,
             bind_group,
             meshes: HashMap::new(),
+            indirect: HashMap::new(),
             grid_vertices,
             grid_count: grid_lines.len() as u32,
             preview_buffers: None,
@@ -375,6 +397,7 @@ impl Renderer {
         placement: Placement,
         color: [f32; 3],
     ) {
+        self.indirect.remove(&id);
         if mesh.indices.is_empty() {
             self.meshes.remove(&id);
             return;
@@ -425,27 +448,49 @@ impl Renderer {
         self.uploads += 1;
     }
 
+    /// Shows mesh `id` from buffers the GPU made (replacing what `id` showed). Its buffers are
+    /// kept as long as a mesh of theirs is shown.
+    pub fn show_indirect(&mut self, id: MeshId, mesh: IndirectMesh) {
+        self.meshes.remove(&id);
+        self.indirect.insert(id, mesh);
+        self.uploads += 1;
+    }
+
     /// Drops the buffers of one mesh.
     pub fn remove_mesh(&mut self, id: MeshId) {
         self.meshes.remove(&id);
+        self.indirect.remove(&id);
     }
 
     /// Drops every mesh of `group`.
     pub fn clear_group(&mut self, group: u32) {
         self.meshes.retain(|id, _| id.group != group);
+        self.indirect.retain(|id, _| id.group != group);
     }
 
     /// Drops every mesh.
     pub fn clear(&mut self) {
         self.meshes.clear();
+        self.indirect.clear();
     }
 
-    /// Meshes with buffers.
+    /// Meshes shown (uploaded and made on the GPU).
     pub fn mesh_count(&self) -> usize {
-        self.meshes.len()
+        self.meshes.len() + self.indirect.len()
     }
 
-    /// Triangles drawn per frame.
+    /// Meshes shown that the GPU made ([`Renderer::show_indirect`]).
+    pub fn indirect_count(&self) -> usize {
+        self.indirect.len()
+    }
+
+    /// Whether mesh `id` is shown from buffers the GPU made.
+    pub fn is_indirect(&self, id: MeshId) -> bool {
+        self.indirect.contains_key(&id)
+    }
+
+    /// Triangles drawn per frame of the uploaded meshes (the GPU-made ones' counts stay on the
+    /// GPU).
     pub fn triangle_count(&self) -> usize {
         self.meshes.values().map(|c| c.triangle_indices as usize / 3).sum()
     }
@@ -537,12 +582,22 @@ impl Renderer {
             pass.set_index_buffer(c.triangles.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..c.triangle_indices, 0, 0..1);
         }
+        for m in self.indirect.values() {
+            pass.set_vertex_buffer(0, m.vertices.slice(..));
+            pass.set_index_buffer(m.triangles.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed_indirect(&m.args, m.triangle_args);
+        }
         if settings.wireframe {
             pass.set_pipeline(&self.wire);
             for c in self.meshes.values() {
                 pass.set_vertex_buffer(0, c.vertices.slice(..));
                 pass.set_index_buffer(c.edges.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..c.edge_indices, 0, 0..1);
+            }
+            for m in self.indirect.values() {
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(m.edges.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed_indirect(&m.args, m.edge_args);
             }
         }
         if settings.grid {
@@ -643,6 +698,12 @@ fn detail_texture(device: &wgpu::Device) -> (wgpu::TextureView, wgpu::Sampler, w
         ..Default::default()
     });
     (view, sampler, texture)
+}
+
+/// The vertices [`Renderer::upload_mesh`] draws for `mesh` placed by `placement` and tinted
+/// `color` (for checking meshes the GPU places against the CPU's placing).
+pub fn placed_vertices(mesh: &MeshRef<'_>, placement: Placement, color: [f32; 3]) -> Vec<Vertex> {
+    world_vertices(mesh, placement.model, placement.origin, [color[0], color[1], color[2], 1.0], true)
 }
 
 /// Vertices of `mesh` (positions relative to `origin`, a chunk's origin in the layer's grid)
