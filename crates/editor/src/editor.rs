@@ -608,6 +608,44 @@ impl Editor {
         self.meshes.mesher_used(layer)
     }
 
+    /// GPU meshing for the viewport: with `on`, the surfaces meshed by marching cubes without
+    /// per-chunk simplification (scene layers without a mask; not a streamed world) are no
+    /// longer meshed by the editor. Their changed chunks are listed in [`Editor::take_changes`]
+    /// (all of them for a full list: [`Editor::caller_chunks`]) and the caller meshes each from
+    /// [`Editor::view_block`] (`strata_viewport` does, on the GPU). Every chunk is queued again
+    /// when this changes anything. Exports keep meshing on the CPU.
+    pub fn set_gpu_meshing(&mut self, on: bool) {
+        self.meshes.set_gpu(on, &surfaces(&self.scene.layers, self.world.as_ref()));
+    }
+
+    /// Whether GPU meshing is asked for ([`Editor::set_gpu_meshing`]).
+    pub fn gpu_meshing(&self) -> bool {
+        self.meshes.gpu()
+    }
+
+    /// Whether surface `i`'s viewport chunks are meshed by the caller (GPU meshing).
+    pub fn meshed_by_caller(&self, i: usize) -> bool {
+        self.meshes.by_caller(i)
+    }
+
+    /// Every chunk of caller-meshed surface `i` that can hold surface (empty for the others).
+    pub fn caller_chunks(&self, i: usize) -> Vec<ChunkKey> {
+        match self.surface(i) {
+            Some(s) => self.meshes.caller_chunks(i, s.volume()),
+            None => Vec::new(),
+        }
+    }
+
+    /// The voxel block the viewport's marching cubes meshes for chunk `key` of surface `i`
+    /// (capped by level of detail, seams with finer neighbours patched), made in `out`; `false`
+    /// where the chunk can hold no surface or there is no such surface.
+    pub fn view_block(&self, i: usize, key: ChunkKey, out: &mut strata_volume::VoxelBlock) -> bool {
+        match self.surface(i) {
+            Some(s) => self.meshes.block(i, s.volume(), key, out),
+            None => false,
+        }
+    }
+
     /// The viewport mesh of chunk `key` of a layer (chunk-local positions), by the viewport's
     /// mesher.
     pub fn chunk_mesh(&self, layer: usize, key: ChunkKey) -> Option<&Mesh> {
@@ -633,9 +671,27 @@ impl Editor {
     }
 
     /// The box of a layer's viewport surface in its grid coordinates (from the mesh cache:
-    /// chunks not meshed yet are not counted), or `None` for a layer without surface.
+    /// chunks not meshed yet are not counted; under GPU meshing, whose meshes stay on the GPU,
+    /// the box of the chunks that can hold surface), or `None` for a layer without surface.
     pub fn surface_bounds(&self, layer: usize) -> Option<(DVec3, DVec3)> {
         let mut b: Option<(DVec3, DVec3)> = None;
+        if self.meshed_by_caller(layer) {
+            // The mesh's vertices are the blocks' crossings, placed as the mesher places them.
+            let mut block = strata_volume::VoxelBlock::default();
+            for key in self.caller_chunks(layer) {
+                if !self.view_block(layer, key, &mut block) {
+                    continue;
+                }
+                let (o, sp, off) = (key.origin_grid().as_dvec3(), block.level().spacing() as f32, block.offset());
+                for axis in strata_volume::Axis::ALL {
+                    for c in block.crossings(axis) {
+                        let q = o + glam::Vec3::from(strata_mesh::crossing_position(off, sp, axis, c)).as_dvec3();
+                        b = Some(b.map_or((q, q), |(lo, hi)| (lo.min(q), hi.max(q))));
+                    }
+                }
+            }
+            return b;
+        }
         for (key, mesh) in self.chunk_meshes(layer) {
             let o = key.origin_grid().as_dvec3();
             for p in &mesh.positions {

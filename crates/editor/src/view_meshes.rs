@@ -47,6 +47,9 @@ struct Streamed {
 #[derive(Debug)]
 struct SurfaceMeshes {
     backend: Backend,
+    /// GPU meshing: the caller meshes this surface's chunks from their voxel blocks (see
+    /// [`ViewMeshes::set_gpu`]); its queued chunks are listed at once, nothing is cached.
+    by_caller: bool,
     /// Blocks: chunks to remesh. Dual: chunks an edit changed (the cache widens them itself).
     queued: BTreeSet<ChunkKey>,
     /// Meshes computed but not yet shown: a chunk's new mesh is committed only together with
@@ -79,7 +82,7 @@ impl SurfaceMeshes {
                 (Backend::Dual(d), stored.into_iter().collect())
             }
         };
-        SurfaceMeshes { backend, queued, staged: HashMap::new(), lod }
+        SurfaceMeshes { backend, by_caller: false, queued, staged: HashMap::new(), lod }
     }
 
     fn mesh(&self, key: ChunkKey) -> Option<&Mesh> {
@@ -174,6 +177,18 @@ pub(crate) struct ViewMeshes {
     shown: Option<Shown>,
     /// Chunks shown since the last change list.
     unshown: BTreeSet<(usize, ChunkKey)>,
+    /// GPU meshing asked for (see [`ViewMeshes::set_gpu`]).
+    gpu: bool,
+}
+
+/// Whether a surface is meshed by the caller from its blocks under GPU meshing: a scene layer
+/// (not a streamed world) meshed by marching cubes without per-chunk simplification, whose
+/// mask is clear (masked vertices are shaded from the mask on the CPU).
+fn meshed_by_caller(gpu: bool, options: MeshOptions, surface: &dyn EditTarget) -> bool {
+    gpu && options.mesher == Mesher::MarchingCubes
+        && options.simplify.is_none()
+        && !surface.streamed()
+        && surface.volume().mask().is_clear()
 }
 
 impl ViewMeshes {
@@ -186,6 +201,7 @@ impl ViewMeshes {
             generation: 0,
             shown: None,
             unshown: BTreeSet::new(),
+            gpu: false,
         };
         m.reset(surfaces, false);
         m
@@ -200,10 +216,55 @@ impl ViewMeshes {
         self.surfaces = surfaces
             .iter()
             .zip(lods)
-            .map(|(t, lod)| SurfaceMeshes::new(self.options, t.volume(), lod, t.streamed()))
+            .map(|(t, lod)| {
+                let mut s = SurfaceMeshes::new(self.options, t.volume(), lod, t.streamed());
+                s.by_caller = meshed_by_caller(self.gpu, self.options, *t);
+                s
+            })
             .collect();
         self.generation += 1;
         self.unshown.clear();
+    }
+
+    /// GPU meshing: with `on`, the surfaces [`meshed_by_caller`] accepts are no longer meshed
+    /// here; their chunks are listed in the change lists as they change (and all of them in a
+    /// full list: [`ViewMeshes::caller_chunks`]) for the caller to mesh from
+    /// [`ViewMeshes::block`]. Every chunk is queued again when this changes anything.
+    pub(crate) fn set_gpu(&mut self, on: bool, surfaces: &[&dyn EditTarget]) {
+        if on != self.gpu {
+            self.gpu = on;
+            self.reset(surfaces, true);
+        }
+    }
+
+    /// Whether GPU meshing is asked for.
+    pub(crate) fn gpu(&self) -> bool {
+        self.gpu
+    }
+
+    /// Whether surface `i`'s chunks are meshed by the caller (see [`ViewMeshes::set_gpu`]).
+    pub(crate) fn by_caller(&self, i: usize) -> bool {
+        self.surfaces.get(i).is_some_and(|s| s.by_caller)
+    }
+
+    /// Every chunk of a caller-meshed surface of `volume` that can hold surface.
+    pub(crate) fn caller_chunks(&self, i: usize, volume: &Volume) -> Vec<ChunkKey> {
+        if self.by_caller(i) { strata_mesh::surface_chunks(volume) } else { Vec::new() }
+    }
+
+    /// The voxel block the CPU would mesh for chunk `key` of surface `i` of `volume` (capped
+    /// by level of detail, seams with finer neighbours patched) into `out`; `false` where the
+    /// chunk can hold no surface.
+    pub(crate) fn block(&self, i: usize, volume: &Volume, key: ChunkKey, out: &mut strata_volume::VoxelBlock) -> bool {
+        let lod = self.surfaces.get(i).map(|s| &s.lod);
+        let cap = |k: ChunkKey| lod.and_then(|l| l.get(&k)).copied().unwrap_or(Level::FINEST);
+        let capped: Option<strata_mesh::LevelCap<'_>> =
+            if lod.is_none_or(HashMap::is_empty) || self.options.mesher != Mesher::MarchingCubes {
+                None
+            } else {
+                Some(&cap)
+            };
+        strata_mesh::view_block(volume, key, capped, out)
     }
 
     /// The mesher and per-chunk simplification.
@@ -224,6 +285,8 @@ impl ViewMeshes {
     pub(crate) fn queue(&mut self, layer: usize, volume: &Volume, changed: &[ChunkKey], reach: Option<Reach>) {
         let Some(s) = self.surfaces.get_mut(layer) else { return };
         match &mut s.backend {
+            // (Nothing is cached: no parts to note.)
+            Backend::Blocks(c) if s.by_caller => s.queued.extend(c.affected(volume, changed)),
             Backend::Blocks(c) => s.queued.extend(c.note(volume, changed, reach)),
             Backend::Dual(_) => s.queued.extend(changed.iter().copied()),
             // A streamed surface learns of its changes from the world ([`ViewMeshes::streamed_changes`]).
@@ -297,8 +360,24 @@ impl ViewMeshes {
         let mut shown = Vec::new();
         // Level of detail caps only marching cubes (tetrahedra do not patch seams between levels).
         let lod_on = self.options.mesher == Mesher::MarchingCubes;
+        // A mask made or cleared moves a layer between the caller's meshing and this: its
+        // chunks are queued anew and the next change list is full.
+        for (s, l) in self.surfaces.iter_mut().zip(surfaces) {
+            let by_caller = meshed_by_caller(self.gpu, self.options, *l);
+            if s.by_caller != by_caller {
+                let lod = std::mem::take(&mut s.lod);
+                *s = SurfaceMeshes::new(self.options, l.volume(), lod, l.streamed());
+                s.by_caller = by_caller;
+                self.generation += 1;
+            }
+        }
         for (layer, (s, l)) in self.surfaces.iter_mut().zip(surfaces).enumerate() {
             let volume = l.volume();
+            if s.by_caller {
+                // Listed at once, all together (so no seam is drawn between new and stale).
+                shown.extend(std::mem::take(&mut s.queued).into_iter().map(|k| (layer, k)));
+                continue;
+            }
             match &mut s.backend {
                 Backend::Dual(d) => {
                     if !s.queued.is_empty() {

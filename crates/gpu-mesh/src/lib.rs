@@ -26,7 +26,6 @@ use strata_mesh::Mesh;
 use strata_render::{IndirectMesh, Placement};
 use strata_volume::{Axis, VoxelBlock};
 use thiserror::Error;
-use wgpu::util::DeviceExt;
 
 /// The WGSL source.
 pub const SHADER: &str = include_str!("../../../shaders/marching_cubes.wgsl");
@@ -58,6 +57,9 @@ pub enum GpuMeshError {
     /// Reading the results back failed (the device was lost).
     #[error("reading the GPU's mesh back failed: {0}")]
     Readback(String),
+    /// The device reported an error while meshing (lost, out of memory).
+    #[error("the GPU failed while meshing: {0}")]
+    Device(String),
 }
 
 /// What the shader needs of a device, checked by [`GpuMarcher::new`].
@@ -424,14 +426,22 @@ impl GpuMarcher {
         if data.len() > u32::MAX as usize || crossings.len() > u32::MAX as usize / 6 {
             return Err(GpuMeshError::TooLarge("more than 2³² words of blocks".into()));
         }
-        let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
+        // Written through the queue, not mapped at creation: on a lost device that is an error
+        // the device reports (an error scope catches it), where mapping panics.
+        let filled = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
             // (An empty binding is not allowed: at least one word.)
             let contents: &[u8] = if bytes.is_empty() { &[0; 4] } else { bytes };
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | extra,
-            })
+                size: contents.len() as u64,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&buffer, 0, contents);
+            buffer
+        };
+        let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
+            filled(label, bytes, wgpu::BufferUsages::STORAGE | extra)
         };
         let empty = |label: &str, words: u64, extra: wgpu::BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -459,11 +469,7 @@ impl GpuMarcher {
             None => Vec::new(),
         };
         let params = Params { chunk_count, crossing_count, place_row: place_x * 64, edge_row: edge_x * 64 };
-        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("gpu mesh params"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let uniform = filled("gpu mesh params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
         let chunks = storage("gpu mesh chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::empty());
         let data = storage("gpu mesh data", bytemuck::cast_slice(&data), wgpu::BufferUsages::empty());
         let crossing_buffer =

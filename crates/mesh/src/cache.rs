@@ -41,6 +41,21 @@ impl BlockMesher {
     }
 }
 
+/// The voxel block [`MeshCache::compute`] meshes for chunk `key` of `volume` (under the
+/// level-of-detail cap `cap`, seams with finer neighbours patched), made in `out`, for meshing
+/// it elsewhere (on the GPU); `false` where the chunk and its apron are all inside or all
+/// outside (no surface: `out` is left as it was).
+pub fn view_block(volume: &Volume, key: ChunkKey, cap: Option<LevelCap<'_>>, out: &mut VoxelBlock) -> bool {
+    if volume.plain_block_level(key, cap).is_some() && volume.plain_block_uniform(key) {
+        return false;
+    }
+    match cap {
+        Some(c) => volume.extract_block_capped(key, c, out),
+        None => volume.extract_block_into(key, out),
+    }
+    true
+}
+
 /// Cells a side of the parts a finer chunk's marching-cubes mesh is kept in (a base chunk's
 /// size): a 64³ chunk's mesh is 4³ parts, and an edit remeshes only the parts it reaches.
 pub const PART_CELLS: usize = 16;

@@ -49,10 +49,10 @@ pub mod tetra;
 mod weld;
 mod workers;
 
-pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS};
+pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS, view_block};
 pub use cases::{TriangleEdge, case_triangles};
 pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh};
-pub use marching::{mesh_block, surface_chunks};
+pub use marching::{crossing_position, mesh_block, surface_chunks};
 pub use mesh::{Mesh, VertexMaterial};
 pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_reported, mesh_volume_with};
 pub use tetra::{TetraScratch, mesh_block_tetra};

@@ -7,7 +7,7 @@ use std::hash::BuildHasherDefault;
 use glam::I64Vec3;
 use rayon::prelude::*;
 use strata_volume::normal::unpack_normal;
-use strata_volume::{Axis, ChunkKey, KeyHasher, Level, Volume, VoxelBlock};
+use strata_volume::{Axis, ChunkKey, EdgeCrossing, KeyHasher, Level, Volume, VoxelBlock};
 
 use crate::cases::cases;
 use crate::weld::{EdgeKey, weld};
@@ -26,9 +26,7 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
     let offset = block.offset();
     for axis in Axis::ALL {
         for c in block.crossings(axis) {
-            let mut p = [0, 1, 2].map(|i| (c.lower[i] as usize + offset[i]) as f32);
-            p[axis.index()] += c.t;
-            out.positions.push(p.map(|v| v * sp));
+            out.positions.push(crossing_position(offset, sp, axis, c));
             out.normals.push(unpack_normal(c.normal).as_vec3().to_array());
             if with_materials {
                 out.materials.push(VertexMaterial::single(edge_material(block, axis, c.lower)));
@@ -77,6 +75,14 @@ pub fn mesh_block(block: &VoxelBlock, out: &mut Mesh) {
     if !block.seams().is_empty() {
         split_seams(block, base, out);
     }
+}
+
+/// Where marching cubes puts the vertex of crossing `c` along `axis` of a block whose node 0
+/// lies at `offset` in its chunk, `spacing` grid units a cell: chunk-local grid units.
+pub fn crossing_position(offset: [usize; 3], spacing: f32, axis: Axis, c: &EdgeCrossing) -> [f32; 3] {
+    let mut p = [0, 1, 2].map(|i| (c.lower[i] as usize + offset[i]) as f32);
+    p[axis.index()] += c.t;
+    p.map(|v| v * spacing)
 }
 
 /// The material of the solid end of the edge along `axis` from node `lower` (a vertex on the

@@ -38,6 +38,8 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     /// What the adapter is (name, backend, device type).
     pub info: wgpu::AdapterInfo,
+    /// The adapter (what it can do: limits, downlevel capabilities).
+    pub adapter: wgpu::Adapter,
     max_texture: u32,
 }
 
@@ -76,7 +78,7 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| RenderError::NoDevice(e.to_string()))?;
-        Ok(Gpu { device, queue, info: adapter.get_info(), max_texture })
+        Ok(Gpu { device, queue, info: adapter.get_info(), adapter, max_texture })
     }
 
     /// The largest image side this device renders.

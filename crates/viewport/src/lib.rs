@@ -16,12 +16,14 @@ use std::path::Path;
 
 use glam::Mat4;
 use strata_editor::{ChangeList, Editor, Layer, LayerTransform, Scene, View};
+pub use strata_gpu_mesh::GpuMeshError;
+use strata_gpu_mesh::{DrawPlacement, GpuMarcher};
 use strata_mesh::Mesh;
 use strata_render::{
     Camera, DrawMesh, FrameSettings, Gpu, MeshId, MeshRef, PaletteEntry, Placement, RenderError, Renderer,
     render_offscreen,
 };
-use strata_volume::ChunkKey;
+use strata_volume::{ChunkKey, VoxelBlock};
 
 /// Lends `mesh` to the renderer as plain slices (its materials cast in place:
 /// `VertexMaterial` and [`strata_render::MaterialBlend`] are both two `[u8; 4]`).
@@ -171,9 +173,31 @@ pub fn apply_changes(
     queue: &wgpu::Queue,
     renderer: &mut Renderer,
 ) {
+    // Without GPU meshing nothing can fail.
+    let _ = apply_changes_with(editor, changes, device, queue, renderer, None);
+}
+
+/// [`apply_changes`] with GPU meshing: the chunks of the surfaces the editor leaves to its
+/// caller ([`Editor::set_gpu_meshing`]) are meshed by `gpu` and drawn from where they were made.
+/// Blocks the GPU does not take (seams with a finer neighbour, larger than it meshes) are meshed
+/// on the CPU here. An error means the GPU failed (its device lost, or out of memory): turn GPU
+/// meshing off and the editor meshes everything again on the CPU.
+pub fn apply_changes_with(
+    editor: &Editor,
+    changes: &ChangeList,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    renderer: &mut Renderer,
+    gpu: Option<&GpuMeshing>,
+) -> Result<(), GpuMeshError> {
+    let mut by_caller: Vec<(usize, ChunkKey)> = Vec::new();
+    let caller_surface = |i: usize| gpu.is_some() && editor.meshed_by_caller(i);
     if changes.full {
         upload_scene(editor, device, queue, renderer);
-        return;
+        for i in (0..editor.surface_count()).filter(|&i| caller_surface(i)) {
+            by_caller.extend(editor.caller_chunks(i).into_iter().map(|k| (i, k)));
+        }
+        return mesh_on_gpu(editor, &by_caller, device, queue, renderer, gpu);
     }
     if changes.palette {
         renderer.set_palette(queue, &palette(&editor.scene));
@@ -182,17 +206,114 @@ pub fn apply_changes(
         renderer.clear_group(i as u32);
         let Some(model) = shown_surface(editor, i) else { continue };
         let Some(volume) = editor.surface(i).map(|s| s.volume()) else { continue };
+        if caller_surface(i) {
+            by_caller.extend(editor.caller_chunks(i).into_iter().map(|k| (i, k)));
+            continue;
+        }
         for (key, mesh) in editor.chunk_meshes(i) {
             upload_chunk(renderer, device, queue, i as u32, key, mesh, model, volume);
         }
     }
     for &(i, key) in &changes.meshes {
+        if caller_surface(i) {
+            by_caller.push((i, key));
+            continue;
+        }
         let shown = shown_surface(editor, i).zip(editor.surface(i));
         match shown.and_then(|(model, s)| editor.chunk_mesh(i, key).map(|m| (model, m, s.volume()))) {
             Some((model, mesh, volume)) => upload_chunk(renderer, device, queue, i as u32, key, mesh, model, volume),
             None => renderer.remove_mesh(chunk_id(i as u32, key)),
         }
     }
+    mesh_on_gpu(editor, &by_caller, device, queue, renderer, gpu)
+}
+
+/// The viewport's GPU meshing: marching cubes in wgpu compute ([`strata_gpu_mesh`]), on the
+/// device the renderer draws with, its meshes drawn where they were made.
+#[derive(Debug)]
+pub struct GpuMeshing {
+    marcher: GpuMarcher,
+}
+
+/// Blocks meshed a batch at most (each batch's buffers stay while a chunk of it is shown).
+pub const GPU_BATCH: usize = 256;
+
+impl GpuMeshing {
+    /// GPU meshing on `device` (of `adapter`), or why the adapter cannot do it: the limits the
+    /// shader needs, and indirect draws.
+    pub fn new(adapter: &wgpu::Adapter, device: &wgpu::Device) -> Result<Self, GpuMeshError> {
+        strata_gpu_mesh::check_drawing(adapter)?;
+        Ok(GpuMeshing { marcher: GpuMarcher::new(device)? })
+    }
+}
+
+/// Meshes chunks `keys` (surface, chunk) of caller-meshed surfaces on the GPU (hidden surfaces'
+/// chunks are dropped, chunks without surface removed, blocks the GPU refuses meshed here).
+fn mesh_on_gpu(
+    editor: &Editor,
+    keys: &[(usize, ChunkKey)],
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    renderer: &mut Renderer,
+    gpu: Option<&GpuMeshing>,
+) -> Result<(), GpuMeshError> {
+    let Some(gpu) = gpu else { return Ok(()) };
+    if keys.is_empty() {
+        return Ok(());
+    }
+    use rayon::prelude::*;
+    // The blocks, made in parallel (the CPU's share of GPU meshing).
+    let blocks: Vec<(usize, ChunkKey, Option<VoxelBlock>)> = keys
+        .par_iter()
+        .map(|&(i, key)| {
+            let mut block = VoxelBlock::default();
+            let shown = shown_surface(editor, i).is_some();
+            let some = shown && editor.view_block(i, key, &mut block);
+            (i, key, some.then_some(block))
+        })
+        .collect();
+    let mut batch: Vec<(usize, ChunkKey, VoxelBlock)> = Vec::new();
+    for (i, key, block) in blocks {
+        // (A block without crossings has no mixed cell: no triangles.)
+        let Some(block) = block.filter(|b| strata_volume::Axis::ALL.iter().any(|&a| !b.crossings(a).is_empty())) else {
+            renderer.remove_mesh(chunk_id(i as u32, key));
+            continue;
+        };
+        if !block.seams().is_empty() || block.cells() > strata_gpu_mesh::MAX_CELLS {
+            // Seams with a finer neighbour are patched by the CPU's marching cubes.
+            let Some(model) = shown_surface(editor, i) else { continue };
+            let Some(volume) = editor.surface(i).map(|s| s.volume()) else { continue };
+            let mut mesh = Mesh::default();
+            strata_mesh::mesh_block(&block, &mut mesh);
+            upload_chunk(renderer, device, queue, i as u32, key, &mesh, model, volume);
+            continue;
+        }
+        batch.push((i, key, block));
+    }
+    for part in batch.chunks(GPU_BATCH) {
+        let refs: Vec<&VoxelBlock> = part.iter().map(|(_, _, b)| b).collect();
+        let placements: Vec<DrawPlacement> = part
+            .iter()
+            .map(|&(i, key, _)| DrawPlacement {
+                placement: chunk_placement(shown_surface(editor, i).unwrap_or_default(), key),
+                tint: [1.0; 3],
+            })
+            .collect();
+        // A lost device or one out of memory says so through error scopes (not a panic).
+        let scopes = [wgpu::ErrorFilter::Validation, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Internal]
+            .map(|f| device.push_error_scope(f));
+        let made = gpu.marcher.mesh_for_drawing(device, queue, &refs, &placements);
+        for scope in scopes.into_iter().rev() {
+            if let Some(e) = pollster::block_on(scope.pop()) {
+                return Err(GpuMeshError::Device(e.to_string()));
+            }
+        }
+        let made = made?;
+        for ((i, key, _), mesh) in part.iter().zip(made.meshes) {
+            renderer.show_indirect(chunk_id(*i as u32, *key), mesh);
+        }
+    }
+    Ok(())
 }
 
 /// Replaces everything `renderer` holds with `editor`'s scene: its palette and every chunk
