@@ -2177,3 +2177,73 @@ fn every_control_has_a_tooltip_and_a_key_or_menu_entry_in_the_binding_table() {
     }
     assert!(missing.is_empty(), "menu entries of the binding table that do not show: {missing:?}");
 }
+
+/// View > GPU meshing where the studio has no GPU viewport: refused in words, left off.
+#[test]
+fn gpu_meshing_without_a_gpu_viewport_says_it_cannot() {
+    let dir = temp("gpu-meshing-headless");
+    let mut h = harness(&dir);
+    h.run();
+    assert!(!h.state().studio.gpu_meshing, "off without a GPU viewport");
+    h.get_by_label("View").click();
+    h.run();
+    h.get_by_label("GPU meshing").click();
+    h.run();
+    let s = &h.state().studio;
+    assert!(!s.gpu_meshing && !s.editor.gpu_meshing(), "{}", s.message);
+    assert!(s.message.contains("GPU meshing is not available (there is no GPU viewport)"), "{}", s.message);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// View > GPU meshing on the GPU viewport (lavapipe in CI): off by default on a software
+/// adapter, on when asked; the ball is then drawn from chunks meshed on the GPU, a stroke goes
+/// through them, and turning it off gives the CPU's meshes back.
+#[test]
+fn gpu_meshing_from_the_view_menu_draws_the_gpus_chunks_and_gives_them_back() {
+    let Some(gpu) = strata_render::Gpu::for_tests("the GPU meshing kittest") else { return };
+    let software = gpu.info.device_type == wgpu::DeviceType::Cpu;
+    drop(gpu);
+    let dir = temp("gpu-meshing");
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .wgpu()
+        .build_eframe(|cc| StudioApp::with_gpu(cc, Studio::new(default_scene()), Dialogs::Typed, dir.join("recovery")));
+    h.run_steps(2);
+    if software {
+        assert!(!h.state().studio.gpu_meshing, "off by default on a software adapter");
+    }
+    if !h.state().studio.gpu_meshing {
+        h.get_by_label("View").click();
+        h.run_steps(2);
+        h.get_by_label("GPU meshing").click();
+        h.run_steps(2);
+    }
+    let settle = |h: &mut Harness<'static, StudioApp>| {
+        for _ in 0..200 {
+            h.step();
+            if h.state().studio.editor.pending() == 0 {
+                break;
+            }
+        }
+        h.run_steps(2);
+    };
+    settle(&mut h);
+    let s = &h.state().studio;
+    assert!(s.gpu_meshing && s.editor.gpu_meshing(), "{}", s.message);
+    assert!(s.gpu_chunks > 0 && s.editor.triangle_count() == 0, "{} GPU chunks", s.gpu_chunks);
+    assert!(s.status().contains("chunks meshed on the GPU"), "{}", s.status());
+    let before = s.gpu_chunks;
+    drag_over_the_ball(&mut h, 6);
+    settle(&mut h);
+    let s = &h.state().studio;
+    assert_eq!(s.editor.history().undo_len(), 1, "the stroke went through: {}", s.message);
+    assert!(s.gpu_chunks >= before, "{} GPU chunks after the stroke, {before} before", s.gpu_chunks);
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("GPU meshing").click();
+    settle(&mut h);
+    let s = &h.state().studio;
+    assert!(!s.gpu_meshing && s.gpu_chunks == 0 && s.editor.triangle_count() > 0, "{}", s.message);
+    assert!(s.message.contains("GPU meshing off"), "{}", s.message);
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -273,6 +273,17 @@ impl StudioApp {
                 {
                     let _ = self.studio.act(Action::ViewMesher(self.studio.view_draft));
                 }
+                let mut gpu = self.studio.gpu_meshing;
+                if ui
+                    .checkbox(&mut gpu, "GPU meshing")
+                    .on_hover_text(
+                        "Make the viewport's marching cubes on the GPU and draw them from there (exports mesh on the CPU)",
+                    )
+                    .changed()
+                {
+                    self.set_gpu_meshing(gpu);
+                    ui.close();
+                }
                 ui.checkbox(&mut self.studio.lod, "Level of detail")
                     .on_hover_text("Mesh far chunks that were given more detail at a coarser level (marching cubes)");
                 ui.add(egui::Slider::new(&mut self.studio.lod_pixels, 0.5..=8.0).text("largest cell (px)"))

@@ -134,10 +134,49 @@ impl StudioApp {
             size: (0, 0),
             color: None,
             texture_id: None,
+            gpu: strata_viewport::GpuMeshing::new(&rs.adapter, &rs.device).map_err(|e| e.to_string()),
         });
+        // GPU meshing is on by default where the adapter is a GPU that can (a software adapter
+        // such as lavapipe meshes faster on the CPU itself).
+        let hardware =
+            cc.wgpu_render_state.as_ref().is_some_and(|rs| rs.adapter.get_info().device_type != wgpu::DeviceType::Cpu);
         let mut app = StudioApp::headless(studio, dialogs, recovery_dir);
+        app.studio.gpu_meshing = hardware && viewport.as_ref().is_some_and(|v| v.gpu.is_ok());
         app.viewport = viewport;
         app
+    }
+
+    /// Turns GPU meshing on or off (View → GPU meshing), saying what the viewport does now: it
+    /// cannot where there is no GPU viewport or the adapter lacks what it needs, and it meshes
+    /// marching cubes of scene layers only (not a world, not a masked layer, not the other
+    /// meshers).
+    pub fn set_gpu_meshing(&mut self, on: bool) {
+        if !on {
+            self.studio.gpu_meshing = false;
+            self.studio.message = "GPU meshing off: the CPU meshes the viewport".into();
+            return;
+        }
+        let why_not = match &self.viewport {
+            None => Some("there is no GPU viewport".to_string()),
+            Some(v) => v.gpu.as_ref().err().cloned(),
+        };
+        if let Some(why) = why_not {
+            self.studio.gpu_meshing = false;
+            self.studio.fail(format!("GPU meshing is not available ({why}): the CPU meshes the viewport"));
+            return;
+        }
+        self.studio.gpu_meshing = true;
+        let mesher = self.studio.editor.view_mesher();
+        self.studio.message = if mesher.mesher != strata_mesh::Mesher::MarchingCubes || mesher.simplify.is_some() {
+            format!(
+                "GPU meshing on: it meshes plain marching cubes, so the viewport's {} stays on the CPU",
+                mesher.mesher
+            )
+        } else if self.studio.terrain.is_some() {
+            "GPU meshing on for scenes: a world streams its meshes from the CPU".into()
+        } else {
+            "GPU meshing on: marching cubes made and drawn on the GPU (masked layers stay on the CPU)".into()
+        };
     }
 
     /// The app without a GPU viewport (for UI tests): paths asked for as `dialogs` says,

@@ -10,6 +10,8 @@ pub(super) struct Viewport {
     pub(super) size: (u32, u32),
     pub(super) color: Option<(wgpu::Texture, wgpu::TextureView, wgpu::TextureView)>,
     pub(super) texture_id: Option<egui::TextureId>,
+    /// GPU meshing on this device, or why the adapter cannot do it.
+    pub(super) gpu: Result<strata_viewport::GpuMeshing, String>,
 }
 
 impl Viewport {
@@ -301,8 +303,27 @@ impl StudioApp {
         }
         // What the editor's meshes changed since the last frame (a scene's or a world's),
         // applied by the one mirror.
+        // GPU meshing as asked, where this device can (a new scene's editor is set here too).
+        let gpu = vp.gpu.as_ref().ok().filter(|_| self.studio.gpu_meshing);
+        if self.studio.editor.gpu_meshing() != gpu.is_some() {
+            self.studio.editor.set_gpu_meshing(gpu.is_some());
+        }
         let changes = self.studio.editor.take_changes();
-        strata_viewport::apply_changes(&self.studio.editor, &changes, &rs.device, &rs.queue, &mut vp.renderer);
+        let applied = strata_viewport::apply_changes_with(
+            &self.studio.editor,
+            &changes,
+            &rs.device,
+            &rs.queue,
+            &mut vp.renderer,
+            gpu,
+        );
+        if let Err(e) = applied {
+            // The device failed while meshing: the CPU meshes everything again.
+            self.studio.gpu_meshing = false;
+            self.studio.editor.set_gpu_meshing(false);
+            self.studio.fail(format!("GPU meshing failed ({e}): the CPU meshes the viewport now"));
+        }
+        self.studio.gpu_chunks = vp.renderer.indirect_count();
         if let Some(t) = &self.studio.terrain {
             // Terrain mode's debris and bombs in flight (an empty mesh drops them).
             let debris = t.particle_mesh();

@@ -255,6 +255,12 @@ pub struct Studio {
     /// Level of detail by camera distance: far chunks stored above their layer's base level
     /// are meshed coarser.
     pub lod: bool,
+    /// GPU meshing asked for (View → GPU meshing): the viewport's marching cubes of scene
+    /// layers made on the GPU and drawn from there (on by default where the adapter is a GPU
+    /// that can; the app keeps the editor's switch in step, for every scene opened).
+    pub gpu_meshing: bool,
+    /// Chunks the GPU meshed that the viewport shows (their triangles stay on the GPU).
+    pub gpu_chunks: usize,
     /// The largest cell, in pixels, level of detail may show.
     pub lod_pixels: f64,
     /// The viewport's height in pixels (for level of detail).
@@ -328,6 +334,8 @@ impl Studio {
             pending_import: None,
             import_job: None,
             lod: true,
+            gpu_meshing: false,
+            gpu_chunks: 0,
             lod_pixels: 1.5,
             viewport_height: 720.0,
             last_lod: None,
@@ -478,11 +486,16 @@ impl Studio {
             })
             .unwrap_or_default();
         format!(
-            "{}{levels} · memory {:.2} MiB · {} crossings · {} triangles · edit {:.2} ms · remesh {:.2} ms · {} chunks queued · history {} steps",
+            "{}{levels} · memory {:.2} MiB · {} crossings · {} triangles{} · edit {:.2} ms · remesh {:.2} ms · {} chunks queued · history {} steps",
             self.message,
             scene.volume_bytes() as f64 / (1024.0 * 1024.0),
             scene.crossings(),
             self.editor.triangle_count(),
+            if self.gpu_chunks > 0 {
+                format!(" + {} chunks meshed on the GPU", self.gpu_chunks)
+            } else {
+                String::new()
+            },
             self.last_edit_ms,
             self.last_remesh_ms,
             self.editor.pending(),
