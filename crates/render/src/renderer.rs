@@ -489,6 +489,11 @@ impl Renderer {
         self.indirect.contains_key(&id)
     }
 
+    /// What mesh `id` is shown from, where the GPU made it.
+    pub fn indirect(&self, id: MeshId) -> Option<&IndirectMesh> {
+        self.indirect.get(&id)
+    }
+
     /// Triangles drawn per frame of the uploaded meshes (the GPU-made ones' counts stay on the
     /// GPU).
     pub fn triangle_count(&self) -> usize {

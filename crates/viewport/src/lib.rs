@@ -188,7 +188,7 @@ pub fn apply_changes_with(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     renderer: &mut Renderer,
-    gpu: Option<&GpuMeshing>,
+    gpu: Option<&mut GpuMeshing>,
 ) -> Result<(), GpuMeshError> {
     let mut by_caller: Vec<(usize, ChunkKey)> = Vec::new();
     let caller_surface = |i: usize| gpu.is_some() && editor.meshed_by_caller(i);
@@ -230,9 +230,19 @@ pub fn apply_changes_with(
 
 /// The viewport's GPU meshing: marching cubes in wgpu compute ([`strata_gpu_mesh`]), on the
 /// device the renderer draws with, its meshes drawn where they were made.
+///
+/// Chunks that did not change stay resident: a batch's buffers live while a chunk of it is
+/// shown. So that a few chunks left of a large batch do not hold all of it, a batch whose
+/// shown chunks fall below a quarter of its blocks has them meshed again into a new batch (the
+/// old buffers are then dropped): the blocks held are at most four times the chunks shown.
 #[derive(Debug)]
 pub struct GpuMeshing {
     marcher: GpuMarcher,
+    /// The batches meshes may still be shown from: their arguments buffer (which names the
+    /// batch), the chunks last seen shown from it, and its blocks.
+    batches: Vec<(wgpu::Buffer, Vec<MeshId>, usize)>,
+    /// Chunks meshed again to let sparse batches go, since creation.
+    repacked: usize,
 }
 
 /// Blocks meshed a batch at most (each batch's buffers stay while a chunk of it is shown).
@@ -243,7 +253,32 @@ impl GpuMeshing {
     /// shader needs, and indirect draws.
     pub fn new(adapter: &wgpu::Adapter, device: &wgpu::Device) -> Result<Self, GpuMeshError> {
         strata_gpu_mesh::check_drawing(adapter)?;
-        Ok(GpuMeshing { marcher: GpuMarcher::new(device)? })
+        Ok(GpuMeshing { marcher: GpuMarcher::new(device)?, batches: Vec::new(), repacked: 0 })
+    }
+
+    /// Blocks the batches still held hold (meshes shown or not).
+    pub fn resident_blocks(&self) -> usize {
+        self.batches.iter().map(|(_, _, size)| size).sum()
+    }
+
+    /// Chunks meshed again so that sparse batches could go, since creation.
+    pub fn repacked(&self) -> usize {
+        self.repacked
+    }
+
+    /// Forgets the batches no mesh of `renderer` is shown from any more, and returns the
+    /// chunks shown from batches that fell below a quarter shown (to mesh again).
+    fn sparse(&mut self, renderer: &Renderer) -> Vec<(usize, ChunkKey)> {
+        let mut again = Vec::new();
+        self.batches.retain_mut(|(args, ids, size)| {
+            ids.retain(|id| renderer.indirect(*id).is_some_and(|m| &m.args == args));
+            if ids.len() * 4 < *size {
+                again.extend(ids.iter().map(|id| (id.group as usize, ChunkKey::new(id.key[0], id.key[1], id.key[2]))));
+                return false;
+            }
+            true
+        });
+        again
     }
 }
 
@@ -255,9 +290,24 @@ fn mesh_on_gpu(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     renderer: &mut Renderer,
-    gpu: Option<&GpuMeshing>,
+    gpu: Option<&mut GpuMeshing>,
 ) -> Result<(), GpuMeshError> {
     let Some(gpu) = gpu else { return Ok(()) };
+    mesh_keys(editor, keys, device, queue, renderer, gpu)?;
+    let again = gpu.sparse(renderer);
+    gpu.repacked += again.len();
+    mesh_keys(editor, &again, device, queue, renderer, gpu)
+}
+
+/// Meshes `keys` (see [`mesh_on_gpu`]), recording the batches made.
+fn mesh_keys(
+    editor: &Editor,
+    keys: &[(usize, ChunkKey)],
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    renderer: &mut Renderer,
+    gpu: &mut GpuMeshing,
+) -> Result<(), GpuMeshError> {
     if keys.is_empty() {
         return Ok(());
     }
@@ -309,8 +359,12 @@ fn mesh_on_gpu(
             }
         }
         let made = made?;
-        for ((i, key, _), mesh) in part.iter().zip(made.meshes) {
-            renderer.show_indirect(chunk_id(*i as u32, *key), mesh);
+        let ids: Vec<MeshId> = part.iter().map(|(i, key, _)| chunk_id(*i as u32, *key)).collect();
+        if let Some(first) = made.meshes.first() {
+            gpu.batches.push((first.args.clone(), ids.clone(), ids.len()));
+        }
+        for (id, mesh) in ids.into_iter().zip(made.meshes) {
+            renderer.show_indirect(id, mesh);
         }
     }
     Ok(())

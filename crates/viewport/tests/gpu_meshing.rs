@@ -60,7 +60,7 @@ fn stroke(e: &mut Editor, at: DVec3) {
 #[test]
 fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
     let Some(gpu) = gpu() else { return };
-    let meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
+    let mut meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
     // The GPU's editor and renderer, and the CPU's.
     let mut on_gpu = Editor::new(scene());
     on_gpu.set_gpu_meshing(true);
@@ -111,7 +111,14 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
             e.finish_meshing();
         }
         let changes = on_gpu.take_changes();
-        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&meshing)).unwrap();
+        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&mut meshing)).unwrap();
+        // Batches are kept while shown, and repacked before they hold four times what is shown.
+        let resident = meshing.resident_blocks();
+        assert!(
+            resident <= 4 * drawn.indirect_count(),
+            "step {step}: {resident} blocks held for {}",
+            drawn.indirect_count()
+        );
         let changes = on_cpu.take_changes();
         apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
         assert_eq!(drawn.mesh_count(), want.mesh_count(), "step {step}: the chunks shown");
@@ -129,20 +136,40 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
         steps += 1;
     }
     assert_eq!(steps, 9);
+    // Strokes all around the first ball replace most chunks of the first batch: the few left of
+    // it are meshed again into a new one, so the old buffers go.
+    for k in 0..12 {
+        let a = k as f64 * std::f64::consts::TAU / 12.0;
+        let at = DVec3::new(20.0 + 13.0 * a.cos(), 20.0 + 13.0 * a.sin(), 20.0 + if k % 2 == 0 { 6.0 } else { -6.0 });
+        for e in [&mut on_gpu, &mut on_cpu] {
+            e.active_layer = 0;
+            stroke(e, at);
+            e.finish_meshing();
+        }
+        let changes = on_gpu.take_changes();
+        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&mut meshing)).unwrap();
+        let changes = on_cpu.take_changes();
+        apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
+        let resident = meshing.resident_blocks();
+        assert!(resident <= 4 * drawn.indirect_count(), "stroke {k}: {resident} blocks held");
+    }
+    assert!(meshing.repacked() > 0, "a sparse batch was meshed again");
+    let (a, b) = (image(&gpu, &mut drawn, false), image(&gpu, &mut want, false));
+    assert!(differing(&a, &b) * 1000 <= a.len() / 4, "after the strokes around the ball");
 }
 
 #[test]
 fn a_device_lost_while_meshing_is_an_error_and_the_cpu_takes_over() {
     let Some(gpu) = gpu() else { return };
     let Some(lost) = Gpu::for_tests("the lost-device test") else { return };
-    let meshing = GpuMeshing::new(&lost.adapter, &lost.device).unwrap();
+    let mut meshing = GpuMeshing::new(&lost.adapter, &lost.device).unwrap();
     let mut e = Editor::new(scene());
     e.set_gpu_meshing(true);
     e.finish_meshing();
     let mut r = Renderer::new(&lost.device, wgpu::TextureFormat::Rgba8UnormSrgb);
     lost.device.destroy();
     let changes = e.take_changes();
-    let failed = apply_changes_with(&e, &changes, &lost.device, &lost.queue, &mut r, Some(&meshing));
+    let failed = apply_changes_with(&e, &changes, &lost.device, &lost.queue, &mut r, Some(&mut meshing));
     assert!(failed.is_err(), "meshing on a destroyed device: {failed:?}");
     // The CPU takes over: every chunk meshed again and uploaded on a working device.
     e.set_gpu_meshing(false);

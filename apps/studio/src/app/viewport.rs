@@ -304,7 +304,7 @@ impl StudioApp {
         // What the editor's meshes changed since the last frame (a scene's or a world's),
         // applied by the one mirror.
         // GPU meshing as asked, where this device can (a new scene's editor is set here too).
-        let gpu = vp.gpu.as_ref().ok().filter(|_| self.studio.gpu_meshing);
+        let gpu = vp.gpu.as_mut().ok().filter(|_| self.studio.gpu_meshing);
         if self.studio.editor.gpu_meshing() != gpu.is_some() {
             self.studio.editor.set_gpu_meshing(gpu.is_some());
         }
