@@ -4,7 +4,9 @@
 //! A frame: one instruction of the Table 1 workload at the radius, then the voxel blocks of
 //! every chunk whose mesh depends on a changed chunk (extracted on the CPU, both sides), meshed
 //! by the CPU (`mesh_block` per block, on all cores) or by the GPU (one batch: upload, four
-//! dispatches, waiting for it to finish; nothing read back, as the viewport would draw it). Times
+//! dispatches, waiting for it to finish; nothing read back), and by the GPU as the viewport's GPU
+//! meshing does it (the same, plus the renderer's vertices placed in the world, the indirect
+//! draw arguments and the wireframe's lines: three more dispatches). Times
 //! are wall-clock from the first block to the end (the GPU's wait included), after a warm-up of
 //! ten frames; medians and 95th percentiles over the frames.
 
@@ -25,6 +27,28 @@ fn quantiles(d: &mut [Duration]) -> (f64, f64) {
 /// Meshes `blocks` on the GPU and waits for it.
 fn gpu_mesh(gpu: &strata_render::Gpu, marcher: &strata_gpu_mesh::GpuMarcher, blocks: &[&VoxelBlock]) -> Result<()> {
     marcher.mesh(&gpu.device, &gpu.queue, blocks)?;
+    gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU")?;
+    Ok(())
+}
+
+/// Meshes `blocks` on the GPU for drawing (the viewport's road: the renderer's vertices placed
+/// in the world, indirect draw arguments and the wireframe's lines too) and waits for it.
+fn gpu_mesh_for_drawing(
+    gpu: &strata_render::Gpu,
+    marcher: &strata_gpu_mesh::GpuMarcher,
+    blocks: &[&VoxelBlock],
+) -> Result<()> {
+    let placements: Vec<strata_gpu_mesh::DrawPlacement> = blocks
+        .iter()
+        .map(|b| strata_gpu_mesh::DrawPlacement {
+            placement: strata_render::Placement {
+                model: glam::Mat4::IDENTITY,
+                origin: b.key().map_or(glam::DVec3::ZERO, |k| k.origin_grid().as_dvec3()),
+            },
+            tint: [1.0; 3],
+        })
+        .collect();
+    marcher.mesh_for_drawing(&gpu.device, &gpu.queue, blocks, &placements)?;
     gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU")?;
     Ok(())
 }
@@ -50,7 +74,7 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
     let ins = crate::table1_instructions(frames + warm, radius, 2021);
     let mut volume = Volume::new();
     let settings = EditSettings { parallel: true, ..Default::default() };
-    let (mut cpu, mut gpus, mut chunks) = (Vec::new(), Vec::new(), 0usize);
+    let (mut cpu, mut gpus, mut draws, mut chunks) = (Vec::new(), Vec::new(), Vec::new(), 0usize);
     for (i, instruction) in ins.iter().enumerate() {
         let report = volume.apply(instruction.op, &instruction.brush(), &settings)?;
         let keys = strata_mesh::MeshCache::dependents(&report.changed);
@@ -64,20 +88,28 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         let t = Instant::now();
         gpu_mesh(&gpu, &marcher, &refs)?;
         let g = t.elapsed();
+        let t = Instant::now();
+        gpu_mesh_for_drawing(&gpu, &marcher, &refs)?;
+        let d = t.elapsed();
         if i >= warm {
             cpu.push(c);
             gpus.push(g);
+            draws.push(d);
             chunks += refs.len();
         }
     }
     let per = chunks as f64 / frames as f64;
-    let ((cm, cp), (gm, gp)) = (quantiles(&mut cpu), quantiles(&mut gpus));
+    let ((cm, cp), (gm, gp), (dm, dp)) = (quantiles(&mut cpu), quantiles(&mut gpus), quantiles(&mut draws));
     out += &format!(
         "Table 2 workload, radius {radius}, {frames} frames after {warm} of warm-up, {per:.1} chunks meshed a frame:\n\n"
     );
     out += "| mesher | median (ms) | p95 (ms) | chunks per ms (median) |\n|---|---:|---:|---:|\n";
     out += &format!("| CPU marching cubes, all cores | {cm:.2} | {cp:.2} | {:.1} |\n", per / cm.max(1e-9));
-    out += &format!("| GPU marching cubes | {gm:.2} | {gp:.2} | {:.1} |\n\n", per / gm.max(1e-9));
+    out += &format!("| GPU marching cubes | {gm:.2} | {gp:.2} | {:.1} |\n", per / gm.max(1e-9));
+    out += &format!(
+        "| GPU marching cubes for drawing (world vertices, indirect arguments, edges) | {dm:.2} | {dp:.2} | {:.1} |\n\n",
+        per / dm.max(1e-9)
+    );
     // The bunny, every surface chunk at once.
     let path = crate::suite::repo_root().join("tests/data/bunny.ply");
     let m = strata_mesh::import::load_mesh(&path)?;
