@@ -17,8 +17,12 @@
 //! triangles the CPU splits) are not meshed here: [`GpuMarcher::mesh`] refuses them, and the
 //! caller meshes them on the CPU.
 //!
-//! Not built yet (issue 33 lists them): keeping unchanged blocks resident across frames, dual
-//! contouring, the viewport's choice, the renderer drawing the buffers.
+//! For the viewport, [`GpuMarcher::mesh_for_drawing`] also places the renderer's vertices in
+//! the world and writes each block's indirect draw arguments and wireframe lines, so
+//! `strata_render::Renderer::show_indirect` draws the meshes where they were made (the
+//! viewport's residency and CPU fallbacks are `strata_viewport::GpuMeshing`'s).
+//!
+//! Not built yet (issue 33 lists them): crack patching across levels and dual contouring.
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};
