@@ -14,6 +14,12 @@
 //   emit          one workgroup a chunk: each thread writes its cells' triangles.
 //   place         one thread a crossing: its vertex's position, normal and material (the
 //                 material of the edge's solid end, as the CPU's `edge_material`).
+//   place_extra   one thread a seam point (a finer neighbour's vertex on a shared face): its
+//                 vertex, placed on the CPU, with the material of the seam's first crossing.
+//   split         one workgroup a block with seams: its triangles split where a seam passes,
+//                 as the CPU's `split_seams` splits them (a fan from the opposite corner for one
+//                 split edge, from a new centroid vertex for more), written after the batch's
+//                 other triangles.
 // And for drawing (`GpuMarcher::mesh_for_drawing`), after those:
 //   world         one thread a vertex: the renderer's vertex (world position, normal, tint,
 //                 material), placed by its block's placement.
@@ -44,8 +50,16 @@ struct Chunk {
     // Where the per-line crossing counts start (per axis and line along it: the crossings on the
     // lines before, then `words` words of the crossed edges along it).
     rows_base: u32,
-    unused_b: u32,
-    unused_c: u32,
+    // The chunk's first crossing in `crossings` (its vertices start at `vertex_base`: the
+    // crossings', then its seam points', then its centroids').
+    crossing_base: u32,
+    // Where its seam header starts in `data` (0xffffffff: no seams), its ordinal among the
+    // blocks with seams, its first split triangle, and its first centroid vertex.
+    seam_base: u32,
+    seam_slot: u32,
+    seam_out: u32,
+    centroid_first: u32,
+    unused_d: u32,
 };
 
 struct Params {
@@ -55,6 +69,19 @@ struct Params {
     place_row: u32,
     // Threads a row of the edge_lines dispatch.
     edge_row: u32,
+    // Vertex slots of the batch (crossings, seam points, centroid room).
+    vertex_total: u32,
+    // Triangle slots of the index buffer (the edge_lines dispatch's threads).
+    triangle_slots: u32,
+    // The seam points' records in `data` (8 words each: vertex, position, normal, the vertex
+    // whose material it takes) and how many.
+    extra_base: u32,
+    extra_count: u32,
+    // Where the list of seam headers (one word a block with seams: its header) starts in `data`.
+    seam_list_base: u32,
+    unused_e: u32,
+    unused_f: u32,
+    unused_g: u32,
 };
 
 // Where a chunk's mesh is drawn: world = model · (origin + position), the sum in f32 (exact
@@ -105,7 +132,12 @@ struct Placement {
 
 const THREADS: u32 = 256u;
 
-// Where the scratch's parts start.
+// Where the scratch's parts start: per thread, per chunk, then per block with seams its split
+// triangles and centroids.
+fn seam_counts_at(j: u32) -> u32 {
+    return params.chunk_count * (THREADS + 2u) + 1u + j * 2u;
+}
+
 fn chunk_triangles_at(k: u32) -> u32 {
     return params.chunk_count * THREADS + k;
 }
@@ -296,7 +328,7 @@ fn place(@builtin(global_invocation_id) g: vec3<u32>) {
         let node = end.x + c.m * (end.y + c.m * end.z);
         material = (data[c.material_base + node / 4u] >> (8u * (node % 4u))) & 0xffu;
     }
-    let at = i * 7u;
+    let at = (c.vertex_base + i - c.crossing_base) * 7u;
     vertices[at] = p.x;
     vertices[at + 1u] = p.y;
     vertices[at + 2u] = p.z;
@@ -309,10 +341,21 @@ fn place(@builtin(global_invocation_id) g: vec3<u32>) {
 @compute @workgroup_size(64)
 fn world(@builtin(global_invocation_id) g: vec3<u32>) {
     let i = g.x + g.y * params.place_row;
-    if (i >= params.crossing_count) {
+    if (i >= params.vertex_total) {
         return;
     }
-    let p = placements[crossings[i].w];
+    // The block holding vertex slot i: the last whose first vertex is at most i.
+    var lo = 0u;
+    var hi = params.chunk_count;
+    while (hi - lo > 1u) {
+        let mid = (lo + hi) / 2u;
+        if (chunks[mid].vertex_base <= i) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let p = placements[lo];
     let at = i * 7u;
     let grid = p.origin.xyz + vec3<f32>(vertices[at], vertices[at + 1u], vertices[at + 2u]);
     let w = p.m0 * grid.x + p.m1 * grid.y + p.m2 * grid.z + p.m3;
@@ -347,8 +390,13 @@ fn draw_args(@builtin(global_invocation_id) g: vec3<u32>) {
     if (k >= params.chunk_count) {
         return;
     }
-    let first = scratch[chunk_first_at(k)];
-    let triangles = scratch[chunk_first_at(k + 1u)] - first;
+    var first = scratch[chunk_first_at(k)];
+    var triangles = scratch[chunk_first_at(k + 1u)] - first;
+    let c = chunks[k];
+    if (c.seam_slot != 0xffffffffu) {
+        first = c.seam_out;
+        triangles = scratch[seam_counts_at(c.seam_slot)];
+    }
     let a = k * 10u;
     args[a] = triangles * 3u;
     args[a + 1u] = 1u;
@@ -364,8 +412,9 @@ fn draw_args(@builtin(global_invocation_id) g: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn edge_lines(@builtin(global_invocation_id) g: vec3<u32>) {
+    // Every triangle slot (unused ones give lines no draw reaches).
     let t = g.x + g.y * params.edge_row;
-    if (t >= scratch[chunk_first_at(params.chunk_count)]) {
+    if (t >= params.triangle_slots) {
         return;
     }
     let a = indices[t * 3u];
@@ -378,4 +427,198 @@ fn edge_lines(@builtin(global_invocation_id) g: vec3<u32>) {
     edge_indices[at + 3u] = c;
     edge_indices[at + 4u] = c;
     edge_indices[at + 5u] = a;
+}
+
+@compute @workgroup_size(64)
+fn place_extra(@builtin(global_invocation_id) g: vec3<u32>) {
+    let i = g.x + g.y * params.place_row;
+    if (i >= params.extra_count) {
+        return;
+    }
+    let r = params.extra_base + i * 8u;
+    let at = data[r] * 7u;
+    for (var w = 0u; w < 6u; w++) {
+        vertices[at + w] = bitcast<f32>(data[r + 1u + w]);
+    }
+    vertices[at + 6u] = vertices[data[r + 7u] * 7u + 6u];
+}
+
+// A seam header in `data`: entry count S, block, first split triangle, first centroid vertex,
+// ordinal; then S entries (4 words: from vertex a, to vertex b, first point vertex, point
+// count) sorted by (a, b).
+struct Chain {
+    first: u32,
+    count: u32,
+    reversed: bool,
+    found: bool,
+};
+
+fn find_entry(h: u32, a: u32, b: u32) -> u32 {
+    var lo = 0u;
+    var hi = data[h];
+    while (lo < hi) {
+        let mid = (lo + hi) / 2u;
+        let e = h + 5u + mid * 4u;
+        let ea = data[e];
+        let eb = data[e + 1u];
+        if (ea < a || (ea == a && eb < b)) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    if (lo < data[h]) {
+        let e = h + 5u + lo * 4u;
+        if (data[e] == a && data[e + 1u] == b) {
+            return e;
+        }
+    }
+    return 0xffffffffu;
+}
+
+// The points splitting edge (a, b) of a triangle, in order from a (as the CPU's `chain`).
+fn chain(h: u32, a: u32, b: u32) -> Chain {
+    var e = find_entry(h, a, b);
+    if (e != 0xffffffffu) {
+        return Chain(data[e + 2u], data[e + 3u], false, true);
+    }
+    e = find_entry(h, b, a);
+    if (e != 0xffffffffu) {
+        return Chain(data[e + 2u], data[e + 3u], true, true);
+    }
+    return Chain(0u, 0u, false, false);
+}
+
+// Point j of a chain.
+fn chain_point(c: Chain, j: u32) -> u32 {
+    if (c.reversed) {
+        return c.first + c.count - 1u - j;
+    }
+    return c.first + j;
+}
+
+// Vertex r of a triangle's ring (its corners, each followed by the points splitting the edge to
+// the next one).
+fn ring_at(t: array<u32, 3>, ch: array<Chain, 3>, r: u32) -> u32 {
+    var left = r;
+    for (var k = 0u; k < 3u; k++) {
+        if (left == 0u) {
+            return t[k];
+        }
+        left -= 1u;
+        if (left < ch[k].count) {
+            return chain_point(ch[k], left);
+        }
+        left -= ch[k].count;
+    }
+    return t[0];
+}
+
+@compute @workgroup_size(256)
+fn split(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let h = data[params.seam_list_base + wg.x];
+    let k = data[h + 1u];
+    let out_base = data[h + 2u];
+    let centroid_first = data[h + 3u];
+    let slot = data[h + 4u];
+    let in_first = scratch[chunk_first_at(k)];
+    let total = scratch[chunk_first_at(k + 1u)] - in_first;
+    let per = (total + THREADS - 1u) / THREADS;
+    let run_from = min(total, t * per);
+    let run_to = min(total, (t + 1u) * per);
+    // Count what this thread's triangles become.
+    var out_count = 0u;
+    var centroids = 0u;
+    for (var i = run_from; i < run_to; i++) {
+        let at = (in_first + i) * 3u;
+        let tri = array<u32, 3>(indices[at], indices[at + 1u], indices[at + 2u]);
+        let ch = array<Chain, 3>(chain(h, tri[0], tri[1]), chain(h, tri[1], tri[2]), chain(h, tri[2], tri[0]));
+        let splits = u32(ch[0].found) + u32(ch[1].found) + u32(ch[2].found);
+        if (splits == 0u) {
+            out_count += 1u;
+        } else if (splits == 1u) {
+            out_count += ch[0].count + ch[1].count + ch[2].count + 1u;
+        } else {
+            out_count += 3u + ch[0].count + ch[1].count + ch[2].count;
+            centroids += 1u;
+        }
+    }
+    let first_out = scan(t, out_count);
+    let all_out = sums[THREADS - 1u];
+    workgroupBarrier();
+    let first_centroid = scan(t, centroids);
+    let all_centroids = sums[THREADS - 1u];
+    if (t == 0u) {
+        scratch[seam_counts_at(slot)] = all_out;
+        scratch[seam_counts_at(slot) + 1u] = all_centroids;
+    }
+    // Write them.
+    var w = (out_base + first_out) * 3u;
+    var m = centroid_first + first_centroid;
+    for (var i = run_from; i < run_to; i++) {
+        let at = (in_first + i) * 3u;
+        let tri = array<u32, 3>(indices[at], indices[at + 1u], indices[at + 2u]);
+        let ch = array<Chain, 3>(chain(h, tri[0], tri[1]), chain(h, tri[1], tri[2]), chain(h, tri[2], tri[0]));
+        let splits = u32(ch[0].found) + u32(ch[1].found) + u32(ch[2].found);
+        if (splits == 0u) {
+            indices[w] = tri[0];
+            indices[w + 1u] = tri[1];
+            indices[w + 2u] = tri[2];
+            w += 3u;
+        } else if (splits == 1u) {
+            var s = 0u;
+            if (ch[1].found) {
+                s = 1u;
+            } else if (ch[2].found) {
+                s = 2u;
+            }
+            let a = tri[s];
+            let b = tri[(s + 1u) % 3u];
+            let c = tri[(s + 2u) % 3u];
+            let n = ch[s].count;
+            // The path a, the chain, b: a fan from c over its windows.
+            for (var q = 0u; q <= n; q++) {
+                var p0 = a;
+                if (q > 0u) {
+                    p0 = chain_point(ch[s], q - 1u);
+                }
+                var p1 = b;
+                if (q < n) {
+                    p1 = chain_point(ch[s], q);
+                }
+                indices[w] = c;
+                indices[w + 1u] = p0;
+                indices[w + 2u] = p1;
+                w += 3u;
+            }
+        } else {
+            // The centroid: positions summed in order and divided by three, normals summed and
+            // normalised, the material of the first corner (as the CPU does).
+            var pos = vec3<f32>(0.0);
+            var nor = vec3<f32>(0.0);
+            for (var q = 0u; q < 3u; q++) {
+                let v = tri[q] * 7u;
+                pos = pos + vec3<f32>(vertices[v], vertices[v + 1u], vertices[v + 2u]);
+                nor = nor + vec3<f32>(vertices[v + 3u], vertices[v + 4u], vertices[v + 5u]);
+            }
+            pos = pos / 3.0;
+            nor = nor / max(sqrt(dot(nor, nor)), 1e-12);
+            let mv = m * 7u;
+            vertices[mv] = pos.x;
+            vertices[mv + 1u] = pos.y;
+            vertices[mv + 2u] = pos.z;
+            vertices[mv + 3u] = nor.x;
+            vertices[mv + 4u] = nor.y;
+            vertices[mv + 5u] = nor.z;
+            vertices[mv + 6u] = vertices[tri[0] * 7u + 6u];
+            let ring = 3u + ch[0].count + ch[1].count + ch[2].count;
+            for (var r = 0u; r < ring; r++) {
+                indices[w] = m;
+                indices[w + 1u] = ring_at(tri, ch, r);
+                indices[w + 2u] = ring_at(tri, ch, (r + 1u) % ring);
+                w += 3u;
+            }
+            m += 1u;
+        }
+    }
 }

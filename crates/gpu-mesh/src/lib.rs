@@ -13,16 +13,17 @@
 //! block whose crossings are not listed line by line uploads the whole lookup instead), its
 //! node materials (four a word,
 //! for a block that has any but material 0) and its crossings (lower node, `t`, packed normal).
-//! Each vertex gets the material of its edge's solid end, as the CPU's vertices do. Blocks with seams (a face shared with a finer neighbour, whose
-//! triangles the CPU splits) are not meshed here: [`GpuMarcher::mesh`] refuses them, and the
-//! caller meshes them on the CPU.
+//! Each vertex gets the material of its edge's solid end, as the CPU's vertices do. Blocks
+//! with seams (a face shared with a finer neighbour) have their triangles split at the finer
+//! mesh's vertices there, as the CPU patches cracks: the seam points are uploaded as vertices,
+//! and a `split` pass rewrites the block's triangles after the others.
 //!
 //! For the viewport, [`GpuMarcher::mesh_for_drawing`] also places the renderer's vertices in
 //! the world and writes each block's indirect draw arguments and wireframe lines, so
 //! `strata_render::Renderer::show_indirect` draws the meshes where they were made (the
 //! viewport's residency and CPU fallbacks are `strata_viewport::GpuMeshing`'s).
 //!
-//! Not built yet (issue 33 lists them): crack patching across levels and dual contouring.
+//! Not built yet (issue 33 lists it): dual contouring.
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};
@@ -51,9 +52,6 @@ pub enum GpuMeshError {
     /// The device lacks a limit the shader needs.
     #[error("the GPU lacks what meshing needs: {0}")]
     Limits(String),
-    /// A block has seams with a finer neighbour (mesh it on the CPU).
-    #[error("block {0} has seams with a finer neighbour: it is meshed on the CPU")]
-    Seams(usize),
     /// A block is larger than the shader takes ([`MAX_CELLS`] a side) or the batch larger than
     /// the device's buffers or dispatches allow (mesh it in smaller batches).
     #[error("the batch is too large for one dispatch: {0}")]
@@ -108,7 +106,12 @@ struct ChunkInfo {
     offset: [u32; 3],
     material_base: u32,
     rows_base: u32,
-    unused: [u32; 2],
+    crossing_base: u32,
+    seam_base: u32,
+    seam_slot: u32,
+    seam_out: u32,
+    centroid_first: u32,
+    unused: u32,
 }
 
 #[repr(C)]
@@ -118,6 +121,12 @@ struct Params {
     crossing_count: u32,
     place_row: u32,
     edge_row: u32,
+    vertex_total: u32,
+    triangle_slots: u32,
+    extra_base: u32,
+    extra_count: u32,
+    seam_list_base: u32,
+    unused: [u32; 3],
 }
 
 /// A block's placement as the shader reads it (the WGSL `Placement`).
@@ -194,8 +203,14 @@ pub struct GpuBatch {
     pub vertices: wgpu::Buffer,
     /// Three `u32` a triangle, indexing `vertices` (the whole batch's).
     pub indices: wgpu::Buffer,
-    /// Per block: its first vertex and its vertex count.
+    /// Per block: its first vertex and its vertex room (its crossings', its seam points' and
+    /// room for the centroids of split triangles).
     pub vertex_ranges: Vec<(u32, u32)>,
+    /// Per block: its crossings and seam points (the vertices before its centroids), and its
+    /// ordinal among the blocks with seams.
+    seams: Vec<(u32, Option<u32>)>,
+    /// Per block, its first triangle slot where it has seams (its triangles are split there).
+    seam_out: Vec<u32>,
     /// Per block: whether its nodes have materials (its vertices' material ids mean something).
     pub with_materials: Vec<bool>,
     /// Words of `indices` written at most (the batch's capacity).
@@ -211,6 +226,8 @@ pub struct GpuMarcher {
     scan: wgpu::ComputePipeline,
     emit: wgpu::ComputePipeline,
     place: wgpu::ComputePipeline,
+    place_extra: wgpu::ComputePipeline,
+    split: wgpu::ComputePipeline,
     world: wgpu::ComputePipeline,
     draw_args: wgpu::ComputePipeline,
     edge_lines: wgpu::ComputePipeline,
@@ -244,6 +261,8 @@ impl GpuMarcher {
             scan: pipeline("scan_chunks"),
             emit: pipeline("emit"),
             place: pipeline("place"),
+            place_extra: pipeline("place_extra"),
+            split: pipeline("split"),
             world: pipeline("world"),
             draw_args: pipeline("draw_args"),
             edge_lines: pipeline("edge_lines"),
@@ -252,9 +271,9 @@ impl GpuMarcher {
         })
     }
 
-    /// Meshes `blocks` (their cells `0..n`, as [`strata_mesh::mesh_block`] does) into one
-    /// batch, submitted to `queue`. Blocks with seams are refused (the batch is not made), and
-    /// so is a batch whose buffers or dispatches would pass the device's limits
+    /// Meshes `blocks` (their cells `0..n`, as [`strata_mesh::mesh_block`] does, seams split)
+    /// into one batch, submitted to `queue`. A batch whose buffers or dispatches would pass the
+    /// device's limits is refused
     /// ([`GpuMeshError::TooLarge`], checked before anything is built: mesh it in parts).
     pub fn mesh(
         &self,
@@ -313,13 +332,14 @@ impl GpuMarcher {
         let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         let words: u64 = blocks.iter().map(|b| block_words(b)).sum::<u64>() + TABLE_WORDS as u64;
         let crossing_words: u64 = blocks.iter().map(|b| 4 * crossing_count(b)).sum();
-        let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1;
+        let seam_blocks = blocks.iter().filter(|b| !b.seams().is_empty()).count() as u64;
+        let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1 + 2 * seam_blocks;
         for (what, w) in [
             ("block data", words),
             ("crossings", crossing_words),
             ("vertices", crossing_words / 4 * VERTEX_WORDS),
             ("drawn vertices", if draw.is_some() { crossing_words / 4 * 12 } else { 0 }),
-            ("indices", blocks.iter().map(|b| 15 * mixed_cells(b)).sum()),
+            ("indices", blocks.iter().map(|b| 15 * mixed_cells(b) + seam_words(b)).sum()),
             ("edge indices", if draw.is_some() { blocks.iter().map(|b| 30 * mixed_cells(b)).sum() } else { 0 }),
             ("scratch", scratch_words),
         ] {
@@ -337,10 +357,13 @@ impl GpuMarcher {
         let mut ranges = Vec::with_capacity(blocks.len());
         let mut with_materials = Vec::with_capacity(blocks.len());
         let mut index_capacity = 0u64;
+        // Seam points (8 words each) and seam headers, appended to `data` after the blocks.
+        let mut extras: Vec<u32> = Vec::new();
+        let mut headers: Vec<Vec<u32>> = Vec::new();
+        let mut seam_info = Vec::with_capacity(blocks.len());
+        let mut seam_room = 0u64;
+        let mut vertex_total = 0u64;
         for (k, block) in blocks.iter().enumerate() {
-            if !block.seams().is_empty() {
-                return Err(GpuMeshError::Seams(k));
-            }
             let n = block.cells();
             if n > MAX_CELLS {
                 return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most {MAX_CELLS})")));
@@ -395,18 +418,64 @@ impl GpuMarcher {
             } else {
                 NONE
             };
-            let vertex_base = crossings.len() as u32;
+            let vertex_base = vertex_total as u32;
+            let crossing_base = crossings.len() as u32;
             let mut axis_base = [0u32; 3];
             for axis in Axis::ALL {
-                axis_base[axis.index()] = crossings.len() as u32 - vertex_base;
+                axis_base[axis.index()] = crossings.len() as u32 - crossing_base;
                 for c in block.crossings(axis) {
                     let [x, y, z] = c.lower.map(u32::from);
                     let lower = x | y << 8 | z << 16 | (axis.index() as u32) << 24;
                     crossings.push([lower, c.t.to_bits(), c.normal.0 as u32, k as u32]);
                 }
             }
-            let vertices = crossings.len() as u32 - vertex_base;
+            let own = crossings.len() as u32 - crossing_base;
+            // Seams: the points of each whose ends are both crossings of this block become
+            // vertices after the crossings (in seam order, as `mesh_block` adds them), and an
+            // entry (a, b, first point, count) the split pass finds by (a, b); a later seam
+            // with the same ends takes the place of an earlier one, as the CPU's map does.
+            let id = |(axis, l): (Axis, [u16; 3])| {
+                block
+                    .crossing_index(axis, l[0] as usize, l[1] as usize, l[2] as usize)
+                    .map(|i| vertex_base + axis_base[axis.index()] + i)
+            };
+            let mut entries: std::collections::BTreeMap<(u32, u32), (u32, u32)> = Default::default();
+            let mut points = 0u32;
+            for seam in block.seams() {
+                let (Some(a), Some(b)) = (id(seam.a), id(seam.b)) else { continue };
+                let first = vertex_base + own + points;
+                for (j, p) in seam.points.iter().enumerate() {
+                    let position = p.position();
+                    let normal = strata_volume::normal::unpack_normal(p.normal).as_vec3().to_array();
+                    extras.push(first + j as u32);
+                    extras.extend(position.iter().chain(&normal).map(|f| f.to_bits()));
+                    extras.push(a);
+                }
+                entries.insert((a, b), (first, seam.points.len() as u32));
+                points += seam.points.len() as u32;
+            }
+            let (seam_slot, seam_out, centroid_first, centroid_room) = if block.seams().is_empty() {
+                (NONE, NONE, NONE, 0)
+            } else {
+                // Each entry splits at most two triangles, and a triangle given a centroid
+                // uses two splits at least: at most one centroid an entry.
+                let room = entries.len() as u32 + 1;
+                let slot = headers.len() as u32;
+                let centroid_first = vertex_base + own + points;
+                let mut header = vec![entries.len() as u32, k as u32, seam_room as u32, centroid_first, slot];
+                for ((a, b), (first, count)) in &entries {
+                    header.extend([*a, *b, *first, *count]);
+                }
+                headers.push(header);
+                let out = seam_room as u32;
+                let splits: u64 = entries.values().map(|(_, c)| *c as u64).sum();
+                seam_room += mixed_cells(block) * 5 + 2 * splits + 3 * entries.len() as u64;
+                (slot, out, centroid_first, room)
+            };
+            let vertices = own + points + centroid_room;
+            vertex_total += vertices as u64;
             ranges.push((vertex_base, vertices));
+            seam_info.push((own + points, (seam_slot != NONE).then_some(seam_slot)));
             with_materials.push(block.has_materials());
             // At most five triangles a mixed cell.
             index_capacity += mixed_cells(block) * 15;
@@ -424,10 +493,42 @@ impl GpuMarcher {
                 offset,
                 material_base,
                 rows_base,
-                unused: [0; 2],
+                crossing_base,
+                seam_base: if seam_slot == NONE { NONE } else { seam_out },
+                seam_slot,
+                seam_out,
+                centroid_first,
+                unused: 0,
             });
         }
-        if data.len() > u32::MAX as usize || crossings.len() > u32::MAX as usize / 6 {
+        // The split triangles go after the others: their slots are offset by the first part's.
+        let normal_slots = (index_capacity / 3) as u32;
+        let mut seam_out: Vec<u32> = Vec::with_capacity(blocks.len());
+        for info in &mut infos {
+            if info.seam_slot != NONE {
+                info.seam_out += normal_slots;
+                info.seam_base = NONE;
+            }
+            seam_out.push(info.seam_out);
+        }
+        for h in &mut headers {
+            h[2] += normal_slots;
+        }
+        index_capacity += seam_room * 3;
+        let extra_base = data.len() as u32;
+        let extra_count = (extras.len() / 8) as u32;
+        data.extend(extras);
+        let seam_list_base = data.len() as u32;
+        let header_start = seam_list_base as usize + headers.len();
+        let mut at = header_start as u32;
+        for h in &headers {
+            data.push(at);
+            at += h.len() as u32;
+        }
+        for h in &headers {
+            data.extend(h);
+        }
+        if data.len() > u32::MAX as usize || vertex_total > u32::MAX as u64 / 12 || index_capacity > u32::MAX as u64 {
             return Err(GpuMeshError::TooLarge("more than 2³² words of blocks".into()));
         }
         // Written through the queue, not mapped at creation: on a lost device that is an error
@@ -456,7 +557,8 @@ impl GpuMarcher {
             })
         };
         let crossing_count = crossings.len() as u32;
-        let place_groups = crossing_count.div_ceil(64);
+        let vertex_total = vertex_total as u32;
+        let place_groups = vertex_total.max(crossing_count).div_ceil(64);
         let place_x = place_groups.clamp(1, max_groups);
         let place_y = place_groups.div_ceil(place_x).max(1);
         if place_y > max_groups {
@@ -472,7 +574,18 @@ impl GpuMarcher {
             Some(p) => p.iter().map(|d| PlacementInfo::of(&d.placement, d.tint)).collect::<Result<Vec<_>, _>>()?,
             None => Vec::new(),
         };
-        let params = Params { chunk_count, crossing_count, place_row: place_x * 64, edge_row: edge_x * 64 };
+        let params = Params {
+            chunk_count,
+            crossing_count,
+            place_row: place_x * 64,
+            edge_row: edge_x * 64,
+            vertex_total,
+            triangle_slots: (index_capacity / 3) as u32,
+            extra_base,
+            extra_count,
+            seam_list_base,
+            unused: [0; 3],
+        };
         let uniform = filled("gpu mesh params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
         let chunks = storage("gpu mesh chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::empty());
         let data = storage("gpu mesh data", bytemuck::cast_slice(&data), wgpu::BufferUsages::empty());
@@ -481,12 +594,12 @@ impl GpuMarcher {
         let scratch = empty("gpu mesh scratch", scratch_words, wgpu::BufferUsages::COPY_SRC);
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX;
         let indices = empty("gpu mesh indices", index_capacity, copy);
-        let vertices = empty("gpu mesh vertices", crossing_count as u64 * VERTEX_WORDS, copy);
+        let vertices = empty("gpu mesh vertices", vertex_total as u64 * VERTEX_WORDS, copy);
         // For drawing: placements, the renderer's vertices, indirect arguments, edges.
         let drawing = draw.map(|_| {
             (
                 storage("gpu mesh placements", bytemuck::cast_slice(&placement_infos), wgpu::BufferUsages::empty()),
-                empty("gpu mesh drawn vertices", crossing_count as u64 * 12, copy),
+                empty("gpu mesh drawn vertices", vertex_total as u64 * 12, copy),
                 empty("gpu mesh draw args", chunk_count as u64 * 10, wgpu::BufferUsages::INDIRECT | copy),
                 empty("gpu mesh edges", index_capacity * 2, copy),
             )
@@ -538,27 +651,50 @@ impl GpuMarcher {
                 pass.set_bind_group(0, &group(&self.place, &[0, 1, 2, 3, 6]), &[]);
                 pass.dispatch_workgroups(place_x, place_y, 1);
             }
+            if extra_count > 0 {
+                pass.set_pipeline(&self.place_extra);
+                pass.set_bind_group(0, &group(&self.place_extra, &[0, 2, 6]), &[]);
+                pass.dispatch_workgroups(
+                    extra_count.div_ceil(64).min(max_groups),
+                    extra_count.div_ceil(64 * max_groups).max(1),
+                    1,
+                );
+            }
+            if !headers.is_empty() {
+                pass.set_pipeline(&self.split);
+                pass.set_bind_group(0, &group(&self.split, &[0, 2, 4, 5, 6]), &[]);
+                pass.dispatch_workgroups(headers.len() as u32, 1, 1);
+            }
             if drawing.is_some() {
-                if crossing_count > 0 {
+                if vertex_total > 0 {
                     pass.set_pipeline(&self.world);
-                    pass.set_bind_group(0, &group(&self.world, &[0, 3, 6, 7, 8]), &[]);
+                    pass.set_bind_group(0, &group(&self.world, &[0, 1, 6, 7, 8]), &[]);
                     pass.dispatch_workgroups(place_x, place_y, 1);
                 }
                 if chunk_count > 0 {
                     pass.set_pipeline(&self.draw_args);
-                    pass.set_bind_group(0, &group(&self.draw_args, &[0, 4, 9]), &[]);
+                    pass.set_bind_group(0, &group(&self.draw_args, &[0, 1, 4, 9]), &[]);
                     pass.dispatch_workgroups(chunk_count.div_ceil(64), 1, 1);
                 }
                 if index_capacity > 0 {
                     pass.set_pipeline(&self.edge_lines);
-                    pass.set_bind_group(0, &group(&self.edge_lines, &[0, 4, 5, 10]), &[]);
+                    pass.set_bind_group(0, &group(&self.edge_lines, &[0, 5, 10]), &[]);
                     pass.dispatch_workgroups(edge_x, edge_y, 1);
                 }
             }
         }
         queue.submit([encoder.finish()]);
-        let batch =
-            GpuBatch { vertices, indices, vertex_ranges: ranges, with_materials, index_capacity, scratch, chunk_count };
+        let batch = GpuBatch {
+            vertices,
+            indices,
+            vertex_ranges: ranges,
+            seams: seam_info,
+            seam_out,
+            with_materials,
+            index_capacity,
+            scratch,
+            chunk_count,
+        };
         Ok((batch, drawing.map(|(_, d, a, e)| (d, a, e))))
     }
 }
@@ -605,6 +741,15 @@ fn line_counts(block: &VoxelBlock) -> Option<Vec<u32>> {
         }
     }
     Some(out)
+}
+
+/// Index words a block's seams may add at most (its triangles written again, split).
+fn seam_words(block: &VoxelBlock) -> u64 {
+    if block.seams().is_empty() {
+        return 0;
+    }
+    let points: u64 = block.seams().iter().map(|s| s.points.len() as u64).sum();
+    15 * mixed_cells(block) + 6 * points + 9 * block.seams().len() as u64
 }
 
 /// The block's crossings, all axes.
@@ -669,12 +814,14 @@ impl DrawBatch {
         let Some(first) = self.meshes.first() else { return Ok(Vec::new()) };
         let blocks = self.meshes.len() as u64;
         let args = read_words(device, queue, &first.args, blocks * 10)?;
+        let scratch = read_words(device, queue, &self.batch.scratch, self.batch.scratch_words())?;
         let vertex_words = self.batch.vertex_ranges.last().map_or(0, |(b, n)| (*b + *n) as u64 * 12);
         let drawn = read_words(device, queue, &self.drawn, vertex_words)?;
         let indices = read_words(device, queue, &first.triangles, self.batch.index_capacity)?;
         let edges = read_words(device, queue, &first.edges, self.batch.index_capacity * 2)?;
         let mut out = Vec::with_capacity(self.meshes.len());
-        for (k, &(base, count)) in self.batch.vertex_ranges.iter().enumerate() {
+        for (k, &(base, _)) in self.batch.vertex_ranges.iter().enumerate() {
+            let count = self.batch.vertices_of(&scratch, k);
             let a = &args[k * 10..k * 10 + 10];
             let slice = |from: u32, n: u32, all: &[u32]| -> Result<Vec<u32>, GpuMeshError> {
                 let (from, to) = (from as usize, from as usize + n as usize);
@@ -698,31 +845,57 @@ impl GpuBatch {
     /// The triangles of the whole batch (read back: waits for the GPU).
     pub fn triangle_count(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<u32, GpuMeshError> {
         let scratch = read_words(device, queue, &self.scratch, self.scratch_words())?;
-        Ok(scratch[self.first_at(self.chunk_count)])
+        Ok((0..self.chunk_count as usize).map(|k| self.triangles_of(&scratch, k).1).sum())
+    }
+
+    fn seam_blocks(&self) -> u64 {
+        self.seams.iter().filter(|(_, s)| s.is_some()).count() as u64
     }
 
     fn scratch_words(&self) -> u64 {
-        self.chunk_count as u64 * (THREADS as u64 + 2) + 1
+        self.chunk_count as u64 * (THREADS as u64 + 2) + 1 + 2 * self.seam_blocks()
     }
 
     fn first_at(&self, k: u32) -> usize {
         (self.chunk_count * (THREADS + 1) + k) as usize
     }
 
+    fn seam_counts_at(&self, slot: u32) -> usize {
+        (self.chunk_count * (THREADS + 2) + 1 + 2 * slot) as usize
+    }
+
+    /// Block `k`'s first triangle slot and its triangles, from the scratch read back (a block
+    /// with seams: its split triangles).
+    fn triangles_of(&self, scratch: &[u32], k: usize) -> (u32, u32) {
+        match self.seams[k].1 {
+            Some(slot) => (self.seam_out[k], scratch[self.seam_counts_at(slot)]),
+            None => {
+                let first = scratch[self.first_at(k as u32)];
+                (first, scratch[self.first_at(k as u32 + 1)] - first)
+            }
+        }
+    }
+
+    /// Block `k`'s vertices: its crossings', its seam points' and its centroids'.
+    fn vertices_of(&self, scratch: &[u32], k: usize) -> u32 {
+        let (before, slot) = self.seams[k];
+        before + slot.map_or(0, |s| scratch[self.seam_counts_at(s) + 1])
+    }
+
     /// Each block's mesh as the CPU keeps it (vertices and indices local to the block), read
     /// back: for tests and exports, not for drawing.
     pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<Mesh>, GpuMeshError> {
         let scratch = read_words(device, queue, &self.scratch, self.scratch_words())?;
-        let total = scratch[self.first_at(self.chunk_count)] as u64 * 3;
-        if total > self.index_capacity {
-            return Err(GpuMeshError::Readback(format!("{total} indices past the capacity {}", self.index_capacity)));
-        }
-        let indices = read_words(device, queue, &self.indices, total)?;
+        let indices = read_words(device, queue, &self.indices, self.index_capacity)?;
         let vertex_words = self.vertex_ranges.last().map_or(0, |(b, n)| (*b + *n) as u64 * VERTEX_WORDS);
         let vertices = read_words(device, queue, &self.vertices, vertex_words)?;
         let w = VERTEX_WORDS as usize;
         let mut out = Vec::with_capacity(self.vertex_ranges.len());
-        for (k, &(base, count)) in self.vertex_ranges.iter().enumerate() {
+        for (k, &(base, room)) in self.vertex_ranges.iter().enumerate() {
+            let count = self.vertices_of(&scratch, k);
+            if count > room {
+                return Err(GpuMeshError::Readback(format!("block {k}: {count} vertices past its room {room}")));
+            }
             let mut mesh = Mesh::default();
             for v in vertices[base as usize * w..(base + count) as usize * w].chunks_exact(w) {
                 let f = |i: usize| f32::from_bits(v[i]);
@@ -732,9 +905,12 @@ impl GpuBatch {
                     mesh.materials.push(strata_mesh::VertexMaterial::single(v[6] as u8));
                 }
             }
-            let (from, to) =
-                (scratch[self.first_at(k as u32)] as usize * 3, scratch[self.first_at(k as u32 + 1)] as usize * 3);
-            mesh.indices.extend(indices[from..to].iter().map(|i| i - base));
+            let (first, n) = self.triangles_of(&scratch, k);
+            let (from, to) = (first as usize * 3, (first + n) as usize * 3);
+            let part = indices.get(from..to).ok_or_else(|| {
+                GpuMeshError::Readback(format!("block {k}'s triangles {from}..{to} pass the capacity"))
+            })?;
+            mesh.indices.extend(part.iter().map(|i| i.wrapping_sub(base)));
             out.push(mesh);
         }
         Ok(out)
@@ -751,7 +927,9 @@ mod tests {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .expect("WGSL validates");
-        for entry in ["count", "scan_chunks", "emit", "place", "world", "draw_args", "edge_lines"] {
+        for entry in
+            ["count", "scan_chunks", "emit", "place", "place_extra", "split", "world", "draw_args", "edge_lines"]
+        {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }
     }

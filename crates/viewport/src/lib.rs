@@ -179,8 +179,7 @@ pub fn apply_changes(
 
 /// [`apply_changes`] with GPU meshing: the chunks of the surfaces the editor leaves to its
 /// caller ([`Editor::set_gpu_meshing`]) are meshed by `gpu` and drawn from where they were made.
-/// Blocks the GPU does not take (seams with a finer neighbour, larger than it meshes) are meshed
-/// on the CPU here. An error means the GPU failed (its device lost, or out of memory): turn GPU
+/// Blocks larger than the GPU meshes are meshed on the CPU here. An error means the GPU failed (its device lost, or out of memory): turn GPU
 /// meshing off and the editor meshes everything again on the CPU.
 pub fn apply_changes_with(
     editor: &Editor,
@@ -283,7 +282,7 @@ impl GpuMeshing {
 }
 
 /// Meshes chunks `keys` (surface, chunk) of caller-meshed surfaces on the GPU (hidden surfaces'
-/// chunks are dropped, chunks without surface removed, blocks the GPU refuses meshed here).
+/// chunks are dropped, chunks without surface removed, blocks larger than it takes meshed here).
 fn mesh_on_gpu(
     editor: &Editor,
     keys: &[(usize, ChunkKey)],
@@ -329,8 +328,8 @@ fn mesh_keys(
             renderer.remove_mesh(chunk_id(i as u32, key));
             continue;
         };
-        if !block.seams().is_empty() || block.cells() > strata_gpu_mesh::MAX_CELLS {
-            // Seams with a finer neighbour are patched by the CPU's marching cubes.
+        if block.cells() > strata_gpu_mesh::MAX_CELLS {
+            // Larger than the shader takes: the CPU's marching cubes.
             let Some(model) = shown_surface(editor, i) else { continue };
             let Some(volume) = editor.surface(i).map(|s| s.volume()) else { continue };
             let mut mesh = Mesh::default();

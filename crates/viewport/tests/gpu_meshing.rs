@@ -1,7 +1,7 @@
 //! GPU meshing on the viewport's road: a renderer fed by change lists whose caller-meshed
 //! chunks are meshed on the GPU and drawn from where they were made draws the same image as
 //! one the CPU's meshes are uploaded to, through strokes, undo, hidden and moved layers, paint,
-//! seams with finer chunks (meshed on the CPU) and masks (the layer goes back to the CPU); a
+//! seams with finer chunks (split on the GPU) and masks (the layer goes back to the CPU); a
 //! device that fails while meshing is an error, not a panic.
 //!
 //! Without a GPU adapter (not even lavapipe) the tests skip with a message, unless
@@ -88,8 +88,7 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
                     e.set_layer_transform(1, t, false).unwrap();
                 }
                 6 => {
-                    // Finer chunks: the coarser blocks facing them have seams (the CPU meshes
-                    // those).
+                    // Finer chunks: the coarser blocks facing them have seams, split on the GPU.
                     e.active_layer = 0;
                     e.tool.kind = ToolKind::Detail;
                     e.tool.detail_level = Level::new(1).unwrap();
@@ -123,7 +122,7 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
         apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
         assert_eq!(drawn.mesh_count(), want.mesh_count(), "step {step}: the chunks shown");
         match step {
-            6 => assert!(drawn.mesh_count() > drawn.indirect_count(), "the blocks with seams came from the CPU"),
+            6 => assert!(drawn.mesh_count() == drawn.indirect_count(), "the blocks with seams were split on the GPU"),
             8 => assert!(!on_gpu.meshed_by_caller(0) && on_gpu.meshed_by_caller(1), "the masked layer is the CPU's"),
             _ => assert!(drawn.indirect_count() > 0 && on_gpu.meshed_by_caller(0)),
         }
