@@ -59,7 +59,8 @@ struct Chunk {
     seam_slot: u32,
     seam_out: u32,
     centroid_first: u32,
-    unused_d: u32,
+    // Dual contouring: where the chunk's crossings' (t, packed normal) pairs start in `data`.
+    pair_base: u32,
 };
 
 struct Params {

@@ -27,18 +27,24 @@
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};
-use strata_mesh::Mesh;
+use strata_mesh::{DualVertex, Mesh};
 use strata_render::{IndirectMesh, Placement};
 use strata_volume::{Axis, VoxelBlock};
 use thiserror::Error;
 
-/// The WGSL source.
-pub const SHADER: &str = include_str!("../../../shaders/marching_cubes.wgsl");
+/// The WGSL source: marching cubes, then dual contouring's vertices (which use its bindings and
+/// helpers), one module.
+pub const SHADER: &str =
+    concat!(include_str!("../../../shaders/marching_cubes.wgsl"), include_str!("../../../shaders/dual_contouring.wgsl"));
 
 /// Threads of a chunk's workgroup (the shader's `THREADS`).
 const THREADS: u32 = 256;
 /// Words of the case table at the start of the data buffer.
 const TABLE_WORDS: usize = 256 * 16;
+/// Words of dual contouring's component table after it (the shader's `DUAL_TABLE`).
+const DUAL_TABLE_WORDS: usize = 256 * 5;
+/// Words of a dual-contouring vertex read back: cell, edges, position, normal, ids, weights.
+const DUAL_WORDS: u64 = 10;
 /// A crossing's lookup entry where a node's edge has none.
 const NONE: u32 = u32::MAX;
 /// Words of a vertex in [`GpuBatch::vertices`]: position, normal, the material id's bits.
@@ -111,7 +117,7 @@ struct ChunkInfo {
     seam_slot: u32,
     seam_out: u32,
     centroid_first: u32,
-    unused: u32,
+    pair_base: u32,
 }
 
 #[repr(C)]
@@ -181,13 +187,19 @@ pub struct DrawBatch {
 
 /// The case table as the shader reads it (see the WGSL).
 fn case_table() -> Vec<u32> {
-    let mut out = vec![0u32; TABLE_WORDS];
+    let mut out = vec![0u32; TABLE_WORDS + DUAL_TABLE_WORDS];
     for case in 0..=255u8 {
         let tris = strata_mesh::case_triangles(case);
         let at = case as usize * 16;
         out[at] = tris.len() as u32;
         for (j, (axis, lower)) in tris.iter().flatten().enumerate() {
             out[at + 1 + j] = *axis as u32 | (lower[0] as u32) << 2 | (lower[1] as u32) << 3 | (lower[2] as u32) << 4;
+        }
+        let components = strata_mesh::case_components(case);
+        let at = TABLE_WORDS + case as usize * 5;
+        out[at] = components.len() as u32;
+        for (j, mask) in components.iter().enumerate() {
+            out[at + 1 + j] = *mask as u32;
         }
     }
     out
@@ -231,6 +243,8 @@ pub struct GpuMarcher {
     world: wgpu::ComputePipeline,
     draw_args: wgpu::ComputePipeline,
     edge_lines: wgpu::ComputePipeline,
+    dual_count: wgpu::ComputePipeline,
+    dual_emit: wgpu::ComputePipeline,
     table: Vec<u32>,
     /// Upload every block's whole crossing lookup, as for blocks whose crossings are not listed
     /// in rank order (off: the smaller row counts where they serve; on: for tests of that path).
@@ -266,6 +280,8 @@ impl GpuMarcher {
             world: pipeline("world"),
             draw_args: pipeline("draw_args"),
             edge_lines: pipeline("edge_lines"),
+            dual_count: pipeline("dual_count"),
+            dual_emit: pipeline("dual_emit"),
             table: case_table(),
             whole_lookups: false,
         })
@@ -314,6 +330,164 @@ impl GpuMarcher {
         Ok(DrawBatch { batch, meshes, drawn })
     }
 
+    /// Manifold dual contouring's vertices of `blocks`, placed on the GPU and read back: per
+    /// block, what [`strata_mesh::dual_vertices`] gives on the CPU (same cells, components,
+    /// normals and materials; positions solved in `f32`, within 1e-4 cells of the CPU's `f64`).
+    /// The quads that join them are the CPU's ([`strata_mesh::DualCache`]).
+    pub fn dual_vertices(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+    ) -> Result<Vec<Vec<DualVertex>>, GpuMeshError> {
+        let limits = device.limits();
+        let max_groups = limits.max_compute_workgroups_per_dimension;
+        let chunk_count = blocks.len() as u32;
+        if chunk_count as usize != blocks.len() || chunk_count > max_groups {
+            return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
+        }
+        let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        let words: u64 = blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b)).sum::<u64>()
+            + self.table.len() as u64;
+        let room: u64 = blocks.iter().map(|b| 4 * mixed_cells(b)).sum();
+        let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1;
+        for (what, w) in [("block data", words), ("vertices", room * DUAL_WORDS), ("scratch", scratch_words)] {
+            if w * 4 > binding || w > u32::MAX as u64 {
+                return Err(GpuMeshError::TooLarge(format!("its {what} take {} MiB", (w * 4) >> 20)));
+            }
+        }
+        let mut data = self.table.clone();
+        let mut infos = Vec::with_capacity(blocks.len());
+        for block in blocks {
+            let n = block.cells();
+            if n > MAX_CELLS {
+                return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most {MAX_CELLS})")));
+            }
+            let BlockWords { words, node_base, lookup_base, rows_base, material_base } =
+                upload_block(&mut data, block, self.whole_lookups);
+            // Each crossing's t and packed normal, in the block's order (x, then y, then z).
+            let pair_base = data.len() as u32;
+            let mut axis_base = [0u32; 3];
+            let mut seen = 0u32;
+            for axis in Axis::ALL {
+                axis_base[axis.index()] = seen;
+                for c in block.crossings(axis) {
+                    data.extend([c.t.to_bits(), c.normal.0 as u32]);
+                }
+                seen += block.crossings(axis).len() as u32;
+            }
+            infos.push(ChunkInfo {
+                n: n as u32,
+                m: n as u32 + 1,
+                words,
+                node_base,
+                lookup_base,
+                vertex_base: 0,
+                y_base: axis_base[1],
+                z_base: axis_base[2],
+                spacing: block.level().spacing() as f32,
+                offset: [0; 3],
+                material_base,
+                rows_base,
+                crossing_base: 0,
+                seam_base: NONE,
+                seam_slot: NONE,
+                seam_out: NONE,
+                centroid_first: NONE,
+                pair_base,
+            });
+        }
+        let params = Params {
+            chunk_count,
+            crossing_count: 0,
+            place_row: 0,
+            edge_row: 0,
+            vertex_total: 0,
+            triangle_slots: 0,
+            extra_base: 0,
+            extra_count: 0,
+            seam_list_base: 0,
+            unused: [0; 3],
+        };
+        let filled = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
+            let contents: &[u8] = if bytes.is_empty() { &[0; 4] } else { bytes };
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: contents.len() as u64,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&buffer, 0, contents);
+            buffer
+        };
+        let empty = |label: &str, words: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: words.max(1) * 4,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let uniform = filled("dual params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
+        let chunks = filled("dual chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::STORAGE);
+        let data = filled("dual data", bytemuck::cast_slice(&data), wgpu::BufferUsages::STORAGE);
+        let scratch = empty("dual scratch", scratch_words);
+        let vertices = empty("dual vertices", room * DUAL_WORDS);
+        let all = [(0, &uniform), (1, &chunks), (2, &data), (4, &scratch), (6, &vertices)];
+        let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
+            let entries: Vec<wgpu::BindGroupEntry<'_>> = all
+                .iter()
+                .filter(|(b, _)| used.contains(b))
+                .map(|(b, buffer)| wgpu::BindGroupEntry { binding: *b, resource: buffer.as_entire_binding() })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            })
+        };
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("dual") });
+        if chunk_count > 0 {
+            let mut pass =
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            pass.set_pipeline(&self.dual_count);
+            pass.set_bind_group(0, &group(&self.dual_count, &[0, 1, 2, 4]), &[]);
+            pass.dispatch_workgroups(chunk_count, 1, 1);
+            pass.set_pipeline(&self.scan);
+            pass.set_bind_group(0, &group(&self.scan, &[0, 4]), &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&self.dual_emit);
+            pass.set_bind_group(0, &group(&self.dual_emit, &[0, 1, 2, 4, 6]), &[]);
+            pass.dispatch_workgroups(chunk_count, 1, 1);
+        }
+        queue.submit([encoder.finish()]);
+        if chunk_count == 0 {
+            return Ok(Vec::new());
+        }
+        let scratch = read_words(device, queue, &scratch, scratch_words)?;
+        let first = |k: usize| scratch[chunk_count as usize * (THREADS as usize + 1) + k] as usize;
+        let words = read_words(device, queue, &vertices, first(blocks.len()) as u64 * DUAL_WORDS)?;
+        let mut out = Vec::with_capacity(blocks.len());
+        for k in 0..blocks.len() {
+            let (from, to) = (first(k), first(k + 1));
+            let part = words.get(from * 10..to * 10).ok_or_else(|| {
+                GpuMeshError::Readback(format!("block {k}'s vertices {from}..{to} pass what was read"))
+            })?;
+            let vertex = |v: &[u32]| {
+                let f = |i: usize| f32::from_bits(v[i]);
+                DualVertex {
+                    cell: v[0],
+                    edges: v[1] as u16,
+                    position: glam::Vec3::new(f(2), f(3), f(4)),
+                    normal: glam::Vec3::new(f(5), f(6), f(7)),
+                    material: strata_mesh::VertexMaterial { ids: v[8].to_le_bytes(), weights: v[9].to_le_bytes() },
+                }
+            };
+            out.push(part.chunks_exact(10).map(vertex).collect());
+        }
+        Ok(out)
+    }
+
     #[allow(clippy::type_complexity)]
     fn build(
         &self,
@@ -330,7 +504,7 @@ impl GpuMarcher {
         }
         // Each buffer within the device's limits, checked before anything is built.
         let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        let words: u64 = blocks.iter().map(|b| block_words(b)).sum::<u64>() + TABLE_WORDS as u64;
+        let words: u64 = blocks.iter().map(|b| block_words(b)).sum::<u64>() + self.table.len() as u64;
         let crossing_words: u64 = blocks.iter().map(|b| 4 * crossing_count(b)).sum();
         let seam_blocks = blocks.iter().filter(|b| !b.seams().is_empty()).count() as u64;
         let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1 + 2 * seam_blocks;
@@ -369,55 +543,8 @@ impl GpuMarcher {
                 return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most {MAX_CELLS})")));
             }
             let m = n + 1;
-            let words = m.div_ceil(32);
-            let node_base = data.len();
-            for z in 0..m {
-                for y in 0..m {
-                    let row = block.row(y, z);
-                    for w in 0..words {
-                        data.push((row >> (32 * w)) as u32);
-                    }
-                }
-            }
-            // The crossings' indices: their rank (per axis, the crossings of the lines before and
-            // the crossed edges before them on their line), when the block lists them so, which
-            // extraction does; else the whole lookup.
-            let rows = if self.whole_lookups { None } else { line_counts(block) };
-            let (lookup_base, rows_base) = match rows {
-                Some(rows) => {
-                    let base = data.len();
-                    data.extend(rows);
-                    (NONE, base as u32)
-                }
-                None => {
-                    let base = data.len();
-                    for axis in Axis::ALL {
-                        for z in 0..m {
-                            for y in 0..m {
-                                for x in 0..m {
-                                    data.push(block.crossing_index(axis, x, y, z).unwrap_or(NONE));
-                                }
-                            }
-                        }
-                    }
-                    (base as u32, NONE)
-                }
-            };
-            let material_base = if block.has_materials() {
-                let base = data.len();
-                let mut word = 0u32;
-                for node in 0..m * m * m {
-                    let (x, y, z) = (node % m, (node / m) % m, node / (m * m));
-                    word |= (block.material(x, y, z) as u32) << (8 * (node % 4));
-                    if node % 4 == 3 || node + 1 == m * m * m {
-                        data.push(word);
-                        word = 0;
-                    }
-                }
-                base as u32
-            } else {
-                NONE
-            };
+            let BlockWords { words, node_base, lookup_base, rows_base, material_base } =
+                upload_block(&mut data, block, self.whole_lookups);
             let vertex_base = vertex_total as u32;
             let crossing_base = crossings.len() as u32;
             let mut axis_base = [0u32; 3];
@@ -483,8 +610,8 @@ impl GpuMarcher {
             infos.push(ChunkInfo {
                 n: n as u32,
                 m: m as u32,
-                words: words as u32,
-                node_base: node_base as u32,
+                words,
+                node_base,
                 lookup_base,
                 vertex_base,
                 y_base: axis_base[1],
@@ -498,7 +625,7 @@ impl GpuMarcher {
                 seam_slot,
                 seam_out,
                 centroid_first,
-                unused: 0,
+                pair_base: NONE,
             });
         }
         // The split triangles go after the others: their slots are offset by the first part's.
@@ -697,6 +824,73 @@ impl GpuMarcher {
         };
         Ok((batch, drawing.map(|(_, d, a, e)| (d, a, e))))
     }
+}
+
+/// Where a block's words start in the data buffer.
+struct BlockWords {
+    words: u32,
+    node_base: u32,
+    lookup_base: u32,
+    rows_base: u32,
+    material_base: u32,
+}
+
+/// Appends what the shaders read of `block` to `data`: its node bits (a row of `words` words a
+/// line of nodes along x), its crossings' ranks as line counts (or its whole lookup, where it is
+/// not listed line by line or `whole_lookup` asks for it), and its node materials (four a word,
+/// where it has any).
+fn upload_block(data: &mut Vec<u32>, block: &VoxelBlock, whole_lookup: bool) -> BlockWords {
+    let m = block.cells() + 1;
+    let words = m.div_ceil(32);
+    let node_base = data.len() as u32;
+    for z in 0..m {
+        for y in 0..m {
+            let row = block.row(y, z);
+            for w in 0..words {
+                data.push((row >> (32 * w)) as u32);
+            }
+        }
+    }
+    // The crossings' indices: their rank (per axis, the crossings of the lines before and the
+    // crossed edges before them on their line), when the block lists them so, which extraction
+    // does; else the whole lookup.
+    let rows = if whole_lookup { None } else { line_counts(block) };
+    let (lookup_base, rows_base) = match rows {
+        Some(rows) => {
+            let base = data.len() as u32;
+            data.extend(rows);
+            (NONE, base)
+        }
+        None => {
+            let base = data.len() as u32;
+            for axis in Axis::ALL {
+                for z in 0..m {
+                    for y in 0..m {
+                        for x in 0..m {
+                            data.push(block.crossing_index(axis, x, y, z).unwrap_or(NONE));
+                        }
+                    }
+                }
+            }
+            (base, NONE)
+        }
+    };
+    let material_base = if block.has_materials() {
+        let base = data.len() as u32;
+        let mut word = 0u32;
+        for node in 0..m * m * m {
+            let (x, y, z) = (node % m, (node / m) % m, node / (m * m));
+            word |= (block.material(x, y, z) as u32) << (8 * (node % 4));
+            if node % 4 == 3 || node + 1 == m * m * m {
+                data.push(word);
+                word = 0;
+            }
+        }
+        base
+    } else {
+        NONE
+    };
+    BlockWords { words: words as u32, node_base, lookup_base, rows_base, material_base }
 }
 
 /// Words of the data buffer a block takes at most: its node bits, its crossing lookup (or the
@@ -927,9 +1121,19 @@ mod tests {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .expect("WGSL validates");
-        for entry in
-            ["count", "scan_chunks", "emit", "place", "place_extra", "split", "world", "draw_args", "edge_lines"]
-        {
+        for entry in [
+            "count",
+            "scan_chunks",
+            "emit",
+            "place",
+            "place_extra",
+            "split",
+            "world",
+            "draw_args",
+            "edge_lines",
+            "dual_count",
+            "dual_emit",
+        ] {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }
     }
@@ -937,7 +1141,7 @@ mod tests {
     #[test]
     fn the_case_table_holds_every_case_in_its_sixteen_words() {
         let t = case_table();
-        assert_eq!(t.len(), TABLE_WORDS);
+        assert_eq!(t.len(), TABLE_WORDS + DUAL_TABLE_WORDS);
         assert_eq!((t[0], t[255 * 16]), (0, 0), "no triangles in an empty or a full cell");
         assert_eq!(t[16], 1, "one corner inside: one triangle");
         assert!((0..256).all(|c| t[c * 16] <= 5));

@@ -143,7 +143,8 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
     /// Random unions and differences of spheres and boxes, their centres and sizes snapped to
-    /// the grid (faces on grid planes, crossings at node ends) or not.
+    /// the grid (faces on grid planes, crossings at node ends) or not: marching cubes and dual
+    /// contouring's vertices alike.
     #[test]
     fn random_edits_mesh_alike(
         edits in prop::collection::vec((any::<bool>(), any::<bool>(), prop::array::uniform3(2.0f64..40.0), 1.0f64..9.0, any::<bool>()), 1..6),
@@ -168,6 +169,7 @@ proptest! {
         v.paint(&Cuboid::new(DVec3::new(10.0, 12.0, 30.0), DVec3::splat(6.0)).unwrap(), 200).unwrap();
         let blocks = surface_blocks(&v);
         assert_equal(&gpu, &marcher, &blocks, "random edits");
+        assert_dual_equal(&gpu, &marcher, &blocks, "random edits, dual contouring");
     }
 }
 
@@ -252,4 +254,62 @@ fn meshes_for_drawing_are_placed_as_the_renderer_places_uploaded_ones() {
         }
     }
     assert!(shared > 50 && painted > 0, "{shared} shared vertices, {painted} painted");
+}
+
+/// Dual contouring's vertices placed on the GPU are the CPU's: the same cells and components in
+/// the same order, normals and material blends, positions within 1e-4 cells.
+fn assert_dual_equal(gpu: &Gpu, marcher: &GpuMarcher, blocks: &[VoxelBlock], what: &str) -> usize {
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    let got = marcher.dual_vertices(&gpu.device, &gpu.queue, &refs).unwrap();
+    let mut vertices = 0;
+    for (k, (block, got)) in blocks.iter().zip(&got).enumerate() {
+        let want = strata_mesh::dual_vertices(block);
+        assert_eq!(got.len(), want.len(), "{what}: block {k}'s vertex count");
+        let cell = block.level().spacing() as f32;
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert_eq!((g.cell, g.edges), (w.cell, w.edges), "{what}: block {k} vertex {i}'s cell and component");
+            let d = (g.position - w.position).length() / cell;
+            assert!(d < 1e-4, "{what}: block {k} vertex {i}: {} against {} ({d} cells)", g.position, w.position);
+            assert!((g.normal - w.normal).length() < 1e-4, "{what}: block {k} vertex {i}'s normal");
+            assert_eq!(g.material, w.material, "{what}: block {k} vertex {i}'s material blend");
+        }
+        vertices += want.len();
+    }
+    vertices
+}
+
+#[test]
+fn dual_contouring_vertices_equal_the_cpus() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    // Every case of one cell (several components in the ambiguous ones), with planes at odd
+    // angles so the full eigen-decomposition runs.
+    let blocks: Vec<VoxelBlock> = (0..256usize)
+        .map(|case| {
+            let inside = move |x: usize, y: usize, z: usize| {
+                (1..=2).contains(&x) && (1..=2).contains(&y) && (1..=2).contains(&z) && {
+                    let k = (x - 1) | ((y - 1) << 1) | ((z - 1) << 2);
+                    (case >> k) & 1 == 1
+                }
+            };
+            VoxelBlock::from_fn(ChunkKey::new(case as i32, 0, 0), Level::BASE, inside, |axis, lower| {
+                let h = lower[0] + 2 * lower[1] + 3 * lower[2] + axis.index();
+                let t = 0.2 + 0.15 * (h % 5) as f32;
+                let n = [Vec3::X, Vec3::new(0.3, 0.9, -0.2), Vec3::new(-0.5, 0.1, 0.8), Vec3::new(0.6, -0.6, 0.5)][h % 4];
+                (t, n.normalize())
+            })
+        })
+        .collect();
+    assert_dual_equal(&gpu, &marcher, &blocks, "corner cases");
+    // Boxes (sharp edges and corners: the eigen path), spheres (the parallel-plane path),
+    // painted, across chunk borders, at two levels.
+    for level in [Level::BASE, Level::new(1).unwrap()] {
+        let mut v = Volume::with_level(level);
+        v.add(&Sphere::new(DVec3::new(16.0, 15.5, 17.25), 9.3).unwrap()).unwrap();
+        v.add(&Cuboid::new(DVec3::new(23.3, 12.1, 20.6), DVec3::new(5.2, 4.4, 6.1)).unwrap()).unwrap();
+        v.paint(&Cuboid::new(DVec3::new(24.0, 15.5, 17.25), DVec3::new(8.0, 20.0, 20.0)).unwrap(), 7).unwrap();
+        let blocks = surface_blocks(&v);
+        let n = assert_dual_equal(&gpu, &marcher, &blocks, &format!("shapes at level {}", level.get()));
+        assert!(n > 500, "{n} vertices");
+    }
 }

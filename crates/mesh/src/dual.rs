@@ -98,6 +98,46 @@ fn face_midpoints(block: &VoxelBlock, cell: [usize; 3], fa: usize, sp: f64) -> [
     })
 }
 
+/// The surface components manifold dual contouring gives a cell of `case` (bit `k`: corner
+/// `(k & 1, (k >> 1) & 1, (k >> 2) & 1)` inside) one vertex each, in the CPU's order: per
+/// marching-cubes loop of the case, the cell edges it crosses as bits `4 axis + o₁ + 2 o₂`
+/// (`o₁`, `o₂` the edge's lower corner's offsets on the axes `axis + 1` and `axis + 2`, mod 3).
+/// What a GPU mesher needs to place the same vertices.
+pub fn case_components(case: u8) -> Vec<u16> {
+    crate::cases::cases()[case as usize]
+        .iter()
+        .map(|lp| lp.edges.iter().fold(0u16, |m, e| m | 1 << local_edge(e.axis, e.lower)))
+        .collect()
+}
+
+/// One vertex of manifold dual contouring as the CPU places it: its cell (`x + n (y + n z)`),
+/// the cell edges of its component ([`case_components`]' bits), its position (grid units from
+/// the chunk origin), its normal and its material blend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DualVertex {
+    /// The cell, `x + n (y + n z)`.
+    pub cell: u32,
+    /// The component's cell edges.
+    pub edges: u16,
+    /// Grid units from the chunk origin.
+    pub position: Vec3,
+    /// Unit normal (the crossings' normals summed).
+    pub normal: Vec3,
+    /// The blend of the cell's solid corners' materials.
+    pub material: VertexMaterial,
+}
+
+/// The vertices manifold dual contouring places in `block`'s cells (every mixed cell, one per
+/// component, by the QEF of its crossings), in the CPU's order: cells by index, components in
+/// [`case_components`] order. For checking a GPU's placing against.
+pub fn dual_vertices(block: &VoxelBlock) -> Vec<DualVertex> {
+    ChunkDual::of(block, &|_| true, &|_, _| true, true)
+        .cells
+        .into_iter()
+        .map(|(cell, edges, position, normal, material)| DualVertex { cell, edges, position, normal, material })
+        .collect()
+}
+
 /// The bit of a cell's edge along `axis` whose lower corner is at `offset` (0 or 1 on the two
 /// other axes) from the cell's minimum corner.
 fn local_edge(axis: usize, offset: [usize; 3]) -> usize {
