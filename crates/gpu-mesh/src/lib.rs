@@ -34,8 +34,10 @@ use thiserror::Error;
 
 /// The WGSL source: marching cubes, then dual contouring's vertices (which use its bindings and
 /// helpers), one module.
-pub const SHADER: &str =
-    concat!(include_str!("../../../shaders/marching_cubes.wgsl"), include_str!("../../../shaders/dual_contouring.wgsl"));
+pub const SHADER: &str = concat!(
+    include_str!("../../../shaders/marching_cubes.wgsl"),
+    include_str!("../../../shaders/dual_contouring.wgsl")
+);
 
 /// Threads of a chunk's workgroup (the shader's `THREADS`).
 const THREADS: u32 = 256;
@@ -347,8 +349,8 @@ impl GpuMarcher {
             return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
         }
         let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        let words: u64 = blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b)).sum::<u64>()
-            + self.table.len() as u64;
+        let words: u64 =
+            blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b)).sum::<u64>() + self.table.len() as u64;
         let room: u64 = blocks.iter().map(|b| 4 * mixed_cells(b)).sum();
         let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1;
         for (what, w) in [("block data", words), ("vertices", room * DUAL_WORDS), ("scratch", scratch_words)] {

@@ -295,7 +295,8 @@ fn dual_contouring_vertices_equal_the_cpus() {
             VoxelBlock::from_fn(ChunkKey::new(case as i32, 0, 0), Level::BASE, inside, |axis, lower| {
                 let h = lower[0] + 2 * lower[1] + 3 * lower[2] + axis.index();
                 let t = 0.2 + 0.15 * (h % 5) as f32;
-                let n = [Vec3::X, Vec3::new(0.3, 0.9, -0.2), Vec3::new(-0.5, 0.1, 0.8), Vec3::new(0.6, -0.6, 0.5)][h % 4];
+                let n =
+                    [Vec3::X, Vec3::new(0.3, 0.9, -0.2), Vec3::new(-0.5, 0.1, 0.8), Vec3::new(0.6, -0.6, 0.5)][h % 4];
                 (t, n.normalize())
             })
         })
@@ -312,4 +313,68 @@ fn dual_contouring_vertices_equal_the_cpus() {
         let n = assert_dual_equal(&gpu, &marcher, &blocks, &format!("shapes at level {}", level.get()));
         assert!(n > 500, "{n} vertices");
     }
+}
+
+/// A dual-contouring mesh's quads (two triangles each, `a b c` and `a c d` for the quad
+/// `a b c d`), each as its cycle from its least vertex.
+fn quads(indices: &[u32]) -> Vec<[u32; 4]> {
+    assert_eq!(indices.len() % 6, 0);
+    indices
+        .chunks_exact(6)
+        .map(|t| {
+            let q = [t[0], t[1], t[2], t[5]];
+            let least = (0..4).min_by_key(|&i| q[i]).unwrap();
+            std::array::from_fn(|i| q[(least + i) % 4])
+        })
+        .collect()
+}
+
+/// Dual contouring with the GPU solving the vertices and the CPU joining the quads: the same
+/// quads as the CPU's alone, vertices within 1e-4 cells, through edits that update it
+/// incrementally.
+#[test]
+fn dual_contouring_with_gpu_vertices_joins_the_same_mesh() {
+    use strata_mesh::DualCache;
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(16.0, 15.5, 17.25), 10.3).unwrap()).unwrap();
+    v.add(&Cuboid::new(DVec3::new(25.3, 12.1, 20.6), DVec3::new(5.2, 4.4, 6.1)).unwrap()).unwrap();
+    let (mut on_cpu, mut on_gpu) = (DualCache::build(&v), DualCache::new());
+    let mut solves = 0;
+    let mut solver = |blocks: &[&VoxelBlock]| {
+        solves += 1;
+        Some(marcher.dual_vertices(&gpu.device, &gpu.queue, blocks).unwrap())
+    };
+    let all: Vec<ChunkKey> = v.chunks().map(|(k, _)| k).collect();
+    on_gpu.update_solved(&v, &all, Some(&mut solver));
+    let edits = [
+        (true, DVec3::new(20.0, 26.0, 18.0), 4.0),
+        (false, DVec3::new(10.0, 12.0, 14.0), 5.5),
+        (true, DVec3::new(31.0, 9.0, 22.0), 3.0),
+    ];
+    for step in 0..=edits.len() {
+        if step > 0 {
+            let (add, c, r) = edits[step - 1];
+            let b = Sphere::new(c, r).unwrap();
+            let report = if add { v.add(&b) } else { v.subtract(&b) }.unwrap();
+            on_cpu.update(&v, &report.changed);
+            on_gpu.update_solved(&v, &report.changed, Some(&mut solver));
+        }
+        let mut keys: Vec<ChunkKey> = on_cpu.iter().map(|(k, _)| k).collect();
+        keys.sort();
+        let mut gpu_keys: Vec<ChunkKey> = on_gpu.iter().map(|(k, _)| k).collect();
+        gpu_keys.sort();
+        assert_eq!(keys, gpu_keys, "step {step}: the chunks with triangles");
+        for key in keys {
+            let (a, b) = (&on_cpu.mesh(key).unwrap().mesh, &on_gpu.mesh(key).unwrap().mesh);
+            // The same quads (each split along its flatter diagonal, which may differ where
+            // the two are equally flat to within rounding).
+            assert_eq!(quads(&a.indices), quads(&b.indices), "step {step}: chunk {key:?}'s quads");
+            for (p, q) in a.positions.iter().zip(&b.positions) {
+                assert!((Vec3::from(*p) - Vec3::from(*q)).length() < 1e-4, "step {step}: {p:?} against {q:?}");
+            }
+        }
+    }
+    assert_eq!(solves, 1 + edits.len(), "every update solved its vertices on the GPU");
 }

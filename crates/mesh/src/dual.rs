@@ -152,7 +152,7 @@ impl ChunkDual {
         edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
         manifold: bool,
     ) -> ChunkDual {
-        Self::of_with(block, cell_ok, edge_ok, false, manifold)
+        Self::of_with(block, cell_ok, edge_ok, false, manifold, None)
     }
 
     /// [`ChunkDual::of`], keeping the edges on the `+` faces too when `apron_edges` (between
@@ -164,8 +164,21 @@ impl ChunkDual {
         edge_ok: &dyn Fn(Axis, [usize; 3]) -> bool,
         apron_edges: bool,
         manifold: bool,
+        solved: Option<&[DualVertex]>,
     ) -> ChunkDual {
         let n = block.cells();
+        // Vertices solved elsewhere (a GPU) for this block, in this loop's order: taken where
+        // their cell and component match, the QEF solved here otherwise.
+        let mut next_solved = 0usize;
+        let mut take_solved = |index: u32, mask: u16| -> Option<DualVertex> {
+            let s = solved?;
+            while next_solved < s.len() && s[next_solved].cell < index {
+                next_solved += 1;
+            }
+            let v = s.get(next_solved).filter(|v| v.cell == index && v.edges == mask).copied()?;
+            next_solved += 1;
+            Some(v)
+        };
         let sp = block.level().spacing();
         let mut d = ChunkDual { n, ..Default::default() };
         let table = crate::cases::cases();
@@ -210,6 +223,17 @@ impl ChunkDual {
                         VertexMaterial::single(0)
                     };
                     for &mask in &masks[..count] {
+                        if let Some(v) = take_solved(index, mask) {
+                            d.cells.push((index, mask, v.position, v.normal, material));
+                            if manifold {
+                                for fa in 0..3 {
+                                    if mask & face_edges(fa, 1) == face_edges(fa, 1) {
+                                        d.faces.push((index, fa as u8, face_midpoints(block, [x, y, z], fa, sp)));
+                                    }
+                                }
+                            }
+                            continue;
+                        }
                         let mut qef = Qef::default();
                         let mut normal = DVec3::ZERO;
                         for axis in Axis::ALL {
@@ -370,6 +394,9 @@ impl ChunkDual {
     }
 }
 
+/// Solves the cell vertices of voxel blocks elsewhere (see [`DualCache::update_solved`]).
+pub type VertexSolver<'a> = &'a mut dyn FnMut(&[&VoxelBlock]) -> Option<Vec<Vec<DualVertex>>>;
+
 type CellFilter = Box<dyn Fn([usize; 3]) -> bool + Send + Sync>;
 type EdgeFilter = Box<dyn Fn(Axis, [usize; 3]) -> bool + Send + Sync>;
 
@@ -452,30 +479,66 @@ impl DualCache {
     /// chunks after each that share a face or an edge (their quads use those vertices). Returns
     /// the chunks whose mesh was rebuilt.
     pub fn update(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
+        self.update_solved(volume, changed, None)
+    }
+
+    /// [`DualCache::update`] with the cell vertices solved by `solver` where it can (a GPU:
+    /// `strata_gpu_mesh::GpuMarcher::dual_vertices`): it gets the voxel blocks of the chunks
+    /// whose vertices change, all at once, and gives each block's vertices as
+    /// [`dual_vertices`] would, or `None` to leave them to the CPU. The quads are joined here
+    /// as always. Volumes that mix levels, and the single-vertex form, are solved on the CPU.
+    pub fn update_solved(
+        &mut self,
+        volume: &Volume,
+        changed: &[ChunkKey],
+        solver: Option<VertexSolver<'_>>,
+    ) -> Vec<ChunkKey> {
         if !volume.single_level() || self.levels.is_some() {
             return self.update_mixed(volume, changed);
         }
+        let solver = solver.filter(|_| !self.single_vertex);
         let vertex_keys = MeshCache::dependents(changed);
         let changed_set: std::collections::HashSet<ChunkKey> = changed.iter().copied().collect();
-        let fresh: Vec<(ChunkKey, ChunkDual, Vec<IVec3>)> = vertex_keys
-            .par_iter()
-            .map_init(VoxelBlock::default, |block, &key| {
-                volume.extract_block_into(key, block);
-                // A chunk before a changed one only depends on it through its border cells (and,
-                // for a face neighbour, the edges that end on that face): recompute just those.
-                let ds: Vec<IVec3> = if changed_set.contains(&key) || !self.duals.contains_key(&key) {
-                    Vec::new()
-                } else {
-                    (1..8)
-                        .map(|d| IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))
-                        .filter(|&d| changed_set.contains(&key.offset(d)))
-                        .collect()
-                };
-                let n = block.cells();
-                let (cell_ok, edge_ok) = border_filters(&ds, n);
-                (key, ChunkDual::of(block, &cell_ok, &edge_ok, !self.single_vertex), ds)
-            })
-            .collect();
+        // A chunk before a changed one only depends on it through its border cells (and, for a
+        // face neighbour, the edges that end on that face): recompute just those.
+        let borders = |key: ChunkKey| -> Vec<IVec3> {
+            if changed_set.contains(&key) || !self.duals.contains_key(&key) {
+                Vec::new()
+            } else {
+                (1..8)
+                    .map(|d| IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))
+                    .filter(|&d| changed_set.contains(&key.offset(d)))
+                    .collect()
+            }
+        };
+        let manifold = !self.single_vertex;
+        let fresh: Vec<(ChunkKey, ChunkDual, Vec<IVec3>)> = match solver {
+            None => vertex_keys
+                .par_iter()
+                .map_init(VoxelBlock::default, |block, &key| {
+                    volume.extract_block_into(key, block);
+                    let ds = borders(key);
+                    let (cell_ok, edge_ok) = border_filters(&ds, block.cells());
+                    (key, ChunkDual::of(block, &cell_ok, &edge_ok, manifold), ds)
+                })
+                .collect(),
+            Some(solve) => {
+                let blocks: Vec<VoxelBlock> = vertex_keys.par_iter().map(|&k| volume.extract_block(k)).collect();
+                let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+                let solved = solve(&refs).filter(|s| s.len() == blocks.len());
+                vertex_keys
+                    .par_iter()
+                    .zip(&blocks)
+                    .enumerate()
+                    .map(|(i, (&key, block))| {
+                        let ds = borders(key);
+                        let (cell_ok, edge_ok) = border_filters(&ds, block.cells());
+                        let mine = solved.as_ref().map(|s| s[i].as_slice());
+                        (key, ChunkDual::of_with(block, &cell_ok, &edge_ok, false, manifold, mine), ds)
+                    })
+                    .collect()
+            }
+        };
         for (key, part, ds) in fresh {
             let d = if ds.is_empty() {
                 part
@@ -543,7 +606,7 @@ impl DualCache {
             .par_iter()
             .map_init(VoxelBlock::default, |block, &key| {
                 volume.extract_block_into(key, block);
-                let d = ChunkDual::of_with(block, &|_| true, &|_, _| true, true, !self.single_vertex);
+                let d = ChunkDual::of_with(block, &|_| true, &|_, _| true, true, !self.single_vertex, None);
                 (key, d, block.level())
             })
             .collect();
