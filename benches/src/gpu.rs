@@ -8,7 +8,9 @@
 //! meshing does it (the same, plus the renderer's vertices placed in the world, the indirect
 //! draw arguments and the wireframe's lines: three more dispatches). Times
 //! are wall-clock from the first block to the end (the GPU's wait included), after a warm-up of
-//! ten frames; medians and 95th percentiles over the frames.
+//! ten frames; medians and 95th percentiles over the frames. Dual contouring's frame is the
+//! whole cache update (blocks extracted, vertices solved, quads joined) by the CPU alone, and
+//! with the vertices solved on the GPU and read back (`DualCache::update_solved`).
 
 use std::time::{Duration, Instant};
 
@@ -75,6 +77,10 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
     let mut volume = Volume::new();
     let settings = EditSettings { parallel: true, ..Default::default() };
     let (mut cpu, mut gpus, mut draws, mut chunks) = (Vec::new(), Vec::new(), Vec::new(), 0usize);
+    // Dual contouring's frame: the CPU's cache, and one whose vertices the GPU solves.
+    let (mut dual_cpu, mut dual_gpu) = (strata_mesh::DualCache::new(), strata_mesh::DualCache::new());
+    let (mut dc_cpu, mut dc_gpu) = (Vec::new(), Vec::new());
+    let mut solver = |blocks: &[&VoxelBlock]| marcher.dual_vertices(&gpu.device, &gpu.queue, blocks).ok();
     for (i, instruction) in ins.iter().enumerate() {
         let report = volume.apply(instruction.op, &instruction.brush(), &settings)?;
         let keys = strata_mesh::MeshCache::dependents(&report.changed);
@@ -91,7 +97,15 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         let t = Instant::now();
         gpu_mesh_for_drawing(&gpu, &marcher, &refs)?;
         let d = t.elapsed();
+        let t = Instant::now();
+        dual_cpu.update(&volume, &report.changed);
+        let dc = t.elapsed();
+        let t = Instant::now();
+        dual_gpu.update_solved(&volume, &report.changed, Some(&mut solver));
+        let dg = t.elapsed();
         if i >= warm {
+            dc_cpu.push(dc);
+            dc_gpu.push(dg);
             cpu.push(c);
             gpus.push(g);
             draws.push(d);
@@ -110,6 +124,11 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         "| GPU marching cubes for drawing (world vertices, indirect arguments, edges) | {dm:.2} | {dp:.2} | {:.1} |\n\n",
         per / dm.max(1e-9)
     );
+    let ((cm, cp), (gm, gp)) = (quantiles(&mut dc_cpu), quantiles(&mut dc_gpu));
+    out += "Dual contouring's frame (the cache's update: blocks, vertices, quads, on the same frames):\n\n";
+    out += "| dual contouring | median (ms) | p95 (ms) |\n|---|---:|---:|\n";
+    out += &format!("| CPU, all cores | {cm:.2} | {cp:.2} |\n");
+    out += &format!("| vertices on the GPU (read back), quads on the CPU | {gm:.2} | {gp:.2} |\n\n");
     // The bunny, every surface chunk at once.
     let path = crate::suite::repo_root().join("tests/data/bunny.ply");
     let m = strata_mesh::import::load_mesh(&path)?;

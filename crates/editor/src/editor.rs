@@ -623,6 +623,18 @@ impl Editor {
         self.meshes.gpu()
     }
 
+    /// Dual contouring in the viewport with its cell vertices solved by `solver` (GPU meshing:
+    /// `strata_viewport::GpuMeshing::vertex_solver`), the quads joined here; `None` solves them
+    /// on the CPU. Volumes that mix levels are solved on the CPU either way.
+    pub fn set_vertex_solver(&mut self, solver: Option<crate::view_meshes::BoxedVertexSolver>) {
+        self.meshes.set_solver(solver);
+    }
+
+    /// Whether a vertex solver is set ([`Editor::set_vertex_solver`]).
+    pub fn has_vertex_solver(&self) -> bool {
+        self.meshes.has_solver()
+    }
+
     /// Whether surface `i`'s viewport chunks are meshed by the caller (GPU meshing).
     pub fn meshed_by_caller(&self, i: usize) -> bool {
         self.meshes.by_caller(i)

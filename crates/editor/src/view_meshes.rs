@@ -166,9 +166,26 @@ struct Shown {
     placements: Vec<(LayerTransform, bool)>,
 }
 
+/// Solves dual contouring's cell vertices of voxel blocks elsewhere (a GPU), for the viewport's
+/// dual contouring (see [`crate::Editor::set_vertex_solver`]): per block what
+/// `strata_mesh::dual_vertices` gives, or `None` to leave them to the CPU.
+pub type BoxedVertexSolver =
+    Box<dyn FnMut(&[&strata_volume::VoxelBlock]) -> Option<Vec<Vec<strata_mesh::DualVertex>>> + Send + Sync>;
+
+/// A [`BoxedVertexSolver`] the view meshes hold.
+struct Solver(BoxedVertexSolver);
+
+impl std::fmt::Debug for Solver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Solver")
+    }
+}
+
 /// The viewport's meshes of every layer of a scene (see the module docs).
 #[derive(Debug)]
 pub(crate) struct ViewMeshes {
+    /// Dual contouring's vertices solved elsewhere (GPU meshing), if set.
+    solver: Option<Solver>,
     options: MeshOptions,
     surfaces: Vec<SurfaceMeshes>,
     view: Option<LodView>,
@@ -202,6 +219,7 @@ impl ViewMeshes {
             shown: None,
             unshown: BTreeSet::new(),
             gpu: false,
+            solver: None,
         };
         m.reset(surfaces, false);
         m
@@ -240,6 +258,17 @@ impl ViewMeshes {
     /// Whether GPU meshing is asked for.
     pub(crate) fn gpu(&self) -> bool {
         self.gpu
+    }
+
+    /// Dual contouring's vertices solved by `solver` from now on (`None`: on the CPU). Meshes
+    /// already shown stay (the two agree within 1e-4 cells).
+    pub(crate) fn set_solver(&mut self, solver: Option<BoxedVertexSolver>) {
+        self.solver = solver.map(Solver);
+    }
+
+    /// Whether a vertex solver is set.
+    pub(crate) fn has_solver(&self) -> bool {
+        self.solver.is_some()
     }
 
     /// Whether surface `i`'s chunks are meshed by the caller (see [`ViewMeshes::set_gpu`]).
@@ -382,7 +411,8 @@ impl ViewMeshes {
                 Backend::Dual(d) => {
                     if !s.queued.is_empty() {
                         let queued: Vec<ChunkKey> = std::mem::take(&mut s.queued).into_iter().collect();
-                        shown.extend(d.update(volume, &queued).into_iter().map(|k| (layer, k)));
+                        let solver = self.solver.as_mut().map(|f| &mut *f.0 as strata_mesh::VertexSolver<'_>);
+                        shown.extend(d.update_solved(volume, &queued, solver).into_iter().map(|k| (layer, k)));
                     }
                     continue;
                 }

@@ -236,7 +236,7 @@ pub fn apply_changes_with(
 /// old buffers are then dropped): the blocks held are at most four times the chunks shown.
 #[derive(Debug)]
 pub struct GpuMeshing {
-    marcher: GpuMarcher,
+    marcher: std::sync::Arc<GpuMarcher>,
     /// The batches meshes may still be shown from: their arguments buffer (which names the
     /// batch), the chunks last seen shown from it, and its blocks.
     batches: Vec<(wgpu::Buffer, Vec<MeshId>, usize)>,
@@ -252,7 +252,34 @@ impl GpuMeshing {
     /// shader needs, and indirect draws.
     pub fn new(adapter: &wgpu::Adapter, device: &wgpu::Device) -> Result<Self, GpuMeshError> {
         strata_gpu_mesh::check_drawing(adapter)?;
-        Ok(GpuMeshing { marcher: GpuMarcher::new(device)?, batches: Vec::new(), repacked: 0 })
+        Ok(GpuMeshing { marcher: std::sync::Arc::new(GpuMarcher::new(device)?), batches: Vec::new(), repacked: 0 })
+    }
+
+    /// A solver of dual contouring's cell vertices on this GPU, for
+    /// [`Editor::set_vertex_solver`] (the viewport's dual contouring: vertices solved here and
+    /// read back, quads joined by the editor). A device error leaves the frame's vertices to
+    /// the CPU and sets `failed` (say so, and turn GPU meshing off).
+    pub fn vertex_solver(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    ) -> strata_editor::BoxedVertexSolver {
+        let (marcher, device, queue) = (self.marcher.clone(), device.clone(), queue.clone());
+        Box::new(move |blocks: &[&VoxelBlock]| {
+            let scopes = [wgpu::ErrorFilter::Validation, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Internal]
+                .map(|f| device.push_error_scope(f));
+            let solved = marcher.dual_vertices(&device, &queue, blocks);
+            let mut error = false;
+            for scope in scopes.into_iter().rev() {
+                error |= pollster::block_on(scope.pop()).is_some();
+            }
+            if error || solved.is_err() {
+                failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                return None;
+            }
+            solved.ok()
+        })
     }
 
     /// Blocks the batches still held hold (meshes shown or not).

@@ -135,6 +135,7 @@ impl StudioApp {
             color: None,
             texture_id: None,
             gpu: strata_viewport::GpuMeshing::new(&rs.adapter, &rs.device).map_err(|e| e.to_string()),
+            solver_failed: Default::default(),
         });
         // GPU meshing is on by default where the adapter is a GPU that can (a software adapter
         // such as lavapipe meshes faster on the CPU itself).
@@ -147,9 +148,9 @@ impl StudioApp {
     }
 
     /// Turns GPU meshing on or off (View → GPU meshing), saying what the viewport does now: it
-    /// cannot where there is no GPU viewport or the adapter lacks what it needs, and it meshes
-    /// marching cubes of scene layers only (not a world, not a masked layer, not the other
-    /// meshers).
+    /// cannot where there is no GPU viewport or the adapter lacks what it needs; it meshes
+    /// marching cubes of scene layers (not a world, not a masked layer) and solves dual
+    /// contouring's vertices; the other meshers stay on the CPU.
     pub fn set_gpu_meshing(&mut self, on: bool) {
         if !on {
             self.studio.gpu_meshing = false;
@@ -167,7 +168,9 @@ impl StudioApp {
         }
         self.studio.gpu_meshing = true;
         let mesher = self.studio.editor.view_mesher();
-        self.studio.message = if mesher.mesher != strata_mesh::Mesher::MarchingCubes || mesher.simplify.is_some() {
+        self.studio.message = if mesher.mesher == strata_mesh::Mesher::DualContouring {
+            "GPU meshing on: dual contouring's vertices solved on the GPU, its quads joined on the CPU".into()
+        } else if mesher.mesher != strata_mesh::Mesher::MarchingCubes || mesher.simplify.is_some() {
             format!(
                 "GPU meshing on: it meshes plain marching cubes, so the viewport's {} stays on the CPU",
                 mesher.mesher

@@ -12,6 +12,8 @@ pub(super) struct Viewport {
     pub(super) texture_id: Option<egui::TextureId>,
     /// GPU meshing on this device, or why the adapter cannot do it.
     pub(super) gpu: Result<strata_viewport::GpuMeshing, String>,
+    /// Set by the dual-contouring vertex solver when the device failed.
+    pub(super) solver_failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl Viewport {
@@ -308,6 +310,11 @@ impl StudioApp {
         if self.studio.editor.gpu_meshing() != gpu.is_some() {
             self.studio.editor.set_gpu_meshing(gpu.is_some());
         }
+        // Dual contouring's vertices too, solved on the GPU and joined here.
+        if self.studio.editor.has_vertex_solver() != gpu.is_some() {
+            let solver = gpu.as_ref().map(|g| g.vertex_solver(&rs.device, &rs.queue, vp.solver_failed.clone()));
+            self.studio.editor.set_vertex_solver(solver);
+        }
         let changes = self.studio.editor.take_changes();
         let applied = strata_viewport::apply_changes_with(
             &self.studio.editor,
@@ -321,7 +328,16 @@ impl StudioApp {
             // The device failed while meshing: the CPU meshes everything again.
             self.studio.gpu_meshing = false;
             self.studio.editor.set_gpu_meshing(false);
+            self.studio.editor.set_vertex_solver(None);
             self.studio.fail(format!("GPU meshing failed ({e}): the CPU meshes the viewport now"));
+        }
+        if vp.solver_failed.swap(false, std::sync::atomic::Ordering::Relaxed) {
+            self.studio.gpu_meshing = false;
+            self.studio.editor.set_gpu_meshing(false);
+            self.studio.editor.set_vertex_solver(None);
+            self.studio.fail(
+                "GPU meshing failed while solving dual contouring's vertices: the CPU meshes the viewport now".into(),
+            );
         }
         self.studio.gpu_chunks = vp.renderer.indirect_count();
         if let Some(t) = &self.studio.terrain {
