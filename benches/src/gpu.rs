@@ -7,7 +7,8 @@
 //! dispatches, waiting for it to finish; nothing read back), and by the GPU as the viewport's GPU
 //! meshing does it (the same, plus the renderer's vertices placed in the world, the indirect
 //! draw arguments and the wireframe's lines: three more dispatches). Times
-//! are wall-clock from the first block to the end (the GPU's wait included), after a warm-up of
+//! are wall-clock from the first block to the end (the GPU's wait included), and, where the
+//! device has timestamp queries, the GPU's own time for the batch's compute pass, after a warm-up of
 //! ten frames; medians and 95th percentiles over the frames. Dual contouring's frame is the
 //! whole cache update (blocks extracted, vertices solved, quads joined) by the CPU alone, and
 //! with the vertices solved on the GPU and read back (`DualCache::update_solved`).
@@ -68,15 +69,24 @@ fn cpu_mesh(blocks: &[&VoxelBlock]) -> usize {
 
 /// The report, as markdown.
 pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
-    let gpu = strata_render::Gpu::headless().context("a GPU adapter (or lavapipe)")?;
-    let marcher = strata_gpu_mesh::GpuMarcher::new(&gpu.device)?;
-    let mut out = format!("Adapter: {} ({:?})\n\n", gpu.info.name, gpu.info.backend);
+    let gpu =
+        strata_render::Gpu::headless_with(wgpu::Features::TIMESTAMP_QUERY).context("a GPU adapter (or lavapipe)")?;
+    let mut marcher = strata_gpu_mesh::GpuMarcher::new(&gpu.device)?;
+    let timed = marcher.enable_timer(&gpu.device, &gpu.queue);
+    let mut out = format!(
+        "Adapter: {} ({:?}){}\n\n",
+        gpu.info.name,
+        gpu.info.backend,
+        if timed { ", compute passes timed by timestamp queries" } else { ", no timestamp queries" }
+    );
     // Table 2's frames.
     let warm = 10;
     let ins = crate::table1_instructions(frames + warm, radius, 2021);
     let mut volume = Volume::new();
     let settings = EditSettings { parallel: true, ..Default::default() };
     let (mut cpu, mut gpus, mut draws, mut chunks) = (Vec::new(), Vec::new(), Vec::new(), 0usize);
+    // The GPU's own time for the passes (timestamps), plain and for drawing.
+    let (mut pass_times, mut draw_pass_times) = (Vec::new(), Vec::new());
     // Dual contouring's frame: the CPU's cache, and one whose vertices the GPU solves.
     let (mut dual_cpu, mut dual_gpu) = (strata_mesh::DualCache::new(), strata_mesh::DualCache::new());
     let (mut dc_cpu, mut dc_gpu) = (Vec::new(), Vec::new());
@@ -94,9 +104,15 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         let t = Instant::now();
         gpu_mesh(&gpu, &marcher, &refs)?;
         let g = t.elapsed();
+        let gt = marcher.last_gpu_time(&gpu.device, &gpu.queue);
         let t = Instant::now();
         gpu_mesh_for_drawing(&gpu, &marcher, &refs)?;
         let d = t.elapsed();
+        let dt = marcher.last_gpu_time(&gpu.device, &gpu.queue);
+        if i >= warm {
+            pass_times.extend(gt);
+            draw_pass_times.extend(dt);
+        }
         let t = Instant::now();
         dual_cpu.update(&volume, &report.changed);
         let dc = t.elapsed();
@@ -114,14 +130,23 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
     }
     let per = chunks as f64 / frames as f64;
     let ((cm, cp), (gm, gp), (dm, dp)) = (quantiles(&mut cpu), quantiles(&mut gpus), quantiles(&mut draws));
+    let pass_row = |d: &mut Vec<Duration>| {
+        if d.is_empty() {
+            " n/a | n/a |".to_string()
+        } else {
+            let (m, p) = quantiles(d);
+            format!(" {m:.2} | {p:.2} |")
+        }
+    };
+    let (gpu_pass, draw_pass) = (pass_row(&mut pass_times), pass_row(&mut draw_pass_times));
     out += &format!(
         "Table 2 workload, radius {radius}, {frames} frames after {warm} of warm-up, {per:.1} chunks meshed a frame:\n\n"
     );
-    out += "| mesher | median (ms) | p95 (ms) | chunks per ms (median) |\n|---|---:|---:|---:|\n";
-    out += &format!("| CPU marching cubes, all cores | {cm:.2} | {cp:.2} | {:.1} |\n", per / cm.max(1e-9));
-    out += &format!("| GPU marching cubes | {gm:.2} | {gp:.2} | {:.1} |\n", per / gm.max(1e-9));
+    out += "| mesher | median (ms) | p95 (ms) | chunks per ms (median) | GPU pass median (ms, timestamps) | GPU pass p95 (ms) |\n|---|---:|---:|---:|---:|---:|\n";
+    out += &format!("| CPU marching cubes, all cores | {cm:.2} | {cp:.2} | {:.1} | | |\n", per / cm.max(1e-9));
+    out += &format!("| GPU marching cubes | {gm:.2} | {gp:.2} | {:.1} |{gpu_pass}\n", per / gm.max(1e-9));
     out += &format!(
-        "| GPU marching cubes for drawing (world vertices, indirect arguments, edges) | {dm:.2} | {dp:.2} | {:.1} |\n\n",
+        "| GPU marching cubes for drawing (world vertices, indirect arguments, edges) | {dm:.2} | {dp:.2} | {:.1} |{draw_pass}\n\n",
         per / dm.max(1e-9)
     );
     let ((cm, cp), (gm, gp)) = (quantiles(&mut dc_cpu), quantiles(&mut dc_gpu));

@@ -248,6 +248,9 @@ pub struct GpuMarcher {
     dual_count: wgpu::ComputePipeline,
     dual_emit: wgpu::ComputePipeline,
     table: Vec<u32>,
+    /// Times the compute pass of each batch on the GPU, where the device has timestamp queries
+    /// ([`GpuMarcher::enable_timer`]).
+    timer: Option<GpuTimer>,
     /// Upload every block's whole crossing lookup, as for blocks whose crossings are not listed
     /// in rank order (off: the smaller row counts where they serve; on: for tests of that path).
     pub whole_lookups: bool,
@@ -285,8 +288,60 @@ impl GpuMarcher {
             dual_count: pipeline("dual_count"),
             dual_emit: pipeline("dual_emit"),
             table: case_table(),
+            timer: None,
             whole_lookups: false,
         })
+    }
+
+    /// Times every batch's compute pass with timestamp queries from now on (read with
+    /// [`GpuMarcher::last_gpu_time`]); `false` where the device was not created with
+    /// `wgpu::Features::TIMESTAMP_QUERY`.
+    pub fn enable_timer(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> bool {
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return false;
+        }
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("gpu mesh timer"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let buffer = |usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("gpu mesh timestamps"),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let resolve = buffer(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC);
+        let period = queue.get_timestamp_period() as f64;
+        self.timer = Some(GpuTimer { set, resolve, period });
+        true
+    }
+
+    /// The GPU's time for the last batch's compute pass (waits for it), where the timer is on.
+    pub fn last_gpu_time(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Option<std::time::Duration> {
+        let timer = self.timer.as_ref()?;
+        let words = read_words(device, queue, &timer.resolve, 4).ok()?;
+        let (start, end) = (words[0] as u64 | (words[1] as u64) << 32, words[2] as u64 | (words[3] as u64) << 32);
+        let nanos = end.checked_sub(start)? as f64 * timer.period;
+        Some(std::time::Duration::from_nanos(nanos as u64))
+    }
+
+    /// The compute pass's timestamp writes, where the timer is on.
+    fn timestamps(&self) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        self.timer.as_ref().map(|t| wgpu::ComputePassTimestampWrites {
+            query_set: &t.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        })
+    }
+
+    /// Resolves the timer's queries into its buffer, after the pass.
+    fn resolve_timer(&self, encoder: &mut wgpu::CommandEncoder) {
+        if let Some(t) = &self.timer {
+            encoder.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
+        }
     }
 
     /// Meshes `blocks` (their cells `0..n`, as [`strata_mesh::mesh_block`] does, seams split)
@@ -450,8 +505,8 @@ impl GpuMarcher {
         };
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("dual") });
         if chunk_count > 0 {
-            let mut pass =
-                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: self.timestamps() });
             pass.set_pipeline(&self.dual_count);
             pass.set_bind_group(0, &group(&self.dual_count, &[0, 1, 2, 4]), &[]);
             pass.dispatch_workgroups(chunk_count, 1, 1);
@@ -462,6 +517,7 @@ impl GpuMarcher {
             pass.set_bind_group(0, &group(&self.dual_emit, &[0, 1, 2, 4, 6]), &[]);
             pass.dispatch_workgroups(chunk_count, 1, 1);
         }
+        self.resolve_timer(&mut encoder);
         queue.submit([encoder.finish()]);
         if chunk_count == 0 {
             return Ok(Vec::new());
@@ -760,8 +816,8 @@ impl GpuMarcher {
         };
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("gpu mesh") });
         {
-            let mut pass =
-                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: self.timestamps() });
             if chunk_count > 0 {
                 pass.set_pipeline(&self.count);
                 pass.set_bind_group(0, &group(&self.count, &[0, 1, 2, 4]), &[]);
@@ -812,6 +868,7 @@ impl GpuMarcher {
                 }
             }
         }
+        self.resolve_timer(&mut encoder);
         queue.submit([encoder.finish()]);
         let batch = GpuBatch {
             vertices,
@@ -826,6 +883,15 @@ impl GpuMarcher {
         };
         Ok((batch, drawing.map(|(_, d, a, e)| (d, a, e))))
     }
+}
+
+/// Timestamp queries around a batch's compute pass.
+#[derive(Debug)]
+struct GpuTimer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    /// Nanoseconds a tick.
+    period: f64,
 }
 
 /// Where a block's words start in the data buffer.

@@ -378,3 +378,27 @@ fn dual_contouring_with_gpu_vertices_joins_the_same_mesh() {
     }
     assert_eq!(solves, 1 + edits.len(), "every update solved its vertices on the GPU");
 }
+
+/// Timestamp queries time a batch's compute pass where the device has them (lavapipe does);
+/// a device without them says so.
+#[test]
+fn the_timer_times_a_batch_where_the_device_has_timestamps() {
+    let Some(plain) = gpu() else { return };
+    let mut marcher = GpuMarcher::new(&plain.device).unwrap();
+    assert!(!marcher.enable_timer(&plain.device, &plain.queue), "no timestamps asked for");
+    assert_eq!(marcher.last_gpu_time(&plain.device, &plain.queue), None);
+    let gpu = Gpu::headless_with(wgpu::Features::TIMESTAMP_QUERY).unwrap();
+    if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+        eprintln!("skipping the timer: {} has no timestamp queries", gpu.info.name);
+        return;
+    }
+    let mut marcher = GpuMarcher::new(&gpu.device).unwrap();
+    assert!(marcher.enable_timer(&gpu.device, &gpu.queue));
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(16.0, 15.5, 17.25), 11.3).unwrap()).unwrap();
+    let blocks = surface_blocks(&v);
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    marcher.mesh(&gpu.device, &gpu.queue, &refs).unwrap();
+    let t = marcher.last_gpu_time(&gpu.device, &gpu.queue).expect("timed");
+    assert!(t > std::time::Duration::ZERO && t < std::time::Duration::from_secs(60), "{t:?}");
+}

@@ -62,6 +62,12 @@ impl Gpu {
 
     /// A headless context on the first adapter found (`WGPU_BACKEND` etc. are honoured).
     pub fn headless() -> Result<Gpu, RenderError> {
+        Gpu::headless_with(wgpu::Features::empty())
+    }
+
+    /// [`Gpu::headless`] with those of `wanted` features the adapter has (for example
+    /// timestamp queries, for timing the GPU's own work).
+    pub fn headless_with(wanted: wgpu::Features) -> Result<Gpu, RenderError> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
@@ -74,6 +80,7 @@ impl Gpu {
         let max_texture = limits.max_texture_dimension_2d;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("strata headless"),
+            required_features: wanted & adapter.features(),
             required_limits: limits,
             ..Default::default()
         }))
