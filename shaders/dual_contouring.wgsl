@@ -279,3 +279,523 @@ fn dual_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
         }
     }
 }
+
+// ---- Quads (one level): a quad around every sign-changing edge a chunk owns (its lower node
+// in the chunk on the two axes across it), joining the vertices of the components that hold the
+// edge in the four cells around it (cells before the chunk are its neighbours'); a face between
+// two ring cells whose components both run through both of its segments passes through the
+// segment's midpoint, and a polygon of more than four vertices is fanned from its centre, as the
+// CPU's `DualCache::assemble` does. For a chunk, `seam_base` holds where its six neighbours'
+// block numbers (−x, −y, −z, −x−y, −y−z, −z−x; 0xffffffff: not in the batch) start in `data`,
+// and `seam_slot` whether it makes quads (1) or only lends its vertices (0).
+//
+//   quad_count   one workgroup a chunk: each thread's run of crossings: triangles and extra
+//                vertices (midpoints, centres), scanned.
+//   quad_scan    one workgroup: the chunks' first triangle and first extra vertex.
+//   quad_emit    one workgroup a chunk: the triangles (vertex numbers: dual vertices first,
+//                then the extra ones), and the extra vertices (ten words each, after the dual
+//                ones: 0xffffffff, chunk, position, normal, material).
+
+// Scratch words of the quad passes, after the vertex passes' (per thread: triangles, extras;
+// per chunk: triangles, extras; per chunk and one more: first triangle, first extra).
+fn quad_thread_at(k: u32, t: u32) -> u32 {
+    return params.chunk_count * (THREADS + 2u) + 1u + (k * THREADS + t) * 2u;
+}
+
+fn quad_chunk_at(k: u32) -> u32 {
+    return params.chunk_count * (THREADS + 2u) + 1u + params.chunk_count * THREADS * 2u + k * 2u;
+}
+
+fn quad_first_at(k: u32) -> u32 {
+    return params.chunk_count * (THREADS + 2u) + 1u + params.chunk_count * (THREADS + 1u) * 2u + k * 2u;
+}
+
+// The number of dual vertices of cell `i` of chunk `k` before component 0 (its first vertex).
+fn cell_vertex(k: u32, i: u32) -> u32 {
+    let c = load_chunk(k);
+    let cells = c.n * c.n * c.n;
+    let per = (cells + THREADS - 1u) / THREADS;
+    let t = i / per;
+    var v = scratch[chunk_first_at(k)] + scratch[k * THREADS + t];
+    for (var j = t * per; j < i; j++) {
+        v += data[DUAL_TABLE + case_of(c, cell_at(c, j)) * 5u];
+    }
+    return v;
+}
+
+// A ring cell: its chunk (in the batch), local cell, component mask, vertex number, offset of its
+// chunk (0 or −1 on each axis); `ok` false where its chunk is not in the batch or no component
+// holds the edge.
+struct RingCell {
+    k: u32,
+    cell: vec3<u32>,
+    mask: u32,
+    vertex: u32,
+    shift: vec3<i32>,
+    ok: bool,
+};
+
+fn neighbour(k: u32, shift: vec3<i32>) -> u32 {
+    if (all(shift == vec3<i32>(0))) {
+        return k;
+    }
+    let base = load_chunk(k).seam_base;
+    var slot = 0u;
+    if (all(shift == vec3<i32>(-1, 0, 0))) {
+        slot = 0u;
+    } else if (all(shift == vec3<i32>(0, -1, 0))) {
+        slot = 1u;
+    } else if (all(shift == vec3<i32>(0, 0, -1))) {
+        slot = 2u;
+    } else if (all(shift == vec3<i32>(-1, -1, 0))) {
+        slot = 3u;
+    } else if (all(shift == vec3<i32>(0, -1, -1))) {
+        slot = 4u;
+    } else {
+        slot = 5u;
+    }
+    return data[base + slot];
+}
+
+fn ring_cell(k: u32, cell: vec3<i32>, axis: u32, l: vec3<i32>) -> RingCell {
+    let n = i32(load_chunk(k).n);
+    let shift = vec3<i32>(select(0, -1, cell.x < 0), select(0, -1, cell.y < 0), select(0, -1, cell.z < 0));
+    var r = RingCell(0u, vec3<u32>(0u), 0u, 0u, shift, false);
+    let kk = neighbour(k, shift);
+    if (kk == 0xffffffffu) {
+        return r;
+    }
+    let local = vec3<u32>(cell - shift * n);
+    let c = load_chunk(kk);
+    let case_index = case_of(c, local);
+    let count = data[DUAL_TABLE + case_index * 5u];
+    let offset = vec3<u32>(l - cell);
+    let edge = 4u * axis + offset[(axis + 1u) % 3u] + 2u * offset[(axis + 2u) % 3u];
+    for (var j = 0u; j < count; j++) {
+        let mask = data[DUAL_TABLE + case_index * 5u + 1u + j];
+        if (((mask >> edge) & 1u) == 1u) {
+            let index = local.x + c.n * (local.y + c.n * local.z);
+            return RingCell(kk, local, mask, cell_vertex(kk, index) + j, shift, true);
+        }
+    }
+    return r;
+}
+
+// The cell-edge bits of the face with normal `fa` at `side` (the CPU's `face_edges`).
+fn face_edges(fa: u32, side: u32) -> u32 {
+    var bits = 0u;
+    for (var q = 1u; q <= 2u; q++) {
+        let axis = (fa + q) % 3u;
+        let other = 3u - fa - axis;
+        for (var o = 0u; o < 2u; o++) {
+            var off = vec3<u32>(0u);
+            off[fa] = side;
+            off[other] = o;
+            bits |= 1u << (4u * axis + off[(axis + 1u) % 3u] + 2u * off[(axis + 2u) % 3u]);
+        }
+    }
+    return bits;
+}
+
+// Where crossing (axis, node) of chunk `c` lies, chunk-local grid units.
+fn crossing_point(c: Chunk, axis: u32, node: vec3<u32>) -> vec3<f32> {
+    let m3 = c.m * c.m * c.m;
+    var base = 0u;
+    if (axis == 1u) {
+        base = c.y_base;
+    } else if (axis == 2u) {
+        base = c.z_base;
+    }
+    let index = base + crossing_index(c, axis, node, m3);
+    var p = vec3<f32>(node);
+    p[axis] = p[axis] + bitcast<f32>(data[c.pair_base + index * 2u]);
+    return p * c.spacing;
+}
+
+// A dual vertex's position, normal and material words, in the frame of the chunk shifted by
+// `shift` from it.
+fn dual_position(v: u32, shift: vec3<i32>) -> vec3<f32> {
+    let at = v * 10u;
+    return vec3<f32>(vertices[at + 2u], vertices[at + 3u], vertices[at + 4u]) + vec3<f32>(shift) * 16.0;
+}
+
+// The polygon around owned crossing `i` of chunk `k` (0 vertices where it has none).
+struct Polygon {
+    count: u32,
+    // Up to eight: dual vertex numbers, or 0x80000000 | midpoint slot (corner, lo ring index).
+    v: array<u32, 8>,
+    // Per midpoint: the lo ring cell's chunk, local cell, face axis, corner, the ring pair.
+    mid: array<vec4<u32>, 4>,
+    mid_cell: array<vec3<u32>, 4>,
+    mid_shift: array<vec3<i32>, 4>,
+    mids: u32,
+    inside: bool,
+};
+
+fn polygon_of(k: u32, i: u32) -> Polygon {
+    var out: Polygon;
+    out.count = 0u;
+    out.mids = 0u;
+    let c = load_chunk(k);
+    if (c.seam_slot != 1u) {
+        return out;
+    }
+    // Crossing i of the chunk: its axis and lower node (by rank: find it on its line).
+    var axis = 0u;
+    var index = i;
+    let ny = c.y_base;
+    let nz = c.z_base;
+    if (i >= nz) {
+        axis = 2u;
+        index = i - nz;
+    } else if (i >= ny) {
+        axis = 1u;
+        index = i - ny;
+    }
+    let lower = crossing_lower(c, axis, index);
+    let u = (axis + 1u) % 3u;
+    let v = (axis + 2u) % 3u;
+    if (lower[u] >= c.n || lower[v] >= c.n) {
+        return out;
+    }
+    let l = vec3<i32>(lower);
+    var eu = vec3<i32>(0);
+    eu[u] = 1;
+    var ev = vec3<i32>(0);
+    ev[v] = 1;
+    let ring = array<vec3<i32>, 4>(l - eu - ev, l - ev, l, l - eu);
+    var cells: array<RingCell, 4>;
+    for (var q = 0u; q < 4u; q++) {
+        cells[q] = ring_cell(k, ring[q], axis, l);
+        if (!cells[q].ok) {
+            return out;
+        }
+    }
+    out.inside = inside(c, lower.x, lower.y, lower.z) == 1u;
+    for (var q = 0u; q < 4u; q++) {
+        out.v[out.count] = cells[q].vertex;
+        out.count += 1u;
+        let j = (q + 1u) % 4u;
+        var fa = 0u;
+        for (var a = 0u; a < 3u; a++) {
+            if (ring[q][a] != ring[j][a]) {
+                fa = a;
+            }
+        }
+        var lo = q;
+        var hi = j;
+        if (ring[q][fa] > ring[j][fa]) {
+            lo = j;
+            hi = q;
+        }
+        if ((cells[lo].mask & face_edges(fa, 1u)) != face_edges(fa, 1u)
+            || (cells[hi].mask & face_edges(fa, 0u)) != face_edges(fa, 0u)) {
+            continue;
+        }
+        var inside_end = l;
+        if (!out.inside) {
+            inside_end = l + vec3<i32>(select(0, 1, axis == 0u), select(0, 1, axis == 1u), select(0, 1, axis == 2u));
+        }
+        let cu = u32(inside_end[(fa + 1u) % 3u] - ring[lo][(fa + 1u) % 3u]);
+        let cv = u32(inside_end[(fa + 2u) % 3u] - ring[lo][(fa + 2u) % 3u]);
+        out.mid[out.mids] = vec4<u32>(cells[lo].k, fa, cu + 2u * cv, q);
+        out.mid_cell[out.mids] = cells[lo].cell;
+        out.mid_shift[out.mids] = cells[lo].shift;
+        out.v[out.count] = 0x80000000u | out.mids;
+        out.mids += 1u;
+        out.count += 1u;
+    }
+    return out;
+}
+
+// The lower node of the `index`-th crossing along `axis` of chunk `c` (its rank order: lines in
+// `Axis::across` order, then along the line).
+fn crossing_lower(c: Chunk, axis: u32, index: u32) -> vec3<u32> {
+    // Binary search over the lines' first crossings.
+    let stride = 1u + c.words;
+    let base = c.rows_base + axis * c.m * c.m * stride;
+    var lo = 0u;
+    var hi = c.m * c.m;
+    while (hi - lo > 1u) {
+        let mid = (lo + hi) / 2u;
+        if (data[base + mid * stride] <= index) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    // The crossing's position along the line: the (index − first)-th set bit.
+    var left = index - data[base + lo * stride];
+    var e = 0u;
+    for (var w = 0u; w < c.words; w++) {
+        var bits = data[base + lo * stride + 1u + w];
+        let ones = countOneBits(bits);
+        if (left < ones) {
+            for (var s = 0u; s < left; s++) {
+                bits &= bits - 1u;
+            }
+            e = 32u * w + firstTrailingBit(bits);
+            break;
+        }
+        left -= ones;
+    }
+    let line_u = lo % c.m;
+    let line_v = lo / c.m;
+    var node = vec3<u32>(0u);
+    node[axis] = e;
+    node[(axis + 1u) % 3u] = line_u;
+    node[(axis + 2u) % 3u] = line_v;
+    return node;
+}
+
+// Triangles and extra vertices a polygon makes.
+fn polygon_counts(p: Polygon) -> vec2<u32> {
+    if (p.count == 0u) {
+        return vec2<u32>(0u);
+    }
+    if (p.count == 4u) {
+        return vec2<u32>(2u, 0u);
+    }
+    return vec2<u32>(p.count, p.mids + 1u);
+}
+
+// A chunk's crossings (kept in `centroid_first` for these passes).
+fn crossing_total(c: Chunk) -> u32 {
+    return c.centroid_first;
+}
+
+// Chunk `k` as the quad passes read it: from `data` at `seam_list_base` (20 words a chunk), so
+// that they bind four storage buffers at most.
+fn load_chunk(k: u32) -> Chunk {
+    let b = params.seam_list_base + k * 20u;
+    return Chunk(data[b], data[b + 1u], data[b + 2u], data[b + 3u], data[b + 4u], data[b + 5u], data[b + 6u],
+        data[b + 7u], bitcast<f32>(data[b + 8u]), data[b + 9u], data[b + 10u], data[b + 11u], data[b + 12u],
+        data[b + 13u], data[b + 14u], data[b + 15u], data[b + 16u], data[b + 17u], data[b + 18u], data[b + 19u]);
+}
+
+fn crossing_run(c: Chunk, t: u32) -> vec2<u32> {
+    let total = crossing_total(c);
+    let per = (total + THREADS - 1u) / THREADS;
+    return vec2<u32>(min(total, t * per), min(total, (t + 1u) * per));
+}
+
+@compute @workgroup_size(256)
+fn quad_count(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let k = wg.x;
+    let run = crossing_run(load_chunk(k), t);
+    var counts = vec2<u32>(0u);
+    for (var i = run.x; i < run.y; i++) {
+        counts += polygon_counts(polygon_of(k, i));
+    }
+    let first_triangle = scan(t, counts.x);
+    let triangles = sums[THREADS - 1u];
+    workgroupBarrier();
+    let first_extra = scan(t, counts.y);
+    let extras = sums[THREADS - 1u];
+    scratch[quad_thread_at(k, t)] = first_triangle;
+    scratch[quad_thread_at(k, t) + 1u] = first_extra;
+    if (t == 0u) {
+        scratch[quad_chunk_at(k)] = triangles;
+        scratch[quad_chunk_at(k) + 1u] = extras;
+    }
+}
+
+@compute @workgroup_size(256)
+fn quad_scan(@builtin(local_invocation_index) t: u32) {
+    let count = params.chunk_count;
+    for (var part = 0u; part < 2u; part++) {
+        var carry = 0u;
+        for (var start = 0u; start < count; start += THREADS) {
+            let i = start + t;
+            var value = 0u;
+            if (i < count) {
+                value = scratch[quad_chunk_at(i) + part];
+            }
+            let first = scan(t, value);
+            if (i < count) {
+                scratch[quad_first_at(i) + part] = carry + first;
+            }
+            carry += sums[THREADS - 1u];
+            workgroupBarrier();
+        }
+        if (t == 0u) {
+            scratch[quad_first_at(count) + part] = carry;
+        }
+        workgroupBarrier();
+    }
+}
+
+// Writes extra vertex `e` (ten words, after the dual vertices).
+fn write_extra(e: u32, k: u32, p: vec3<f32>, n: vec3<f32>, ids: u32, weights: u32) {
+    let at = (scratch[chunk_first_at(params.chunk_count)] + e) * 10u;
+    vertices[at] = bitcast<f32>(0xffffffffu);
+    vertices[at + 1u] = bitcast<f32>(k);
+    vertices[at + 2u] = p.x;
+    vertices[at + 3u] = p.y;
+    vertices[at + 4u] = p.z;
+    vertices[at + 5u] = n.x;
+    vertices[at + 6u] = n.y;
+    vertices[at + 7u] = n.z;
+    vertices[at + 8u] = bitcast<f32>(ids);
+    vertices[at + 9u] = bitcast<f32>(weights);
+}
+
+fn vertex_normal(v: u32) -> vec3<f32> {
+    let at = v * 10u;
+    return vec3<f32>(vertices[at + 5u], vertices[at + 6u], vertices[at + 7u]);
+}
+
+@compute @workgroup_size(256)
+fn quad_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let k = wg.x;
+    let run = crossing_run(load_chunk(k), t);
+    var tri = (scratch[quad_first_at(k)] + scratch[quad_thread_at(k, t)]) * 3u;
+    var extra = scratch[quad_first_at(k) + 1u] + scratch[quad_thread_at(k, t) + 1u];
+    let dual_total = scratch[chunk_first_at(params.chunk_count)];
+    for (var i = run.x; i < run.y; i++) {
+        let p = polygon_of(k, i);
+        if (p.count == 0u) {
+            continue;
+        }
+        // The polygon's vertex numbers and positions in this chunk's frame.
+        var ids = array<u32, 8>(0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u);
+        var pos: array<vec3<f32>, 8>;
+        var nor: array<vec3<f32>, 8>;
+        var q = array<u32, 4>(0u, 0u, 0u, 0u);
+        var qn = 0u;
+        for (var j = 0u; j < p.count; j++) {
+            let v = p.v[j];
+            if ((v & 0x80000000u) == 0u) {
+                ids[j] = v;
+                // The vertex's chunk shift: look it up from the ring (dual vertices carry their
+                // cell, not their chunk), by the chunk that owns the vertex number.
+                pos[j] = dual_position(v, vertex_shift(k, v));
+                nor[j] = vertex_normal(v);
+                q[qn] = j;
+                qn += 1u;
+            }
+        }
+        for (var j = 0u; j < p.count; j++) {
+            let v = p.v[j];
+            if ((v & 0x80000000u) != 0u) {
+                let m = p.mid[v & 0xffu];
+                let cc = load_chunk(m.x);
+                let fa = m.y;
+                let corner = m.z;
+                let fu = (fa + 1u) % 3u;
+                let fv = (fa + 2u) % 3u;
+                var base = p.mid_cell[v & 0xffu];
+                base[fa] += 1u;
+                var e_u = base;
+                e_u[fv] += corner >> 1u;
+                var e_v = base;
+                e_v[fu] += corner & 1u;
+                let mid = (crossing_point(cc, fu, e_u) + crossing_point(cc, fv, e_v)) * 0.5
+                    + vec3<f32>(p.mid_shift[v & 0xffu]) * 16.0;
+                // Between ring vertices a and b (the ones before and after it).
+                let a = ids[(j + p.count - 1u) % p.count];
+                let b = ids[(j + 1u) % p.count];
+                let n = normalize_or_z(vertex_normal(a) + vertex_normal(b));
+                let mat = vertices[a * 10u + 8u];
+                let wts = vertices[a * 10u + 9u];
+                write_extra(extra, k, mid, n, bitcast<u32>(mat), bitcast<u32>(wts));
+                ids[j] = dual_total + extra;
+                pos[j] = mid;
+                nor[j] = n;
+                extra += 1u;
+            }
+        }
+        // Outward is +axis when the lower node is inside.
+        var order = array<u32, 8>(0u, 1u, 2u, 3u, 4u, 5u, 6u, 7u);
+        if (!p.inside) {
+            for (var j = 0u; j < p.count; j++) {
+                order[j] = p.count - 1u - j;
+            }
+        }
+        if (p.count == 4u) {
+            // Split along the flatter diagonal (the CPU's `push_quad`).
+            let a = pos[order[0]];
+            let b = pos[order[1]];
+            let c2 = pos[order[2]];
+            let d = pos[order[3]];
+            let f0 = dot(normalize_or_zero(cross(b - a, c2 - a)), normalize_or_zero(cross(c2 - a, d - a)));
+            let f1 = dot(normalize_or_zero(cross(c2 - b, d - b)), normalize_or_zero(cross(d - b, a - b)));
+            var s = array<u32, 6>(0u, 1u, 2u, 0u, 2u, 3u);
+            if (f0 < f1) {
+                s = array<u32, 6>(1u, 2u, 3u, 1u, 3u, 0u);
+            }
+            for (var j = 0u; j < 6u; j++) {
+                indices[tri + j] = ids[order[s[j]]];
+            }
+            tri += 6u;
+        } else {
+            var centre = vec3<f32>(0.0);
+            var normal = vec3<f32>(0.0);
+            for (var j = 0u; j < p.count; j++) {
+                centre += pos[order[j]];
+                normal += nor[order[j]];
+            }
+            centre = centre / f32(p.count);
+            // The material of the ring's first vertex after the turn (the CPU's `q[0]`).
+            var qa = ids[q[0]];
+            if (!p.inside) {
+                qa = ids[q[3]];
+            }
+            write_extra(extra, k, centre, normalize_or_z(normal), bitcast<u32>(vertices[qa * 10u + 8u]),
+                bitcast<u32>(vertices[qa * 10u + 9u]));
+            let c = dual_total + extra;
+            extra += 1u;
+            for (var j = 0u; j < p.count; j++) {
+                indices[tri] = c;
+                indices[tri + 1u] = ids[order[j]];
+                indices[tri + 2u] = ids[order[(j + 1u) % p.count]];
+                tri += 3u;
+            }
+        }
+    }
+}
+
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let l = dot(v, v);
+    if (l > 0.0) {
+        return v * inverseSqrt(l);
+    }
+    return vec3<f32>(0.0);
+}
+
+fn normalize_or_z(v: vec3<f32>) -> vec3<f32> {
+    let l = dot(v, v);
+    if (l > 0.0) {
+        return v * inverseSqrt(l);
+    }
+    return vec3<f32>(0.0, 0.0, 1.0);
+}
+
+// The shift (0 or −1 a component) of the chunk whose dual vertex `v` is, from chunk `k`: the
+// chunk of the batch whose vertices hold it, compared with `k`'s neighbours.
+fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
+    var lo = 0u;
+    var hi = params.chunk_count;
+    while (hi - lo > 1u) {
+        let mid = (lo + hi) / 2u;
+        if (scratch[chunk_first_at(mid)] <= v) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    if (lo == k) {
+        return vec3<i32>(0);
+    }
+    let base = load_chunk(k).seam_base;
+    let shifts = array<vec3<i32>, 6>(
+        vec3<i32>(-1, 0, 0), vec3<i32>(0, -1, 0), vec3<i32>(0, 0, -1),
+        vec3<i32>(-1, -1, 0), vec3<i32>(0, -1, -1), vec3<i32>(-1, 0, -1),
+    );
+    for (var s = 0u; s < 6u; s++) {
+        if (data[base + s] == lo) {
+            return shifts[s];
+        }
+    }
+    return vec3<i32>(0);
+}

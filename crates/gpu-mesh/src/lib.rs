@@ -247,6 +247,9 @@ pub struct GpuMarcher {
     edge_lines: wgpu::ComputePipeline,
     dual_count: wgpu::ComputePipeline,
     dual_emit: wgpu::ComputePipeline,
+    quad_count: wgpu::ComputePipeline,
+    quad_scan: wgpu::ComputePipeline,
+    quad_emit: wgpu::ComputePipeline,
     table: Vec<u32>,
     /// Times the compute pass of each batch on the GPU, where the device has timestamp queries
     /// ([`GpuMarcher::enable_timer`]).
@@ -287,6 +290,9 @@ impl GpuMarcher {
             edge_lines: pipeline("edge_lines"),
             dual_count: pipeline("dual_count"),
             dual_emit: pipeline("dual_emit"),
+            quad_count: pipeline("quad_count"),
+            quad_scan: pipeline("quad_scan"),
+            quad_emit: pipeline("quad_emit"),
             table: case_table(),
             timer: None,
             whole_lookups: false,
@@ -397,6 +403,92 @@ impl GpuMarcher {
         queue: &wgpu::Queue,
         blocks: &[&VoxelBlock],
     ) -> Result<Vec<Vec<DualVertex>>, GpuMeshError> {
+        let run = self.dual_run(device, queue, blocks, None)?;
+        let mut out = Vec::with_capacity(blocks.len());
+        for k in 0..blocks.len() {
+            let (from, to) = (run.first(k), run.first(k + 1));
+            let part = run.vertices.get(from * 10..to * 10).ok_or_else(|| {
+                GpuMeshError::Readback(format!("block {k}'s vertices {from}..{to} pass what was read"))
+            })?;
+            out.push(part.chunks_exact(10).map(dual_vertex).collect());
+        }
+        Ok(out)
+    }
+
+    /// Manifold dual contouring of one level on the GPU, vertices and quads, read back: per block
+    /// of `blocks` marked in `meshed`, the mesh of the edges it owns, as the CPU's
+    /// [`strata_mesh::DualCache`] makes it (positions in the block's chunk frame; a quad's
+    /// diagonal may differ where both are equally flat, vertices are not shared between
+    /// polygons). The blocks before a meshed one on the axes across its edges (−x, −y, −z and
+    /// their pairs) lend their cells' vertices where they are in the batch; all blocks must be
+    /// of one level and listed line by line (as extraction lists them).
+    pub fn dual_mesh(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+        meshed: &[bool],
+    ) -> Result<Vec<Mesh>, GpuMeshError> {
+        if meshed.len() != blocks.len() {
+            return Err(GpuMeshError::TooLarge(format!("{} flags for {} blocks", meshed.len(), blocks.len())));
+        }
+        let run = self.dual_run(device, queue, blocks, Some(meshed))?;
+        let dual_total = run.first(blocks.len());
+        // Every vertex's position, normal and material, and its block (extras: the block they
+        // were made for).
+        let vertex = |i: usize| -> Result<(DualVertex, usize), GpuMeshError> {
+            let v = run
+                .vertices
+                .get(i * 10..i * 10 + 10)
+                .ok_or_else(|| GpuMeshError::Readback(format!("vertex {i} past what was read")))?;
+            let block = if i < dual_total {
+                (0..blocks.len()).rfind(|&k| run.first(k) <= i).unwrap_or(0)
+            } else {
+                v[1] as usize
+            };
+            Ok((dual_vertex(v), block))
+        };
+        let mut out = Vec::with_capacity(blocks.len());
+        for (k, block) in blocks.iter().enumerate() {
+            let (from, to) = (run.quad_first(k), run.quad_first(k + 1));
+            let indices = run.indices.get(from * 3..to * 3).ok_or_else(|| {
+                GpuMeshError::Readback(format!("block {k}'s triangles {from}..{to} pass what was read"))
+            })?;
+            let key = block.key().unwrap_or(strata_volume::ChunkKey::new(0, 0, 0));
+            let mut mesh = Mesh::default();
+            let mut local: std::collections::HashMap<u32, u32> = Default::default();
+            for &i in indices {
+                let next = mesh.positions.len() as u32;
+                let id = match local.get(&i) {
+                    Some(&id) => id,
+                    None => {
+                        let (v, b) = vertex(i as usize)?;
+                        let shift = if (i as usize) < dual_total {
+                            let other = blocks[b].key().unwrap_or(key);
+                            (other.0 - key.0).as_vec3() * 16.0
+                        } else {
+                            glam::Vec3::ZERO
+                        };
+                        mesh.push_vertex((v.position + shift).to_array(), v.normal.to_array(), v.material, false);
+                        local.insert(i, next);
+                        next
+                    }
+                };
+                mesh.indices.push(id);
+            }
+            out.push(mesh);
+        }
+        Ok(out)
+    }
+
+    /// Runs dual contouring's passes on `blocks`: the vertices, and with `meshed` the quads too.
+    fn dual_run(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+        meshed: Option<&[bool]>,
+    ) -> Result<DualRun, GpuMeshError> {
         let limits = device.limits();
         let max_groups = limits.max_compute_workgroups_per_dimension;
         let chunk_count = blocks.len() as u32;
@@ -404,24 +496,44 @@ impl GpuMarcher {
             return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
         }
         let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        let crossings: u64 = blocks.iter().map(|b| crossing_count(b)).sum();
         let words: u64 =
-            blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b)).sum::<u64>() + self.table.len() as u64;
-        let room: u64 = blocks.iter().map(|b| 4 * mixed_cells(b)).sum();
-        let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1;
-        for (what, w) in [("block data", words), ("vertices", room * DUAL_WORDS), ("scratch", scratch_words)] {
+            blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b) + 26).sum::<u64>() + self.table.len() as u64;
+        let dual_room: u64 = blocks.iter().map(|b| 4 * mixed_cells(b)).sum();
+        // Quads: at most five extra vertices and eight triangles an owned crossing.
+        let (extra_room, index_room) = if meshed.is_some() { (5 * crossings, 24 * crossings) } else { (0, 0) };
+        let n = blocks.len() as u64;
+        let scratch_words = n * (THREADS as u64 + 2) + 1 + n * THREADS as u64 * 2 + n * 2 + (n + 1) * 2;
+        for (what, w) in [
+            ("block data", words),
+            ("vertices", (dual_room + extra_room) * DUAL_WORDS),
+            ("indices", index_room),
+            ("scratch", scratch_words),
+        ] {
             if w * 4 > binding || w > u32::MAX as u64 {
                 return Err(GpuMeshError::TooLarge(format!("its {what} take {} MiB", (w * 4) >> 20)));
             }
         }
+        let key_of = |b: &VoxelBlock| b.key().unwrap_or(strata_volume::ChunkKey::new(0, 0, 0));
+        let index_of: std::collections::HashMap<strata_volume::ChunkKey, u32> =
+            blocks.iter().enumerate().map(|(k, b)| (key_of(b), k as u32)).collect();
+        if meshed.is_some() {
+            let level = blocks.first().map(|b| b.level());
+            if blocks.iter().any(|b| Some(b.level()) != level || line_counts(b).is_none()) {
+                return Err(GpuMeshError::TooLarge(
+                    "dual contouring's quads on the GPU take blocks of one level, listed line by line".into(),
+                ));
+            }
+        }
         let mut data = self.table.clone();
         let mut infos = Vec::with_capacity(blocks.len());
-        for block in blocks {
+        for (k, block) in blocks.iter().enumerate() {
             let n = block.cells();
             if n > MAX_CELLS {
                 return Err(GpuMeshError::TooLarge(format!("a block of {n} cells a side (at most {MAX_CELLS})")));
             }
             let BlockWords { words, node_base, lookup_base, rows_base, material_base } =
-                upload_block(&mut data, block, self.whole_lookups);
+                upload_block(&mut data, block, self.whole_lookups && meshed.is_none());
             // Each crossing's t and packed normal, in the block's order (x, then y, then z).
             let pair_base = data.len() as u32;
             let mut axis_base = [0u32; 3];
@@ -432,6 +544,12 @@ impl GpuMarcher {
                     data.extend([c.t.to_bits(), c.normal.0 as u32]);
                 }
                 seen += block.crossings(axis).len() as u32;
+            }
+            // The neighbours that lend vertices: −x, −y, −z, −x−y, −y−z, −z−x.
+            let neighbours = data.len() as u32;
+            for d in [[-1, 0, 0], [0, -1, 0], [0, 0, -1], [-1, -1, 0], [0, -1, -1], [-1, 0, -1]] {
+                let other = key_of(block).offset(glam::IVec3::from_array(d));
+                data.push(index_of.get(&other).copied().unwrap_or(NONE));
             }
             infos.push(ChunkInfo {
                 n: n as u32,
@@ -447,13 +565,17 @@ impl GpuMarcher {
                 material_base,
                 rows_base,
                 crossing_base: 0,
-                seam_base: NONE,
-                seam_slot: NONE,
+                // For the quad passes: the neighbours, whether it makes quads, its crossings.
+                seam_base: neighbours,
+                seam_slot: meshed.map_or(0, |m| m[k] as u32),
                 seam_out: NONE,
-                centroid_first: NONE,
+                centroid_first: seen,
                 pair_base,
             });
         }
+        // The quad passes read the chunks from `data` (four storage buffers a stage).
+        let chunk_table = data.len() as u32;
+        data.extend(bytemuck::cast_slice::<ChunkInfo, u32>(&infos));
         let params = Params {
             chunk_count,
             crossing_count: 0,
@@ -463,7 +585,7 @@ impl GpuMarcher {
             triangle_slots: 0,
             extra_base: 0,
             extra_count: 0,
-            seam_list_base: 0,
+            seam_list_base: chunk_table,
             unused: [0; 3],
         };
         let filled = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
@@ -489,8 +611,9 @@ impl GpuMarcher {
         let chunks = filled("dual chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::STORAGE);
         let data = filled("dual data", bytemuck::cast_slice(&data), wgpu::BufferUsages::STORAGE);
         let scratch = empty("dual scratch", scratch_words);
-        let vertices = empty("dual vertices", room * DUAL_WORDS);
-        let all = [(0, &uniform), (1, &chunks), (2, &data), (4, &scratch), (6, &vertices)];
+        let vertices = empty("dual vertices", (dual_room + extra_room) * DUAL_WORDS);
+        let indices = empty("dual indices", index_room);
+        let all = [(0, &uniform), (1, &chunks), (2, &data), (4, &scratch), (5, &indices), (6, &vertices)];
         let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
             let entries: Vec<wgpu::BindGroupEntry<'_>> = all
                 .iter()
@@ -516,34 +639,35 @@ impl GpuMarcher {
             pass.set_pipeline(&self.dual_emit);
             pass.set_bind_group(0, &group(&self.dual_emit, &[0, 1, 2, 4, 6]), &[]);
             pass.dispatch_workgroups(chunk_count, 1, 1);
+            if meshed.is_some() {
+                pass.set_pipeline(&self.quad_count);
+                pass.set_bind_group(0, &group(&self.quad_count, &[0, 2, 4]), &[]);
+                pass.dispatch_workgroups(chunk_count, 1, 1);
+                pass.set_pipeline(&self.quad_scan);
+                pass.set_bind_group(0, &group(&self.quad_scan, &[0, 4]), &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(&self.quad_emit);
+                pass.set_bind_group(0, &group(&self.quad_emit, &[0, 2, 4, 5, 6]), &[]);
+                pass.dispatch_workgroups(chunk_count, 1, 1);
+            }
         }
         self.resolve_timer(&mut encoder);
         queue.submit([encoder.finish()]);
         if chunk_count == 0 {
-            return Ok(Vec::new());
+            return Ok(DualRun {
+                chunk_count: 0,
+                scratch: vec![0; scratch_words as usize],
+                vertices: Vec::new(),
+                indices: Vec::new(),
+            });
         }
         let scratch = read_words(device, queue, &scratch, scratch_words)?;
-        let first = |k: usize| scratch[chunk_count as usize * (THREADS as usize + 1) + k] as usize;
-        let words = read_words(device, queue, &vertices, first(blocks.len()) as u64 * DUAL_WORDS)?;
-        let mut out = Vec::with_capacity(blocks.len());
-        for k in 0..blocks.len() {
-            let (from, to) = (first(k), first(k + 1));
-            let part = words.get(from * 10..to * 10).ok_or_else(|| {
-                GpuMeshError::Readback(format!("block {k}'s vertices {from}..{to} pass what was read"))
-            })?;
-            let vertex = |v: &[u32]| {
-                let f = |i: usize| f32::from_bits(v[i]);
-                DualVertex {
-                    cell: v[0],
-                    edges: v[1] as u16,
-                    position: glam::Vec3::new(f(2), f(3), f(4)),
-                    normal: glam::Vec3::new(f(5), f(6), f(7)),
-                    material: strata_mesh::VertexMaterial { ids: v[8].to_le_bytes(), weights: v[9].to_le_bytes() },
-                }
-            };
-            out.push(part.chunks_exact(10).map(vertex).collect());
-        }
-        Ok(out)
+        let run = DualRun { chunk_count: chunk_count as usize, scratch, vertices: Vec::new(), indices: Vec::new() };
+        let extras = if meshed.is_some() { run.quad_extra_total() } else { 0 };
+        let triangles = if meshed.is_some() { run.quad_first(blocks.len()) } else { 0 };
+        let vertices = read_words(device, queue, &vertices, (run.first(blocks.len()) + extras) as u64 * DUAL_WORDS)?;
+        let indices = read_words(device, queue, &indices, triangles as u64 * 3)?;
+        Ok(DualRun { vertices, indices, ..run })
     }
 
     #[allow(clippy::type_complexity)]
@@ -885,6 +1009,53 @@ impl GpuMarcher {
     }
 }
 
+/// What dual contouring's passes left, read back.
+struct DualRun {
+    chunk_count: usize,
+    scratch: Vec<u32>,
+    vertices: Vec<u32>,
+    indices: Vec<u32>,
+}
+
+impl DualRun {
+    /// Block `k`'s first dual vertex (`k` = the count: all of them).
+    fn first(&self, k: usize) -> usize {
+        if self.chunk_count == 0 {
+            return 0;
+        }
+        self.scratch[self.chunk_count * (THREADS as usize + 1) + k] as usize
+    }
+
+    fn quad_base(&self) -> usize {
+        self.chunk_count * (THREADS as usize + 2) + 1 + self.chunk_count * (THREADS as usize + 1) * 2
+    }
+
+    /// Block `k`'s first quad triangle (`k` = the count: all of them).
+    fn quad_first(&self, k: usize) -> usize {
+        if self.chunk_count == 0 {
+            return 0;
+        }
+        self.scratch[self.quad_base() + k * 2] as usize
+    }
+
+    /// The extra vertices (midpoints, centres) of all blocks.
+    fn quad_extra_total(&self) -> usize {
+        self.scratch[self.quad_base() + self.chunk_count * 2 + 1] as usize
+    }
+}
+
+/// A dual vertex as the passes write it (ten words).
+fn dual_vertex(v: &[u32]) -> DualVertex {
+    let f = |i: usize| f32::from_bits(v[i]);
+    DualVertex {
+        cell: v[0],
+        edges: v[1] as u16,
+        position: glam::Vec3::new(f(2), f(3), f(4)),
+        normal: glam::Vec3::new(f(5), f(6), f(7)),
+        material: strata_mesh::VertexMaterial { ids: v[8].to_le_bytes(), weights: v[9].to_le_bytes() },
+    }
+}
+
 /// Timestamp queries around a batch's compute pass.
 #[derive(Debug)]
 struct GpuTimer {
@@ -1201,6 +1372,9 @@ mod tests {
             "edge_lines",
             "dual_count",
             "dual_emit",
+            "quad_count",
+            "quad_scan",
+            "quad_emit",
         ] {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }

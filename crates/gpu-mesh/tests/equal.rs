@@ -402,3 +402,112 @@ fn the_timer_times_a_batch_where_the_device_has_timestamps() {
     let t = marcher.last_gpu_time(&gpu.device, &gpu.queue).expect("timed");
     assert!(t > std::time::Duration::ZERO && t < std::time::Duration::from_secs(60), "{t:?}");
 }
+
+/// The triangles of `mesh` as their corners' positions, each turned to start at its least
+/// corner (so a triangle matches whichever corner it was written from).
+fn corner_triangles(mesh: &Mesh) -> Vec<[Vec3; 3]> {
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let p = [0, 1, 2].map(|i| Vec3::from(mesh.positions[t[i] as usize]));
+            let least = (0..3).min_by(|&a, &b| p[a].to_array().partial_cmp(&p[b].to_array()).unwrap()).unwrap();
+            [0, 1, 2].map(|i| p[(least + i) % 3])
+        })
+        .collect()
+}
+
+/// Dual contouring wholly on the GPU (one level): vertices and quads give the CPU's mesh chunk
+/// by chunk — the same triangles within 1e-3 cells, but for quads split along their other
+/// diagonal where both are equally flat (planar quads on a box's faces: the same corners and
+/// area). Returns the polygons that passed through face midpoints (fanned from a centre).
+fn assert_dual_mesh_equal(gpu: &Gpu, marcher: &GpuMarcher, v: &Volume, what: &str) -> usize {
+    let cpu = strata_mesh::DualCache::build(v);
+    let polygons = cpu.iter().map(|(_, m)| m.cells.iter().filter(|c| c.x.rem_euclid(32) >= 16).count()).sum();
+    let keys = strata_mesh::surface_chunks(v);
+    let blocks: Vec<VoxelBlock> = keys.iter().map(|&k| v.extract_block(k)).collect();
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    let meshes = marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &vec![true; refs.len()]).unwrap();
+    let (mut total, mut flipped) = (0, 0);
+    let area = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length() * 0.5;
+    let tolerance = 1e-3 * v.level().spacing() as f32;
+    for (key, got) in keys.iter().zip(&meshes) {
+        let want = cpu.mesh(*key).map(|m| m.mesh.clone()).unwrap_or_default();
+        assert_eq!(got.triangle_count(), want.triangle_count(), "{what}: chunk {key:?}'s triangles");
+        let mut left = corner_triangles(&want);
+        let mut unmatched = Vec::new();
+        for t in corner_triangles(got) {
+            let near = |a: &[Vec3; 3]| (0..3).all(|i| (a[i] - t[i]).length() < tolerance);
+            match left.iter().position(near) {
+                Some(i) => {
+                    left.swap_remove(i);
+                }
+                None => unmatched.push(t),
+            }
+            total += 1;
+        }
+        // What differs is quads split along their other diagonal (both equally flat): the same
+        // corners and the same area.
+        let corners = |ts: &[[Vec3; 3]]| ts.iter().flatten().copied().collect::<Vec<Vec3>>();
+        let (mine, theirs) = (corners(&unmatched), corners(&left));
+        for p in &mine {
+            assert!(theirs.iter().any(|q| (*p - *q).length() < tolerance), "{what}: chunk {key:?}: corner {p}");
+        }
+        let (a, b): (f32, f32) = (unmatched.iter().map(area).sum(), left.iter().map(area).sum());
+        assert!((a - b).abs() <= 1e-3 * b.max(1e-6) + 1e-5, "{what}: chunk {key:?}: re-split area {a} against {b}");
+        flipped += unmatched.len();
+    }
+    assert!(flipped < total || total == 0, "{what}: none of {total} triangles matched");
+    polygons
+}
+
+#[test]
+fn dual_contouring_quads_on_the_gpu_make_the_cpus_mesh() {
+    use strata_volume::brush::{Brush, Capsule};
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    for (level, seed) in [(Level::BASE, 0), (Level::new(1).unwrap(), 1)] {
+        let mut v = Volume::with_level(level);
+        let c = DVec3::new(16.0 + seed as f64, 15.5, 17.25);
+        v.add(&Sphere::new(c, 10.3).unwrap()).unwrap();
+        v.add(&Cuboid::new(DVec3::new(25.3, 12.1, 20.6), DVec3::new(5.2, 4.4, 6.1)).unwrap()).unwrap();
+        v.subtract(&Sphere::new(c + DVec3::new(3.0, 8.0, -2.0), 4.0).unwrap()).unwrap();
+        v.paint(&Cuboid::new(c + DVec3::new(6.0, 0.0, 0.0), DVec3::new(6.0, 20.0, 20.0)).unwrap(), 4).unwrap();
+        assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("shapes at level {}", level.get()));
+    }
+    // A face whose two segments one component runs through on both sides: the inside corners
+    // of the face (x = 1: (1, 0, 0) and (1, 1, 1)) joined through the cells on both sides; the
+    // quads around its edges pass through the segments' midpoints and are fanned. Small balls on
+    // the nodes make exactly these nodes inside, turned to each axis and at chunk borders.
+    let mut polygons = 0;
+    let pattern = [[0, 0, 0], [0, 0, 1], [0, 1, 1], [1, 0, 0], [1, 1, 1], [2, 0, 0], [2, 0, 1], [2, 1, 1]];
+    for (turn, at) in [(0, [5, 5, 5]), (1, [7, 14, 3]), (2, [15, 6, 9]), (0, [14, 15, 15])] {
+        let mut v = Volume::new();
+        for node in pattern {
+            let p = [0, 1, 2].map(|i| node[(i + 3 - turn) % 3] + at[i]);
+            v.add(&Sphere::new(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64), 0.42).unwrap()).unwrap();
+        }
+        polygons += assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("tunnel face, turn {turn} at {at:?}"));
+    }
+    assert!(polygons >= 4, "{polygons} polygons through face midpoints");
+    // Small thin shapes around a chunk corner.
+    let mut seed = 2027u64;
+    let mut next = move || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for cases in 0..60 {
+        let mut v = Volume::new();
+        for i in 0..4 {
+            let c = DVec3::splat(16.0) + (DVec3::new(next(), next(), next()) - 0.5) * 8.0;
+            let r = 0.4 + 2.6 * next();
+            let brush: Box<dyn Brush> = match (cases + i) % 2 {
+                0 => Box::new(Sphere::new(c, r).unwrap()),
+                _ => Box::new(
+                    Capsule::new(c, c + DVec3::new(next(), next(), next()) * 6.0 - 3.0, 0.3 + 0.5 * next()).unwrap(),
+                ),
+            };
+            if i == 3 && cases % 2 == 1 { v.subtract(brush.as_ref()) } else { v.add(brush.as_ref()) }.unwrap();
+        }
+        assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("case {cases}"));
+    }
+}
