@@ -265,16 +265,12 @@ fn dual_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
             if (dot(normal_sum, normal_sum) > 0.0) {
                 normal = normalize(normal_sum);
             }
-            vertices[at] = bitcast<f32>(i);
-            vertices[at + 1u] = bitcast<f32>(mask);
-            vertices[at + 2u] = position.x;
-            vertices[at + 3u] = position.y;
-            vertices[at + 4u] = position.z;
-            vertices[at + 5u] = normal.x;
-            vertices[at + 6u] = normal.y;
-            vertices[at + 7u] = normal.z;
-            vertices[at + 8u] = bitcast<f32>(material.x);
-            vertices[at + 9u] = bitcast<f32>(material.y);
+            vertices[at] = i;
+            vertices[at + 1u] = mask;
+            set_vertex_vec3(at + 2u, position);
+            set_vertex_vec3(at + 5u, normal);
+            vertices[at + 8u] = material.x;
+            vertices[at + 9u] = material.y;
             at += 10u;
         }
     }
@@ -416,7 +412,7 @@ fn crossing_point(c: Chunk, axis: u32, node: vec3<u32>) -> vec3<f32> {
 // `shift` from it.
 fn dual_position(v: u32, shift: vec3<i32>) -> vec3<f32> {
     let at = v * 10u;
-    return vec3<f32>(vertices[at + 2u], vertices[at + 3u], vertices[at + 4u]) + vec3<f32>(shift) * 16.0;
+    return vertex_vec3(at + 2u) + vec3<f32>(shift) * 16.0;
 }
 
 // The polygon around owned crossing `i` of chunk `k` (0 vertices where it has none).
@@ -628,21 +624,17 @@ fn quad_scan(@builtin(local_invocation_index) t: u32) {
 // Writes extra vertex `e` (ten words, after the dual vertices).
 fn write_extra(e: u32, k: u32, p: vec3<f32>, n: vec3<f32>, ids: u32, weights: u32) {
     let at = (scratch[chunk_first_at(params.chunk_count)] + e) * 10u;
-    vertices[at] = bitcast<f32>(0xffffffffu);
-    vertices[at + 1u] = bitcast<f32>(k);
-    vertices[at + 2u] = p.x;
-    vertices[at + 3u] = p.y;
-    vertices[at + 4u] = p.z;
-    vertices[at + 5u] = n.x;
-    vertices[at + 6u] = n.y;
-    vertices[at + 7u] = n.z;
-    vertices[at + 8u] = bitcast<f32>(ids);
-    vertices[at + 9u] = bitcast<f32>(weights);
+    vertices[at] = 0xffffffffu;
+    vertices[at + 1u] = k;
+    set_vertex_vec3(at + 2u, p);
+    set_vertex_vec3(at + 5u, n);
+    vertices[at + 8u] = ids;
+    vertices[at + 9u] = weights;
 }
 
 fn vertex_normal(v: u32) -> vec3<f32> {
     let at = v * 10u;
-    return vec3<f32>(vertices[at + 5u], vertices[at + 6u], vertices[at + 7u]);
+    return vertex_vec3(at + 5u);
 }
 
 @compute @workgroup_size(256)
@@ -698,7 +690,7 @@ fn quad_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
                 let n = normalize_or_z(vertex_normal(a) + vertex_normal(b));
                 let mat = vertices[a * 10u + 8u];
                 let wts = vertices[a * 10u + 9u];
-                write_extra(extra, k, mid, n, bitcast<u32>(mat), bitcast<u32>(wts));
+                write_extra(extra, k, mid, n, mat, wts);
                 ids[j] = dual_total + extra;
                 pos[j] = mid;
                 nor[j] = n;
@@ -741,8 +733,7 @@ fn quad_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
             if (!p.inside) {
                 qa = ids[q[3]];
             }
-            write_extra(extra, k, centre, normalize_or_z(normal), bitcast<u32>(vertices[qa * 10u + 8u]),
-                bitcast<u32>(vertices[qa * 10u + 9u]));
+            write_extra(extra, k, centre, normalize_or_z(normal), vertices[qa * 10u + 8u], vertices[qa * 10u + 9u]);
             let c = dual_total + extra;
             extra += 1u;
             for (var j = 0u; j < p.count; j++) {

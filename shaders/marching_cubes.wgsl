@@ -120,8 +120,23 @@ struct Placement {
 // counts, then their first triangles and the batch's total.
 @group(0) @binding(4) var<storage, read_write> scratch: array<u32>;
 @group(0) @binding(5) var<storage, read_write> indices: array<u32>;
-// Per vertex: position (3), normal (3), material id (its bits).
-@group(0) @binding(6) var<storage, read_write> vertices: array<f32>;
+// Per vertex: position (3), normal (3) as their bits, material id. (Words, not floats: an
+// integer kept in a float's bits is a denormal a GPU may flush.)
+@group(0) @binding(6) var<storage, read_write> vertices: array<u32>;
+
+fn vertex_float(i: u32) -> f32 {
+    return bitcast<f32>(vertices[i]);
+}
+
+fn vertex_vec3(i: u32) -> vec3<f32> {
+    return vec3<f32>(bitcast<f32>(vertices[i]), bitcast<f32>(vertices[i + 1u]), bitcast<f32>(vertices[i + 2u]));
+}
+
+fn set_vertex_vec3(i: u32, v: vec3<f32>) {
+    vertices[i] = bitcast<u32>(v.x);
+    vertices[i + 1u] = bitcast<u32>(v.y);
+    vertices[i + 2u] = bitcast<u32>(v.z);
+}
 
 // For drawing: per chunk its placement; the renderer's vertices (12 words: position, normal,
 // RGBA, material ids (a byte each), their weights); per chunk ten words of indirect draw
@@ -330,13 +345,9 @@ fn place(@builtin(global_invocation_id) g: vec3<u32>) {
         material = (data[c.material_base + node / 4u] >> (8u * (node % 4u))) & 0xffu;
     }
     let at = (c.vertex_base + i - c.crossing_base) * 7u;
-    vertices[at] = p.x;
-    vertices[at + 1u] = p.y;
-    vertices[at + 2u] = p.z;
-    vertices[at + 3u] = n.x;
-    vertices[at + 4u] = n.y;
-    vertices[at + 5u] = n.z;
-    vertices[at + 6u] = bitcast<f32>(material);
+    set_vertex_vec3(at, p);
+    set_vertex_vec3(at + 3u, n);
+    vertices[at + 6u] = material;
 }
 
 @compute @workgroup_size(64)
@@ -358,9 +369,9 @@ fn world(@builtin(global_invocation_id) g: vec3<u32>) {
     }
     let p = placements[lo];
     let at = i * 7u;
-    let grid = p.origin.xyz + vec3<f32>(vertices[at], vertices[at + 1u], vertices[at + 2u]);
+    let grid = p.origin.xyz + vertex_vec3(at);
     let w = p.m0 * grid.x + p.m1 * grid.y + p.m2 * grid.z + p.m3;
-    let local_normal = vec3<f32>(vertices[at + 3u], vertices[at + 4u], vertices[at + 5u]);
+    let local_normal = vertex_vec3(at + 3u);
     var n = p.n0.xyz * local_normal.x + p.n1.xyz * local_normal.y + p.n2.xyz * local_normal.z;
     let length_squared = dot(n, n);
     if (length_squared > 0.0) {
@@ -381,7 +392,7 @@ fn world(@builtin(global_invocation_id) g: vec3<u32>) {
     drawn[out + 9u] = bitcast<u32>(p.tint.w);
     // One material, whole, in every slot as the CPU's `VertexMaterial::single` (material 0
     // where the block has none).
-    drawn[out + 10u] = (bitcast<u32>(vertices[at + 6u]) & 0xffu) * 0x01010101u;
+    drawn[out + 10u] = (vertices[at + 6u] & 0xffu) * 0x01010101u;
     drawn[out + 11u] = 255u;
 }
 
@@ -439,7 +450,7 @@ fn place_extra(@builtin(global_invocation_id) g: vec3<u32>) {
     let r = params.extra_base + i * 8u;
     let at = data[r] * 7u;
     for (var w = 0u; w < 6u; w++) {
-        vertices[at + w] = bitcast<f32>(data[r + 1u + w]);
+        vertices[at + w] = data[r + 1u + w];
     }
     vertices[at + 6u] = vertices[data[r + 7u] * 7u + 6u];
 }
@@ -599,18 +610,14 @@ fn split(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
             var nor = vec3<f32>(0.0);
             for (var q = 0u; q < 3u; q++) {
                 let v = tri[q] * 7u;
-                pos = pos + vec3<f32>(vertices[v], vertices[v + 1u], vertices[v + 2u]);
-                nor = nor + vec3<f32>(vertices[v + 3u], vertices[v + 4u], vertices[v + 5u]);
+                pos = pos + vertex_vec3(v);
+                nor = nor + vertex_vec3(v + 3u);
             }
             pos = pos / 3.0;
             nor = nor / max(sqrt(dot(nor, nor)), 1e-12);
             let mv = m * 7u;
-            vertices[mv] = pos.x;
-            vertices[mv + 1u] = pos.y;
-            vertices[mv + 2u] = pos.z;
-            vertices[mv + 3u] = nor.x;
-            vertices[mv + 4u] = nor.y;
-            vertices[mv + 5u] = nor.z;
+            set_vertex_vec3(mv, pos);
+            set_vertex_vec3(mv + 3u, nor);
             vertices[mv + 6u] = vertices[tri[0] * 7u + 6u];
             let ring = 3u + ch[0].count + ch[1].count + ch[2].count;
             for (var r = 0u; r < ring; r++) {

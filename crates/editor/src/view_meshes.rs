@@ -50,6 +50,10 @@ struct SurfaceMeshes {
     /// GPU meshing: the caller meshes this surface's chunks from their voxel blocks (see
     /// [`ViewMeshes::set_gpu`]); its queued chunks are listed at once, nothing is cached.
     by_caller: bool,
+    /// The caller-meshed surface has mixed levels or been capped by level of detail since it
+    /// was made: an edit then moves seams on every side of a chunk, not only the chunks before
+    /// it (kept once set, so undoing the mix still reaches the seams it left).
+    mixed_seen: bool,
     /// Blocks: chunks to remesh. Dual: chunks an edit changed (the cache widens them itself).
     queued: BTreeSet<ChunkKey>,
     /// Meshes computed but not yet shown: a chunk's new mesh is committed only together with
@@ -82,7 +86,7 @@ impl SurfaceMeshes {
                 (Backend::Dual(d), stored.into_iter().collect())
             }
         };
-        SurfaceMeshes { backend, by_caller: false, queued, staged: HashMap::new(), lod }
+        SurfaceMeshes { backend, by_caller: false, mixed_seen: false, queued, staged: HashMap::new(), lod }
     }
 
     fn mesh(&self, key: ChunkKey) -> Option<&Mesh> {
@@ -315,7 +319,14 @@ impl ViewMeshes {
         let Some(s) = self.surfaces.get_mut(layer) else { return };
         match &mut s.backend {
             // (Nothing is cached: no parts to note.)
-            Backend::Blocks(c) if s.by_caller => s.queued.extend(c.affected(volume, changed)),
+            Backend::Blocks(_) if s.by_caller => {
+                s.mixed_seen |= !volume.single_level() || !s.lod.is_empty();
+                if s.mixed_seen {
+                    s.queued.extend(changed.iter().flat_map(|k| k.around()));
+                } else {
+                    s.queued.extend(MeshCache::dependents(changed));
+                }
+            }
             Backend::Blocks(c) => s.queued.extend(c.note(volume, changed, reach)),
             Backend::Dual(_) => s.queued.extend(changed.iter().copied()),
             // A streamed surface learns of its changes from the world ([`ViewMeshes::streamed_changes`]).
@@ -573,6 +584,11 @@ impl ViewMeshes {
                 }
             }
             _ => {
+                // A full list has the caller mesh every chunk of its surfaces: nothing queued for
+                // it is left to list again.
+                for s in self.surfaces.iter_mut().filter(|s| s.by_caller) {
+                    s.queued.clear();
+                }
                 self.shown = Some(Shown { generation: self.generation, materials: materials.to_vec(), placements });
                 ChangeList { full: true, ..ChangeList::default() }
             }

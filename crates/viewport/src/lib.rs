@@ -242,6 +242,8 @@ pub struct GpuMeshing {
     batches: Vec<(wgpu::Buffer, Vec<MeshId>, usize)>,
     /// Chunks meshed again to let sparse batches go, since creation.
     repacked: usize,
+    /// Set when the device is lost (its lost callback).
+    lost: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 /// Blocks meshed a batch at most (each batch's buffers stay while a chunk of it is shown).
@@ -252,7 +254,16 @@ impl GpuMeshing {
     /// shader needs, and indirect draws.
     pub fn new(adapter: &wgpu::Adapter, device: &wgpu::Device) -> Result<Self, GpuMeshError> {
         strata_gpu_mesh::check_drawing(adapter)?;
-        Ok(GpuMeshing { marcher: std::sync::Arc::new(GpuMarcher::new(device)?), batches: Vec::new(), repacked: 0 })
+        // A lost device is told through this callback, not through error scopes.
+        let lost = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = lost.clone();
+        device.set_device_lost_callback(move |_, _| flag.store(true, std::sync::atomic::Ordering::Relaxed));
+        Ok(GpuMeshing {
+            marcher: std::sync::Arc::new(GpuMarcher::new(device)?),
+            batches: Vec::new(),
+            repacked: 0,
+            lost,
+        })
     }
 
     /// A solver of dual contouring's cell vertices on this GPU, for
@@ -265,20 +276,26 @@ impl GpuMeshing {
         queue: &wgpu::Queue,
         failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
     ) -> strata_editor::BoxedVertexSolver {
-        let (marcher, device, queue) = (self.marcher.clone(), device.clone(), queue.clone());
+        let (marcher, device, queue, lost) = (self.marcher.clone(), device.clone(), queue.clone(), self.lost.clone());
         Box::new(move |blocks: &[&VoxelBlock]| {
-            let scopes = [wgpu::ErrorFilter::Validation, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Internal]
-                .map(|f| device.push_error_scope(f));
-            let solved = marcher.dual_vertices(&device, &queue, blocks);
-            let mut error = false;
-            for scope in scopes.into_iter().rev() {
-                error |= pollster::block_on(scope.pop()).is_some();
+            // In batches of GPU_BATCH; any batch the device's limits refuse leaves the whole
+            // update to the CPU (too large is not a failure of the GPU).
+            let mut out = Vec::with_capacity(blocks.len());
+            for part in blocks.chunks(GPU_BATCH) {
+                if lost.load(std::sync::atomic::Ordering::Relaxed) {
+                    failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                    return None;
+                }
+                match with_error_scopes(&device, || marcher.dual_vertices(&device, &queue, part)) {
+                    Ok(Ok(solved)) => out.extend(solved),
+                    Ok(Err(GpuMeshError::TooLarge(_))) => return None,
+                    Ok(Err(_)) | Err(_) => {
+                        failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                        return None;
+                    }
+                }
             }
-            if error || solved.is_err() {
-                failed.store(true, std::sync::atomic::Ordering::Relaxed);
-                return None;
-            }
-            solved.ok()
+            Some(out)
         })
     }
 
@@ -305,6 +322,25 @@ impl GpuMeshing {
             true
         });
         again
+    }
+}
+
+/// Runs `work` inside error scopes (validation, out of memory, internal): the first error the
+/// device reports is returned as [`GpuMeshError::Device`], the work's own result otherwise. The
+/// scopes are all popped, innermost first, whatever they hold.
+fn with_error_scopes<T>(device: &wgpu::Device, work: impl FnOnce() -> T) -> Result<T, GpuMeshError> {
+    let scopes = [wgpu::ErrorFilter::Validation, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Internal]
+        .map(|f| device.push_error_scope(f));
+    let out = work();
+    let mut first = None;
+    for scope in scopes.into_iter().rev() {
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            first.get_or_insert(e.to_string());
+        }
+    }
+    match first {
+        Some(e) => Err(GpuMeshError::Device(e)),
+        None => Ok(out),
     }
 }
 
@@ -366,7 +402,13 @@ fn mesh_keys(
         }
         batch.push((i, key, block));
     }
-    for part in batch.chunks(GPU_BATCH) {
+    // Batches of at most GPU_BATCH blocks; one the device's limits refuse is halved, and a
+    // single block they refuse is meshed on the CPU (too large is not a failure of the GPU).
+    let mut parts: Vec<&[(usize, ChunkKey, VoxelBlock)]> = batch.chunks(GPU_BATCH).rev().collect();
+    while let Some(part) = parts.pop() {
+        if gpu.lost.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(GpuMeshError::Device("the device was lost".into()));
+        }
         let refs: Vec<&VoxelBlock> = part.iter().map(|(_, _, b)| b).collect();
         let placements: Vec<DrawPlacement> = part
             .iter()
@@ -375,16 +417,27 @@ fn mesh_keys(
                 tint: [1.0; 3],
             })
             .collect();
-        // A lost device or one out of memory says so through error scopes (not a panic).
-        let scopes = [wgpu::ErrorFilter::Validation, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Internal]
-            .map(|f| device.push_error_scope(f));
-        let made = gpu.marcher.mesh_for_drawing(device, queue, &refs, &placements);
-        for scope in scopes.into_iter().rev() {
-            if let Some(e) = pollster::block_on(scope.pop()) {
-                return Err(GpuMeshError::Device(e.to_string()));
+        let made = with_error_scopes(device, || gpu.marcher.mesh_for_drawing(device, queue, &refs, &placements))?;
+        let made = match made {
+            Ok(made) => made,
+            Err(GpuMeshError::TooLarge(_)) if part.len() > 1 => {
+                let (a, b) = part.split_at(part.len() / 2);
+                parts.extend([b, a]);
+                continue;
             }
-        }
-        let made = made?;
+            Err(GpuMeshError::TooLarge(_)) => {
+                let (i, key, block) = &part[0];
+                let (Some(model), Some(volume)) = (shown_surface(editor, *i), editor.surface(*i).map(|s| s.volume()))
+                else {
+                    continue;
+                };
+                let mut mesh = Mesh::default();
+                strata_mesh::mesh_block(block, &mut mesh);
+                upload_chunk(renderer, device, queue, *i as u32, *key, &mesh, model, volume);
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         let ids: Vec<MeshId> = part.iter().map(|(i, key, _)| chunk_id(*i as u32, *key)).collect();
         if let Some(first) = made.meshes.first() {
             gpu.batches.push((first.args.clone(), ids.clone(), ids.len()));

@@ -99,7 +99,13 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
                     e.tool.kind = ToolKind::Add;
                     assert!(!e.scene.layers[0].volume.single_level(), "the layer mixes levels");
                 }
-                7 => stroke(e, DVec3::new(14.0, 30.0, 22.0)),
+                7 => {
+                    // Undoing the finer chunks: the coarser neighbours on every side lose their
+                    // seams (none may keep triangles split at points that are gone).
+                    e.undo();
+                    assert!(e.scene.layers[0].volume.single_level(), "back to one level");
+                    stroke(e, DVec3::new(14.0, 30.0, 22.0));
+                }
                 _ => {
                     // A mask: the layer goes back to the CPU, which shades what it holds.
                     e.tool.kind = ToolKind::Mask;
