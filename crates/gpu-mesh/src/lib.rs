@@ -23,7 +23,10 @@
 //! `strata_render::Renderer::show_indirect` draws the meshes where they were made (the
 //! viewport's residency and CPU fallbacks are `strata_viewport::GpuMeshing`'s).
 //!
-//! Not built yet (issue 33 lists it): dual contouring.
+//! Dual contouring: [`GpuMarcher::dual_vertices`] solves every mixed cell's component
+//! vertices (`shaders/dual_contouring.wgsl`), and [`GpuMarcher::dual_mesh`] joins them into the
+//! CPU's quads too (one level), both read back. Not built yet (issue 33): dual contouring drawn
+//! from the GPU, and its quads across levels.
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};
