@@ -790,3 +790,79 @@ fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
     }
     return vec3<i32>(0);
 }
+
+// ---- Drawing dual contouring where it was made (`GpuMarcher::mesh_dual_for_drawing`): the
+// renderer's vertices from the dual and extra vertices, placed by their chunk's placement (a
+// dual vertex by the chunk whose cell it is, an extra one by the chunk it was made for), and
+// each chunk's indirect arguments for its quads' triangles and their lines (`edge_lines`).
+
+@compute @workgroup_size(64)
+fn dual_world(@builtin(global_invocation_id) g: vec3<u32>) {
+    let i = g.x + g.y * params.place_row;
+    let dual_total = scratch[chunk_first_at(params.chunk_count)];
+    let extra_total = scratch[quad_first_at(params.chunk_count) + 1u];
+    if (i >= dual_total + extra_total) {
+        return;
+    }
+    var k = 0u;
+    if (i < dual_total) {
+        var hi = params.chunk_count;
+        while (hi - k > 1u) {
+            let mid = (k + hi) / 2u;
+            if (scratch[chunk_first_at(mid)] <= i) {
+                k = mid;
+            } else {
+                hi = mid;
+            }
+        }
+    } else {
+        k = vertices[i * 10u + 1u];
+    }
+    let p = placements[k];
+    let at = i * 10u;
+    let grid = p.origin.xyz + vertex_vec3(at + 2u);
+    let w = p.m0 * grid.x + p.m1 * grid.y + p.m2 * grid.z + p.m3;
+    let local_normal = vertex_vec3(at + 5u);
+    var n = p.n0.xyz * local_normal.x + p.n1.xyz * local_normal.y + p.n2.xyz * local_normal.z;
+    let length_squared = dot(n, n);
+    if (length_squared > 0.0) {
+        n = n * inverseSqrt(length_squared);
+    } else {
+        n = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let out = i * 12u;
+    drawn[out] = bitcast<u32>(w.x);
+    drawn[out + 1u] = bitcast<u32>(w.y);
+    drawn[out + 2u] = bitcast<u32>(w.z);
+    drawn[out + 3u] = bitcast<u32>(n.x);
+    drawn[out + 4u] = bitcast<u32>(n.y);
+    drawn[out + 5u] = bitcast<u32>(n.z);
+    drawn[out + 6u] = bitcast<u32>(p.tint.x);
+    drawn[out + 7u] = bitcast<u32>(p.tint.y);
+    drawn[out + 8u] = bitcast<u32>(p.tint.z);
+    drawn[out + 9u] = bitcast<u32>(p.tint.w);
+    // The blend of the cell's corners, as the CPU's dual contouring gives it.
+    drawn[out + 10u] = vertices[at + 8u];
+    drawn[out + 11u] = vertices[at + 9u];
+}
+
+@compute @workgroup_size(64)
+fn dual_args(@builtin(global_invocation_id) g: vec3<u32>) {
+    let k = g.x;
+    if (k >= params.chunk_count) {
+        return;
+    }
+    let first = scratch[quad_first_at(k)];
+    let triangles = scratch[quad_first_at(k + 1u)] - first;
+    let a = k * 10u;
+    args[a] = triangles * 3u;
+    args[a + 1u] = 1u;
+    args[a + 2u] = first * 3u;
+    args[a + 3u] = 0u;
+    args[a + 4u] = 0u;
+    args[a + 5u] = triangles * 6u;
+    args[a + 6u] = 1u;
+    args[a + 7u] = first * 6u;
+    args[a + 8u] = 0u;
+    args[a + 9u] = 0u;
+}

@@ -253,6 +253,8 @@ pub struct GpuMarcher {
     quad_count: wgpu::ComputePipeline,
     quad_scan: wgpu::ComputePipeline,
     quad_emit: wgpu::ComputePipeline,
+    dual_world: wgpu::ComputePipeline,
+    dual_args: wgpu::ComputePipeline,
     table: Vec<u32>,
     /// Times the compute pass of each batch on the GPU, where the device has timestamp queries
     /// ([`GpuMarcher::enable_timer`]).
@@ -296,6 +298,8 @@ impl GpuMarcher {
             quad_count: pipeline("quad_count"),
             quad_scan: pipeline("quad_scan"),
             quad_emit: pipeline("quad_emit"),
+            dual_world: pipeline("dual_world"),
+            dual_args: pipeline("dual_args"),
             table: case_table(),
             timer: None,
             whole_lookups: false,
@@ -492,6 +496,56 @@ impl GpuMarcher {
         blocks: &[&VoxelBlock],
         meshed: Option<&[bool]>,
     ) -> Result<DualRun, GpuMeshError> {
+        let submitted = self.dual_submit(device, queue, blocks, meshed, None)?;
+        submitted.read(device, queue, meshed.is_some())
+    }
+
+    /// Dual contouring of one level made on the GPU and drawn from there: [`GpuMarcher::dual_mesh`]
+    /// without the read-back, each vertex placed in the world by its chunk's placement (one a
+    /// block), each meshed block's indirect arguments and its wireframe's lines written on the
+    /// GPU. Per block a [`IndirectMesh`] for the renderer (empty for the blocks that only lend
+    /// vertices). The adapter must execute indirect draws ([`check_drawing`]).
+    pub fn mesh_dual_for_drawing(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+        meshed: &[bool],
+        placements: &[DrawPlacement],
+    ) -> Result<DualDrawBatch, GpuMeshError> {
+        if meshed.len() != blocks.len() || placements.len() != blocks.len() {
+            return Err(GpuMeshError::TooLarge(format!(
+                "{} flags and {} placements for {} blocks",
+                meshed.len(),
+                placements.len(),
+                blocks.len()
+            )));
+        }
+        let submitted = self.dual_submit(device, queue, blocks, Some(meshed), Some(placements))?;
+        let (drawn, args, edges) = submitted.drawing.clone().expect("asked for");
+        let meshes = (0..blocks.len() as u64)
+            .map(|k| IndirectMesh {
+                vertices: drawn.clone(),
+                triangles: submitted.indices.clone(),
+                edges: edges.clone(),
+                args: args.clone(),
+                triangle_args: k * 40,
+                edge_args: k * 40 + 20,
+            })
+            .collect();
+        Ok(DualDrawBatch { meshes, submitted })
+    }
+
+    /// Submits dual contouring's passes (see [`GpuMarcher::dual_mesh`]), and with `draw` the
+    /// drawing passes too.
+    fn dual_submit(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        blocks: &[&VoxelBlock],
+        meshed: Option<&[bool]>,
+        draw: Option<&[DrawPlacement]>,
+    ) -> Result<DualSubmitted, GpuMeshError> {
         let limits = device.limits();
         let max_groups = limits.max_compute_workgroups_per_dimension;
         let chunk_count = blocks.len() as u32;
@@ -579,13 +633,30 @@ impl GpuMarcher {
         // The quad passes read the chunks from `data` (four storage buffers a stage).
         let chunk_table = data.len() as u32;
         data.extend(bytemuck::cast_slice::<ChunkInfo, u32>(&infos));
+        // Drawing dispatches: a thread a vertex slot, a thread a triangle slot.
+        let vertex_slots = dual_room + extra_room;
+        let rows = |slots: u64| -> Result<(u32, u32), GpuMeshError> {
+            let groups = slots.div_ceil(64).max(1);
+            let x = groups.min(max_groups as u64) as u32;
+            let y = groups.div_ceil(x as u64);
+            if y > max_groups as u64 {
+                return Err(GpuMeshError::TooLarge(format!("{slots} slots")));
+            }
+            Ok((x, y as u32))
+        };
+        let (place_x, place_y) = rows(vertex_slots)?;
+        let (edge_x, edge_y) = rows(index_room / 3)?;
+        let placement_infos = match draw {
+            Some(p) => p.iter().map(|d| PlacementInfo::of(&d.placement, d.tint)).collect::<Result<Vec<_>, _>>()?,
+            None => Vec::new(),
+        };
         let params = Params {
             chunk_count,
             crossing_count: 0,
-            place_row: 0,
-            edge_row: 0,
+            place_row: place_x * 64,
+            edge_row: edge_x * 64,
             vertex_total: 0,
-            triangle_slots: 0,
+            triangle_slots: (index_room / 3) as u32,
             extra_base: 0,
             extra_count: 0,
             seam_list_base: chunk_table,
@@ -602,21 +673,33 @@ impl GpuMarcher {
             queue.write_buffer(&buffer, 0, contents);
             buffer
         };
-        let empty = |label: &str, words: u64| {
+        let empty_with = |label: &str, words: u64, extra: wgpu::BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: words.max(1) * 4,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | extra,
                 mapped_at_creation: false,
             })
         };
+        let empty = |label: &str, words: u64| empty_with(label, words, wgpu::BufferUsages::empty());
         let uniform = filled("dual params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
         let chunks = filled("dual chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::STORAGE);
         let data = filled("dual data", bytemuck::cast_slice(&data), wgpu::BufferUsages::STORAGE);
         let scratch = empty("dual scratch", scratch_words);
         let vertices = empty("dual vertices", (dual_room + extra_room) * DUAL_WORDS);
-        let indices = empty("dual indices", index_room);
-        let all = [(0, &uniform), (1, &chunks), (2, &data), (4, &scratch), (5, &indices), (6, &vertices)];
+        let indices = empty_with("dual indices", index_room, wgpu::BufferUsages::INDEX);
+        let drawing = draw.map(|_| {
+            (
+                filled("dual placements", bytemuck::cast_slice(&placement_infos), wgpu::BufferUsages::STORAGE),
+                empty_with("dual drawn vertices", vertex_slots * 12, wgpu::BufferUsages::VERTEX),
+                empty_with("dual draw args", blocks.len() as u64 * 10, wgpu::BufferUsages::INDIRECT),
+                empty_with("dual edges", index_room * 2, wgpu::BufferUsages::INDEX),
+            )
+        });
+        let mut all = vec![(0, &uniform), (1, &chunks), (2, &data), (4, &scratch), (5, &indices), (6, &vertices)];
+        if let Some((p, d, a, e)) = &drawing {
+            all.extend([(7, p), (8, d), (9, a), (10, e)]);
+        }
         let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
             let entries: Vec<wgpu::BindGroupEntry<'_>> = all
                 .iter()
@@ -653,24 +736,30 @@ impl GpuMarcher {
                 pass.set_bind_group(0, &group(&self.quad_emit, &[0, 2, 4, 5, 6]), &[]);
                 pass.dispatch_workgroups(chunk_count, 1, 1);
             }
+            if drawing.is_some() {
+                pass.set_pipeline(&self.dual_world);
+                pass.set_bind_group(0, &group(&self.dual_world, &[0, 4, 6, 7, 8]), &[]);
+                pass.dispatch_workgroups(place_x, place_y, 1);
+                pass.set_pipeline(&self.dual_args);
+                pass.set_bind_group(0, &group(&self.dual_args, &[0, 4, 9]), &[]);
+                pass.dispatch_workgroups(chunk_count.div_ceil(64), 1, 1);
+                if index_room > 0 {
+                    pass.set_pipeline(&self.edge_lines);
+                    pass.set_bind_group(0, &group(&self.edge_lines, &[0, 5, 10]), &[]);
+                    pass.dispatch_workgroups(edge_x, edge_y, 1);
+                }
+            }
         }
         self.resolve_timer(&mut encoder);
         queue.submit([encoder.finish()]);
-        if chunk_count == 0 {
-            return Ok(DualRun {
-                chunk_count: 0,
-                scratch: vec![0; scratch_words as usize],
-                vertices: Vec::new(),
-                indices: Vec::new(),
-            });
-        }
-        let scratch = read_words(device, queue, &scratch, scratch_words)?;
-        let run = DualRun { chunk_count: chunk_count as usize, scratch, vertices: Vec::new(), indices: Vec::new() };
-        let extras = if meshed.is_some() { run.quad_extra_total() } else { 0 };
-        let triangles = if meshed.is_some() { run.quad_first(blocks.len()) } else { 0 };
-        let vertices = read_words(device, queue, &vertices, (run.first(blocks.len()) + extras) as u64 * DUAL_WORDS)?;
-        let indices = read_words(device, queue, &indices, triangles as u64 * 3)?;
-        Ok(DualRun { vertices, indices, ..run })
+        Ok(DualSubmitted {
+            chunk_count: chunk_count as usize,
+            scratch,
+            scratch_words,
+            vertices,
+            indices,
+            drawing: drawing.map(|(_, d, a, e)| (d, a, e)),
+        })
     }
 
     #[allow(clippy::type_complexity)]
@@ -1009,6 +1098,77 @@ impl GpuMarcher {
             chunk_count,
         };
         Ok((batch, drawing.map(|(_, d, a, e)| (d, a, e))))
+    }
+}
+
+/// Dual contouring's passes submitted: their buffers.
+#[derive(Debug)]
+struct DualSubmitted {
+    chunk_count: usize,
+    scratch: wgpu::Buffer,
+    scratch_words: u64,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    /// The renderer's vertices, the indirect arguments and the lines, when drawn.
+    drawing: Option<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer)>,
+}
+
+impl DualSubmitted {
+    /// Reads back what the passes left (waits for the GPU): the scratch, the dual and extra
+    /// vertices, and with `quads` the triangles.
+    fn read(&self, device: &wgpu::Device, queue: &wgpu::Queue, quads: bool) -> Result<DualRun, GpuMeshError> {
+        if self.chunk_count == 0 {
+            return Ok(DualRun { chunk_count: 0, scratch: Vec::new(), vertices: Vec::new(), indices: Vec::new() });
+        }
+        let scratch = read_words(device, queue, &self.scratch, self.scratch_words)?;
+        let run = DualRun { chunk_count: self.chunk_count, scratch, vertices: Vec::new(), indices: Vec::new() };
+        let extras = if quads { run.quad_extra_total() } else { 0 };
+        let triangles = if quads { run.quad_first(self.chunk_count) } else { 0 };
+        let vertices =
+            read_words(device, queue, &self.vertices, (run.first(self.chunk_count) + extras) as u64 * DUAL_WORDS)?;
+        let indices = read_words(device, queue, &self.indices, triangles as u64 * 3)?;
+        Ok(DualRun { vertices, indices, ..run })
+    }
+}
+
+/// Dual contouring made on the GPU for drawing ([`GpuMarcher::mesh_dual_for_drawing`]).
+#[derive(Debug)]
+pub struct DualDrawBatch {
+    /// Per block, what the renderer draws (nothing for the blocks that only lend vertices).
+    pub meshes: Vec<IndirectMesh>,
+    submitted: DualSubmitted,
+}
+
+impl DualDrawBatch {
+    /// What the renderer draws of each block, read back through the indirect arguments (for
+    /// tests: drawing reads nothing back). Indices are the batch's (all blocks' vertices).
+    pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<DrawnBlock>, GpuMeshError> {
+        let Some((drawn, args, edges)) = &self.submitted.drawing else { return Ok(Vec::new()) };
+        if self.meshes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let run = self.submitted.read(device, queue, true)?;
+        let blocks = self.meshes.len();
+        let args = read_words(device, queue, args, blocks as u64 * 10)?;
+        let total = (run.first(blocks) + run.quad_extra_total()) as u64;
+        let drawn = read_words(device, queue, drawn, total * 12)?;
+        let lines = read_words(device, queue, edges, run.quad_first(blocks) as u64 * 6)?;
+        let vertices: Vec<strata_render::Vertex> = bytemuck::cast_slice(&drawn).to_vec();
+        let mut out = Vec::with_capacity(blocks);
+        for k in 0..blocks {
+            let a = &args[k * 10..k * 10 + 10];
+            let slice = |from: u32, n: u32, all: &[u32]| -> Result<Vec<u32>, GpuMeshError> {
+                all.get(from as usize..(from + n) as usize)
+                    .map(<[u32]>::to_vec)
+                    .ok_or_else(|| GpuMeshError::Readback(format!("block {k}'s draw arguments pass the buffer")))
+            };
+            out.push(DrawnBlock {
+                vertices: vertices.clone(),
+                triangles: slice(a[2], a[0], &run.indices)?,
+                edges: slice(a[7], a[5], &lines)?,
+            });
+        }
+        Ok(out)
     }
 }
 
@@ -1378,6 +1538,8 @@ mod tests {
             "quad_count",
             "quad_scan",
             "quad_emit",
+            "dual_world",
+            "dual_args",
         ] {
             assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
         }

@@ -511,3 +511,54 @@ fn dual_contouring_quads_on_the_gpu_make_the_cpus_mesh() {
         assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("case {cases}"));
     }
 }
+
+/// Dual contouring drawn from the GPU: the triangles the indirect arguments draw are the ones
+/// `dual_mesh` reads back, placed in the world as the renderer places a chunk (a turned, scaled
+/// and moved layer), with their lines.
+#[test]
+fn dual_contouring_for_drawing_is_placed_and_drawn_as_read_back() {
+    use strata_gpu_mesh::DrawPlacement;
+    use strata_render::Placement;
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(16.0, 15.5, 17.25), 10.3).unwrap()).unwrap();
+    v.add(&Cuboid::new(DVec3::new(25.3, 12.1, 20.6), DVec3::new(5.2, 4.4, 6.1)).unwrap()).unwrap();
+    v.paint(&Cuboid::new(DVec3::new(22.0, 15.5, 17.25), DVec3::new(6.0, 20.0, 20.0)).unwrap(), 6).unwrap();
+    let keys = strata_mesh::surface_chunks(&v);
+    let blocks: Vec<VoxelBlock> = keys.iter().map(|&k| v.extract_block(k)).collect();
+    let refs: Vec<&VoxelBlock> = blocks.iter().collect();
+    // Every other block makes its quads; the others only lend their vertices.
+    let meshed: Vec<bool> = (0..refs.len()).map(|i| i % 2 == 0).collect();
+    let model = glam::Mat4::from_scale_rotation_translation(
+        Vec3::splat(0.7),
+        glam::Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 0.2),
+        Vec3::new(123.4, -56.7, 88.9),
+    );
+    let placements: Vec<DrawPlacement> = keys
+        .iter()
+        .map(|k| DrawPlacement { placement: Placement { model, origin: k.origin_grid().as_dvec3() }, tint: [1.0; 3] })
+        .collect();
+    let read = marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &meshed).unwrap();
+    let batch = marcher.mesh_dual_for_drawing(&gpu.device, &gpu.queue, &refs, &meshed, &placements).unwrap();
+    let drawn = batch.read_back(&gpu.device, &gpu.queue).unwrap();
+    let mut triangles = 0;
+    for (k, (want, got)) in read.iter().zip(&drawn).enumerate() {
+        assert_eq!(got.triangles.len(), want.indices.len(), "block {k}");
+        if !meshed[k] {
+            assert!(got.triangles.is_empty(), "block {k} only lends vertices");
+        }
+        let origin = keys[k].origin_grid().as_dvec3();
+        for (g, w) in got.triangles.iter().zip(&want.indices) {
+            let world = model.as_dmat4().transform_point3(origin + Vec3::from(want.positions[*w as usize]).as_dvec3());
+            let at = Vec3::from(got.vertices[*g as usize].position).as_dvec3();
+            assert!((world - at).length() < 1e-3, "block {k}: {at} against {world}");
+            assert_eq!(got.vertices[*g as usize].ids, want.material(*w as usize).ids, "block {k}'s materials");
+        }
+        let lines: Vec<u32> =
+            got.triangles.chunks_exact(3).flat_map(|t| [t[0], t[1], t[1], t[2], t[2], t[0]]).collect();
+        assert_eq!(got.edges, lines, "block {k}'s lines");
+        triangles += got.triangles.len() / 3;
+    }
+    assert!(triangles > 500, "{triangles} triangles");
+}

@@ -40,12 +40,7 @@ fn image(gpu: &Gpu, r: &mut Renderer, wireframe: bool) -> Vec<u8> {
 /// A close look, wireframe on, at the top of the first ball (where the strokes and the finer
 /// chunks are): every triangle's edges show.
 fn close_up(gpu: &Gpu, r: &mut Renderer) -> Vec<u8> {
-    let camera = Camera {
-        target: glam::Vec3::new(20.0, 31.0, 20.0),
-        distance: 16.0,
-        pitch: 1.2,
-        ..Camera::default()
-    };
+    let camera = Camera { target: glam::Vec3::new(20.0, 31.0, 20.0), distance: 16.0, pitch: 1.2, ..Camera::default() };
     let settings = FrameSettings { camera, grid: false, wireframe: true, ..Default::default() };
     render_offscreen(gpu, r, 256, 256, &settings).unwrap().rgba
 }
