@@ -609,8 +609,8 @@ impl Editor {
     }
 
     /// GPU meshing for the viewport: with `on`, the surfaces meshed by marching cubes without
-    /// per-chunk simplification (scene layers without a mask; not a streamed world) are no
-    /// longer meshed by the editor. Their changed chunks are listed in [`Editor::take_changes`]
+    /// per-chunk simplification, or by dual contouring at one level (scene layers without a
+    /// mask; not a streamed world), are no longer meshed by the editor. Their changed chunks are listed in [`Editor::take_changes`]
     /// (all of them for a full list: [`Editor::caller_chunks`]) and the caller meshes each from
     /// [`Editor::view_block`] (`strata_viewport` does, on the GPU). Every chunk is queued again
     /// when this changes anything. Exports keep meshing on the CPU.
@@ -638,6 +638,13 @@ impl Editor {
     /// Whether surface `i`'s viewport chunks are meshed by the caller (GPU meshing).
     pub fn meshed_by_caller(&self, i: usize) -> bool {
         self.meshes.by_caller(i)
+    }
+
+    /// Whether caller-meshed surface `i` is meshed by dual contouring (its listed chunks are
+    /// the ones whose quads change: [`crate::view_meshes::dual_mesh_keys`]; the caller adds
+    /// the chunks before them, which lend their cells' vertices), else by marching cubes.
+    pub fn caller_dual(&self, i: usize) -> bool {
+        self.meshes.caller_dual(i)
     }
 
     /// Every chunk of caller-meshed surface `i` that can hold surface (empty for the others).

@@ -203,13 +203,30 @@ pub(crate) struct ViewMeshes {
 }
 
 /// Whether a surface is meshed by the caller from its blocks under GPU meshing: a scene layer
-/// (not a streamed world) meshed by marching cubes without per-chunk simplification, whose
-/// mask is clear (masked vertices are shaded from the mask on the CPU).
+/// (not a streamed world) whose mask is clear (masked vertices are shaded from the mask on the
+/// CPU), meshed by marching cubes without per-chunk simplification, or by manifold dual
+/// contouring at one level (the GPU joins quads within one level).
 fn meshed_by_caller(gpu: bool, options: MeshOptions, surface: &dyn EditTarget) -> bool {
-    gpu && options.mesher == Mesher::MarchingCubes
-        && options.simplify.is_none()
-        && !surface.streamed()
-        && surface.volume().mask().is_clear()
+    let mesher = match options.mesher {
+        Mesher::MarchingCubes => options.simplify.is_none(),
+        Mesher::DualContouring => surface.volume().single_level(),
+        _ => false,
+    };
+    gpu && mesher && !surface.streamed() && surface.volume().mask().is_clear()
+}
+
+/// The chunks whose dual-contouring quads an edit that changed `changed` can move: the chunks
+/// whose cell vertices it moves (each changed chunk and the seven before it), and the chunks
+/// after those on at most two axes, whose quads use their cells (as `DualCache::update` finds
+/// them). Sorted, without repeats.
+pub fn dual_mesh_keys(changed: &[ChunkKey]) -> Vec<ChunkKey> {
+    let mut keys: Vec<ChunkKey> = MeshCache::dependents(changed)
+        .into_iter()
+        .flat_map(|k| (0..7).map(move |d| k.offset(glam::IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    keys
 }
 
 impl ViewMeshes {
@@ -282,7 +299,18 @@ impl ViewMeshes {
 
     /// Every chunk of a caller-meshed surface of `volume` that can hold surface.
     pub(crate) fn caller_chunks(&self, i: usize, volume: &Volume) -> Vec<ChunkKey> {
-        if self.by_caller(i) { strata_mesh::surface_chunks(volume) } else { Vec::new() }
+        match self.surfaces.get(i) {
+            Some(s) if s.by_caller && matches!(s.backend, Backend::Dual(_)) => {
+                dual_mesh_keys(&volume.chunks().map(|(k, _)| k).collect::<Vec<_>>())
+            }
+            Some(s) if s.by_caller => strata_mesh::surface_chunks(volume),
+            _ => Vec::new(),
+        }
+    }
+
+    /// Whether caller-meshed surface `i` is meshed by dual contouring (else marching cubes).
+    pub(crate) fn caller_dual(&self, i: usize) -> bool {
+        self.surfaces.get(i).is_some_and(|s| s.by_caller && matches!(s.backend, Backend::Dual(_)))
     }
 
     /// The voxel block the CPU would mesh for chunk `key` of surface `i` of `volume` (capped
@@ -328,6 +356,7 @@ impl ViewMeshes {
                 }
             }
             Backend::Blocks(c) => s.queued.extend(c.note(volume, changed, reach)),
+            Backend::Dual(_) if s.by_caller => s.queued.extend(dual_mesh_keys(changed)),
             Backend::Dual(_) => s.queued.extend(changed.iter().copied()),
             // A streamed surface learns of its changes from the world ([`ViewMeshes::streamed_changes`]).
             Backend::Streamed(_) => {}

@@ -24,9 +24,9 @@
 //! viewport's residency and CPU fallbacks are `strata_viewport::GpuMeshing`'s).
 //!
 //! Dual contouring: [`GpuMarcher::dual_vertices`] solves every mixed cell's component
-//! vertices (`shaders/dual_contouring.wgsl`), and [`GpuMarcher::dual_mesh`] joins them into the
-//! CPU's quads too (one level), both read back. Not built yet (issue 33): dual contouring drawn
-//! from the GPU, and its quads across levels.
+//! vertices (`shaders/dual_contouring.wgsl`), [`GpuMarcher::dual_mesh`] joins them into the
+//! CPU's quads too (one level), both read back, and [`GpuMarcher::mesh_dual_for_drawing`] makes
+//! the same for drawing, nothing read back. Not built yet (issue 33): quads across levels.
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};

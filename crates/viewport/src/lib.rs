@@ -355,10 +355,112 @@ fn mesh_on_gpu(
     gpu: Option<&mut GpuMeshing>,
 ) -> Result<(), GpuMeshError> {
     let Some(gpu) = gpu else { return Ok(()) };
-    mesh_keys(editor, keys, device, queue, renderer, gpu)?;
+    mesh_either(editor, keys, device, queue, renderer, gpu)?;
     let again = gpu.sparse(renderer);
     gpu.repacked += again.len();
-    mesh_keys(editor, &again, device, queue, renderer, gpu)
+    mesh_either(editor, &again, device, queue, renderer, gpu)
+}
+
+/// Meshes `keys` by their surfaces' meshers: marching cubes, or dual contouring.
+fn mesh_either(
+    editor: &Editor,
+    keys: &[(usize, ChunkKey)],
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    renderer: &mut Renderer,
+    gpu: &mut GpuMeshing,
+) -> Result<(), GpuMeshError> {
+    let (dual, cubes): (Vec<(usize, ChunkKey)>, Vec<(usize, ChunkKey)>) =
+        keys.iter().partition(|(i, _)| editor.caller_dual(*i));
+    mesh_dual_keys(editor, &dual, device, queue, renderer, gpu)?;
+    mesh_keys(editor, &cubes, device, queue, renderer, gpu)
+}
+
+/// Meshes the chunks `keys` (surface, chunk) of surfaces meshed by dual contouring on the GPU
+/// (one level): each batch holds chunks whose quads are made and the chunks before them that
+/// lend their cells' vertices.
+fn mesh_dual_keys(
+    editor: &Editor,
+    keys: &[(usize, ChunkKey)],
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    renderer: &mut Renderer,
+    gpu: &mut GpuMeshing,
+) -> Result<(), GpuMeshError> {
+    use rayon::prelude::*;
+    let mut by_surface: std::collections::BTreeMap<usize, Vec<ChunkKey>> = Default::default();
+    for &(i, key) in keys {
+        if shown_surface(editor, i).is_some() {
+            by_surface.entry(i).or_default().push(key);
+        } else {
+            renderer.remove_mesh(chunk_id(i as u32, key));
+        }
+    }
+    for (i, mut meshed) in by_surface {
+        meshed.sort();
+        meshed.dedup();
+        let model = shown_surface(editor, i).unwrap_or_default();
+        let mut parts: Vec<Vec<ChunkKey>> = meshed.chunks(GPU_BATCH).rev().map(<[ChunkKey]>::to_vec).collect();
+        while let Some(part) = parts.pop() {
+            if gpu.lost.load(std::sync::atomic::Ordering::Relaxed) {
+                return Err(GpuMeshError::Device("the device was lost".into()));
+            }
+            // The part's chunks and their lenders, blocks made in parallel.
+            let mut all: Vec<ChunkKey> = part.iter().flat_map(|k| strata_mesh::MeshCache::dependents(&[*k])).collect();
+            all.sort();
+            all.dedup();
+            let blocks: Vec<(ChunkKey, Option<VoxelBlock>)> = all
+                .par_iter()
+                .map(|&key| {
+                    let mut block = VoxelBlock::default();
+                    let some = editor.view_block(i, key, &mut block)
+                        && strata_volume::Axis::ALL.iter().any(|&a| !block.crossings(a).is_empty());
+                    (key, some.then_some(block))
+                })
+                .collect();
+            let present: Vec<(ChunkKey, VoxelBlock)> =
+                blocks.into_iter().filter_map(|(k, b)| b.map(|b| (k, b))).collect();
+            let wanted: std::collections::HashSet<ChunkKey> = part.iter().copied().collect();
+            // Chunks without crossings make no quads.
+            for key in &part {
+                if !present.iter().any(|(k, _)| k == key) {
+                    renderer.remove_mesh(chunk_id(i as u32, *key));
+                }
+            }
+            let refs: Vec<&VoxelBlock> = present.iter().map(|(_, b)| b).collect();
+            let flags: Vec<bool> = present.iter().map(|(k, _)| wanted.contains(k)).collect();
+            let placements: Vec<DrawPlacement> = present
+                .iter()
+                .map(|(k, _)| DrawPlacement { placement: chunk_placement(model, *k), tint: [1.0; 3] })
+                .collect();
+            let made = with_error_scopes(device, || {
+                gpu.marcher.mesh_dual_for_drawing(device, queue, &refs, &flags, &placements)
+            })?;
+            let made = match made {
+                Ok(made) => made,
+                Err(GpuMeshError::TooLarge(_)) if part.len() > 1 => {
+                    let (a, b) = part.split_at(part.len() / 2);
+                    parts.extend([b.to_vec(), a.to_vec()]);
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            let mut ids: Vec<MeshId> = Vec::new();
+            if let Some(first) = made.meshes.first() {
+                let args = first.args.clone();
+                for (((key, _), mesh), made_quads) in present.iter().zip(made.meshes).zip(&flags) {
+                    if *made_quads {
+                        let id = chunk_id(i as u32, *key);
+                        renderer.show_indirect(id, mesh);
+                        ids.push(id);
+                    }
+                }
+                let count = ids.len();
+                gpu.batches.push((args, ids, count));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Meshes `keys` (see [`mesh_on_gpu`]), recording the batches made.

@@ -202,3 +202,66 @@ fn a_device_lost_while_meshing_is_an_error_and_the_cpu_takes_over() {
     apply_changes(&e, &changes, &gpu.device, &gpu.queue, &mut r);
     assert!(r.mesh_count() > 0 && r.indirect_count() == 0 && r.triangle_count() > 0);
 }
+
+/// Dual contouring under GPU meshing (one level): made and drawn on the GPU, the same picture as
+/// the CPU's dual contouring through strokes, erasing and undo; the renderer kept by change
+/// lists equals one given every chunk anew; a layer whose levels mix goes back to the CPU.
+#[test]
+fn gpu_dual_contouring_draws_what_the_cpus_draws() {
+    use strata_mesh::{MeshOptions, Mesher};
+    let Some(gpu) = gpu() else { return };
+    let mut meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
+    let dual = MeshOptions::new(Mesher::DualContouring);
+    let mut on_gpu = Editor::new(scene());
+    on_gpu.set_view_mesher(dual).unwrap();
+    on_gpu.set_gpu_meshing(true);
+    let mut on_cpu = Editor::new(scene());
+    on_cpu.set_view_mesher(dual).unwrap();
+    let mut drawn = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    let mut want = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    for step in 0..6 {
+        for e in [&mut on_gpu, &mut on_cpu] {
+            match step {
+                0 => {}
+                1 => stroke(e, DVec3::new(20.0, 32.0, 20.0)),
+                2 => {
+                    e.tool.kind = ToolKind::Erase;
+                    stroke(e, DVec3::new(50.0, 28.0, 20.0));
+                    e.tool.kind = ToolKind::Add;
+                }
+                3 => {
+                    e.undo();
+                }
+                4 => stroke(e, DVec3::new(8.0, 20.0, 26.0)),
+                _ => {
+                    // Finer chunks: this layer's levels mix, so the CPU contours it.
+                    e.active_layer = 0;
+                    e.tool.kind = ToolKind::Detail;
+                    e.tool.detail_level = Level::new(1).unwrap();
+                    e.tool.radius = 3.0;
+                    stroke(e, DVec3::new(20.0, 32.0, 20.0));
+                    e.tool.kind = ToolKind::Add;
+                }
+            }
+            e.finish_meshing();
+        }
+        let changes = on_gpu.take_changes();
+        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&mut meshing)).unwrap();
+        let changes = on_cpu.take_changes();
+        apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
+        if step < 5 {
+            assert!(on_gpu.meshed_by_caller(0) && on_gpu.caller_dual(0), "step {step}");
+            assert!(drawn.indirect_count() > 0 && drawn.triangle_count() == 0, "step {step}: all on the GPU");
+        } else {
+            assert!(!on_gpu.meshed_by_caller(0) && on_gpu.meshed_by_caller(1), "mixed levels: the CPU's");
+        }
+        let (a, b) = (image(&gpu, &mut drawn, false), image(&gpu, &mut want, false));
+        let d = differing(&a, &b);
+        assert!(d * 1000 <= a.len() / 4, "step {step}: {d} pixels differ");
+        let mut fresh = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+        let mut fresh_meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
+        let all = strata_editor::ChangeList { full: true, ..Default::default() };
+        apply_changes_with(&on_gpu, &all, &gpu.device, &gpu.queue, &mut fresh, Some(&mut fresh_meshing)).unwrap();
+        assert!(close_up(&gpu, &mut drawn) == close_up(&gpu, &mut fresh), "step {step}: stale GPU chunks");
+    }
+}

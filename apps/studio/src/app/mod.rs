@@ -169,7 +169,7 @@ impl StudioApp {
         self.studio.gpu_meshing = true;
         let mesher = self.studio.editor.view_mesher();
         self.studio.message = if mesher.mesher == strata_mesh::Mesher::DualContouring {
-            "GPU meshing on: dual contouring's vertices solved on the GPU, its quads joined on the CPU".into()
+            "GPU meshing on: dual contouring made and drawn on the GPU (where a layer mixes levels, its vertices solved there and its quads joined on the CPU)".into()
         } else if mesher.mesher != strata_mesh::Mesher::MarchingCubes || mesher.simplify.is_some() {
             format!(
                 "GPU meshing on: it meshes plain marching cubes, so the viewport's {} stays on the CPU",
