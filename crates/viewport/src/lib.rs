@@ -370,8 +370,8 @@ fn mesh_either(
     renderer: &mut Renderer,
     gpu: &mut GpuMeshing,
 ) -> Result<(), GpuMeshError> {
-    let (dual, cubes): (Vec<(usize, ChunkKey)>, Vec<(usize, ChunkKey)>) =
-        keys.iter().partition(|(i, _)| editor.caller_dual(*i));
+    type Keys = Vec<(usize, ChunkKey)>;
+    let (dual, cubes): (Keys, Keys) = keys.iter().partition(|(i, _)| editor.caller_dual(*i));
     mesh_dual_keys(editor, &dual, device, queue, renderer, gpu)?;
     mesh_keys(editor, &cubes, device, queue, renderer, gpu)
 }
