@@ -818,32 +818,9 @@ fn dual_world(@builtin(global_invocation_id) g: vec3<u32>) {
     } else {
         k = vertices[i * 10u + 1u];
     }
-    let p = placements[k];
     let at = i * 10u;
-    let grid = p.origin.xyz + vertex_vec3(at + 2u);
-    let w = p.m0 * grid.x + p.m1 * grid.y + p.m2 * grid.z + p.m3;
-    let local_normal = vertex_vec3(at + 5u);
-    var n = p.n0.xyz * local_normal.x + p.n1.xyz * local_normal.y + p.n2.xyz * local_normal.z;
-    let length_squared = dot(n, n);
-    if (length_squared > 0.0) {
-        n = n * inverseSqrt(length_squared);
-    } else {
-        n = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let out = i * 12u;
-    drawn[out] = bitcast<u32>(w.x);
-    drawn[out + 1u] = bitcast<u32>(w.y);
-    drawn[out + 2u] = bitcast<u32>(w.z);
-    drawn[out + 3u] = bitcast<u32>(n.x);
-    drawn[out + 4u] = bitcast<u32>(n.y);
-    drawn[out + 5u] = bitcast<u32>(n.z);
-    drawn[out + 6u] = bitcast<u32>(p.tint.x);
-    drawn[out + 7u] = bitcast<u32>(p.tint.y);
-    drawn[out + 8u] = bitcast<u32>(p.tint.z);
-    drawn[out + 9u] = bitcast<u32>(p.tint.w);
     // The blend of the cell's corners, as the CPU's dual contouring gives it.
-    drawn[out + 10u] = vertices[at + 8u];
-    drawn[out + 11u] = vertices[at + 9u];
+    write_drawn(i * 12u, placements[k], vertex_vec3(at + 2u), vertex_vec3(at + 5u), vertices[at + 8u], vertices[at + 9u]);
 }
 
 @compute @workgroup_size(64)
@@ -853,16 +830,5 @@ fn dual_args(@builtin(global_invocation_id) g: vec3<u32>) {
         return;
     }
     let first = scratch[quad_first_at(k)];
-    let triangles = scratch[quad_first_at(k + 1u)] - first;
-    let a = k * 10u;
-    args[a] = triangles * 3u;
-    args[a + 1u] = 1u;
-    args[a + 2u] = first * 3u;
-    args[a + 3u] = 0u;
-    args[a + 4u] = 0u;
-    args[a + 5u] = triangles * 6u;
-    args[a + 6u] = 1u;
-    args[a + 7u] = first * 6u;
-    args[a + 8u] = 0u;
-    args[a + 9u] = 0u;
+    write_args(k, first, scratch[quad_first_at(k + 1u)] - first);
 }

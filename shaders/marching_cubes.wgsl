@@ -367,19 +367,25 @@ fn world(@builtin(global_invocation_id) g: vec3<u32>) {
             hi = mid;
         }
     }
-    let p = placements[lo];
     let at = i * 7u;
-    let grid = p.origin.xyz + vertex_vec3(at);
+    // One material, whole, in every slot as the CPU's `VertexMaterial::single` (material 0
+    // where the block has none).
+    let material = (vertices[at + 6u] & 0xffu) * 0x01010101u;
+    write_drawn(i * 12u, placements[lo], vertex_vec3(at), vertex_vec3(at + 3u), material, 255u);
+}
+
+// Writes the renderer's vertex at word `out` of `drawn`: `position` and `normal` (in the
+// chunk's grid) placed by `p`, its tint, and the material ids and weights given.
+fn write_drawn(out: u32, p: Placement, position: vec3<f32>, normal: vec3<f32>, ids: u32, weights: u32) {
+    let grid = p.origin.xyz + position;
     let w = p.m0 * grid.x + p.m1 * grid.y + p.m2 * grid.z + p.m3;
-    let local_normal = vertex_vec3(at + 3u);
-    var n = p.n0.xyz * local_normal.x + p.n1.xyz * local_normal.y + p.n2.xyz * local_normal.z;
+    var n = p.n0.xyz * normal.x + p.n1.xyz * normal.y + p.n2.xyz * normal.z;
     let length_squared = dot(n, n);
     if (length_squared > 0.0) {
         n = n * inverseSqrt(length_squared);
     } else {
         n = vec3<f32>(0.0, 1.0, 0.0);
     }
-    let out = i * 12u;
     drawn[out] = bitcast<u32>(w.x);
     drawn[out + 1u] = bitcast<u32>(w.y);
     drawn[out + 2u] = bitcast<u32>(w.z);
@@ -390,10 +396,8 @@ fn world(@builtin(global_invocation_id) g: vec3<u32>) {
     drawn[out + 7u] = bitcast<u32>(p.tint.y);
     drawn[out + 8u] = bitcast<u32>(p.tint.z);
     drawn[out + 9u] = bitcast<u32>(p.tint.w);
-    // One material, whole, in every slot as the CPU's `VertexMaterial::single` (material 0
-    // where the block has none).
-    drawn[out + 10u] = (vertices[at + 6u] & 0xffu) * 0x01010101u;
-    drawn[out + 11u] = 255u;
+    drawn[out + 10u] = ids;
+    drawn[out + 11u] = weights;
 }
 
 @compute @workgroup_size(64)
@@ -409,6 +413,12 @@ fn draw_args(@builtin(global_invocation_id) g: vec3<u32>) {
         first = c.seam_out;
         triangles = scratch[seam_counts_at(c.seam_slot)];
     }
+    write_args(k, first, triangles);
+}
+
+// Chunk `k`'s indirect indexed-draw arguments: its `triangles` from triangle slot `first`, then
+// their lines (six indices a triangle, from the same slot in the lines).
+fn write_args(k: u32, first: u32, triangles: u32) {
     let a = k * 10u;
     args[a] = triangles * 3u;
     args[a + 1u] = 1u;

@@ -350,6 +350,21 @@ impl GpuMarcher {
         })
     }
 
+    /// The wireframe's pass: every triangle slot's lines (none where there is no room).
+    fn dispatch_lines(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        group: &wgpu::BindGroup,
+        slots: u64,
+        groups: (u32, u32),
+    ) {
+        if slots > 0 {
+            pass.set_pipeline(&self.edge_lines);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
+    }
+
     /// Resolves the timer's queries into its buffer, after the pass.
     fn resolve_timer(&self, encoder: &mut wgpu::CommandEncoder) {
         if let Some(t) = &self.timer {
@@ -662,25 +677,9 @@ impl GpuMarcher {
             seam_list_base: chunk_table,
             unused: [0; 3],
         };
-        let filled = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
-            let contents: &[u8] = if bytes.is_empty() { &[0; 4] } else { bytes };
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: contents.len() as u64,
-                usage: usage | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            queue.write_buffer(&buffer, 0, contents);
-            buffer
-        };
-        let empty_with = |label: &str, words: u64, extra: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: words.max(1) * 4,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | extra,
-                mapped_at_creation: false,
-            })
-        };
+        let filled = |label: &str, bytes: &[u8], usage| filled_buffer(device, queue, label, bytes, usage);
+        let empty_with =
+            |label: &str, words: u64, extra| empty_buffer(device, label, words, wgpu::BufferUsages::COPY_SRC | extra);
         let empty = |label: &str, words: u64| empty_with(label, words, wgpu::BufferUsages::empty());
         let uniform = filled("dual params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
         let chunks = filled("dual chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::STORAGE);
@@ -700,54 +699,33 @@ impl GpuMarcher {
         if let Some((p, d, a, e)) = &drawing {
             all.extend([(7, p), (8, d), (9, a), (10, e)]);
         }
-        let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
-            let entries: Vec<wgpu::BindGroupEntry<'_>> = all
-                .iter()
-                .filter(|(b, _)| used.contains(b))
-                .map(|(b, buffer)| wgpu::BindGroupEntry { binding: *b, resource: buffer.as_entire_binding() })
-                .collect();
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &entries,
-            })
-        };
+        let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| bind_group(device, pipeline, &all, used);
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("dual") });
         if chunk_count > 0 {
             let mut pass = encoder
                 .begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: self.timestamps() });
-            pass.set_pipeline(&self.dual_count);
-            pass.set_bind_group(0, &group(&self.dual_count, &[0, 1, 2, 4]), &[]);
-            pass.dispatch_workgroups(chunk_count, 1, 1);
-            pass.set_pipeline(&self.scan);
-            pass.set_bind_group(0, &group(&self.scan, &[0, 4]), &[]);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&self.dual_emit);
-            pass.set_bind_group(0, &group(&self.dual_emit, &[0, 1, 2, 4, 6]), &[]);
-            pass.dispatch_workgroups(chunk_count, 1, 1);
+            dispatch(&mut pass, &self.dual_count, &group(&self.dual_count, &[0, 1, 2, 4]), (chunk_count, 1, 1));
+            dispatch(&mut pass, &self.scan, &group(&self.scan, &[0, 4]), (1, 1, 1));
+            dispatch(&mut pass, &self.dual_emit, &group(&self.dual_emit, &[0, 1, 2, 4, 6]), (chunk_count, 1, 1));
             if meshed.is_some() {
-                pass.set_pipeline(&self.quad_count);
-                pass.set_bind_group(0, &group(&self.quad_count, &[0, 2, 4]), &[]);
-                pass.dispatch_workgroups(chunk_count, 1, 1);
-                pass.set_pipeline(&self.quad_scan);
-                pass.set_bind_group(0, &group(&self.quad_scan, &[0, 4]), &[]);
-                pass.dispatch_workgroups(1, 1, 1);
-                pass.set_pipeline(&self.quad_emit);
-                pass.set_bind_group(0, &group(&self.quad_emit, &[0, 2, 4, 5, 6]), &[]);
-                pass.dispatch_workgroups(chunk_count, 1, 1);
+                dispatch(&mut pass, &self.quad_count, &group(&self.quad_count, &[0, 2, 4]), (chunk_count, 1, 1));
+                dispatch(&mut pass, &self.quad_scan, &group(&self.quad_scan, &[0, 4]), (1, 1, 1));
+                dispatch(&mut pass, &self.quad_emit, &group(&self.quad_emit, &[0, 2, 4, 5, 6]), (chunk_count, 1, 1));
             }
             if drawing.is_some() {
-                pass.set_pipeline(&self.dual_world);
-                pass.set_bind_group(0, &group(&self.dual_world, &[0, 4, 6, 7, 8]), &[]);
-                pass.dispatch_workgroups(place_x, place_y, 1);
-                pass.set_pipeline(&self.dual_args);
-                pass.set_bind_group(0, &group(&self.dual_args, &[0, 4, 9]), &[]);
-                pass.dispatch_workgroups(chunk_count.div_ceil(64), 1, 1);
-                if index_room > 0 {
-                    pass.set_pipeline(&self.edge_lines);
-                    pass.set_bind_group(0, &group(&self.edge_lines, &[0, 5, 10]), &[]);
-                    pass.dispatch_workgroups(edge_x, edge_y, 1);
-                }
+                dispatch(
+                    &mut pass,
+                    &self.dual_world,
+                    &group(&self.dual_world, &[0, 4, 6, 7, 8]),
+                    (place_x, place_y, 1),
+                );
+                dispatch(
+                    &mut pass,
+                    &self.dual_args,
+                    &group(&self.dual_args, &[0, 4, 9]),
+                    (chunk_count.div_ceil(64), 1, 1),
+                );
+                self.dispatch_lines(&mut pass, &group(&self.edge_lines, &[0, 5, 10]), index_room, (edge_x, edge_y));
             }
         }
         self.resolve_timer(&mut encoder);
@@ -932,31 +910,11 @@ impl GpuMarcher {
         if data.len() > u32::MAX as usize || vertex_total > u32::MAX as u64 / 12 || index_capacity > u32::MAX as u64 {
             return Err(GpuMeshError::TooLarge("more than 2³² words of blocks".into()));
         }
-        // Written through the queue, not mapped at creation: on a lost device that is an error
-        // the device reports (an error scope catches it), where mapping panics.
-        let filled = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
-            // (An empty binding is not allowed: at least one word.)
-            let contents: &[u8] = if bytes.is_empty() { &[0; 4] } else { bytes };
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: contents.len() as u64,
-                usage: usage | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            queue.write_buffer(&buffer, 0, contents);
-            buffer
-        };
+        let filled = |label: &str, bytes: &[u8], usage| filled_buffer(device, queue, label, bytes, usage);
         let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
             filled(label, bytes, wgpu::BufferUsages::STORAGE | extra)
         };
-        let empty = |label: &str, words: u64, extra: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: words.max(1) * 4,
-                usage: wgpu::BufferUsages::STORAGE | extra,
-                mapped_at_creation: false,
-            })
-        };
+        let empty = |label: &str, words: u64, extra| empty_buffer(device, label, words, extra);
         let crossing_count = crossings.len() as u32;
         let vertex_total = vertex_total as u32;
         let place_groups = vertex_total.max(crossing_count).div_ceil(64);
@@ -1017,71 +975,45 @@ impl GpuMarcher {
         if let Some((p, d, a, e)) = &drawing {
             all.extend([(7, p), (8, d), (9, a), (10, e)]);
         }
-        // Each pass binds only what its entry point uses (its layout is derived from it).
-        let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| {
-            let entries: Vec<wgpu::BindGroupEntry<'_>> = all
-                .iter()
-                .filter(|(b, _)| used.contains(b))
-                .map(|(b, buffer)| wgpu::BindGroupEntry { binding: *b, resource: buffer.as_entire_binding() })
-                .collect();
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &entries,
-            })
-        };
+        let group = |pipeline: &wgpu::ComputePipeline, used: &[u32]| bind_group(device, pipeline, &all, used);
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("gpu mesh") });
         {
             let mut pass = encoder
                 .begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: self.timestamps() });
             if chunk_count > 0 {
-                pass.set_pipeline(&self.count);
-                pass.set_bind_group(0, &group(&self.count, &[0, 1, 2, 4]), &[]);
-                pass.dispatch_workgroups(chunk_count, 1, 1);
+                dispatch(&mut pass, &self.count, &group(&self.count, &[0, 1, 2, 4]), (chunk_count, 1, 1));
             }
-            pass.set_pipeline(&self.scan);
-            pass.set_bind_group(0, &group(&self.scan, &[0, 4]), &[]);
-            pass.dispatch_workgroups(1, 1, 1);
+            dispatch(&mut pass, &self.scan, &group(&self.scan, &[0, 4]), (1, 1, 1));
             if chunk_count > 0 {
-                pass.set_pipeline(&self.emit);
-                pass.set_bind_group(0, &group(&self.emit, &[0, 1, 2, 4, 5]), &[]);
-                pass.dispatch_workgroups(chunk_count, 1, 1);
+                dispatch(&mut pass, &self.emit, &group(&self.emit, &[0, 1, 2, 4, 5]), (chunk_count, 1, 1));
             }
             if crossing_count > 0 {
-                pass.set_pipeline(&self.place);
-                pass.set_bind_group(0, &group(&self.place, &[0, 1, 2, 3, 6]), &[]);
-                pass.dispatch_workgroups(place_x, place_y, 1);
+                dispatch(&mut pass, &self.place, &group(&self.place, &[0, 1, 2, 3, 6]), (place_x, place_y, 1));
             }
             if extra_count > 0 {
-                pass.set_pipeline(&self.place_extra);
-                pass.set_bind_group(0, &group(&self.place_extra, &[0, 2, 6]), &[]);
-                pass.dispatch_workgroups(
-                    extra_count.div_ceil(64).min(max_groups),
-                    extra_count.div_ceil(64 * max_groups).max(1),
-                    1,
+                dispatch(
+                    &mut pass,
+                    &self.place_extra,
+                    &group(&self.place_extra, &[0, 2, 6]),
+                    (extra_count.div_ceil(64).min(max_groups), extra_count.div_ceil(64 * max_groups).max(1), 1),
                 );
             }
             if !headers.is_empty() {
-                pass.set_pipeline(&self.split);
-                pass.set_bind_group(0, &group(&self.split, &[0, 2, 4, 5, 6]), &[]);
-                pass.dispatch_workgroups(headers.len() as u32, 1, 1);
+                dispatch(&mut pass, &self.split, &group(&self.split, &[0, 2, 4, 5, 6]), (headers.len() as u32, 1, 1));
             }
             if drawing.is_some() {
                 if vertex_total > 0 {
-                    pass.set_pipeline(&self.world);
-                    pass.set_bind_group(0, &group(&self.world, &[0, 1, 6, 7, 8]), &[]);
-                    pass.dispatch_workgroups(place_x, place_y, 1);
+                    dispatch(&mut pass, &self.world, &group(&self.world, &[0, 1, 6, 7, 8]), (place_x, place_y, 1));
                 }
                 if chunk_count > 0 {
-                    pass.set_pipeline(&self.draw_args);
-                    pass.set_bind_group(0, &group(&self.draw_args, &[0, 1, 4, 9]), &[]);
-                    pass.dispatch_workgroups(chunk_count.div_ceil(64), 1, 1);
+                    dispatch(
+                        &mut pass,
+                        &self.draw_args,
+                        &group(&self.draw_args, &[0, 1, 4, 9]),
+                        (chunk_count.div_ceil(64), 1, 1),
+                    );
                 }
-                if index_capacity > 0 {
-                    pass.set_pipeline(&self.edge_lines);
-                    pass.set_bind_group(0, &group(&self.edge_lines, &[0, 5, 10]), &[]);
-                    pass.dispatch_workgroups(edge_x, edge_y, 1);
-                }
+                self.dispatch_lines(&mut pass, &group(&self.edge_lines, &[0, 5, 10]), index_capacity, (edge_x, edge_y));
             }
         }
         self.resolve_timer(&mut encoder);
@@ -1226,6 +1158,69 @@ struct GpuTimer {
     resolve: wgpu::Buffer,
     /// Nanoseconds a tick.
     period: f64,
+}
+
+/// One dispatch of `pipeline` with `group` in `pass`.
+fn dispatch(
+    pass: &mut wgpu::ComputePass<'_>,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    size: (u32, u32, u32),
+) {
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups(size.0, size.1, size.2);
+}
+
+/// A buffer holding `bytes` (at least one word: an empty binding is not allowed), written
+/// through the queue rather than mapped at creation: on a lost device that is an error the
+/// device reports (an error scope catches it), where mapping panics.
+fn filled_buffer(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    bytes: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    let contents: &[u8] = if bytes.is_empty() { &[0; 4] } else { bytes };
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: contents.len() as u64,
+        usage: usage | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    queue.write_buffer(&buffer, 0, contents);
+    buffer
+}
+
+/// A storage buffer of `words` words (at least one), with the usages `extra` besides.
+fn empty_buffer(device: &wgpu::Device, label: &str, words: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: words.max(1) * 4,
+        usage: wgpu::BufferUsages::STORAGE | extra,
+        mapped_at_creation: false,
+    })
+}
+
+/// The bind group of `pipeline` with the bindings of `all` its entry point uses (`used`: its
+/// layout is derived from the entry point, so it must get exactly those).
+fn bind_group(
+    device: &wgpu::Device,
+    pipeline: &wgpu::ComputePipeline,
+    all: &[(u32, &wgpu::Buffer)],
+    used: &[u32],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry<'_>> = all
+        .iter()
+        .filter(|(b, _)| used.contains(b))
+        .map(|(b, buffer)| wgpu::BindGroupEntry { binding: *b, resource: buffer.as_entire_binding() })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
 }
 
 /// Where a block's words start in the data buffer.

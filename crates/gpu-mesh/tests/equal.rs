@@ -55,11 +55,10 @@ fn assert_equal_by(gpu: &Gpu, marcher: &GpuMarcher, blocks: &[VoxelBlock], what:
     assert_eq!(batch.triangle_count(&gpu.device, &gpu.queue).unwrap() as usize, triangles, "{what}");
 }
 
-#[test]
-fn all_256_corner_cases_of_one_cell_in_one_batch() {
-    let Some(gpu) = gpu() else { return };
-    let marcher = GpuMarcher::new(&gpu.device).unwrap();
-    let blocks: Vec<VoxelBlock> = (0..256usize)
+/// A block for each of the 256 corner cases of one cell (nodes 1..=2 on each axis), each
+/// crossing's `t` and normal from `crossing(h)` with `h` a hash of its edge.
+fn corner_cases(crossing: impl Fn(usize) -> (f32, Vec3) + Copy) -> Vec<VoxelBlock> {
+    (0..256usize)
         .map(|case| {
             let inside = move |x: usize, y: usize, z: usize| {
                 (1..=2).contains(&x) && (1..=2).contains(&y) && (1..=2).contains(&z) && {
@@ -67,12 +66,21 @@ fn all_256_corner_cases_of_one_cell_in_one_batch() {
                     (case >> k) & 1 == 1
                 }
             };
-            VoxelBlock::from_fn(ChunkKey::new(case as i32, 0, 0), Level::BASE, inside, |axis, lower| {
-                let t = 0.3 + 0.1 * ((lower[0] + 2 * lower[1] + 3 * lower[2] + axis.index()) % 5) as f32;
-                (t, Vec3::new(0.3, -0.5, 0.8).normalize())
+            VoxelBlock::from_fn(ChunkKey::new(case as i32, 0, 0), Level::BASE, inside, move |axis, lower| {
+                crossing(lower[0] + 2 * lower[1] + 3 * lower[2] + axis.index())
             })
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn all_256_corner_cases_of_one_cell_in_one_batch() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let blocks = corner_cases(|h| {
+        let t = 0.3 + 0.1 * (h % 5) as f32;
+        (t, Vec3::new(0.3, -0.5, 0.8).normalize())
+    });
     assert_equal(&gpu, &marcher, &blocks, "corner cases");
 }
 
@@ -284,23 +292,10 @@ fn dual_contouring_vertices_equal_the_cpus() {
     let marcher = GpuMarcher::new(&gpu.device).unwrap();
     // Every case of one cell (several components in the ambiguous ones), with planes at odd
     // angles so the full eigen-decomposition runs.
-    let blocks: Vec<VoxelBlock> = (0..256usize)
-        .map(|case| {
-            let inside = move |x: usize, y: usize, z: usize| {
-                (1..=2).contains(&x) && (1..=2).contains(&y) && (1..=2).contains(&z) && {
-                    let k = (x - 1) | ((y - 1) << 1) | ((z - 1) << 2);
-                    (case >> k) & 1 == 1
-                }
-            };
-            VoxelBlock::from_fn(ChunkKey::new(case as i32, 0, 0), Level::BASE, inside, |axis, lower| {
-                let h = lower[0] + 2 * lower[1] + 3 * lower[2] + axis.index();
-                let t = 0.2 + 0.15 * (h % 5) as f32;
-                let n =
-                    [Vec3::X, Vec3::new(0.3, 0.9, -0.2), Vec3::new(-0.5, 0.1, 0.8), Vec3::new(0.6, -0.6, 0.5)][h % 4];
-                (t, n.normalize())
-            })
-        })
-        .collect();
+    let blocks = corner_cases(|h| {
+        let n = [Vec3::X, Vec3::new(0.3, 0.9, -0.2), Vec3::new(-0.5, 0.1, 0.8), Vec3::new(0.6, -0.6, 0.5)][h % 4];
+        (0.2 + 0.15 * (h % 5) as f32, n.normalize())
+    });
     assert_dual_equal(&gpu, &marcher, &blocks, "corner cases");
     // Boxes (sharp edges and corners: the eigen path), spheres (the parallel-plane path),
     // painted, across chunk borders, at two levels.

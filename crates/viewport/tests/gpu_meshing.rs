@@ -65,6 +65,50 @@ fn stroke(e: &mut Editor, at: DVec3) {
     e.frame(&ToolPose::at(at, false), Duration::from_millis(50)).unwrap();
 }
 
+/// The steps both tests take first: nothing, a stroke, an erasing stroke, an undo. `false` for
+/// a later step.
+fn first_steps(e: &mut Editor, step: usize) -> bool {
+    match step {
+        0 => {}
+        1 => stroke(e, DVec3::new(20.0, 32.0, 20.0)),
+        2 => {
+            e.tool.kind = ToolKind::Erase;
+            stroke(e, DVec3::new(50.0, 28.0, 20.0));
+            e.tool.kind = ToolKind::Add;
+        }
+        3 => {
+            e.undo();
+        }
+        _ => return false,
+    }
+    true
+}
+
+/// Applies both editors' change lists: the GPU's through GPU meshing, the CPU's uploaded.
+fn apply_both(
+    gpu: &Gpu,
+    (on_gpu, drawn, meshing): (&mut Editor, &mut Renderer, &mut GpuMeshing),
+    (on_cpu, want): (&mut Editor, &mut Renderer),
+) {
+    let changes = on_gpu.take_changes();
+    apply_changes_with(on_gpu, &changes, &gpu.device, &gpu.queue, drawn, Some(meshing)).unwrap();
+    let changes = on_cpu.take_changes();
+    apply_changes(on_cpu, &changes, &gpu.device, &gpu.queue, want);
+}
+
+/// The renderer kept up to date by change lists shows exactly what one given every chunk anew
+/// shows (no chunk stale: seams left by undone finer chunks, for one).
+fn assert_like_a_full_remesh(gpu: &Gpu, editor: &Editor, drawn: &mut Renderer, step: usize) {
+    let mut fresh = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
+    let mut fresh_meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
+    let all = strata_editor::ChangeList { full: true, ..Default::default() };
+    apply_changes_with(editor, &all, &gpu.device, &gpu.queue, &mut fresh, Some(&mut fresh_meshing)).unwrap();
+    assert!(
+        close_up(gpu, drawn) == close_up(gpu, &mut fresh),
+        "step {step}: the incremental GPU meshes differ from a full remesh"
+    );
+}
+
 #[test]
 fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
     let Some(gpu) = gpu() else { return };
@@ -79,16 +123,7 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
     for step in 0..9 {
         for e in [&mut on_gpu, &mut on_cpu] {
             match step {
-                0 => {}
-                1 => stroke(e, DVec3::new(20.0, 32.0, 20.0)),
-                2 => {
-                    e.tool.kind = ToolKind::Erase;
-                    stroke(e, DVec3::new(50.0, 28.0, 20.0));
-                    e.tool.kind = ToolKind::Add;
-                }
-                3 => {
-                    e.undo();
-                }
+                _ if first_steps(e, step) => {}
                 4 => e.scene.layers[1].visible = false,
                 5 => {
                     e.scene.layers[1].visible = true;
@@ -123,8 +158,7 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
             }
             e.finish_meshing();
         }
-        let changes = on_gpu.take_changes();
-        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&mut meshing)).unwrap();
+        apply_both(&gpu, (&mut on_gpu, &mut drawn, &mut meshing), (&mut on_cpu, &mut want));
         // Batches are kept while shown, and repacked before they hold four times what is shown.
         let resident = meshing.resident_blocks();
         assert!(
@@ -132,8 +166,6 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
             "step {step}: {resident} blocks held for {}",
             drawn.indirect_count()
         );
-        let changes = on_cpu.take_changes();
-        apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
         assert_eq!(drawn.mesh_count(), want.mesh_count(), "step {step}: the chunks shown");
         match step {
             6 => assert!(drawn.mesh_count() == drawn.indirect_count(), "the blocks with seams were split on the GPU"),
@@ -146,16 +178,7 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
             assert!(d * 1000 <= a.len() / 4, "step {step} (wireframe {wireframe}): {d} pixels differ");
             assert!(a.chunks_exact(4).any(|p| p[0] > 60), "step {step}: something was drawn");
         }
-        // The renderer kept up to date by change lists shows exactly what one given every chunk
-        // anew shows (no chunk stale: seams left by undone finer chunks, for one).
-        let mut fresh = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
-        let mut fresh_meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
-        let all = strata_editor::ChangeList { full: true, ..Default::default() };
-        apply_changes_with(&on_gpu, &all, &gpu.device, &gpu.queue, &mut fresh, Some(&mut fresh_meshing)).unwrap();
-        assert!(
-            close_up(&gpu, &mut drawn) == close_up(&gpu, &mut fresh),
-            "step {step}: the incremental GPU meshes differ from a full remesh"
-        );
+        assert_like_a_full_remesh(&gpu, &on_gpu, &mut drawn, step);
         steps += 1;
     }
     assert_eq!(steps, 9);
@@ -169,10 +192,7 @@ fn gpu_meshed_chunks_draw_what_the_cpus_meshes_draw() {
             stroke(e, at);
             e.finish_meshing();
         }
-        let changes = on_gpu.take_changes();
-        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&mut meshing)).unwrap();
-        let changes = on_cpu.take_changes();
-        apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
+        apply_both(&gpu, (&mut on_gpu, &mut drawn, &mut meshing), (&mut on_cpu, &mut want));
         let resident = meshing.resident_blocks();
         assert!(resident <= 4 * drawn.indirect_count(), "stroke {k}: {resident} blocks held");
     }
@@ -222,16 +242,7 @@ fn gpu_dual_contouring_draws_what_the_cpus_draws() {
     for step in 0..6 {
         for e in [&mut on_gpu, &mut on_cpu] {
             match step {
-                0 => {}
-                1 => stroke(e, DVec3::new(20.0, 32.0, 20.0)),
-                2 => {
-                    e.tool.kind = ToolKind::Erase;
-                    stroke(e, DVec3::new(50.0, 28.0, 20.0));
-                    e.tool.kind = ToolKind::Add;
-                }
-                3 => {
-                    e.undo();
-                }
+                _ if first_steps(e, step) => {}
                 4 => stroke(e, DVec3::new(8.0, 20.0, 26.0)),
                 _ => {
                     // Finer chunks: this layer's levels mix, so the CPU contours it.
@@ -245,10 +256,7 @@ fn gpu_dual_contouring_draws_what_the_cpus_draws() {
             }
             e.finish_meshing();
         }
-        let changes = on_gpu.take_changes();
-        apply_changes_with(&on_gpu, &changes, &gpu.device, &gpu.queue, &mut drawn, Some(&mut meshing)).unwrap();
-        let changes = on_cpu.take_changes();
-        apply_changes(&on_cpu, &changes, &gpu.device, &gpu.queue, &mut want);
+        apply_both(&gpu, (&mut on_gpu, &mut drawn, &mut meshing), (&mut on_cpu, &mut want));
         if step < 5 {
             assert!(on_gpu.meshed_by_caller(0) && on_gpu.caller_dual(0), "step {step}");
             assert!(drawn.indirect_count() > 0 && drawn.triangle_count() == 0, "step {step}: all on the GPU");
@@ -258,10 +266,6 @@ fn gpu_dual_contouring_draws_what_the_cpus_draws() {
         let (a, b) = (image(&gpu, &mut drawn, false), image(&gpu, &mut want, false));
         let d = differing(&a, &b);
         assert!(d * 1000 <= a.len() / 4, "step {step}: {d} pixels differ");
-        let mut fresh = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
-        let mut fresh_meshing = GpuMeshing::new(&gpu.adapter, &gpu.device).unwrap();
-        let all = strata_editor::ChangeList { full: true, ..Default::default() };
-        apply_changes_with(&on_gpu, &all, &gpu.device, &gpu.queue, &mut fresh, Some(&mut fresh_meshing)).unwrap();
-        assert!(close_up(&gpu, &mut drawn) == close_up(&gpu, &mut fresh), "step {step}: stale GPU chunks");
+        assert_like_a_full_remesh(&gpu, &on_gpu, &mut drawn, step);
     }
 }
