@@ -14,7 +14,8 @@
 //   dual_count    one workgroup a chunk: components of each thread's run of cells, scanned.
 //   scan_chunks   (as for marching cubes) each chunk's first vertex.
 //   dual_emit     one workgroup a chunk: each thread's cells' vertices, ten words each (cell,
-//                 edges, position, normal, material ids, weights).
+//                 edges, position, normal, material ids, weights), and every cell's first vertex
+//                 in the chunk's cell table (in the scratch, at `crossing_base`).
 //
 // Data: the component table after the case table (per case five words: the count, then up to
 // four edge masks), and per chunk at `pair_base` two words a crossing (t's bits, the packed
@@ -178,6 +179,8 @@ fn dual_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
         let cell = cell_at(c, i);
         let case_index = case_of(c, cell);
         let components = data[DUAL_TABLE + case_index * 5u];
+        // Each cell's first vertex, for the quad passes (a table of n³ words a chunk).
+        scratch[c.crossing_base + i] = at / 10u;
         if (components == 0u) {
             continue;
         }
@@ -308,15 +311,9 @@ fn quad_first_at(k: u32) -> u32 {
 
 // The number of dual vertices of cell `i` of chunk `k` before component 0 (its first vertex).
 fn cell_vertex(k: u32, i: u32) -> u32 {
-    let c = load_chunk(k);
-    let cells = c.n * c.n * c.n;
-    let per = (cells + THREADS - 1u) / THREADS;
-    let t = i / per;
-    var v = scratch[chunk_first_at(k)] + scratch[k * THREADS + t];
-    for (var j = t * per; j < i; j++) {
-        v += data[DUAL_TABLE + case_of(c, cell_at(c, j)) * 5u];
-    }
-    return v;
+    // `dual_emit` wrote every cell's first vertex to the chunk's cell table in the scratch
+    // (at `crossing_base`, which these passes do not otherwise use).
+    return scratch[load_chunk(k).crossing_base + i];
 }
 
 // A ring cell: its chunk (in the batch), local cell, component mask, vertex number, offset of its

@@ -575,7 +575,10 @@ impl GpuMarcher {
         // Quads: at most five extra vertices and eight triangles an owned crossing.
         let (extra_room, index_room) = if meshed.is_some() { (5 * crossings, 24 * crossings) } else { (0, 0) };
         let n = blocks.len() as u64;
-        let scratch_words = n * (THREADS as u64 + 2) + 1 + n * THREADS as u64 * 2 + n * 2 + (n + 1) * 2;
+        // Per thread and chunk: the vertex counts and scans, the quad counts and scans; then each
+        // chunk's cell table (its cells' first vertices, n³ words).
+        let tables = n * (THREADS as u64 + 2) + 1 + n * THREADS as u64 * 2 + n * 2 + (n + 1) * 2;
+        let scratch_words = tables + blocks.iter().map(|b| (b.cells() as u64).pow(3)).sum::<u64>();
         for (what, w) in [
             ("block data", words),
             ("vertices", (dual_room + extra_room) * DUAL_WORDS),
@@ -599,6 +602,7 @@ impl GpuMarcher {
         }
         let mut data = self.table.clone();
         let mut infos = Vec::with_capacity(blocks.len());
+        let mut cell_table = tables;
         for (k, block) in blocks.iter().enumerate() {
             let n = block.cells();
             if n > MAX_CELLS {
@@ -636,7 +640,9 @@ impl GpuMarcher {
                 offset: [0; 3],
                 material_base,
                 rows_base,
-                crossing_base: 0,
+                // Where its cell table starts in the scratch (the quad passes find a cell's
+                // first vertex there).
+                crossing_base: cell_table as u32,
                 // For the quad passes: the neighbours, whether it makes quads, its crossings.
                 seam_base: neighbours,
                 seam_slot: meshed.map_or(0, |m| m[k] as u32),
@@ -644,6 +650,7 @@ impl GpuMarcher {
                 centroid_first: seen,
                 pair_base,
             });
+            cell_table += (n as u64).pow(3);
         }
         // The quad passes read the chunks from `data` (four storage buffers a stage).
         let chunk_table = data.len() as u32;
