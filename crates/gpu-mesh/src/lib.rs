@@ -561,13 +561,8 @@ impl GpuMarcher {
         meshed: Option<&[bool]>,
         draw: Option<&[DrawPlacement]>,
     ) -> Result<DualSubmitted, GpuMeshError> {
-        let limits = device.limits();
-        let max_groups = limits.max_compute_workgroups_per_dimension;
+        let (max_groups, binding) = batch_limits(device, blocks)?;
         let chunk_count = blocks.len() as u32;
-        if chunk_count as usize != blocks.len() || chunk_count > max_groups {
-            return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
-        }
-        let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         let crossings: u64 = blocks.iter().map(|b| crossing_count(b)).sum();
         let words: u64 =
             blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b) + 26).sum::<u64>() + self.table.len() as u64;
@@ -579,16 +574,18 @@ impl GpuMarcher {
         // chunk's cell table (its cells' first vertices, n³ words).
         let tables = n * (THREADS as u64 + 2) + 1 + n * THREADS as u64 * 2 + n * 2 + (n + 1) * 2;
         let scratch_words = tables + blocks.iter().map(|b| (b.cells() as u64).pow(3)).sum::<u64>();
-        for (what, w) in [
-            ("block data", words),
-            ("vertices", (dual_room + extra_room) * DUAL_WORDS),
-            ("indices", index_room),
-            ("scratch", scratch_words),
-        ] {
-            if w * 4 > binding || w > u32::MAX as u64 {
-                return Err(GpuMeshError::TooLarge(format!("its {what} take {} MiB", (w * 4) >> 20)));
-            }
-        }
+        let drawing = draw.is_some() as u64;
+        check_sizes(
+            binding,
+            &[
+                ("block data", words),
+                ("vertices", (dual_room + extra_room) * DUAL_WORDS),
+                ("drawn vertices", drawing * (dual_room + extra_room) * 12),
+                ("indices", index_room),
+                ("edge indices", drawing * index_room * 2),
+                ("scratch", scratch_words),
+            ],
+        )?;
         let key_of = |b: &VoxelBlock| b.key().unwrap_or(strata_volume::ChunkKey::new(0, 0, 0));
         let index_of: std::collections::HashMap<strata_volume::ChunkKey, u32> =
             blocks.iter().enumerate().map(|(k, b)| (key_of(b), k as u32)).collect();
@@ -755,35 +752,30 @@ impl GpuMarcher {
         blocks: &[&VoxelBlock],
         draw: Option<&[DrawPlacement]>,
     ) -> Result<(GpuBatch, Option<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer)>), GpuMeshError> {
-        let limits = device.limits();
-        let max_groups = limits.max_compute_workgroups_per_dimension;
+        let (max_groups, binding) = batch_limits(device, blocks)?;
         let chunk_count = blocks.len() as u32;
-        if chunk_count as usize != blocks.len() || chunk_count > max_groups {
-            return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
-        }
-        // Each buffer within the device's limits, checked before anything is built.
-        let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        // Each buffer within the device's limits, checked before anything is built (from bounds;
+        // the exact sizes are checked again once the blocks are laid out).
         let words: u64 = blocks.iter().map(|b| block_words(b)).sum::<u64>() + self.table.len() as u64;
         let crossing_words: u64 = blocks.iter().map(|b| 4 * crossing_count(b)).sum();
         let seam_blocks = blocks.iter().filter(|b| !b.seams().is_empty()).count() as u64;
         let scratch_words = blocks.len() as u64 * (THREADS as u64 + 2) + 1 + 2 * seam_blocks;
-        for (what, w) in [
-            ("block data", words),
-            ("crossings", crossing_words),
-            ("vertices", crossing_words / 4 * VERTEX_WORDS),
-            ("drawn vertices", if draw.is_some() { crossing_words / 4 * 12 } else { 0 }),
-            ("indices", blocks.iter().map(|b| 15 * mixed_cells(b) + seam_words(b)).sum()),
-            ("edge indices", if draw.is_some() { blocks.iter().map(|b| 30 * mixed_cells(b)).sum() } else { 0 }),
-            ("scratch", scratch_words),
-        ] {
-            if w * 4 > binding {
-                return Err(GpuMeshError::TooLarge(format!(
-                    "its {what} take {} MiB, more than the device's {} MiB a buffer",
-                    (w * 4) >> 20,
-                    binding >> 20
-                )));
-            }
-        }
+        let drawing = draw.is_some() as u64;
+        check_sizes(
+            binding,
+            &[
+                ("block data", words),
+                ("crossings", crossing_words),
+                ("vertices", crossing_words / 4 * VERTEX_WORDS),
+                ("drawn vertices", drawing * crossing_words / 4 * 12),
+                ("indices", blocks.iter().map(|b| 15 * mixed_cells(b) + seam_words(b)).sum()),
+                (
+                    "edge indices",
+                    drawing * blocks.iter().map(|b| 2 * (15 * mixed_cells(b) + seam_words(b))).sum::<u64>(),
+                ),
+                ("scratch", scratch_words),
+            ],
+        )?;
         let mut infos = Vec::with_capacity(blocks.len());
         let mut data = self.table.clone();
         let mut crossings: Vec<[u32; 4]> = Vec::new();
@@ -914,9 +906,17 @@ impl GpuMarcher {
         for h in &headers {
             data.extend(h);
         }
-        if data.len() > u32::MAX as usize || vertex_total > u32::MAX as u64 / 12 || index_capacity > u32::MAX as u64 {
-            return Err(GpuMeshError::TooLarge("more than 2³² words of blocks".into()));
-        }
+        // The exact sizes, seam points and centroid room included.
+        check_sizes(
+            binding,
+            &[
+                ("block data", data.len() as u64),
+                ("vertices", vertex_total * VERTEX_WORDS),
+                ("drawn vertices", drawing * vertex_total * 12),
+                ("indices", index_capacity),
+                ("edge indices", drawing * index_capacity * 2),
+            ],
+        )?;
         let filled = |label: &str, bytes: &[u8], usage| filled_buffer(device, queue, label, bytes, usage);
         let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
             filled(label, bytes, wgpu::BufferUsages::STORAGE | extra)
@@ -1165,6 +1165,31 @@ struct GpuTimer {
     resolve: wgpu::Buffer,
     /// Nanoseconds a tick.
     period: f64,
+}
+
+/// The most workgroups a dispatch dimension takes and the most bytes a storage binding takes on
+/// `device`; a batch of more blocks than the first is refused.
+fn batch_limits(device: &wgpu::Device, blocks: &[&VoxelBlock]) -> Result<(u32, u64), GpuMeshError> {
+    let limits = device.limits();
+    let max_groups = limits.max_compute_workgroups_per_dimension;
+    if blocks.len() > max_groups as usize {
+        return Err(GpuMeshError::TooLarge(format!("{} blocks (at most {max_groups} a batch)", blocks.len())));
+    }
+    Ok((max_groups, limits.max_storage_buffer_binding_size.min(limits.max_buffer_size)))
+}
+
+/// Refuses a batch one of whose buffers (`what`, in words) passes `binding` bytes or 2³² words.
+fn check_sizes(binding: u64, sizes: &[(&str, u64)]) -> Result<(), GpuMeshError> {
+    for &(what, words) in sizes {
+        if words * 4 > binding || words > u32::MAX as u64 {
+            return Err(GpuMeshError::TooLarge(format!(
+                "its {what} take {} MiB, more than the device's {} MiB a buffer",
+                (words * 4) >> 20,
+                binding >> 20
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// One dispatch of `pipeline` with `group` in `pass`.
