@@ -125,10 +125,7 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         // their cells' vertices, in one batch; read back.
         let t = Instant::now();
         let meshed: std::collections::BTreeSet<strata_volume::ChunkKey> =
-            strata_mesh::MeshCache::dependents(&report.changed)
-                .into_iter()
-                .flat_map(|k| (0..7).map(move |d| k.offset(glam::IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
-                .collect();
+            strata_mesh::dual_mesh_keys(&report.changed).into_iter().collect();
         let mut batch: std::collections::BTreeSet<strata_volume::ChunkKey> = meshed.clone();
         for k in &meshed {
             batch.extend(strata_mesh::MeshCache::dependents(&[*k]));

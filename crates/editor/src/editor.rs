@@ -641,7 +641,7 @@ impl Editor {
     }
 
     /// Whether caller-meshed surface `i` is meshed by dual contouring (its listed chunks are
-    /// the ones whose quads change: [`crate::view_meshes::dual_mesh_keys`]; the caller adds
+    /// the ones whose quads change: [`strata_mesh::dual_mesh_keys`]; the caller adds
     /// the chunks before them, which lend their cells' vertices), else by marching cubes.
     pub fn caller_dual(&self, i: usize) -> bool {
         self.meshes.caller_dual(i)

@@ -45,4 +45,4 @@ pub use stabiliser::Stabiliser;
 pub use stamps::{StampLibrary, StampSettings, StampSource, StampStroke};
 pub use target::EditTarget;
 pub use tool::{BrushShape, Pressure, ToolKind, ToolSettings, orientation_for_normal};
-pub use view_meshes::{BoxedVertexSolver, ChangeList, dual_mesh_keys};
+pub use view_meshes::{BoxedVertexSolver, ChangeList};

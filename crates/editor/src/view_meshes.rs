@@ -12,7 +12,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use strata_mesh::{BlockMesher, DualCache, Mesh, MeshCache, MeshOptions, MeshWorkers, Mesher};
+use strata_mesh::{BlockMesher, DualCache, Mesh, MeshCache, MeshOptions, MeshWorkers, Mesher, dual_mesh_keys};
 use strata_volume::{ChunkKey, Level, Reach, Volume};
 
 use crate::lod::{LodView, lod_levels};
@@ -213,20 +213,6 @@ fn meshed_by_caller(gpu: bool, options: MeshOptions, surface: &dyn EditTarget) -
         _ => false,
     };
     gpu && mesher && !surface.streamed() && surface.volume().mask().is_clear()
-}
-
-/// The chunks whose dual-contouring quads an edit that changed `changed` can move: the chunks
-/// whose cell vertices it moves (each changed chunk and the seven before it), and the chunks
-/// after those on at most two axes, whose quads use their cells (as `DualCache::update` finds
-/// them). Sorted, without repeats.
-pub fn dual_mesh_keys(changed: &[ChunkKey]) -> Vec<ChunkKey> {
-    let mut keys: Vec<ChunkKey> = MeshCache::dependents(changed)
-        .into_iter()
-        .flat_map(|k| (0..7).map(move |d| k.offset(glam::IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
-        .collect();
-    keys.sort();
-    keys.dedup();
-    keys
 }
 
 impl ViewMeshes {

@@ -110,6 +110,21 @@ pub fn case_components(case: u8) -> Vec<u16> {
         .collect()
 }
 
+/// The chunks whose dual-contouring quads an edit that changed `changed` can move (one level):
+/// the chunks whose cell vertices it moves (each changed chunk and the seven before it), and the
+/// chunks after those on at most two axes — a chunk's quads use cells of the chunk and of the
+/// chunks before it on at most two axes (a quad lies in a plane), so a vertex change reaches the
+/// seven offsets short of (1, 1, 1). Sorted, without repeats.
+pub fn dual_mesh_keys(changed: &[ChunkKey]) -> Vec<ChunkKey> {
+    let mut keys: Vec<ChunkKey> = MeshCache::dependents(changed)
+        .into_iter()
+        .flat_map(|k| (0..7).map(move |d| k.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    keys
+}
+
 /// One vertex of manifold dual contouring as the CPU places it: its cell (`x + n (y + n z)`),
 /// the cell edges of its component ([`case_components`]' bits), its position (grid units from
 /// the chunk origin), its normal and its material blend.
@@ -554,15 +569,7 @@ impl DualCache {
                 self.duals.insert(key, d);
             }
         }
-        let mut mesh_keys: Vec<ChunkKey> = vertex_keys
-            .iter()
-            // A chunk's quads use cells of the chunk and of the chunks before it on at most two
-            // axes (a quad lies in a plane): so a vertex change reaches the seven offsets short of
-            // (1, 1, 1).
-            .flat_map(|k| (0..7).map(move |d| k.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))))
-            .collect();
-        mesh_keys.sort();
-        mesh_keys.dedup();
+        let mesh_keys = dual_mesh_keys(changed);
         let meshes: Vec<(ChunkKey, DualChunkMesh)> =
             mesh_keys.par_iter().map(|&key| (key, self.assemble(key))).collect();
         for (key, m) in meshes {

@@ -51,7 +51,9 @@ mod workers;
 
 pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS, view_block};
 pub use cases::{TriangleEdge, case_triangles};
-pub use dual::{CELL_MARGIN, DualCache, DualChunkMesh, DualVertex, VertexSolver, case_components, dual_vertices};
+pub use dual::{
+    CELL_MARGIN, DualCache, DualChunkMesh, DualVertex, VertexSolver, case_components, dual_mesh_keys, dual_vertices,
+};
 pub use marching::{crossing_position, mesh_block, surface_chunks};
 pub use mesh::{Mesh, VertexMaterial};
 pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_reported, mesh_volume_with};
