@@ -17,7 +17,7 @@ use strata_editor::{Editor, Scene, View};
 use strata_mesh::export::save_mesh_with;
 use strata_mesh::import::{MESH_EXTENSIONS, load_mesh};
 use strata_mesh::islands::DEFAULT_MIN_ISLAND_CELLS;
-use strata_mesh::normals::{DEFAULT_CREASE_DEGREES, crease_normals};
+use strata_mesh::normals::DEFAULT_CREASE_DEGREES;
 use strata_volume::brush::MeshRule;
 use strata_volume::{Axis, Chunk, EditControl, EditSettings};
 
@@ -296,20 +296,12 @@ pub fn export(
     let meshing = spinner(&format!("meshing {} layer(s) with {}", chosen.len(), options.mesher));
     let t = Instant::now();
     let palette = s.export_palette();
-    let (mesh, islands) =
-        Editor::new(s).export_mesh_reported(options).map_err(|e| anyhow::anyhow!("{}: {e}", scene.display()))?;
+    // Creased shading normals, made chunk by chunk for plain marching cubes; dual contouring
+    // and simplified meshes keep the mesher's (see `strata_mesh::mesh_volume_shaded`).
+    let (mesh, islands) = Editor::new(s)
+        .export_mesh_shaded(options, DEFAULT_CREASE_DEGREES)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scene.display()))?;
     let mesh_ms = t.elapsed().as_secs_f64() * 1e3;
-    // Dual contouring places its own normals at sharp features; the others get creased ones,
-    // except simplified meshes: at their triangle sizes the faces around nearly every vertex
-    // differ by more than the crease angle, and splitting there doubled the vertices (1,028 for
-    // 514 positions, the bunny at 48 cells within 0.3 cells), so they keep the mesher's normals
-    // (the surface's, from the stored crossings) on welded vertices.
-    let dual = matches!(mesher, Mesher::Dc | Mesher::Dc1);
-    let mesh = if dual || simplify.is_some() { mesh } else { crease_normals(&mesh, DEFAULT_CREASE_DEGREES) };
-    // (Only a simplified mesh can carry vertices equal in everything: the meshers weld theirs,
-    // and creased normals split vertices on purpose. A weld of every export would cost a hash
-    // map of all its vertices, hundreds of MiB for the bunny at 1,024 cells.)
-    let mesh = if simplify.is_some() { mesh.welded() } else { mesh };
     meshing.finish_and_clear();
     if mesh.indices.is_empty() {
         bail!("{}: the chosen layers hold no surface to export", scene.display());

@@ -745,17 +745,38 @@ impl Editor {
     /// the layers. Islands are measured in each layer's own cells (cells³ of its grid, before
     /// the layer's transform), so one threshold means the same on layers of any scale.
     pub fn export_mesh_reported(&self, options: MeshOptions) -> Result<(Mesh, IslandReport), EditorError> {
+        self.export_layers(|v| strata_mesh::mesh_volume_reported(v, options, None))
+    }
+
+    /// [`Editor::export_mesh_reported`] with shading normals for a file
+    /// ([`strata_mesh::mesh_volume_shaded`]): creased at `crease_degrees` in each layer's grid
+    /// (the layer transforms are similarities, so the creases are the same in the world),
+    /// except for dual contouring and simplified meshes.
+    pub fn export_mesh_shaded(
+        &self,
+        options: MeshOptions,
+        crease_degrees: f32,
+    ) -> Result<(Mesh, IslandReport), EditorError> {
+        self.export_layers(|v| strata_mesh::mesh_volume_shaded(v, options, crease_degrees))
+    }
+
+    /// The visible layers meshed by `mesh` and moved into the world, one after the other.
+    fn export_layers(
+        &self,
+        mesh: impl Fn(&strata_volume::Volume) -> Result<(Mesh, IslandReport), MesherError>,
+    ) -> Result<(Mesh, IslandReport), EditorError> {
         let mut out = Mesh::default();
         let mut islands = IslandReport::default();
         for l in self.scene.layers.iter().filter(|l| l.visible) {
-            let (mut m, removed) = strata_mesh::mesh_volume_reported(&l.volume, options, None)?;
+            let (mut m, removed) = mesh(&l.volume)?;
             islands = islands.then(removed);
             to_world(&mut m, &l.transform);
-            let base = out.positions.len() as u32;
-            for i in 0..m.vertex_count() {
-                out.push_vertex_from(&m, i, [0.0; 3]);
+            if out.positions.is_empty() && out.indices.is_empty() {
+                out = m;
+                continue;
             }
-            out.indices.extend(m.indices.iter().map(|i| i + base));
+            let (nv, ni) = (m.vertex_count(), m.indices.len());
+            out.append_range(&m, 0..nv, 0..ni);
         }
         Ok((out, islands))
     }

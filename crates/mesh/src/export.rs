@@ -130,6 +130,25 @@ fn triangle_materials(mesh: &Mesh) -> Vec<u8> {
         .collect()
 }
 
+/// Writes 4-byte words little-endian: their own bytes where the machine is little-endian (one
+/// write, no copy), converted a piece at a time elsewhere.
+fn write_le_words<T: bytemuck::Pod>(w: &mut impl Write, words: &[T]) -> io::Result<()> {
+    let words: &[u32] = bytemuck::cast_slice(words);
+    if cfg!(target_endian = "little") {
+        return w.write_all(bytemuck::cast_slice(words));
+    }
+    write_le_words_converted(w, words)
+}
+
+/// [`write_le_words`] on any machine: each word converted to little-endian bytes.
+fn write_le_words_converted(w: &mut impl Write, words: &[u32]) -> io::Result<()> {
+    for part in words.chunks(1 << 14) {
+        let bytes: Vec<u8> = part.iter().flat_map(|x| x.to_le_bytes()).collect();
+        w.write_all(&bytes)?;
+    }
+    Ok(())
+}
+
 /// Writes `mesh` to `path` in the format its extension names, atomically, without colours.
 pub fn save_mesh(mesh: &Mesh, path: &Path) -> Result<(), ExportError> {
     save_mesh_with(mesh, path, &[])
@@ -279,48 +298,31 @@ fn write_ply(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
 }
 
 fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io::Result<()> {
+    // The binary chunk is laid out first and streamed after the JSON: positions, normals,
+    // colours, then the indices (no second copy of the mesh in memory).
     let nv = mesh.vertex_count();
-    let mut bin: Vec<u8> = Vec::with_capacity(nv * 28 + mesh.indices.len() * 4);
-    for p in &mesh.positions {
-        p.iter().for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
-    }
-    let normals_at = bin.len();
-    for n in &mesh.normals {
-        n.iter().for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
-    }
-    let colors_at = bin.len();
-    if !palette.is_empty() {
-        for i in 0..nv {
-            let c = vertex_color(mesh, i, palette).map(linear_byte);
-            bin.extend_from_slice(&[c[0], c[1], c[2], 255]);
-        }
-    }
-    // Index ranges: one for the whole mesh, or one per dominant material.
+    let normals_at = nv * 12;
+    let colors_at = normals_at + nv * 12;
+    let indices_at = colors_at + if palette.is_empty() { 0 } else { nv * 4 };
+    // Index ranges: one for the whole mesh, or one per dominant material, in id order.
+    let dominant = (!palette.is_empty()).then(|| triangle_materials(mesh));
     let mut groups: Vec<(Option<u8>, usize, usize)> = Vec::new();
-    let indices_at = bin.len();
-    if palette.is_empty() {
-        mesh.indices.iter().for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
-        groups.push((None, indices_at, mesh.indices.len()));
-    } else {
-        let materials = triangle_materials(mesh);
-        let mut used = materials.clone();
-        used.sort_unstable();
-        used.dedup();
-        for id in used {
-            let at = bin.len();
-            let mut count = 0;
-            for (t, _) in materials.iter().enumerate().filter(|(_, m)| **m == id) {
-                for i in &mesh.indices[3 * t..3 * t + 3] {
-                    bin.extend_from_slice(&i.to_le_bytes());
-                }
-                count += 3;
+    match &dominant {
+        None => groups.push((None, indices_at, mesh.indices.len())),
+        Some(dominant) => {
+            let mut count = [0usize; 256];
+            for &id in dominant {
+                count[id as usize] += 3;
             }
-            groups.push((Some(id), at, count));
+            let mut at = indices_at;
+            for (id, &n) in count.iter().enumerate().filter(|(_, n)| **n > 0) {
+                groups.push((Some(id as u8), at, n));
+                at += n * 4;
+            }
         }
     }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
+    // Every piece is a whole number of 4-byte words: no padding.
+    let bin_len = indices_at + mesh.indices.len() * 4;
     let (mut min, mut max) = ([f32::MAX; 3], [f32::MIN; 3]);
     for p in &mesh.positions {
         for k in 0..3 {
@@ -344,7 +346,7 @@ fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
     }
     let mut primitives = Vec::new();
     let mut materials = Vec::new();
-    for (id, at, count) in groups {
+    for &(id, at, count) in &groups {
         views.push(serde_json::json!({ "buffer": 0, "byteOffset": at, "byteLength": count * 4, "target": 34963 }));
         accessors.push(serde_json::json!({ "bufferView": views.len() - 1, "componentType": 5125, "count": count, "type": "SCALAR" }));
         let mut prim =
@@ -365,7 +367,7 @@ fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
         "scenes": [ { "nodes": [0] } ],
         "nodes": [ { "mesh": 0, "name": "strata" } ],
         "meshes": [ { "primitives": primitives } ],
-        "buffers": [ { "byteLength": bin.len() } ],
+        "buffers": [ { "byteLength": bin_len } ],
         "bufferViews": views,
         "accessors": accessors
     });
@@ -376,15 +378,65 @@ fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
     while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
-    let total = 12 + 8 + text.len() + 8 + bin.len();
+    let total = 12 + 8 + text.len() + 8 + bin_len;
+    let total = u32::try_from(total)
+        .map_err(|_| io::Error::other(format!("the mesh needs {total} bytes; a GLB file holds at most 4 GiB")))?;
     w.write_all(b"glTF")?;
     w.write_all(&2u32.to_le_bytes())?;
-    w.write_all(&(total as u32).to_le_bytes())?;
+    w.write_all(&total.to_le_bytes())?;
     w.write_all(&(text.len() as u32).to_le_bytes())?;
     w.write_all(b"JSON")?;
     w.write_all(&text)?;
-    w.write_all(&(bin.len() as u32).to_le_bytes())?;
+    w.write_all(&(bin_len as u32).to_le_bytes())?;
     w.write_all(b"BIN\0")?;
-    w.write_all(&bin)?;
+    write_le_words(w, bytemuck::cast_slice::<[f32; 3], f32>(&mesh.positions))?;
+    write_le_words(w, bytemuck::cast_slice::<[f32; 3], f32>(&mesh.normals))?;
+    if !palette.is_empty() {
+        let colors: Vec<u8> = (0..nv)
+            .flat_map(|i| {
+                let c = vertex_color(mesh, i, palette).map(linear_byte);
+                [c[0], c[1], c[2], 255]
+            })
+            .collect();
+        w.write_all(&colors)?;
+    }
+    match &dominant {
+        Some(dominant) if groups.len() > 1 => {
+            // One material's triangles after another, staged a piece at a time.
+            let mut picked: Vec<u32> = Vec::with_capacity(3 << 14);
+            for &(id, _, _) in &groups {
+                for (t, _) in mesh.indices.chunks_exact(3).zip(dominant).filter(|(_, d)| Some(**d) == id) {
+                    picked.extend_from_slice(t);
+                    if picked.len() >= 3 << 14 {
+                        write_le_words(w, &picked)?;
+                        picked.clear();
+                    }
+                }
+                write_le_words(w, &picked)?;
+                picked.clear();
+            }
+        }
+        _ => write_le_words(w, &mesh.indices)?,
+    }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words_are_written_little_endian_on_either_road() {
+        let positions = [[1.5f32, -0.0, f32::MAX], [3.25e-7, 2.0, -7.0]];
+        let (mut direct, mut converted) = (Vec::new(), Vec::new());
+        write_le_words(&mut direct, &positions).unwrap();
+        write_le_words_converted(&mut converted, bytemuck::cast_slice(&positions)).unwrap();
+        let expected: Vec<u8> = positions.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        assert_eq!(direct, expected);
+        assert_eq!(converted, expected);
+        let indices: Vec<u32> = (0..70_000u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
+        converted.clear();
+        write_le_words_converted(&mut converted, &indices).unwrap();
+        assert_eq!(converted, indices.iter().flat_map(|i| i.to_le_bytes()).collect::<Vec<u8>>());
+    }
 }

@@ -35,6 +35,7 @@
 mod cache;
 mod cases;
 pub mod checks;
+mod creased;
 mod dual;
 pub mod export;
 pub mod import;
@@ -51,11 +52,14 @@ mod workers;
 
 pub use cache::{BlockMesher, LevelCap, MeshCache, PART_CELLS, view_block};
 pub use cases::{TriangleEdge, case_triangles};
+pub use creased::mesh_volume_creased;
 pub use dual::{
     CELL_MARGIN, DualCache, DualChunkMesh, DualVertex, VertexSolver, case_components, dual_mesh_keys, dual_vertices,
 };
 pub use marching::{crossing_position, mesh_block, surface_chunks};
 pub use mesh::{Mesh, VertexMaterial};
-pub use mesher::{MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_reported, mesh_volume_with};
+pub use mesher::{
+    MeshOptions, Mesher, MesherError, UnknownMesher, mesh_volume_reported, mesh_volume_shaded, mesh_volume_with,
+};
 pub use tetra::{TetraScratch, mesh_block_tetra};
 pub use workers::MeshWorkers;

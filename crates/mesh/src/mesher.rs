@@ -125,6 +125,9 @@ pub enum MesherError {
     /// Island removal refused its threshold.
     #[error(transparent)]
     Islands(#[from] IslandError),
+    /// A crease angle that is NaN, infinite or outside 0 to 180 degrees.
+    #[error("the crease angle must be a finite number of degrees from 0 to 180, got {0}")]
+    BadCrease(f32),
 }
 
 /// A mesher, an optional island removal and an optional simplification: what an export asks
@@ -197,6 +200,34 @@ pub fn mesh_volume_reported(
     let mesh = match options.simplify {
         Some(e) => simplify(&mesh, Simplify::export(e))?,
         None => mesh,
+    };
+    Ok((mesh, islands))
+}
+
+/// [`mesh_volume_reported`] with shading normals for export: creased at `crease_degrees`
+/// ([`crate::normals::crease_normals`]), except for dual contouring, which places its own
+/// normals at sharp features, and simplified meshes: at their triangle sizes the faces around
+/// nearly every vertex differ by more than the crease angle, and splitting there doubled the
+/// vertices (1,028 for 514 positions, the bunny at 48 cells within 0.3 cells), so they keep the
+/// mesher's normals (the surface's, from the stored crossings) and are welded (vertices equal in
+/// position, normal and material merged). Plain marching cubes is meshed and creased chunk by
+/// chunk ([`crate::mesh_volume_creased`]), without a second whole mesh in memory.
+pub fn mesh_volume_shaded(
+    volume: &Volume,
+    options: MeshOptions,
+    crease_degrees: f32,
+) -> Result<(Mesh, IslandReport), MesherError> {
+    if !(crease_degrees.is_finite() && (0.0..=180.0).contains(&crease_degrees)) {
+        return Err(MesherError::BadCrease(crease_degrees));
+    }
+    if options == MeshOptions::new(Mesher::MarchingCubes) {
+        return Ok((crate::mesh_volume_creased(volume, crease_degrees), IslandReport::default()));
+    }
+    let (mesh, islands) = mesh_volume_reported(volume, options, None)?;
+    let mesh = match options.mesher {
+        _ if options.simplify.is_some() => mesh.welded(),
+        Mesher::DualContouring | Mesher::SingleVertexDualContouring => mesh,
+        _ => crate::normals::crease_normals(&mesh, crease_degrees),
     };
     Ok((mesh, islands))
 }

@@ -21,56 +21,118 @@ const SLIVER_AREA_RATIO: f32 = 0.05;
 /// The result is for shading: split vertices make it non-manifold by index, so run mesh checks
 /// on the mesh before this step.
 pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
-    let cos_limit = crease_degrees.to_radians().cos();
-    let tris: Vec<[u32; 3]> = mesh.triangles().collect();
     // Area-weighted face normals (the cross product's length is twice the area).
-    let face: Vec<Vec3> = tris
-        .iter()
+    let face: Vec<Vec3> = mesh
+        .triangles()
         .map(|t| {
             let [a, b, c] = t.map(|i| Vec3::from(mesh.positions[i as usize]));
             (b - a).cross(c - a)
         })
         .collect();
-    let mut incident: Vec<Vec<(u32, u8)>> = vec![Vec::new(); mesh.positions.len()];
-    for (ti, t) in tris.iter().enumerate() {
-        for (k, &v) in t.iter().enumerate() {
-            incident[v as usize].push((ti as u32, k as u8));
+    // The corners around each vertex, in triangle order (compressed rows: one flat list).
+    let mut start = vec![0u32; mesh.positions.len() + 1];
+    for &v in &mesh.indices {
+        start[v as usize + 1] += 1;
+    }
+    for v in 0..mesh.positions.len() {
+        start[v + 1] += start[v];
+    }
+    let mut corners = vec![0u32; mesh.indices.len()];
+    let mut next = start.clone();
+    for (c, &v) in mesh.indices.iter().enumerate() {
+        corners[next[v as usize] as usize] = c as u32;
+        next[v as usize] += 1;
+    }
+    drop(next);
+    let mut out = Mesh::default();
+    let mut indices = vec![0; mesh.indices.len()];
+    let with_materials = !mesh.materials.is_empty();
+    let mut creaser = Creaser::new(crease_degrees);
+    for v in 0..mesh.positions.len() {
+        creaser.clear();
+        for &c in &corners[start[v] as usize..start[v + 1] as usize] {
+            creaser.push(face[c as usize / 3], c);
+        }
+        creaser.split(
+            |normal| {
+                out.push_vertex(mesh.positions[v], normal, mesh.material(v), with_materials);
+                out.positions.len() as u32 - 1
+            },
+            |c, i| indices[c as usize] = i,
+        );
+        for (normal, i) in creaser.normals() {
+            out.normals[i as usize] = normal;
         }
     }
-    let mut out = Mesh { indices: vec![0; mesh.indices.len()], ..Default::default() };
-    for (v, list) in incident.iter_mut().enumerate() {
-        list.sort_by(|a, b| face[b.0 as usize].length().total_cmp(&face[a.0 as usize].length()));
-        let mut groups: Vec<(Vec3, u32)> = Vec::new();
-        let largest = list.first().map_or(0.0, |&(ti, _)| face[ti as usize].length());
-        for &(ti, k) in list.iter() {
-            let f = face[ti as usize];
+    out.indices = indices;
+    out
+}
+
+/// The grouping of [`crease_normals`] around one vertex, shared with the streamed export
+/// ([`crate::creased`]): faces are pushed in mesh order, then [`Creaser::split`] groups them.
+pub(crate) struct Creaser {
+    cos_limit: f32,
+    /// (twice the area, area-weighted face normal, corner) of each face around the vertex.
+    around: Vec<(f32, Vec3, u32)>,
+    /// (normal sum, vertex index) of each group.
+    groups: Vec<(Vec3, u32)>,
+}
+
+impl Creaser {
+    pub(crate) fn new(crease_degrees: f32) -> Self {
+        Creaser { cos_limit: crease_degrees.to_radians().cos(), around: Vec::new(), groups: Vec::new() }
+    }
+
+    /// Starts the next vertex.
+    pub(crate) fn clear(&mut self) {
+        self.around.clear();
+    }
+
+    /// One face around the vertex: its area-weighted normal and the corner that names the
+    /// vertex (faces come in mesh order).
+    pub(crate) fn push(&mut self, face: Vec3, corner: u32) {
+        self.around.push((face.length(), face, corner));
+    }
+
+    /// Groups the faces pushed since [`Creaser::clear`]: largest first (ties in mesh order), a
+    /// face joins the first group whose running mean is within the crease angle, a sliver the
+    /// closest group, any other face starts a group. `vertex(normal)` adds a group's vertex
+    /// (its normal is set once the group is complete, so it is given `[0, 0, 0]` first and the
+    /// final unit normal through `normal` afterwards) and returns its index; `corner(c, i)`
+    /// points corner `c` at vertex `i`.
+    pub(crate) fn split(&mut self, mut vertex: impl FnMut([f32; 3]) -> u32, mut corner: impl FnMut(u32, u32)) {
+        self.around.sort_by(|a, b| b.0.total_cmp(&a.0));
+        self.groups.clear();
+        let largest = self.around.first().map_or(0.0, |a| a.0);
+        for &(length, f, c) in &self.around {
             let dir = f.normalize_or_zero();
             let closeness = |g: &(Vec3, u32)| g.0.normalize_or_zero().dot(dir);
-            let mut slot = groups.iter().position(|g| closeness(g) >= cos_limit);
+            let mut slot = self.groups.iter().position(|g| closeness(g) >= self.cos_limit);
             // Slivers (marching cubes makes some next to nodes) have unreliable normals: they
             // join the closest group instead of starting a crease.
-            if slot.is_none() && f.length() < SLIVER_AREA_RATIO * largest {
-                slot = (0..groups.len()).max_by(|&a, &b| closeness(&groups[a]).total_cmp(&closeness(&groups[b])));
+            if slot.is_none() && length < SLIVER_AREA_RATIO * largest {
+                slot = (0..self.groups.len())
+                    .max_by(|&a, &b| closeness(&self.groups[a]).total_cmp(&closeness(&self.groups[b])));
             }
             let index = match slot {
                 Some(g) => {
-                    groups[g].0 += f;
-                    groups[g].1
+                    self.groups[g].0 += f;
+                    self.groups[g].1
                 }
                 None => {
-                    let index = out.positions.len() as u32;
-                    out.push_vertex(mesh.positions[v], [0.0; 3], mesh.material(v), !mesh.materials.is_empty());
-                    groups.push((f, index));
+                    let index = vertex([0.0; 3]);
+                    self.groups.push((f, index));
                     index
                 }
             };
-            out.indices[ti as usize * 3 + k as usize] = index;
-        }
-        for (sum, index) in groups {
-            out.normals[index as usize] = sum.normalize_or(Vec3::Z).to_array();
+            corner(c, index);
         }
     }
-    out
+
+    /// The groups of the last [`Creaser::split`]: (unit normal, vertex index).
+    pub(crate) fn normals(&self) -> impl Iterator<Item = ([f32; 3], u32)> + '_ {
+        self.groups.iter().map(|&(sum, index)| (sum.normalize_or(Vec3::Z).to_array(), index))
+    }
 }
 
 #[cfg(test)]
@@ -116,5 +178,75 @@ mod tests {
         }
         assert!(mean < 5.0, "mean shading error {mean} degrees");
         assert!((checks::signed_volume(&shaded) - checks::signed_volume(&mc)).abs() < 1e-6);
+    }
+    /// The grouping as it was written before the compressed rows and the shared [`Creaser`]:
+    /// one list of faces a vertex, sorted by recomputed areas.
+    fn crease_by_lists(mesh: &Mesh, crease_degrees: f32) -> Mesh {
+        let cos_limit = crease_degrees.to_radians().cos();
+        let tris: Vec<[u32; 3]> = mesh.triangles().collect();
+        let face: Vec<Vec3> = tris
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| Vec3::from(mesh.positions[i as usize]));
+                (b - a).cross(c - a)
+            })
+            .collect();
+        let mut incident: Vec<Vec<(u32, u8)>> = vec![Vec::new(); mesh.positions.len()];
+        for (ti, t) in tris.iter().enumerate() {
+            for (k, &v) in t.iter().enumerate() {
+                incident[v as usize].push((ti as u32, k as u8));
+            }
+        }
+        let mut out = Mesh { indices: vec![0; mesh.indices.len()], ..Default::default() };
+        for (v, list) in incident.iter_mut().enumerate() {
+            list.sort_by(|a, b| face[b.0 as usize].length().total_cmp(&face[a.0 as usize].length()));
+            let mut groups: Vec<(Vec3, u32)> = Vec::new();
+            let largest = list.first().map_or(0.0, |&(ti, _)| face[ti as usize].length());
+            for &(ti, k) in list.iter() {
+                let f = face[ti as usize];
+                let dir = f.normalize_or_zero();
+                let closeness = |g: &(Vec3, u32)| g.0.normalize_or_zero().dot(dir);
+                let mut slot = groups.iter().position(|g| closeness(g) >= cos_limit);
+                if slot.is_none() && f.length() < SLIVER_AREA_RATIO * largest {
+                    slot = (0..groups.len()).max_by(|&a, &b| closeness(&groups[a]).total_cmp(&closeness(&groups[b])));
+                }
+                let index = match slot {
+                    Some(g) => {
+                        groups[g].0 += f;
+                        groups[g].1
+                    }
+                    None => {
+                        let index = out.positions.len() as u32;
+                        out.push_vertex(mesh.positions[v], [0.0; 3], mesh.material(v), !mesh.materials.is_empty());
+                        groups.push((f, index));
+                        index
+                    }
+                };
+                out.indices[ti as usize * 3 + k as usize] = index;
+            }
+            for (sum, index) in groups {
+                out.normals[index as usize] = sum.normalize_or(Vec3::Z).to_array();
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_grouping_is_the_one_written_before_bit_for_bit() {
+        use strata_volume::brush::Torus;
+        let mut v = Volume::new();
+        v.add(&Cuboid::new(DVec3::new(8.37, 7.71, 8.29), DVec3::new(5.21, 4.63, 6.11)).unwrap()).unwrap();
+        v.add(&Cuboid::new(DVec3::new(20.0, 16.0, 8.0), DVec3::new(4.0, 4.0, 4.0)).unwrap()).unwrap();
+        v.add(&Torus::new(DVec3::new(-6.0, 3.0, 2.0), DVec3::new(0.3, 1.0, 0.2), 7.0, 2.5).unwrap()).unwrap();
+        v.subtract(&Sphere::new(DVec3::new(10.0, 9.0, 12.0), 4.5).unwrap()).unwrap();
+        for mesh in [mesh_volume(&v), dual_contour_volume(&v)] {
+            for degrees in [0.0, 10.0, DEFAULT_CREASE_DEGREES, 75.0, 180.0] {
+                let (new, old) = (crease_normals(&mesh, degrees), crease_by_lists(&mesh, degrees));
+                assert_eq!(new.indices, old.indices, "{degrees}");
+                assert_eq!(new.positions, old.positions, "{degrees}");
+                assert_eq!(new.normals, old.normals, "{degrees}");
+                assert_eq!(new.materials, old.materials, "{degrees}");
+            }
+        }
     }
 }

@@ -2,7 +2,7 @@
 
 use thiserror::Error;
 
-use crate::axis::{Axis, compose};
+use crate::axis::Axis;
 use crate::chunk::{Chunk, ChunkLists, ChunkView, check_lists};
 use crate::coords::{ChunkKey, edge_of};
 use crate::volume::Volume;
@@ -27,16 +27,26 @@ pub(crate) fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
     for v in 0..n {
         for u in 0..n {
             let line = cursor.next_line();
-            let mut s = line.start_inside;
-            let mut next = line.positions().map(|q| edge_of(q, level)).peekable();
-            for j in 0..n {
-                if s {
-                    let [x, y, z] = compose(axis, j, u, v);
-                    rows[y + n * z] |= 1 << x;
+            // Nodes `from..to` of the line are inside: a bit range of one row for x lines, one
+            // bit of consecutive rows for y lines (x = v, row j + n u), of rows n apart for z
+            // lines (x = u, row v + n j): see `compose`.
+            let mut fill = |from: usize, to: usize| match axis {
+                Axis::X if to > from => rows[u + n * v] |= ((1u128 << (to - from)) - 1) << from,
+                Axis::X => {}
+                Axis::Y => rows[n * u + from..n * u + to].iter_mut().for_each(|r| *r |= 1 << v),
+                Axis::Z => (from..to).for_each(|j| rows[v + n * j] |= 1 << u),
+            };
+            // A crossing in cell `e` flips the state of the nodes after node `e`.
+            let (mut inside, mut from) = (line.start_inside, 0);
+            for e in line.positions().map(|q| edge_of(q, level)) {
+                let to = (e + 1).min(n);
+                if inside {
+                    fill(from, to);
                 }
-                if next.next_if(|&e| e == j).is_some() {
-                    s = !s;
-                }
+                (inside, from) = (!inside, to);
+            }
+            if inside {
+                fill(from, n);
             }
         }
     }
@@ -136,5 +146,66 @@ impl Volume {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DQuat, DVec3};
+
+    use super::*;
+    use crate::Level;
+    use crate::axis::compose;
+    use crate::brush::{Cuboid, Sphere};
+
+    /// The node states read one node at a time, as they were before runs.
+    fn states_node_by_node(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
+        let level = lists.level();
+        let n = level.cells();
+        let mut rows = vec![0u128; n * n];
+        let mut cursor = lists.cursor(axis, 0);
+        for v in 0..n {
+            for u in 0..n {
+                let line = cursor.next_line();
+                let mut s = line.start_inside;
+                let mut next = line.positions().map(|q| edge_of(q, level)).peekable();
+                for j in 0..n {
+                    if s {
+                        let [x, y, z] = compose(axis, j, u, v);
+                        rows[y + n * z] |= 1 << x;
+                    }
+                    if next.next_if(|&e| e == j).is_some() {
+                        s = !s;
+                    }
+                }
+            }
+        }
+        rows
+    }
+
+    #[test]
+    fn runs_give_the_states_read_node_by_node_at_every_level_on_and_off_the_grid() {
+        let mut v = Volume::new();
+        // On nodes and half cells, off the grid, through chunk faces, rotated.
+        v.add(&Cuboid::new(DVec3::new(16.0, 8.0, 8.5), DVec3::new(6.0, 4.0, 16.0)).unwrap()).unwrap();
+        v.add(&Sphere::new(DVec3::new(3.3, 17.9, 12.1), 7.7).unwrap()).unwrap();
+        v.subtract(
+            &Cuboid::oriented(DVec3::new(10.0, 12.0, 9.0), DVec3::new(5.0, 2.0, 3.0), DQuat::from_rotation_z(0.7), 0.0)
+                .unwrap(),
+        )
+        .unwrap();
+        v.set_chunk_level(ChunkKey::new(0, 0, 0), Level::new(1).unwrap());
+        v.set_chunk_level(ChunkKey::new(1, 0, 0), Level::new(2).unwrap());
+        let mut seen = 0;
+        for (_, chunk) in v.chunks() {
+            if let Chunk::Lists(lists) = chunk {
+                for axis in Axis::ALL {
+                    assert_eq!(states_from(lists, axis), states_node_by_node(lists, axis), "{axis:?}");
+                }
+                seen += 1;
+            }
+        }
+        assert!(seen >= 4, "{seen} chunks with lists");
+        v.check_invariants().unwrap();
     }
 }
