@@ -74,8 +74,8 @@ pub(crate) struct Creaser {
     cos_limit: f32,
     /// (twice the area, area-weighted face normal, corner) of each face around the vertex.
     around: Vec<(f32, Vec3, u32)>,
-    /// (normal sum, vertex index) of each group.
-    groups: Vec<(Vec3, u32)>,
+    /// (normal sum, its direction, vertex index) of each group.
+    groups: Vec<(Vec3, Vec3, u32)>,
 }
 
 impl Creaser {
@@ -106,7 +106,7 @@ impl Creaser {
         let largest = self.around.first().map_or(0.0, |a| a.0);
         for &(length, f, c) in &self.around {
             let dir = f.normalize_or_zero();
-            let closeness = |g: &(Vec3, u32)| g.0.normalize_or_zero().dot(dir);
+            let closeness = |g: &(Vec3, Vec3, u32)| g.1.dot(dir);
             let mut slot = self.groups.iter().position(|g| closeness(g) >= self.cos_limit);
             // Slivers (marching cubes makes some next to nodes) have unreliable normals: they
             // join the closest group instead of starting a crease.
@@ -116,12 +116,14 @@ impl Creaser {
             }
             let index = match slot {
                 Some(g) => {
-                    self.groups[g].0 += f;
-                    self.groups[g].1
+                    let group = &mut self.groups[g];
+                    group.0 += f;
+                    group.1 = group.0.normalize_or_zero();
+                    group.2
                 }
                 None => {
                     let index = vertex([0.0; 3]);
-                    self.groups.push((f, index));
+                    self.groups.push((f, dir, index));
                     index
                 }
             };
@@ -131,7 +133,7 @@ impl Creaser {
 
     /// The groups of the last [`Creaser::split`]: (unit normal, vertex index).
     pub(crate) fn normals(&self) -> impl Iterator<Item = ([f32; 3], u32)> + '_ {
-        self.groups.iter().map(|&(sum, index)| (sum.normalize_or(Vec3::Z).to_array(), index))
+        self.groups.iter().map(|&(sum, _, index)| (sum.normalize_or(Vec3::Z).to_array(), index))
     }
 }
 
