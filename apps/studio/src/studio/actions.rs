@@ -109,8 +109,11 @@ impl Studio {
                     Islands::ForStl | Islands::Remove => Some(self.island_cells),
                 };
                 let options = strata_mesh::MeshOptions { remove_islands: remove, ..self.export };
-                let (mesh, islands) =
-                    self.editor.export_mesh_reported(options).map_err(|e| format!("Could not export: {e}"))?;
+                // Shading normals as `strata export` writes them (creased for marching cubes).
+                let (mesh, islands) = self
+                    .editor
+                    .export_mesh_shaded(options, strata_mesh::normals::DEFAULT_CREASE_DEGREES)
+                    .map_err(|e| format!("Could not export: {e}"))?;
                 strata_mesh::export::save_mesh_with(&mesh, &path, &self.editor.scene.export_palette())
                     .map_err(|e| format!("Could not export {}: {e}", path.display()))?;
                 self.message = format!("Exported {} triangles to {}", mesh.triangle_count(), path.display());
