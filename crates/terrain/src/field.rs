@@ -253,13 +253,23 @@ impl TerrainField {
     }
 }
 
-impl NodeField for TerrainField {
-    fn decided(&self, origin: I64Vec3, level: Level) -> Option<bool> {
+impl TerrainField {
+    /// The chunk at `origin` decided by the recipe's bounds alone (the whole range of heights,
+    /// overhangs and caves), without computing a column: `Some(false)` for the sky above
+    /// anything the terrain can reach, `Some(true)` for rock below every cave. Constant time.
+    pub fn decided_by_recipe(&self, origin: I64Vec3) -> Option<bool> {
         let (y0, y1) = (origin.y as f64, (origin.y + CHUNK_CELLS) as f64);
         let h = &self.recipe.heights;
-        if let Some(d) = self.bound(y0, y1, h.base - h.amplitude, h.base + h.amplitude) {
+        self.bound(y0, y1, h.base - h.amplitude, h.base + h.amplitude)
+    }
+}
+
+impl NodeField for TerrainField {
+    fn decided(&self, origin: I64Vec3, level: Level) -> Option<bool> {
+        if let Some(d) = self.decided_by_recipe(origin) {
             return Some(d);
         }
+        let (y0, y1) = (origin.y as f64, (origin.y + CHUNK_CELLS) as f64);
         self.with_columns(origin, level, |cols| {
             let (lo, hi) = cols.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
             self.bound(y0, y1, lo, hi)

@@ -5,7 +5,8 @@
 //!    vertical half-height, both in grid units), when a viewer has entered another chunk;
 //! 2. evicts loaded chunks outside it (an edited one is kept for the next flush);
 //! 3. queues the missing ones for the worker threads, nearest first (a worker reads a chunk's
-//!    edited version from the database, else generates it from the recipe);
+//!    edited version from the database, else generates it from the recipe); sky that the
+//!    recipe's bounds prove empty, and that the database holds no edit of, is loaded at once;
 //! 4. integrates finished chunks until the frame's time budget is spent, nearest first, and never
 //!    beyond the memory budget;
 //! 5. flushes edited chunks to the database when the flush interval has passed.
@@ -109,6 +110,9 @@ pub struct UpdateReport {
     pub flushed: bool,
     /// Whether the memory budget held chunks back.
     pub over_budget: bool,
+    /// Of the chunks integrated, those the recipe proves empty (sky above anything the terrain
+    /// reaches, not edited): loaded at once, without a worker.
+    pub proven_empty: usize,
 }
 
 /// Sets and maps of chunk keys with the volume's fast key hasher.
@@ -171,6 +175,9 @@ pub struct World {
     ready: Vec<Done>,
     /// Chunks that could not be read (they are neither loaded nor editable).
     failed: KeyMap<String>,
+    /// Chunks the database holds (edited ones): read at open, kept by every flush. A chunk not
+    /// among them is what the recipe makes.
+    in_store: KeySet,
     desired: KeySet,
     /// The viewers' chunks when `desired` was computed.
     desired_for: Vec<IVec3>,
@@ -235,6 +242,10 @@ impl World {
         if !(settings.detail_distance.is_finite() && (0.0..=1e6).contains(&settings.detail_distance)) {
             return Err(WorldError::Setting("detail_distance"));
         }
+        let in_store = match &store {
+            Some(store) => store.edited_keys()?.into_iter().collect(),
+            None => KeySet::default(),
+        };
         let field = Arc::new(field);
         let store = store.map(Arc::new);
         let shared = Arc::new(Shared {
@@ -268,6 +279,7 @@ impl World {
             next_ticket: 0,
             ready: Vec::new(),
             failed: KeyMap::default(),
+            in_store,
             desired: KeySet::default(),
             desired_for: Vec::new(),
             stencil: Arc::new([]),
@@ -483,6 +495,17 @@ impl World {
                 } else {
                     true
                 }
+            });
+            // Sky that the recipe proves empty needs no worker, unless the database holds an
+            // edit of it.
+            wanted.retain(|&k| {
+                if self.in_store.contains(&k) || self.field.decided_by_recipe(k.origin_grid()) != Some(false) {
+                    return true;
+                }
+                self.integrate(k, StoredChunk { chunk: None, materials: None });
+                report.integrated += 1;
+                report.proven_empty += 1;
+                false
             });
             let mut jobs = {
                 let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
@@ -740,6 +763,13 @@ impl World {
         }
         if let Some(store) = &self.store {
             store.write_with_notes(&writes, &self.notes)?;
+        }
+        for (k, s) in &writes {
+            if s.is_some() {
+                self.in_store.insert(*k);
+            } else {
+                self.in_store.remove(k);
+            }
         }
         self.notes.clear();
         self.dirty.clear();

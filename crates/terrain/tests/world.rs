@@ -361,3 +361,50 @@ fn closed_inside(world: &World, loaded: &HashSet<ChunkKey>) {
     }
     assert!(mesh.indices.len() > 3000, "a mesh was made");
 }
+
+#[test]
+fn sky_is_loaded_without_workers_but_an_edit_in_the_sky_comes_back_from_the_database() {
+    let dir = scratch("sky");
+    let file = dir.join("world.redb");
+    let home = DVec3::new(8.0, 0.0, 8.0);
+    let far = DVec3::new(2000.0, 0.0, 0.0);
+    let mut world = World::create(&file, &Recipe::with_seed(5), settings(48.0)).unwrap();
+    // The lowest chunk above home that the recipe proves empty.
+    let sky = (0..64)
+        .map(|y| ChunkKey::new(0, y, 0))
+        .find(|k| world.field().decided_by_recipe(k.origin_grid()) == Some(false))
+        .expect("the recipe has a top");
+    let viewer = sky.origin_grid().as_dvec3() + DVec3::splat(8.0);
+    let mut proven = 0;
+    let t0 = std::time::Instant::now();
+    while world.pending_count() > 0 || proven == 0 {
+        proven += world.update(&[viewer]).proven_empty;
+        assert!(t0.elapsed() < SETTLE, "streaming settles");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(world.settle(&[viewer], SETTLE));
+    assert!(proven > 0, "some of the view is provably sky");
+    assert_eq!(world.loaded().collect::<HashSet<_>>(), world.chunks_in_view(&[viewer]));
+    // A ball built in the sky, flushed, evicted and seen again: read from the database, not
+    // taken for sky.
+    let ball = sky.origin_grid().as_dvec3() + DVec3::new(8.3, 7.9, 8.1);
+    let add = move |v: &mut strata_volume::Volume| {
+        v.apply(CsgOp::Add, &Sphere::new(ball, 5.0).unwrap(), &EditSettings::default())
+    };
+    world.edit(bounds_of(ball, 5.0), add).unwrap();
+    assert!(world.volume().chunk(sky).is_some());
+    let before = snapshot(&world, &[sky]);
+    world.flush().unwrap();
+    assert!(world.settle(&[far], SETTLE));
+    assert!(!world.is_loaded(sky));
+    assert!(world.settle(&[viewer], SETTLE));
+    assert_eq!(snapshot(&world, &[sky]), before, "after a flush and eviction");
+    drop(world);
+    let mut world = World::open(&file, settings(48.0)).unwrap();
+    assert!(world.settle(&[viewer], SETTLE));
+    assert_eq!(snapshot(&world, &[sky]), before, "after reopening");
+    // Home, far below the sky, loads as before.
+    assert!(world.settle(&[home], SETTLE));
+    assert_eq!(world.loaded().collect::<HashSet<_>>(), world.chunks_in_view(&[home]));
+    let _ = std::fs::remove_dir_all(dir);
+}
