@@ -18,7 +18,7 @@ use strata_volume::{ChunkKey, KeyHasher, Volume, VoxelBlock};
 use crate::Mesh;
 use crate::marching::{block_vertex_keys, mesh_block, surface_chunks};
 use crate::mesh::VertexMaterial;
-use crate::normals::Creaser;
+use crate::normals::{Creaser, corner_rows};
 use crate::weld::EdgeKey;
 
 /// Chunks meshed together before their parts are joined: enough to keep both cores busy, few
@@ -81,23 +81,7 @@ fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {
         (b - a).cross(c - a)
     }));
     let nv = m.positions.len();
-    s.start.clear();
-    s.start.resize(nv + 1, 0);
-    for &v in &m.indices {
-        s.start[v as usize + 1] += 1;
-    }
-    for v in 0..nv {
-        s.start[v + 1] += s.start[v];
-    }
-    s.corners.clear();
-    s.corners.resize(m.indices.len(), 0);
-    // Filled in triangle order: `start[v]` moves to the end of `v`'s run, then all shift back.
-    for (c, &v) in m.indices.iter().enumerate() {
-        s.corners[s.start[v as usize] as usize] = c as u32;
-        s.start[v as usize] += 1;
-    }
-    s.start.copy_within(0..nv, 1);
-    s.start[0] = 0;
+    corner_rows(&m.indices, nv, &mut s.start, &mut s.corners);
     let mut out = Part { mesh: Mesh::default(), border: Vec::new(), faces: Vec::new() };
     let mut indices = vec![0u32; m.indices.len()];
     let with_materials = !m.materials.is_empty();

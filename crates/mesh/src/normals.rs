@@ -29,21 +29,8 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
             (b - a).cross(c - a)
         })
         .collect();
-    // The corners around each vertex, in triangle order (compressed rows: one flat list).
-    let mut start = vec![0u32; mesh.positions.len() + 1];
-    for &v in &mesh.indices {
-        start[v as usize + 1] += 1;
-    }
-    for v in 0..mesh.positions.len() {
-        start[v + 1] += start[v];
-    }
-    let mut corners = vec![0u32; mesh.indices.len()];
-    let mut next = start.clone();
-    for (c, &v) in mesh.indices.iter().enumerate() {
-        corners[next[v as usize] as usize] = c as u32;
-        next[v as usize] += 1;
-    }
-    drop(next);
+    let (mut start, mut corners) = (Vec::new(), Vec::new());
+    corner_rows(&mesh.indices, mesh.positions.len(), &mut start, &mut corners);
     let mut out = Mesh::default();
     let mut indices = vec![0; mesh.indices.len()];
     let with_materials = !mesh.materials.is_empty();
@@ -66,6 +53,29 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
     }
     out.indices = indices;
     out
+}
+
+/// The corners around each vertex (`c` names `indices[c]`), in triangle order:
+/// `corners[start[v]..start[v + 1]]` for vertex `v` (compressed rows: one flat list, no list a
+/// vertex).
+pub(crate) fn corner_rows(indices: &[u32], vertices: usize, start: &mut Vec<u32>, corners: &mut Vec<u32>) {
+    start.clear();
+    start.resize(vertices + 1, 0);
+    for &v in indices {
+        start[v as usize + 1] += 1;
+    }
+    for v in 0..vertices {
+        start[v + 1] += start[v];
+    }
+    corners.clear();
+    corners.resize(indices.len(), 0);
+    // `start[v]` moves to the end of `v`'s run as it is filled, then every entry shifts back.
+    for (c, &v) in indices.iter().enumerate() {
+        corners[start[v as usize] as usize] = c as u32;
+        start[v as usize] += 1;
+    }
+    start.copy_within(0..vertices, 1);
+    start[0] = 0;
 }
 
 /// The grouping of [`crease_normals`] around one vertex, shared with the streamed export

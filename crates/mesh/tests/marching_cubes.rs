@@ -135,3 +135,31 @@ proptest! {
         }
     }
 }
+
+/// A uniform chunk takes the finest level among the list chunks across its faces and edges, so
+/// a chunk whose only list neighbour is across an edge follows it (it used to take the
+/// volume's level, which made the blocks around it patch seams that were not there); and a
+/// level-of-detail cap given only for list chunks (as the editor's is) meshes closed.
+#[test]
+fn uniform_chunks_follow_their_list_neighbours_across_edges_and_capped_meshes_stay_closed() {
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(8.2, 7.9, 8.1), 3.3).unwrap()).unwrap();
+    v.set_chunk_level(ChunkKey::new(0, 0, 0), Level::new(1).unwrap());
+    assert!(v.chunks().all(|(k, _)| k == ChunkKey::new(0, 0, 0)), "one list chunk");
+    assert_eq!(v.mesh_level(ChunkKey::new(1, 0, 0)), Level::new(1).unwrap(), "across a face");
+    assert_eq!(v.mesh_level(ChunkKey::new(1, 1, 0)), Level::new(1).unwrap(), "across an edge");
+    assert_eq!(v.mesh_level(ChunkKey::new(3, 0, 0)), Level::BASE, "far away: the volume's level");
+    // Large balls over many chunks stored at level 2, capped to 1 and 0 where they hold lists.
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(20.3, 17.7, 15.2), 19.0).unwrap()).unwrap();
+    v.add(&Cuboid::new(DVec3::new(44.0, 16.0, 16.0), DVec3::new(8.0, 8.0, 12.5)).unwrap()).unwrap();
+    let keys: Vec<ChunkKey> = v.chunks().map(|(k, _)| k).collect();
+    let _ = v.set_chunk_levels(&keys, Level::new(2).unwrap());
+    for cap_to in [0u8, 1] {
+        let cap = |k: ChunkKey| {
+            if v.stored_level(k).is_some() { Level::new(cap_to + (k.0.x & 1) as u8).unwrap() } else { Level::FINEST }
+        };
+        let (m, _) = strata_mesh::mesh_volume_reported(&v, strata_mesh::MeshOptions::default(), Some(&cap)).unwrap();
+        check_closed_manifold(&m).unwrap_or_else(|e| panic!("capped to {cap_to}: {e}"));
+    }
+}

@@ -98,12 +98,9 @@ impl<'v> LevelMap<'v> {
             return l;
         }
         let mut best: Option<Level> = None;
-        for axis in Axis::ALL {
-            let d = axis.unit_i64().as_ivec3();
-            for k in [key.offset(d), key.offset(-d)] {
-                if let Some(l) = self.list_level(k) {
-                    best = Some(best.map_or(l, |b| b.max(l)));
-                }
+        for d in crate::level::extract::NEIGHBOURS {
+            if let Some(l) = self.list_level(key.offset(d)) {
+                best = Some(best.map_or(l, |b| b.max(l)));
             }
         }
         best.unwrap_or_else(|| self.capped(key, self.volume.level))
