@@ -67,7 +67,7 @@ pub struct SeamSplit {
 }
 
 /// Node states and edge crossings of one chunk plus its apron.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct VoxelBlock {
     key: Option<ChunkKey>,
     level: Option<Level>,
@@ -370,7 +370,7 @@ impl Volume {
         if !self.single_level() {
             let map = crate::level::LevelMap::stored(self);
             if !crate::level::plain(&map, key) {
-                crate::level::extract_patched(&map, key, out);
+                self.extract_unplain(&map, key, out);
                 self.fill_block_materials(out);
                 return;
             }
@@ -462,9 +462,25 @@ impl Volume {
         } else if crate::level::same_level_around(&map, key) {
             extract_sampled(&map, key, out);
         } else {
-            crate::level::extract_patched(&map, key, out);
+            self.extract_unplain(&map, key, out);
         }
         self.fill_block_materials(out);
+    }
+
+    /// The block of `key` where its neighbours are meshed at other levels: one state at every
+    /// node where the chunk and its apron's owners are uniform alike (nothing to read, no
+    /// crossing to patch: what patching gives, without its dense grid), else patched.
+    fn extract_unplain(&self, map: &crate::level::LevelMap<'_>, key: ChunkKey, out: &mut VoxelBlock) {
+        if !self.plain_block_uniform(key) {
+            crate::level::extract_patched(map, key, out);
+            return;
+        }
+        let level = map.get(key);
+        out.reset(key, level);
+        if self.view(key) == ChunkView::Uniform(true) {
+            let full = node_mask(level.cells());
+            out.rows.iter_mut().for_each(|r| *r = full);
+        }
     }
 
     /// The level `key` is meshed at (its own for a list chunk; for a uniform chunk the highest
@@ -715,6 +731,44 @@ mod tests {
     use super::*;
     use crate::brush::Sphere;
     use glam::DVec3;
+
+    /// Blocks whose chunk and apron owners are uniform alike, beside chunks of other levels
+    /// (stored, and capped for level of detail): the shortcut gives the block patching gives.
+    #[test]
+    fn uniform_blocks_among_other_levels_are_the_patched_ones() {
+        use crate::brush::Cuboid;
+        let mut v = Volume::new();
+        // A solid box over whole chunks (uniform solid chunks inside), a ball beside it, on and
+        // off the grid, then chunks raised to levels 1 and 2.
+        v.add(&Cuboid::new(DVec3::new(32.0, 32.0, 32.0), DVec3::new(24.0, 24.0, 24.0)).unwrap()).unwrap();
+        v.add(&Sphere::new(DVec3::new(70.3, 30.1, 33.7), 9.6).unwrap()).unwrap();
+        let lists: Vec<ChunkKey> = v.chunks().filter(|(k, _)| v.stored_level(*k).is_some()).map(|(k, _)| k).collect();
+        for (i, &k) in lists.iter().enumerate() {
+            v.set_chunk_level(k, Level::new((i % 3) as u8).unwrap());
+        }
+        let odd = |k: ChunkKey| if (k.0.x + k.0.y + k.0.z) % 2 == 0 { Level::BASE } else { Level::FINEST };
+        let caps: [Option<&(dyn Fn(ChunkKey) -> Level + Sync)>; 2] = [None, Some(&odd)];
+        let mut seen = 0;
+        for cap in caps {
+            let map = crate::level::LevelMap::new(&v, cap, None);
+            for x in -1..6 {
+                for y in -1..6 {
+                    for z in -1..6 {
+                        let key = ChunkKey::new(x, y, z);
+                        if crate::level::plain(&map, key) || !v.plain_block_uniform(key) {
+                            continue;
+                        }
+                        let (mut fast, mut patched) = (VoxelBlock::default(), VoxelBlock::default());
+                        v.extract_unplain(&map, key, &mut fast);
+                        crate::level::extract_patched(&map, key, &mut patched);
+                        assert_eq!(fast, patched, "{key:?}");
+                        seen += 1;
+                    }
+                }
+            }
+        }
+        assert!(seen > 20, "{seen} uniform blocks among other levels");
+    }
 
     #[test]
     fn a_block_reports_every_sign_change_once_with_a_crossing() {
