@@ -10,9 +10,12 @@ use strata_mesh::{Mesh, MeshOptions, Mesher, mesh_volume_creased, mesh_volume_sh
 use strata_volume::brush::{Brush, Cuboid, Sphere};
 use strata_volume::{ChunkKey, CsgOp, EditSettings, Level, Volume};
 
-/// Each triangle as its three corners (position bits, normal bits, material), turned to start
-/// at its least corner (orientation kept); the triangles sorted.
-fn canonical(m: &Mesh) -> Vec<[([u32; 3], [u32; 3], [u8; 4], [u8; 4]); 3]> {
+/// A triangle corner: position bits, normal bits, material ids and weights.
+type Corner = ([u32; 3], [u32; 3], [u8; 4], [u8; 4]);
+
+/// Each triangle as its three corners, turned to start at its least corner (orientation kept);
+/// the triangles sorted.
+fn canonical(m: &Mesh) -> Vec<[Corner; 3]> {
     let corner = |i: u32| {
         let i = i as usize;
         let bits = |v: [f32; 3]| v.map(|c| (c + 0.0).to_bits());
