@@ -106,17 +106,7 @@ fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {
         for &c in around {
             s.creaser.push(s.face[c as usize / 3], c);
         }
-        let mesh = &mut out.mesh;
-        s.creaser.split(
-            |normal| {
-                mesh.push_vertex(m.positions[v], normal, m.material(v), with_materials);
-                mesh.positions.len() as u32 - 1
-            },
-            |c, i| indices[c as usize] = i,
-        );
-        for (normal, i) in s.creaser.normals() {
-            out.mesh.normals[i as usize] = normal;
-        }
+        s.creaser.split_into(&mut out.mesh, &mut indices, m.positions[v], m.material(v), with_materials);
     }
     out.mesh.indices = indices;
     Some(out)
@@ -220,16 +210,7 @@ pub fn mesh_volume_creased(volume: &Volume, crease_degrees: f32) -> Mesh {
         for &(f, c) in &sorted[start[v] as usize..start[v + 1] as usize] {
             creaser.push(f, c);
         }
-        creaser.split(
-            |normal| {
-                out.push_vertex(position, normal, material, with_materials);
-                out.positions.len() as u32 - 1
-            },
-            |c, i| indices[c as usize] = i,
-        );
-        for (normal, i) in creaser.normals() {
-            out.normals[i as usize] = normal;
-        }
+        creaser.split_into(&mut out, &mut indices, position, material, with_materials);
     }
     out.indices = indices;
     out

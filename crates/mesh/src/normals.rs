@@ -3,6 +3,7 @@
 use glam::Vec3;
 
 use crate::Mesh;
+use crate::mesh::VertexMaterial;
 
 /// The paper's crease angle: faces meeting at less than this are smoothed together.
 pub const DEFAULT_CREASE_DEGREES: f32 = 30.0;
@@ -40,16 +41,7 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
         for &c in &corners[start[v] as usize..start[v + 1] as usize] {
             creaser.push(face[c as usize / 3], c);
         }
-        creaser.split(
-            |normal| {
-                out.push_vertex(mesh.positions[v], normal, mesh.material(v), with_materials);
-                out.positions.len() as u32 - 1
-            },
-            |c, i| indices[c as usize] = i,
-        );
-        for (normal, i) in creaser.normals() {
-            out.normals[i as usize] = normal;
-        }
+        creaser.split_into(&mut out, &mut indices, mesh.positions[v], mesh.material(v), with_materials);
     }
     out.indices = indices;
     out
@@ -110,7 +102,7 @@ impl Creaser {
     /// (its normal is set once the group is complete, so it is given `[0, 0, 0]` first and the
     /// final unit normal through `normal` afterwards) and returns its index; `corner(c, i)`
     /// points corner `c` at vertex `i`.
-    pub(crate) fn split(&mut self, mut vertex: impl FnMut([f32; 3]) -> u32, mut corner: impl FnMut(u32, u32)) {
+    fn split(&mut self, mut vertex: impl FnMut([f32; 3]) -> u32, mut corner: impl FnMut(u32, u32)) {
         self.around.sort_by(|a, b| b.0.total_cmp(&a.0));
         self.groups.clear();
         let largest = self.around.first().map_or(0.0, |a| a.0);
@@ -141,8 +133,31 @@ impl Creaser {
         }
     }
 
+    /// [`Creaser::split`] into `out`: each group's copy of the vertex pushed at `position` with
+    /// `material` and given its group's unit normal, and the corners of `indices` pointed at
+    /// their copies.
+    pub(crate) fn split_into(
+        &mut self,
+        out: &mut Mesh,
+        indices: &mut [u32],
+        position: [f32; 3],
+        material: VertexMaterial,
+        with_materials: bool,
+    ) {
+        self.split(
+            |normal| {
+                out.push_vertex(position, normal, material, with_materials);
+                out.positions.len() as u32 - 1
+            },
+            |c, i| indices[c as usize] = i,
+        );
+        for (normal, i) in self.normals() {
+            out.normals[i as usize] = normal;
+        }
+    }
+
     /// The groups of the last [`Creaser::split`]: (unit normal, vertex index).
-    pub(crate) fn normals(&self) -> impl Iterator<Item = ([f32; 3], u32)> + '_ {
+    fn normals(&self) -> impl Iterator<Item = ([f32; 3], u32)> + '_ {
         self.groups.iter().map(|&(sum, _, index)| (sum.normalize_or(Vec3::Z).to_array(), index))
     }
 }
