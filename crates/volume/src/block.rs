@@ -484,7 +484,7 @@ impl Volume {
     }
 
     /// The level `key` is meshed at (its own for a list chunk; for a uniform chunk the highest
-    /// of its list neighbours across a face, else the volume's level).
+    /// of its list neighbours across a face or an edge, else the volume's level).
     pub fn mesh_level(&self, key: ChunkKey) -> Level {
         crate::level::LevelMap::stored(self).get(key)
     }

@@ -19,8 +19,8 @@ use crate::volume::Volume;
 
 /// The level every chunk is meshed at: a list chunk's own level, lowered to at most `cap(key)`
 /// where a cap is given (level of detail); a uniform chunk (which has no level of its own) at
-/// the highest level among its list neighbours across a face, so a uniform chunk next to a fine
-/// one never lowers the seam, or the volume's level where it has none.
+/// the highest level among its list neighbours across a face or an edge, so a uniform chunk
+/// next to a fine one never lowers the seam, or the volume's level where it has none.
 /// It also keeps, for the reads of one block, each chunk family's start states and nonempty
 /// bits once derived (a block reads lines of up to 19 chunks in no single order).
 pub(crate) struct LevelMap<'v> {
