@@ -31,7 +31,8 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
         })
         .collect();
     let (mut start, mut corners) = (Vec::new(), Vec::new());
-    corner_rows(&mesh.indices, mesh.positions.len(), &mut start, &mut corners);
+    // (Whole triangles only: a malformed tail of indices is left at vertex 0, as before.)
+    corner_rows(&mesh.indices[..3 * face.len()], mesh.positions.len(), &mut start, &mut corners);
     let mut out = Mesh::default();
     let mut indices = vec![0; mesh.indices.len()];
     let with_materials = !mesh.materials.is_empty();
@@ -275,5 +276,17 @@ mod tests {
                 assert_eq!(new.materials, old.materials, "{degrees}");
             }
         }
+    }
+
+    #[test]
+    fn a_tail_of_indices_short_of_a_triangle_is_not_a_panic() {
+        let mut m = Mesh::default();
+        for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+            m.push_vertex(p, [0.0, 0.0, 1.0], crate::mesh::VertexMaterial::single(0), false);
+        }
+        m.indices = vec![0, 1, 2, 1];
+        let out = crease_normals(&m, DEFAULT_CREASE_DEGREES);
+        assert_eq!(out.vertex_count(), 3);
+        assert_eq!(out.indices.len(), 4);
     }
 }

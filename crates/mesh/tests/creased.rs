@@ -128,3 +128,13 @@ fn the_export_door_creases_marching_cubes_and_refuses_bad_angles() {
     let (s, _) = mesh_volume_shaded(&v, simplified, 30.0).unwrap();
     assert!(canonical(&s) == canonical(&mesh_volume_with(&v, simplified).unwrap().welded()));
 }
+
+#[test]
+fn far_from_the_origin_where_f32_positions_round_it_is_the_same() {
+    // Grid coordinates near 10⁵: chunk-local positions plus origins round in f32, the same way
+    // in every chunk that shares a vertex.
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(100_000.3, -70_000.2, 50_000.7), 12.4).unwrap()).unwrap();
+    v.add(&Cuboid::new(DVec3::new(100_016.0, -70_000.0, 50_008.5), DVec3::new(6.0, 9.0, 4.25)).unwrap()).unwrap();
+    assert_same(&v, DEFAULT_CREASE_DEGREES).unwrap();
+}

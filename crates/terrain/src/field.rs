@@ -255,8 +255,9 @@ impl TerrainField {
 
 impl TerrainField {
     /// The chunk at `origin` decided by the recipe's bounds alone (the whole range of heights,
-    /// overhangs and caves), without computing a column: `Some(false)` for the sky above
-    /// anything the terrain can reach, `Some(true)` for rock below every cave. Constant time.
+    /// overhangs and caves), without computing a column: `Some(false)` where it is provably
+    /// empty (the sky above anything the terrain can reach, or where the caves alone empty
+    /// it), `Some(true)` for rock below every cave. Constant time.
     pub fn decided_by_recipe(&self, origin: I64Vec3) -> Option<bool> {
         let (y0, y1) = (origin.y as f64, (origin.y + CHUNK_CELLS) as f64);
         let h = &self.recipe.heights;

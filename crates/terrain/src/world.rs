@@ -496,7 +496,7 @@ impl World {
                     true
                 }
             });
-            // Sky that the recipe proves empty needs no worker, unless the database holds an
+            // Chunks the recipe proves empty (the sky) need no worker, unless the database holds an
             // edit of it.
             wanted.retain(|&k| {
                 if self.in_store.contains(&k) || self.field.decided_by_recipe(k.origin_grid()) != Some(false) {

@@ -374,6 +374,9 @@ fn sky_is_loaded_without_workers_but_an_edit_in_the_sky_comes_back_from_the_data
         .map(|y| ChunkKey::new(0, y, 0))
         .find(|k| world.field().decided_by_recipe(k.origin_grid()) == Some(false))
         .expect("the recipe has a top");
+    // What a worker would have made of it: nothing.
+    let g = strata_volume::generate_chunk(sky, strata_volume::Level::BASE, world.field());
+    assert!(g.chunk.is_none() && g.materials.is_none());
     let viewer = sky.origin_grid().as_dvec3() + DVec3::splat(8.0);
     let mut proven = 0;
     let t0 = std::time::Instant::now();
