@@ -18,15 +18,12 @@ use strata_volume::{ChunkKey, KeyHasher, Volume, VoxelBlock};
 use crate::Mesh;
 use crate::marching::{block_vertex_keys, mesh_block, surface_chunks};
 use crate::mesh::VertexMaterial;
-use crate::normals::{Creaser, corner_rows};
-use crate::weld::EdgeKey;
+use crate::normals::{Creaser, rows_by};
+use crate::weld::{EdgeKey, KEY_STEPS};
 
 /// Chunks meshed together before their parts are joined: enough to keep both cores busy, few
 /// enough that their meshes stay a small share of the whole.
 const BATCH: usize = 512;
-
-/// Fixed-point steps per chunk side in an [`EdgeKey`] (see `marching::vertex_key`).
-const KEY_STEPS: i64 = 65536;
 
 /// A vertex on a chunk face, as one chunk saw it: its faces are `faces[start..end]` of its part.
 struct Border {
@@ -81,7 +78,7 @@ fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {
         (b - a).cross(c - a)
     }));
     let nv = m.positions.len();
-    corner_rows(&m.indices, nv, &mut s.start, &mut s.corners);
+    rows_by(&m.indices, nv, &mut s.start, &mut s.corners);
     let mut out = Part { mesh: Mesh::default(), border: Vec::new(), faces: Vec::new() };
     let mut indices = vec![0u32; m.indices.len()];
     let with_materials = !m.materials.is_empty();
@@ -136,8 +133,10 @@ struct Borders {
     slot: HashMap<EdgeKey, u32, BuildHasherDefault<KeyHasher>>,
     /// First position and material of each.
     vertex: Vec<([f32; 3], VertexMaterial)>,
-    /// (vertex, area-weighted face normal, corner in the whole mesh's indices).
-    faces: Vec<(u32, Vec3, u32)>,
+    /// The vertex of each face around one, and the face: (area-weighted normal, corner in the
+    /// whole mesh's indices).
+    face_vertex: Vec<u32>,
+    faces: Vec<(Vec3, u32)>,
 }
 
 /// Appends `parts` to `out`.
@@ -152,7 +151,8 @@ fn join(out: &mut Mesh, borders: &mut Borders, parts: Vec<Option<Part>>) {
                 borders.vertex.len() as u32 - 1
             });
             let faces = &p.faces[b.faces.start as usize..b.faces.end as usize];
-            borders.faces.extend(faces.iter().map(|&(f, c)| (slot, f, c + corner0)));
+            borders.face_vertex.extend(std::iter::repeat_n(slot, faces.len()));
+            borders.faces.extend(faces.iter().map(|&(f, c)| (f, c + corner0)));
         }
     }
 }
@@ -185,29 +185,19 @@ pub fn mesh_volume_creased(volume: &Volume, crease_degrees: f32) -> Mesh {
         joining = next;
     }
     join(&mut out, &mut borders, joining);
-    let Borders { slot, vertex, faces } = borders;
+    let Borders { slot, vertex, face_vertex, faces } = borders;
     drop(slot);
-    // The faces around each border vertex, in mesh order (a stable counting sort by vertex).
-    let mut start = vec![0u32; vertex.len() + 1];
-    for &(v, _, _) in &faces {
-        start[v as usize + 1] += 1;
-    }
-    for v in 0..vertex.len() {
-        start[v + 1] += start[v];
-    }
-    let mut sorted = vec![(Vec3::ZERO, 0u32); faces.len()];
-    let mut next = start.clone();
-    for (v, f, c) in faces {
-        sorted[next[v as usize] as usize] = (f, c);
-        next[v as usize] += 1;
-    }
-    drop(next);
+    // The faces around each border vertex, in mesh order.
+    let (mut start, mut order) = (Vec::new(), Vec::new());
+    rows_by(&face_vertex, vertex.len(), &mut start, &mut order);
+    drop(face_vertex);
     let mut creaser = Creaser::new(crease_degrees);
     let with_materials = !out.materials.is_empty();
     let mut indices = std::mem::take(&mut out.indices);
     for (v, &(position, material)) in vertex.iter().enumerate() {
         creaser.clear();
-        for &(f, c) in &sorted[start[v] as usize..start[v + 1] as usize] {
+        for &i in &order[start[v] as usize..start[v + 1] as usize] {
+            let (f, c) = faces[i as usize];
             creaser.push(f, c);
         }
         creaser.split_into(&mut out, &mut indices, position, material, with_materials);

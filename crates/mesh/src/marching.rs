@@ -10,7 +10,7 @@ use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, EdgeCrossing, KeyHasher, Level, Volume, VoxelBlock};
 
 use crate::cases::cases;
-use crate::weld::{EdgeKey, weld};
+use crate::weld::{EdgeKey, KEY_STEPS, weld};
 use crate::{Mesh, VertexMaterial};
 
 /// Meshes the cells `0..n` of one block into `out` (cleared first). Positions are grid units
@@ -174,7 +174,7 @@ fn split_seams(block: &VoxelBlock, base: [usize; 3], out: &mut Mesh) {
 /// edge's axis and its absolute fixed-point position (65,536 steps per chunk side).
 pub(crate) fn vertex_key(chunk: ChunkKey, level: Level, axis: Axis, lower: [u32; 3], t: f32) -> EdgeKey {
     let s = level.steps_per_cell() as i64;
-    let mut p = chunk.0.as_i64vec3() * 65536 + I64Vec3::new(lower[0] as i64, lower[1] as i64, lower[2] as i64) * s;
+    let mut p = chunk.0.as_i64vec3() * KEY_STEPS + I64Vec3::new(lower[0] as i64, lower[1] as i64, lower[2] as i64) * s;
     // `t` is an exact multiple of 1 / s (a power of two): this gives back the stored steps.
     p[axis.index()] += (t as f64 * s as f64).round() as i64;
     (axis as u8, p)

@@ -32,7 +32,7 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
         .collect();
     let (mut start, mut corners) = (Vec::new(), Vec::new());
     // (Whole triangles only: a malformed tail of indices is left at vertex 0, as before.)
-    corner_rows(&mesh.indices[..3 * face.len()], mesh.positions.len(), &mut start, &mut corners);
+    rows_by(&mesh.indices[..3 * face.len()], mesh.positions.len(), &mut start, &mut corners);
     let mut out = Mesh::default();
     let mut indices = vec![0; mesh.indices.len()];
     let with_materials = !mesh.materials.is_empty();
@@ -48,26 +48,27 @@ pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
     out
 }
 
-/// The corners around each vertex (`c` names `indices[c]`), in triangle order:
-/// `corners[start[v]..start[v + 1]]` for vertex `v` (compressed rows: one flat list, no list a
-/// vertex).
-pub(crate) fn corner_rows(indices: &[u32], vertices: usize, start: &mut Vec<u32>, corners: &mut Vec<u32>) {
+/// The positions `0..keys.len()` grouped by their key (a stable counting sort):
+/// `order[start[k]..start[k + 1]]` are the positions of key `k`, in increasing order (compressed
+/// rows: one flat list, no list a key). With a mesh's indices as keys, the corners around each
+/// vertex in triangle order.
+pub(crate) fn rows_by(keys: &[u32], rows: usize, start: &mut Vec<u32>, order: &mut Vec<u32>) {
     start.clear();
-    start.resize(vertices + 1, 0);
-    for &v in indices {
-        start[v as usize + 1] += 1;
+    start.resize(rows + 1, 0);
+    for &k in keys {
+        start[k as usize + 1] += 1;
     }
-    for v in 0..vertices {
-        start[v + 1] += start[v];
+    for k in 0..rows {
+        start[k + 1] += start[k];
     }
-    corners.clear();
-    corners.resize(indices.len(), 0);
-    // `start[v]` moves to the end of `v`'s run as it is filled, then every entry shifts back.
-    for (c, &v) in indices.iter().enumerate() {
-        corners[start[v as usize] as usize] = c as u32;
-        start[v as usize] += 1;
+    order.clear();
+    order.resize(keys.len(), 0);
+    // `start[k]` moves to the end of `k`'s run as it is filled, then every entry shifts back.
+    for (i, &k) in keys.iter().enumerate() {
+        order[start[k as usize] as usize] = i as u32;
+        start[k as usize] += 1;
     }
-    start.copy_within(0..vertices, 1);
+    start.copy_within(0..rows, 1);
     start[0] = 0;
 }
 

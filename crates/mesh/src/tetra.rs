@@ -355,7 +355,7 @@ fn site_key(key: ChunkKey, block: &VoxelBlock, site: Site, t: f32) -> EdgeKey {
     }
     let s = block.level().steps_per_cell() as i64;
     let l = I64Vec3::new(site.lower[0] as i64, site.lower[1] as i64, site.lower[2] as i64);
-    (3 + site.dir, key.0.as_i64vec3() * 65536 + l * s)
+    (3 + site.dir, key.0.as_i64vec3() * crate::weld::KEY_STEPS + l * s)
 }
 
 /// [`mesh_block_tetra`] together with each output vertex's identity across chunks.

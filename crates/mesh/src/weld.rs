@@ -13,6 +13,9 @@ use crate::Mesh;
 /// A crossing's identity in the whole volume (see `marching::vertex_key`).
 pub(crate) type EdgeKey = (u8, I64Vec3);
 
+/// Fixed-point steps per chunk side in an [`EdgeKey`]'s position.
+pub(crate) const KEY_STEPS: i64 = 65536;
+
 /// One mesh of chunk meshes (chunk-local positions), welding vertices with equal identities
 /// (`ids[i]` for vertex `i`; vertices after the ids belong to their chunk alone).
 pub(crate) fn weld(parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)>) -> Mesh {
