@@ -927,6 +927,39 @@ fn with_no_dialog_service_and_slow_frames_every_save_and_open_ends_in_a_prompt_o
     }
 }
 
+/// File > Export mesh… with no dialog service and slow frames, marching cubes: the typed path
+/// gets the mesh `strata export` writes (shading normals creased, chunk by chunk), byte for
+/// byte, not the mesher's normals, and the status bar says what was written.
+#[test]
+fn an_export_typed_with_no_dialog_service_writes_the_command_line_s_shaded_mesh_and_says_so() {
+    let dir = temp("export-typed");
+    let mut h = harness_with(&dir, default_scene(), service(Duration::from_millis(30), None));
+    h.run();
+    h.get_by_label("File").click();
+    h.run();
+    h.get_by_label("Export mesh… (glb, obj, stl, ply)").click();
+    h.step();
+    slow_frame(&mut h);
+    assert!(h.get_by_label("Path:").is_focused(), "the export ends in the typed prompt");
+    let path = dir.join("ball.glb");
+    enter_path(&mut h, &path);
+    slow_frame(&mut h);
+    let s = &h.state().studio;
+    assert!(path.exists(), "{}", s.message);
+    assert!(s.message.starts_with("Exported ") && s.message.contains("ball.glb"), "said: {}", s.message);
+    let palette = s.editor.scene.export_palette();
+    let written = std::fs::read(&path).unwrap();
+    let shaded = dir.join("shaded.glb");
+    let (mesh, _) = s.editor.export_mesh_shaded(s.export, strata_mesh::normals::DEFAULT_CREASE_DEGREES).unwrap();
+    strata_mesh::export::save_mesh_with(&mesh, &shaded, &palette).unwrap();
+    assert!(written == std::fs::read(&shaded).unwrap(), "the studio writes the command line's mesh");
+    let plain = dir.join("plain.glb");
+    strata_mesh::export::save_mesh_with(&s.editor.export_mesh(s.export).unwrap(), &plain, &palette).unwrap();
+    assert!(written != std::fs::read(&plain).unwrap(), "not the mesher's normals");
+    assert!(s.message.contains(&format!("{} triangles", mesh.triangle_count())), "said: {}", s.message);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_dialog_answer_counts_whatever_the_frames_and_a_cancel_is_said() {
     let dir = temp("slow-dialog");
