@@ -523,15 +523,18 @@ impl Volume {
         plain.then(|| self.level_of(key))
     }
 
-    /// Whether every node of the plain block of `key` has one state: the chunk and the seven
-    /// after it (its apron's owners) are uniform alike, so the block holds no surface.
+    /// Whether every node of the plain block of `key` has one state: the chunk and the six
+    /// after it across a face or an edge (its apron's owners but the corner one) are uniform
+    /// alike, so the block holds no surface. (The corner node, owned by the chunk after it
+    /// across the corner, lies at the end of a line of an edge neighbour: uniform, that line
+    /// binds it to the same state whatever the corner chunk stores.)
     pub fn plain_block_uniform(&self, key: ChunkKey) -> bool {
         let state = |k: ChunkKey| match self.view(k) {
             ChunkView::Uniform(s) => Some(s),
             ChunkView::Lists(_) => None,
         };
         let Some(first) = state(key) else { return false };
-        (1..8).all(|d| state(key.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))) == Some(first))
+        (1..7).all(|d| state(key.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))) == Some(first))
     }
 
     /// Node states and crossings of the part of `key`'s block from node `offset`, `w` cells a
@@ -768,6 +771,56 @@ mod tests {
             }
         }
         assert!(seen > 20, "{seen} uniform blocks among other levels");
+    }
+
+    /// Blocks read straight from their owners because every chunk around is meshed at their
+    /// level, or is uniform with no list chunk across a face or an edge (which agrees with any
+    /// level): the block patching gives. The model is stored fine and meshed coarser, as a
+    /// middle view does, where the uniform chunks around it take its level and those farther
+    /// out the volume's.
+    #[test]
+    fn sampled_blocks_beside_uniform_chunks_of_other_levels_are_the_patched_ones() {
+        let mut v = Volume::with_level(Level::FINEST);
+        v.add(&Sphere::new(DVec3::new(33.3, 30.1, 29.7), 21.6).unwrap()).unwrap();
+        v.subtract(&Sphere::new(DVec3::new(40.0, 36.0, 31.0), 9.0).unwrap()).unwrap();
+        let middle = |_: ChunkKey| Level::new(1).unwrap();
+        let odd = |k: ChunkKey| if (k.0.x + k.0.y + k.0.z) % 2 == 0 { Level::BASE } else { Level::new(1).unwrap() };
+        let caps: [&(dyn Fn(ChunkKey) -> Level + Sync); 2] = [&middle, &odd];
+        let (mut sampled, mut beside_isolated) = (0, 0);
+        for cap in caps {
+            let map = crate::level::LevelMap::new(&v, Some(cap), None);
+            for x in -2..6 {
+                for y in -2..6 {
+                    for z in -2..6 {
+                        let key = ChunkKey::new(x, y, z);
+                        if !crate::level::same_level_around(&map, key) {
+                            continue;
+                        }
+                        let level = map.get(key);
+                        if crate::level::NEIGHBOURS.iter().any(|&d| map.get(key.offset(d)) != level) {
+                            beside_isolated += 1;
+                        }
+                        let (mut fast, mut patched) = (VoxelBlock::default(), VoxelBlock::default());
+                        extract_sampled(&map, key, &mut fast);
+                        crate::level::extract_patched(&map, key, &mut patched);
+                        // The same blocks, the crossings listed in another order.
+                        assert!(fast.rows == patched.rows, "{key:?}: node states");
+                        assert!(fast.seams == patched.seams && patched.patched() == 0, "{key:?}: seams");
+                        for axis in Axis::ALL {
+                            let a = axis.index();
+                            assert_eq!(fast.crossings[a].len(), patched.crossings[a].len(), "{key:?}");
+                            for c in &fast.crossings[a] {
+                                let [x, y, z] = c.lower.map(usize::from);
+                                assert_eq!(patched.crossing(axis, x, y, z), Some(c), "{key:?}");
+                                assert_eq!(fast.crossing(axis, x, y, z), Some(c), "{key:?}");
+                            }
+                        }
+                        sampled += 1;
+                    }
+                }
+            }
+        }
+        assert!(sampled > 100 && beside_isolated > 20, "{sampled} sampled blocks, {beside_isolated} beside isolated chunks");
     }
 
     #[test]

@@ -53,10 +53,18 @@ pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
 }
 
 /// Whether `key` and its face and edge neighbours are all meshed at one level in `map` (then
-/// every line can be read straight from its owner at that level, with nothing to patch).
+/// every line can be read straight from its owner at that level, with nothing to patch). A
+/// neighbour that is uniform with no list chunk around it ([`LevelMap::isolated`]) agrees with
+/// any level: its lines are uniform at every level and no seam runs along it. (Without that,
+/// the uniform chunks around a model viewed coarser than it is stored, which take the level of
+/// their list neighbours, met uniform chunks farther out at the volume's level, and each was
+/// patched through a dense grid.)
 pub(crate) fn same_level_around(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     let level = map.get(key);
-    NEIGHBOURS.iter().all(|&d| map.get(key.offset(d)) == level)
+    NEIGHBOURS.iter().all(|&d| {
+        let k = key.offset(d);
+        map.get(k) == level || map.isolated(k)
+    })
 }
 
 /// The block of `key` at its level in `map`, with every shared face taken from its effective

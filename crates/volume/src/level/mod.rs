@@ -14,7 +14,7 @@ mod read;
 mod settle;
 
 pub(crate) use dense::Dense;
-pub(crate) use extract::{extract_patched, plain, same_level_around};
+pub(crate) use extract::{NEIGHBOURS, extract_patched, plain, same_level_around};
 pub(crate) use read::{LevelMap, LineReader};
 
 use crate::coords::{ChunkKey, Level};

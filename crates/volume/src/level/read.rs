@@ -92,13 +92,23 @@ impl<'v> LevelMap<'v> {
         }
     }
 
+    /// Whether `key` is uniform with no list chunk across a face or an edge (the chunks
+    /// [`LevelMap::get`] gives the volume's level). No surface crosses its faces (the chunks
+    /// that share them are uniform too), its block has one state (see
+    /// [`Volume::plain_block_uniform`]) and no block reads a crossing from it, so the level it
+    /// is meshed at concerns no seam.
+    pub(crate) fn isolated(&self, key: ChunkKey) -> bool {
+        self.list_level(key).is_none()
+            && crate::level::NEIGHBOURS.iter().all(|&d| self.list_level(key.offset(d)).is_none())
+    }
+
     /// The level chunk `key` is meshed at.
     pub(crate) fn get(&self, key: ChunkKey) -> Level {
         if let Some(l) = self.list_level(key) {
             return l;
         }
         let mut best: Option<Level> = None;
-        for d in crate::level::extract::NEIGHBOURS {
+        for d in crate::level::NEIGHBOURS {
             if let Some(l) = self.list_level(key.offset(d)) {
                 best = Some(best.map_or(l, |b| b.max(l)));
             }
