@@ -820,7 +820,10 @@ mod tests {
                 }
             }
         }
-        assert!(sampled > 100 && beside_isolated > 20, "{sampled} sampled blocks, {beside_isolated} beside isolated chunks");
+        assert!(
+            sampled > 100 && beside_isolated > 20,
+            "{sampled} sampled blocks, {beside_isolated} beside isolated chunks"
+        );
     }
 
     #[test]

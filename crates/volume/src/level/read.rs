@@ -146,12 +146,11 @@ impl<'a> LineReader<'a> {
         };
         if stored >= level {
             let f = 1usize << (stored.get() - level.get());
-            let mut fine = WorkLine::EMPTY;
-            self.stored_line(u * f, v * f, stored, &mut fine);
+            let line = self.stored_line(u * f, v * f, stored);
             if f == 1 {
-                *out = fine;
+                out.load(line, stored);
             } else {
-                sample_line(&fine, stored, level, out);
+                sample_line(line, stored, level, out);
             }
             true
         } else {
@@ -160,13 +159,14 @@ impl<'a> LineReader<'a> {
                 return false;
             }
             let mut coarse = WorkLine::EMPTY;
-            self.stored_line(u / f, v / f, stored, &mut coarse);
+            coarse.load(self.stored_line(u / f, v / f, stored), stored);
             refine_line(&coarse, stored, level, out);
             true
         }
     }
 
-    fn stored_line(&mut self, u: usize, v: usize, level: Level, out: &mut WorkLine) {
+    /// Stored line `(u, v)` of the chunk (at its own `level`).
+    fn stored_line(&mut self, u: usize, v: usize, level: Level) -> crate::chunk::LineRef<'a> {
         let ChunkView::Lists(lists) = self.view else { unreachable!("stored lines are read from lists") };
         let n = level.cells();
         let index = u + n * v;
@@ -178,30 +178,40 @@ impl<'a> LineReader<'a> {
         let c = self.cursor.as_mut().expect("made above");
         let line = c.next_with(family.starts.get(index));
         self.next = index + 1;
-        out.load(line, level);
+        line
     }
 }
 
-/// `fine` (at `from`) sampled at the coarser `to`: every `2^d`-th node, and on each coarse edge
-/// whose ends differ the first crossing of the fine edges it covers.
-pub(crate) fn sample_line(fine: &WorkLine, from: Level, to: Level, out: &mut WorkLine) {
-    let f = 1usize << (from.get() - to.get());
+/// The stored `line` (at `from`) sampled at the coarser `to`: every `2^d`-th node, and on each
+/// coarse edge whose ends differ the first crossing of the fine edges it covers. Read straight
+/// from the stored crossings (a coarse view reads many lines: unpacking each at the fine level
+/// first cost more than the rest of the read).
+pub(crate) fn sample_line(line: crate::chunk::LineRef<'_>, from: Level, to: Level, out: &mut WorkLine) {
+    let shift = from.get() - to.get();
     let n = to.cells();
+    let mut inside = line.start_inside;
     let mut states = 0u128;
-    for j in 0..=n {
-        states |= ((fine.states >> (j * f)) & 1) << j;
+    // Coarse nodes below `next` have their states; coarse edge `last` has its first crossing.
+    let (mut next, mut last) = (0usize, usize::MAX);
+    for (q, &normal) in line.positions().zip(line.normals) {
+        let k = edge_of(q, from);
+        let e = k >> shift;
+        // Coarse nodes up to `e` lie at or before fine node `k`: before this crossing.
+        if inside {
+            states |= node_mask(e) & !((1u128 << next) - 1);
+        }
+        next = e + 1;
+        if e != last {
+            out.pos[e] = q;
+            out.nrm[e] = normal;
+            last = e;
+        }
+        inside = !inside;
+    }
+    if inside && next <= n {
+        states |= node_mask(n) & !((1u128 << next) - 1);
     }
     out.states = states;
-    let fine_changes = fine.changes(from.cells());
-    let mut c = out.changes(n);
-    while c != 0 {
-        let e = c.trailing_zeros() as usize;
-        c &= c - 1;
-        let window = (fine_changes >> (e * f)) & ((1u128 << f) - 1);
-        let k = e * f + window.trailing_zeros() as usize;
-        out.pos[e] = fine.pos[k];
-        out.nrm[e] = fine.nrm[k];
-    }
 }
 
 /// `coarse` (at `from`) refined to the finer `to` by the 1D rule: each crossing stays where it
@@ -329,5 +339,74 @@ fn put_line(g: &mut FaceGrid, d: u8, k: usize, line: &WorkLine) {
             let c = if (changes >> t) & 1 == 1 { pack(line.pos[t], line.nrm[t]) } else { NONE };
             g.set_crossing((d, i, j), c);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brush::Sphere;
+    use glam::DVec3;
+
+    /// The sampling as first written: the fine line unpacked, then every `2^d`-th node and the
+    /// first fine change in each coarse edge.
+    fn sample_unpacked(fine: &WorkLine, from: Level, to: Level, out: &mut WorkLine) {
+        let f = 1usize << (from.get() - to.get());
+        let n = to.cells();
+        out.states = (0..=n).fold(0, |s, j| s | ((fine.states >> (j * f)) & 1) << j);
+        let fine_changes = fine.changes(from.cells());
+        let mut c = out.changes(n);
+        while c != 0 {
+            let e = c.trailing_zeros() as usize;
+            c &= c - 1;
+            let window = (fine_changes >> (e * f)) & ((1u128 << f) - 1);
+            let k = e * f + window.trailing_zeros() as usize;
+            out.pos[e] = fine.pos[k];
+            out.nrm[e] = fine.nrm[k];
+        }
+    }
+
+    #[test]
+    fn lines_sampled_from_their_stored_crossings_are_the_unpacked_lines_sampled() {
+        // Thin walls and small balls: several fine crossings in one coarse edge, lines that
+        // start inside, crossings in the first and last cells.
+        let mut v = Volume::with_level(Level::FINEST);
+        v.add(&Sphere::new(DVec3::new(8.1, 7.9, 8.3), 7.95).unwrap()).unwrap();
+        v.subtract(&Sphere::new(DVec3::new(8.1, 7.9, 8.3), 7.6).unwrap()).unwrap();
+        // Nested shells a fine cell or less apart: three crossings in one coarse edge.
+        for (i, r) in [5.0, 4.8, 4.55, 4.35, 4.1, 3.85].into_iter().enumerate() {
+            let ball = Sphere::new(DVec3::new(8.05, 8.1, 7.95), r).unwrap();
+            if i % 2 == 0 {
+                v.add(&ball).unwrap()
+            } else {
+                v.subtract(&ball).unwrap()
+            };
+        }
+        for i in 0..12 {
+            let c = DVec3::new(2.0 + i as f64 * 1.1, 15.9 - i as f64 * 1.3, 0.2 + i as f64 * 1.37);
+            v.add(&Sphere::new(c, 0.2 + 0.1 * i as f64).unwrap()).unwrap();
+        }
+        let key = ChunkKey::new(0, 0, 0);
+        let (mut fast, mut fine, mut slow) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
+        let (mut checked, mut odd) = (0, 0);
+        for axis in Axis::ALL {
+            for to in [Level::BASE, Level::new(1).unwrap()] {
+                let (n, f) = (to.cells(), 1 << (2 - to.get()));
+                let (mut reader, mut full) = (LineReader::new(v.view(key), axis), LineReader::new(v.view(key), axis));
+                for vv in 0..n {
+                    for u in 0..n {
+                        assert!(reader.read(u, vv, to, &mut fast));
+                        assert!(full.read(u * f, vv * f, Level::FINEST, &mut fine));
+                        sample_unpacked(&fine, Level::FINEST, to, &mut slow);
+                        assert!(fast.same_as(&slow, n), "{axis:?} {u} {vv} at {to:?}");
+                        checked += (fine.changes(64).count_ones() > fast.changes(n).count_ones()) as usize;
+                        let fc = fine.changes(64);
+                        odd += (0..n).filter(|e| ((fc >> (e * f)) & ((1 << f) - 1)).count_ones() >= 3).count();
+                    }
+                }
+            }
+        }
+        assert!(checked > 100, "{checked} lines with crossings the sampling passes over");
+        assert!(odd > 20, "{odd} coarse edges over three or more fine crossings");
     }
 }
