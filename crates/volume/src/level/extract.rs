@@ -63,7 +63,12 @@ pub(crate) fn same_level_around(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     let level = map.get(key);
     NEIGHBOURS.iter().all(|&d| {
         let k = key.offset(d);
-        map.get(k) == level || map.isolated(k)
+        map.get(k) == level || {
+            let isolated = map.isolated(k);
+            // (An isolated chunk has no list neighbour: the block beside it is uniform too.)
+            debug_assert!(!isolated || map.volume.stored_level(key).is_none());
+            isolated
+        }
     })
 }
 

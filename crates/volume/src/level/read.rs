@@ -96,7 +96,8 @@ impl<'v> LevelMap<'v> {
     /// [`LevelMap::get`] gives the volume's level). No surface crosses its faces (the chunks
     /// that share them are uniform too), its block has one state (see
     /// [`Volume::plain_block_uniform`]) and no block reads a crossing from it, so the level it
-    /// is meshed at concerns no seam.
+    /// is meshed at concerns no seam. (Neighbourhood is symmetric: a chunk beside an isolated
+    /// one is uniform itself.)
     pub(crate) fn isolated(&self, key: ChunkKey) -> bool {
         self.list_level(key).is_none()
             && crate::level::NEIGHBOURS.iter().all(|&d| self.list_level(key.offset(d)).is_none())
@@ -386,8 +387,27 @@ mod tests {
             let c = DVec3::new(2.0 + i as f64 * 1.1, 15.9 - i as f64 * 1.3, 0.2 + i as f64 * 1.37);
             v.add(&Sphere::new(c, 0.2 + 0.1 * i as f64).unwrap()).unwrap();
         }
+        // The same chunk stored one level lower, sampled from there too.
+        let mut lower = v.clone();
         let key = ChunkKey::new(0, 0, 0);
+        lower.set_chunk_level(key, Level::new(1).unwrap());
+        assert_eq!(lower.stored_level(key), Some(Level::new(1).unwrap()));
         let (mut fast, mut fine, mut slow) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
+        let mut from_middle = 0;
+        for axis in Axis::ALL {
+            let (mut reader, mut full) =
+                (LineReader::new(lower.view(key), axis), LineReader::new(lower.view(key), axis));
+            for vv in 0..16 {
+                for u in 0..16 {
+                    assert!(reader.read(u, vv, Level::BASE, &mut fast));
+                    assert!(full.read(2 * u, 2 * vv, Level::new(1).unwrap(), &mut fine));
+                    sample_unpacked(&fine, Level::new(1).unwrap(), Level::BASE, &mut slow);
+                    assert!(fast.same_as(&slow, 16), "{axis:?} {u} {vv} from level 1");
+                    from_middle += (fine.changes(32).count_ones() > fast.changes(16).count_ones()) as usize;
+                }
+            }
+        }
+        assert!(from_middle > 50, "{from_middle} lines from level 1 with crossings the sampling passes over");
         let (mut checked, mut odd) = (0, 0);
         for axis in Axis::ALL {
             for to in [Level::BASE, Level::new(1).unwrap()] {
