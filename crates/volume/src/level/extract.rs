@@ -54,20 +54,19 @@ pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
 
 /// Whether `key` and its face and edge neighbours are all meshed at one level in `map` (then
 /// every line can be read straight from its owner at that level, with nothing to patch). A
-/// neighbour that is uniform with no list chunk around it ([`LevelMap::isolated`]) agrees with
-/// any level: its lines are uniform at every level and no seam runs along it. (Without that,
-/// the uniform chunks around a model viewed coarser than it is stored, which take the level of
-/// their list neighbours, met uniform chunks farther out at the volume's level, and each was
-/// patched through a dense grid.)
+/// neighbour whose level nothing decides (uniform, no list chunk across a face or an edge:
+/// [`LevelMap::decided_level`]) agrees with any level: its lines are uniform at every level and
+/// no seam runs along it. (Without that, the uniform chunks around a model viewed coarser than
+/// it is stored, which take the level of their list neighbours, met uniform chunks farther out
+/// at the volume's level, and each was patched through a dense grid.)
 pub(crate) fn same_level_around(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     let level = map.get(key);
-    NEIGHBOURS.iter().all(|&d| {
-        let k = key.offset(d);
-        map.get(k) == level || {
-            let isolated = map.isolated(k);
-            // (An isolated chunk has no list neighbour: the block beside it is uniform too.)
-            debug_assert!(!isolated || map.volume.stored_level(key).is_none());
-            isolated
+    NEIGHBOURS.iter().all(|&d| match map.decided_level(key.offset(d)) {
+        Some(l) => l == level,
+        None => {
+            // (It has no list neighbour: the block beside it is uniform too.)
+            debug_assert!(map.volume.stored_level(key).is_none());
+            true
         }
     })
 }

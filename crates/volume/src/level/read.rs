@@ -92,29 +92,21 @@ impl<'v> LevelMap<'v> {
         }
     }
 
-    /// Whether `key` is uniform with no list chunk across a face or an edge (the chunks
-    /// [`LevelMap::get`] gives the volume's level). No surface crosses its faces (the chunks
-    /// that share them are uniform too), its block has one state (see
-    /// [`Volume::plain_block_uniform`]) and no block reads a crossing from it, so the level it
-    /// is meshed at concerns no seam. (Neighbourhood is symmetric: a chunk beside an isolated
-    /// one is uniform itself.)
-    pub(crate) fn isolated(&self, key: ChunkKey) -> bool {
-        self.list_level(key).is_none()
-            && crate::level::NEIGHBOURS.iter().all(|&d| self.list_level(key.offset(d)).is_none())
+    /// The level chunk `key` is meshed at, where anything decides it: a list chunk's own, a
+    /// uniform chunk's finest list neighbour's across a face or an edge. `None` for a uniform
+    /// chunk with no list chunk across a face or an edge: no surface crosses its faces (the
+    /// chunks that share them are uniform too), its block has one state (see
+    /// [`Volume::plain_block_uniform`]) and no block reads a crossing from it, so its level
+    /// concerns no seam and agrees with any (neighbourhood is symmetric: a chunk beside it is
+    /// uniform itself).
+    pub(crate) fn decided_level(&self, key: ChunkKey) -> Option<Level> {
+        self.list_level(key)
+            .or_else(|| crate::level::NEIGHBOURS.iter().filter_map(|&d| self.list_level(key.offset(d))).max())
     }
 
-    /// The level chunk `key` is meshed at.
+    /// The level chunk `key` is meshed at ([`LevelMap::decided_level`], else the volume's).
     pub(crate) fn get(&self, key: ChunkKey) -> Level {
-        if let Some(l) = self.list_level(key) {
-            return l;
-        }
-        let mut best: Option<Level> = None;
-        for d in crate::level::NEIGHBOURS {
-            if let Some(l) = self.list_level(key.offset(d)) {
-                best = Some(best.map_or(l, |b| b.max(l)));
-            }
-        }
-        best.unwrap_or_else(|| self.capped(key, self.volume.level))
+        self.decided_level(key).unwrap_or_else(|| self.capped(key, self.volume.level))
     }
 }
 
@@ -209,7 +201,7 @@ pub(crate) fn sample_line(line: crate::chunk::LineRef<'_>, from: Level, to: Leve
         }
         inside = !inside;
     }
-    if inside && next <= n {
+    if inside {
         states |= node_mask(n) & !((1u128 << next) - 1);
     }
     out.states = states;
