@@ -35,6 +35,7 @@
 mod cache;
 mod cases;
 pub mod checks;
+mod cluster;
 mod creased;
 mod dual;
 pub mod export;

@@ -36,8 +36,9 @@ use smallvec::SmallVec;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, VoxelBlock};
 
+use crate::cluster::{Clustered, Clustering};
+pub use crate::cluster::{MAX_MOVE_CELLS, MAX_REACH_CELLS};
 use crate::marching::edge_material;
-use crate::qef::Qef;
 use crate::weld::EdgeKey;
 use crate::{Mesh, VertexMaterial};
 
@@ -134,6 +135,8 @@ pub struct TetraScratch {
     /// Vertex of each axis crossing by its index in the block, or `NONE`.
     axis: [Vec<u32>; 3],
     sites: Vec<Site>,
+    /// The candidate vertex standing for each node's cluster, or `NONE`.
+    node_rep: Vec<u32>,
     /// Position along the edge from its lower node.
     ts: Vec<f32>,
     tris: Vec<[u32; 3]>,
@@ -218,7 +221,7 @@ pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraSc
         }
     }
     if cluster {
-        Clusterer::run(n, sp, s, out);
+        cluster_block(n, sp, s, out);
     } else {
         out.indices.extend(s.tris.iter().flatten());
     }
@@ -370,316 +373,73 @@ pub(crate) fn mesh_block_tetra_keyed(
     scratch.sites.iter().zip(&scratch.ts).map(|(&site, &t)| site_key(key, block, site, t)).collect()
 }
 
-/// The integrated clustering over the candidate mesh of one block.
-struct Clusterer {
-    /// Triangles, `[NONE; 3]` once dropped.
-    tris: Vec<[u32; 3]>,
-    /// Triangles around each vertex (some may be dropped or no longer hold it).
-    around: Vec<SmallVec<[u32; 10]>>,
-    pos: Vec<Vec3>,
-    /// Original positions and normals (the Hermite data of the candidates).
-    orig: Vec<(Vec3, Vec3)>,
-    /// The vertices merged into each surviving vertex, as a list: the next member, or `NONE`.
-    next: Vec<u32>,
-    /// The last member of each surviving vertex's list.
-    tail: Vec<u32>,
-    /// The cell size (grid units): a merged vertex stays within half a cell of its members' box.
-    cell: f32,
-    /// Where each vertex went (itself while alive).
-    rep: Vec<u32>,
-    /// Vertices that must stay (shared with another chunk).
-    locked: Vec<bool>,
+/// Clusters the candidate mesh of one block in place: the private vertices by their nearest
+/// node (vertices on edges in a chunk face are shared with a neighbour and stay).
+fn cluster_block(n: usize, sp: f32, s: &mut TetraScratch, out: &mut Mesh) {
+    let m = n + 1;
+    let count = out.positions.len();
+    s.node_rep.clear();
+    s.node_rep.resize(m * m * m, NONE);
+    let mut rep: Vec<u32> = (0..count as u32).collect();
+    let mut locked = vec![false; count];
+    for (v, (site, &t)) in s.sites.iter().zip(&s.ts).enumerate() {
+        let d = offset(DIRS[site.dir as usize]);
+        let l = site.lower.map(usize::from);
+        if (0..3).any(|k| d[k] == 0 && (l[k] == 0 || l[k] == n)) {
+            locked[v] = true;
+            continue;
+        }
+        let near = nearest_node(site, t);
+        let slot = &mut s.node_rep[near[0] + m * (near[1] + m * near[2])];
+        if *slot == NONE {
+            *slot = v as u32;
+        }
+        rep[v] = *slot;
+    }
+    let clustered = cluster_twice(out, &s.tris, rep, &locked, sp);
+    let kept = finish(clustered, out);
+    s.sites = kept.iter().map(|&v| s.sites[v as usize]).collect();
+    s.ts = kept.iter().map(|&v| s.ts[v as usize]).collect();
 }
 
-impl Clusterer {
-    /// The candidate mesh `out` with triangles `tris`.
-    fn new(out: &Mesh, tris: Vec<[u32; 3]>, cell: f32) -> Self {
-        let count = out.positions.len();
-        let mut c = Clusterer {
-            tris,
-            around: vec![SmallVec::new(); count],
-            pos: out.positions.iter().map(|&p| Vec3::from(p)).collect(),
-            orig: out.positions.iter().zip(&out.normals).map(|(&p, &q)| (Vec3::from(p), Vec3::from(q))).collect(),
-            next: vec![NONE; count],
-            tail: (0..count as u32).collect(),
-            cell,
-            rep: (0..count as u32).collect(),
-            locked: vec![false; count],
-        };
-        for (i, t) in c.tris.iter().enumerate() {
-            for &v in t {
-                c.around[v as usize].push(i as u32);
-            }
-        }
-        c
+/// Clusters the candidate mesh `out` (triangles `tris`) by `rep`, then merges the remaining
+/// short edges in pairs, [`SHORT_EDGE_ROUNDS`] rounds, each verified as the first.
+fn cluster_twice(out: &Mesh, tris: &[[u32; 3]], rep: Vec<u32>, locked: &[bool], cell: f32) -> Clustered {
+    let mut c = Clustering::new(&out.positions, &out.normals, tris, locked, cell).run(rep);
+    for _ in 0..SHORT_EDGE_ROUNDS {
+        let locked: Vec<bool> = c.kept.iter().map(|&v| locked[v as usize]).collect();
+        let pairs = crate::cluster::short_pairs(&c, &locked, SHORT_EDGE_CELLS * cell);
+        let next = Clustering::new(&c.positions, &c.normals, &c.tris, &locked, cell)
+            .with_max_rms(SHORT_EDGE_RMS_CELLS * cell)
+            .run(pairs);
+        let kept = next.kept.iter().map(|&v| c.kept[v as usize]).collect();
+        c = Clustered { kept, ..next };
     }
-
-    /// Clusters each group of vertices with one key (a node), in key order.
-    fn cluster_groups<K: Ord + Copy>(&mut self, groups: &mut [(K, u32)]) {
-        groups.sort_unstable();
-        for group in groups.chunk_by(|a, b| a.0 == b.0) {
-            if group.len() < 2 {
-                continue;
-            }
-            let members: SmallVec<[u32; 16]> = group.iter().map(|g| g.1).collect();
-            self.cluster(&members);
-        }
-    }
-
-    /// Clusters the candidate mesh of one block: the private vertices by their nearest node
-    /// (vertices on edges in a chunk face are shared with a neighbour and stay).
-    fn run(n: usize, sp: f32, s: &mut TetraScratch, out: &mut Mesh) {
-        let mut c = Clusterer::new(out, std::mem::take(&mut s.tris), sp);
-        let m = n + 1;
-        let mut owned: Vec<(u32, u32)> = Vec::with_capacity(out.positions.len());
-        for (v, (site, &t)) in s.sites.iter().zip(&s.ts).enumerate() {
-            let d = offset(DIRS[site.dir as usize]);
-            let l = site.lower.map(usize::from);
-            if (0..3).any(|k| d[k] == 0 && (l[k] == 0 || l[k] == n)) {
-                c.locked[v] = true;
-                continue;
-            }
-            let near = nearest_node(site, t);
-            owned.push(((near[0] + m * (near[1] + m * near[2])) as u32, v as u32));
-        }
-        c.cluster_groups(&mut owned);
-        c.collapse_short(SHORT_EDGE_CELLS * sp);
-        let kept = c.finish(out);
-        s.sites = kept.iter().map(|&v| s.sites[v as usize]).collect();
-        s.ts = kept.iter().map(|&v| s.ts[v as usize]).collect();
-        s.tris = c.tris;
-    }
-
-    /// The second pass: collapses the remaining edges shorter than `max_len` between unlocked
-    /// vertices, shortest first, under the same checks.
-    fn collapse_short(&mut self, max_len: f32) {
-        let mut edges: Vec<(u32, u32, u32)> = Vec::new();
-        for t in &self.tris {
-            if t[0] == NONE {
-                continue;
-            }
-            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-                if a < b && !self.locked[a as usize] && !self.locked[b as usize] {
-                    let l = self.pos[a as usize].distance(self.pos[b as usize]);
-                    if l < max_len {
-                        edges.push((l.to_bits(), a, b));
-                    }
-                }
-            }
-        }
-        edges.sort_unstable();
-        for (_, a, b) in edges {
-            let (a, b) = (self.rep[a as usize], self.rep[b as usize]);
-            if self.rep[a as usize] != a || self.rep[b as usize] != b || a == b {
-                continue;
-            }
-            if self.pos[a as usize].distance(self.pos[b as usize]) >= max_len || !self.adjacent(a, b) {
-                continue;
-            }
-            self.collapse(a, b, Some(SHORT_EDGE_RMS_CELLS * self.cell));
-        }
-    }
-
-    /// Merges the vertices of one node's group along mesh edges, seed by seed.
-    fn cluster(&mut self, members: &[u32]) {
-        let mut done: SmallVec<[bool; 16]> = SmallVec::from_elem(false, members.len());
-        for si in 0..members.len() {
-            if done[si] {
-                continue;
-            }
-            done[si] = true;
-            let seed = members[si];
-            loop {
-                let mut progress = false;
-                for (mi, &v) in members.iter().enumerate() {
-                    if done[mi] {
-                        continue;
-                    }
-                    if self.collapse(v, seed, None) {
-                        done[mi] = true;
-                        progress = true;
-                    }
-                }
-                if !progress {
-                    break;
-                }
-            }
-        }
-    }
-
-    /// The vertices merged into `v` (itself first).
-    fn members(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
-        std::iter::successors(Some(v), |&m| Some(self.next[m as usize]).filter(|&n| n != NONE))
-    }
-
-    /// Where the union of `a`'s and `b`'s members goes: the minimiser of their tangent planes'
-    /// squared distances (the dual-contouring QEF, biased to their mean where the planes leave
-    /// a direction free), so flat parts stay on the surface and edges and corners stay sharp;
-    /// kept within half a cell of the members' box.
-    fn place(&self, a: u32, b: u32) -> (Vec3, f32) {
-        let mut qef = Qef::default();
-        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-        let origin = self.orig[b as usize].0;
-        for m in self.members(a).chain(self.members(b)) {
-            let (p, n) = self.orig[m as usize];
-            qef.add((p - origin).as_dvec3(), n.as_dvec3());
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        let margin = Vec3::splat(0.5 * self.cell);
-        let p = (origin + qef.solve().as_vec3()).clamp(lo - margin, hi + margin);
-        // The root-mean-square distance of the members' tangent planes from the new vertex.
-        let rms = (qef.error((p - origin).as_dvec3()) / qef.count() as f64).sqrt() as f32;
-        (p, rms)
-    }
-
-    /// The triangles around `v` (the lists are kept exact: every collapse updates them).
-    fn live(&self, v: u32) -> impl Iterator<Item = (u32, [u32; 3])> + '_ {
-        self.around[v as usize].iter().map(move |&t| (t, self.tris[t as usize]))
-    }
-
-    fn adjacent(&self, a: u32, b: u32) -> bool {
-        self.live(a).any(|(_, t)| t.contains(&b))
-    }
-
-    fn neighbours(&self, v: u32) -> SmallVec<[u32; 16]> {
-        let mut out: SmallVec<[u32; 16]> = SmallVec::new();
-        for (_, t) in self.live(v) {
-            for w in t {
-                if w != v && !out.contains(&w) {
-                    out.push(w);
-                }
-            }
-        }
-        out
-    }
-
-    /// Merges `a` into `b` if that keeps the surface a closed manifold of the same topology,
-    /// turns no triangle over and (with `max_rms`) keeps the members' tangent planes within
-    /// that root-mean-square distance of the merged vertex.
-    fn collapse(&mut self, a: u32, b: u32, max_rms: Option<f32>) -> bool {
-        let mut shared: SmallVec<[(u32, u32); 2]> = SmallVec::new();
-        for (t, tri) in self.live(a) {
-            if tri.contains(&b) {
-                let apex = tri.into_iter().find(|&w| w != a && w != b).expect("three distinct corners");
-                shared.push((t, apex));
-            }
-        }
-        // An edge of exactly two triangles with two different apexes, each of which keeps at
-        // least three neighbours (a vertex's triangles are at least its neighbours minus one).
-        if shared.len() != 2
-            || shared[0].1 == shared[1].1
-            || shared.iter().any(|&(_, apex)| self.around[apex as usize].len() < 4)
-            || self.around[a as usize].len() + self.around[b as usize].len() < 7
-        {
-            return false;
-        }
-        let (na, nb) = (self.neighbours(a), self.neighbours(b));
-        // The link condition: the only common neighbours are the two apexes.
-        if na.iter().filter(|w| nb.contains(w)).count() != 2 {
-            return false;
-        }
-        let (p, rms) = self.place(a, b);
-        if max_rms.is_some_and(|m| rms > m) {
-            return false;
-        }
-        // Every candidate stays near the merged vertex's tangent plane (so the clustered
-        // surface stays within about this distance of the unclustered one) and near the vertex
-        // (thin tips, whose candidates surround the tip, are not cut off).
-        let normal = self.members(a).chain(self.members(b)).map(|m| self.orig[m as usize].1).sum::<Vec3>();
-        let normal = normal.normalize_or_zero();
-        let (off, reach) = (MAX_MOVE_CELLS * self.cell, (MAX_REACH_CELLS * self.cell).powi(2));
-        if self.members(a).chain(self.members(b)).any(|m| {
-            let q = self.orig[m as usize].0;
-            normal.dot(q - p).abs() > off || q.distance_squared(p) > reach
-        }) {
-            return false;
-        }
-        // No surviving triangle may turn over or collapse.
-        for v in [a, b] {
-            for (_, tri) in self.live(v) {
-                if tri.contains(&a) && tri.contains(&b) {
-                    continue;
-                }
-                let old = tri.map(|w| self.pos[w as usize]);
-                let new = tri.map(|w| if w == a || w == b { p } else { self.pos[w as usize] });
-                let n0 = (old[1] - old[0]).cross(old[2] - old[0]);
-                let n1 = (new[1] - new[0]).cross(new[2] - new[0]);
-                if n0.dot(n1) <= 0.0 || n1.length_squared() <= 1e-12 * n0.length_squared().max(1e-12) {
-                    return false;
-                }
-            }
-        }
-        for &(t, apex) in &shared {
-            self.tris[t as usize] = [NONE; 3];
-            self.around[apex as usize].retain(|x| *x != t);
-        }
-        let from_a = std::mem::take(&mut self.around[a as usize]);
-        let tris = &mut self.tris;
-        self.around[b as usize].retain(|t| tris[*t as usize][0] != NONE);
-        for t in from_a {
-            let tri = &mut tris[t as usize];
-            if tri[0] == NONE {
-                continue;
-            }
-            let k = tri.iter().position(|&w| w == a).expect("a's triangles hold a");
-            tri[k] = b;
-            self.around[b as usize].push(t);
-        }
-        self.pos[b as usize] = p;
-        self.next[self.tail[b as usize] as usize] = a;
-        self.tail[b as usize] = self.tail[a as usize];
-        self.rep[a as usize] = b;
-        true
-    }
-
-    /// Replaces `out` with the surviving vertices and triangles; returns the old index of each
-    /// surviving vertex.
-    fn finish(&self, out: &mut Mesh) -> Vec<u32> {
-        let count = out.positions.len();
-        let mut index = vec![NONE; count];
-        let mut mesh = Mesh::default();
-        let mut kept = Vec::new();
-        let with_materials = !out.materials.is_empty();
-        for (v, slot) in index.iter_mut().enumerate() {
-            if self.rep[v] != v as u32 {
-                continue;
-            }
-            *slot = mesh.positions.len() as u32;
-            let normal = self.members(v as u32).map(|m| self.orig[m as usize].1).sum::<Vec3>();
-            let normal = normal.normalize_or(Vec3::from(out.normals[v]));
-            mesh.positions.push(self.pos[v].to_array());
-            mesh.normals.push(normal.to_array());
-            if with_materials {
-                mesh.materials.push(out.materials[v]);
-            }
-            kept.push(v as u32);
-        }
-        for t in &self.tris {
-            if t[0] != NONE {
-                mesh.indices.extend(t.map(|v| index[v as usize]));
-            }
-        }
-        *out = mesh;
-        kept
-    }
+    c
 }
 
-/// The second pass collapses edges shorter than this many cells, shortest first.
+/// Short edges are merged in pairs this many rounds after the node clusters.
+pub const SHORT_EDGE_ROUNDS: usize = 2;
+
+/// The rounds merge edges shorter than this many cells, shortest first.
 pub const SHORT_EDGE_CELLS: f32 = 0.9;
 
-/// No candidate vertex is merged into a vertex whose tangent plane is farther than this (cells)
-/// from it.
-pub const MAX_MOVE_CELLS: f32 = 0.35;
-
-/// Nor into a vertex farther than this (cells). With 0.75 the bunny's ear tips (at 64 cells)
-/// were cut by 0.63 cells; with 0.6 the clustered bunny stays within 0.39 cells of the
-/// unclustered one and clustering removes 78 % of its triangles instead of 82 %.
-pub const MAX_REACH_CELLS: f32 = 0.6;
-
-/// The second pass's collapses keep the merged candidates' tangent planes within this
-/// root-mean-square distance (cells) of the merged vertex, so edges and corners are not cut.
+/// A pair stays merged only if its members' tangent planes pass within this root-mean-square
+/// distance (cells) of the merged vertex, so edges and corners are not cut.
 pub const SHORT_EDGE_RMS_CELLS: f32 = 0.05;
+
+/// Replaces `out` with the clustered mesh (materials: those of the vertices standing for the
+/// clusters); returns the candidate vertex standing for each output vertex.
+fn finish(c: Clustered, out: &mut Mesh) -> Vec<u32> {
+    if !out.materials.is_empty() {
+        out.materials = c.kept.iter().map(|&v| out.materials[v as usize]).collect();
+    }
+    out.positions = c.positions;
+    out.normals = c.normals;
+    out.indices.clear();
+    out.indices.extend(c.tris.iter().flatten());
+    c.kept
+}
 
 /// The node a vertex at `t` along its edge is nearest to (block-local).
 fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
@@ -688,13 +448,30 @@ fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
     if t <= 0.5 { l } else { [l[0] + d[0], l[1] + d[1], l[2] + d[2]] }
 }
 
-/// One chunk's mesh with its vertices' identities.
+/// One chunk's mesh with its vertices' identities: only the vertices shared with other chunks
+/// (on edges in a chunk face) have one, and they come first.
 type ChunkPart = (ChunkKey, Mesh, Vec<EdgeKey>);
 
+/// The node a chunk's vertex is nearest to: its index in the chunk's block when inside the
+/// chunk (no other chunk's vertex can be nearest to it), else `NONE` and its global position
+/// (cells of the volume's level).
+#[derive(Clone, Copy, Debug)]
+struct NearNode {
+    local: u32,
+    global: I64Vec3,
+}
+
+/// Whether a vertex's lattice edge lies in a face of its chunk (`n` cells), so that the
+/// neighbouring chunk meshes the same vertex.
+fn on_chunk_face(site: &Site, n: usize) -> bool {
+    let d = offset(DIRS[site.dir as usize]);
+    let l = site.lower.map(usize::from);
+    (0..3).any(|k| d[k] == 0 && (l[k] == 0 || l[k] == n))
+}
+
 /// The tetrahedra mesh of every chunk that can hold surface (clustered chunk by chunk when
-/// `cluster`), with each vertex's identity and, for each vertex, its nearest node (global, in
-/// cells of the volume's level).
-fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<I64Vec3>)> {
+/// `cluster`), shared vertices first with their identities, and each vertex's nearest node.
+fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<NearNode>)> {
     use rayon::prelude::*;
     crate::surface_chunks(volume)
         .par_iter()
@@ -704,14 +481,38 @@ fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart,
                 volume.extract_block_into(key, block);
                 let mut m = Mesh::default();
                 let ids = mesh_block_tetra_keyed(block, cluster, scratch, &mut m);
-                let origin = key.0.as_i64vec3() * block.cells() as i64;
-                let nodes = scratch
-                    .sites
-                    .iter()
-                    .zip(&scratch.ts)
-                    .map(|(site, &t)| origin + I64Vec3::from_array(nearest_node(site, t).map(|c| c as i64)))
+                let n = block.cells();
+                let side = n + 1;
+                let origin = key.0.as_i64vec3() * n as i64;
+                // Shared vertices first, each group in its old order.
+                let shared: Vec<bool> = scratch.sites.iter().map(|site| on_chunk_face(site, n)).collect();
+                let order: Vec<u32> = (0..shared.len() as u32)
+                    .filter(|&v| shared[v as usize])
+                    .chain((0..shared.len() as u32).filter(|&v| !shared[v as usize]))
                     .collect();
-                ((key, m, ids), nodes)
+                let mut index = vec![0u32; order.len()];
+                for (new, &old) in order.iter().enumerate() {
+                    index[old as usize] = new as u32;
+                }
+                let mut part = Mesh::default();
+                for &old in &order {
+                    part.push_vertex_from(&m, old as usize, [0.0; 3]);
+                }
+                part.indices = m.indices.iter().map(|&i| index[i as usize]).collect();
+                let ids: Vec<EdgeKey> =
+                    order.iter().take_while(|&&v| shared[v as usize]).map(|&v| ids[v as usize]).collect();
+                let nodes = order
+                    .iter()
+                    .map(|&v| {
+                        let near = nearest_node(&scratch.sites[v as usize], scratch.ts[v as usize]);
+                        let inside = near.iter().all(|&c| c > 0 && c < n);
+                        NearNode {
+                            local: if inside { (near[0] + side * (near[1] + side * near[2])) as u32 } else { NONE },
+                            global: origin + I64Vec3::from_array(near.map(|c| c as i64)),
+                        }
+                    })
+                    .collect();
+                ((key, part, ids), nodes)
             },
         )
         .collect()
@@ -746,18 +547,45 @@ pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -
     let (mut out, source) = crate::weld::weld_traced(&parts);
     if cluster {
         let tris: Vec<[u32; 3]> = out.triangles().collect();
-        let mut c = Clusterer::new(&out, tris, spacing);
-        let mut groups: Vec<((i64, i64, i64), u32)> = source
-            .iter()
-            .enumerate()
-            .map(|(v, &(part, i))| {
-                let p = near[part as usize][i as usize];
-                ((p.z, p.y, p.x), v as u32)
-            })
-            .collect();
-        c.cluster_groups(&mut groups);
-        c.collapse_short(SHORT_EDGE_CELLS * spacing);
-        c.finish(&mut out);
+        // Nodes inside a chunk gather its vertices alone (one table per chunk, in turn);
+        // nodes on chunk faces gather vertices from several chunks (sorted together).
+        let mut rep: Vec<u32> = (0..out.positions.len() as u32).collect();
+        let mut table: Vec<u32> = Vec::new();
+        let mut touched: Vec<u32> = Vec::new();
+        let mut faces: Vec<((i64, i64, i64), u32)> = Vec::new();
+        let mut current = u32::MAX;
+        for (v, &(part, i)) in source.iter().enumerate() {
+            if part != current {
+                for &t in &touched {
+                    table[t as usize] = NONE;
+                }
+                touched.clear();
+                current = part;
+            }
+            let node = near[part as usize][i as usize];
+            if node.local == NONE {
+                faces.push(((node.global.z, node.global.y, node.global.x), v as u32));
+                continue;
+            }
+            let slot = node.local as usize;
+            if slot >= table.len() {
+                table.resize(slot + 1, NONE);
+            }
+            if table[slot] == NONE {
+                table[slot] = v as u32;
+                touched.push(node.local);
+            }
+            rep[v] = table[slot];
+        }
+        faces.sort_unstable();
+        for group in faces.chunk_by(|a, b| a.0 == b.0) {
+            for g in group {
+                rep[g.1 as usize] = group[0].1;
+            }
+        }
+        let locked = vec![false; out.positions.len()];
+        let clustered = cluster_twice(&out, &tris, rep, &locked, spacing);
+        finish(clustered, &mut out);
     }
     out
 }
