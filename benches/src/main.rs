@@ -134,6 +134,12 @@ enum Command {
         /// Sphere diameter and bunny and asteroid size in cells (overrides the default).
         #[arg(long)]
         res: Option<u32>,
+        /// Only the shapes whose name contains this (sphere, bunny, asteroid, canvas).
+        #[arg(long, default_value = "")]
+        shape: String,
+        /// Only the meshers whose name contains this (for example "MT" or "clustering").
+        #[arg(long, default_value = "")]
+        mesher: String,
     },
     /// Table 8 alone (materials): the workload with and without materials, the painted scan
     /// and paint dabs, printed (not written to the docs; `suite` writes them).
@@ -221,7 +227,7 @@ fn main() -> Result<()> {
         }
         Command::Lod { res, frames, mesh } => return lod(res, frames, mesh),
         Command::Materials { count, res, dabs } => return materials(count, res, dabs),
-        Command::Quality { quick, res } => return quality(quick, res),
+        Command::Quality { quick, res, shape, mesher } => return quality(quick, res, &shape, &mesher),
         Command::Terrain { quick } => return terrain(quick),
         Command::Stroke { seconds } => stroke(seconds),
         Command::Convert { res, mesh } => return convert(res, mesh),
@@ -230,14 +236,15 @@ fn main() -> Result<()> {
     Ok(())
 }
 
-fn quality(quick: bool, res: Option<u32>) -> Result<()> {
+fn quality(quick: bool, res: Option<u32>, shape: &str, mesher: &str) -> Result<()> {
     use strata_bench::quality;
     let mut config = if quick { quality::QualityConfig::quick() } else { quality::QualityConfig::full() };
     if let Some(r) = res {
         config.res = r;
     }
     let bunny = strata_mesh::import::load_mesh(&strata_bench::suite::repo_root().join("tests/data/bunny.ply"))?;
-    let rows = quality::run(&config, (&bunny.vertices, &bunny.triangles), &mut |p| eprintln!("{p}"))?;
+    let rows =
+        quality::run_some(&config, (&bunny.vertices, &bunny.triangles), shape, mesher, &mut |p| eprintln!("{p}"))?;
     let mut s = String::new();
     quality::markdown(&rows, &mut s);
     println!("{s}");

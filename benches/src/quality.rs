@@ -300,17 +300,34 @@ pub fn run(
     bunny_mesh: (&[DVec3], &[[u32; 3]]),
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<Vec<QualityRow>> {
-    let shapes = [
-        sphere(config.res),
-        bunny(bunny_mesh.0, bunny_mesh.1, config.res)?,
-        asteroid(config.res),
-        canvas(config.canvas, 2021),
+    run_some(config, bunny_mesh, "", "", progress)
+}
+
+/// The rows of Table 10 whose shape's name contains `shape` and whose mesher's name contains
+/// `mesher` (empty: all), building only the shapes asked for.
+pub fn run_some(
+    config: &QualityConfig,
+    bunny_mesh: (&[DVec3], &[[u32; 3]]),
+    shape: &str,
+    mesher: &str,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<Vec<QualityRow>> {
+    type Build<'a> = Box<dyn Fn() -> anyhow::Result<Shape> + 'a>;
+    let shapes: [(&str, Build); 4] = [
+        ("sphere", Box::new(|| Ok(sphere(config.res)))),
+        ("bunny", Box::new(|| bunny(bunny_mesh.0, bunny_mesh.1, config.res))),
+        ("asteroid", Box::new(|| Ok(asteroid(config.res)))),
+        ("canvas", Box::new(|| Ok(canvas(config.canvas, 2021)))),
     ];
     let mut rows = Vec::new();
-    for shape in &shapes {
-        for method in methods() {
+    for (name, build) in &shapes {
+        if !name.contains(shape) {
+            continue;
+        }
+        let shape = build()?;
+        for method in methods().into_iter().filter(|m| m.name().contains(mesher)) {
             progress(&format!("table 10: {} by {}", shape.name, method.name()));
-            rows.push(measure(shape, method, config.runs)?);
+            rows.push(measure(&shape, method, config.runs)?);
         }
     }
     Ok(rows)

@@ -7,13 +7,19 @@
 //! every candidate triangle is carried through the clustering and dropped when two of its corners
 //! fall together. That is one linear pass, with no collapse order and no per-collapse test.
 //!
+//! A clustered mesh can be clustered again (the short-edge rounds): each vertex then carries the
+//! candidates it stands for ([`Samples`]), and placement and bounds use those, so every candidate
+//! stays within the bounds of its final vertex, not only of an intermediate one.
+//!
 //! Safety is then verified on the result, not assumed: a cluster is taken apart again (its
 //! members kept as they were) when
 //!
 //! - a member lies farther than [`MAX_MOVE_CELLS`] from the merged vertex's tangent plane, farther
 //!   than [`MAX_REACH_CELLS`] from the merged vertex, or faces away from the cluster's mean
 //!   normal (the two sides of a sheet thinner than a cell never merge);
-//! - a triangle it belongs to turns over or collapses to no area;
+//! - a triangle it belongs to turns over or collapses to no area, or cuts away from the surface
+//!   (its centroid or an edge midpoint farther than [`MAX_CHORD_CELLS`] from all three corners'
+//!   tangent planes: a chord across a tip or a groove narrower than a cell);
 //! - a vertex it belongs to, or one beside it, has a link (the triangles around it, each seen as
 //!   the directed edge opposite the vertex) that is not one simple cycle of at least three edges,
 //!   or for a vertex that stays, not one simple path or cycle.
@@ -36,6 +42,9 @@ use crate::qef::Qef;
 
 const NONE: u32 = u32::MAX;
 
+/// A one-entry list standing for a vertex's own sample.
+static NO_LIST: u32 = 0;
+
 /// No member is merged into a vertex whose tangent plane is farther than this (cells) from it.
 pub const MAX_MOVE_CELLS: f32 = 0.35;
 
@@ -43,6 +52,10 @@ pub const MAX_MOVE_CELLS: f32 = 0.35;
 /// were cut by 0.63 cells; 0.6 keeps every clustered mesh the tests and the quality table
 /// measure within half a cell of the unclustered one.
 pub const MAX_REACH_CELLS: f32 = 0.6;
+
+/// No clustered triangle's centroid or edge midpoint lies farther than this (cells) from every
+/// corner's tangent plane.
+pub const MAX_CHORD_CELLS: f32 = 0.3;
 
 /// The clustering of a candidate mesh.
 pub(crate) struct Clustering<'a> {
@@ -59,6 +72,24 @@ pub(crate) struct Clustering<'a> {
     /// With a value, a cluster also stays together only if its members' tangent planes pass
     /// within this root-mean-square distance of the merged vertex.
     max_rms: Option<f32>,
+    /// For a mesh that is itself clustered: the candidates (positions, normals) each of its
+    /// vertices stands for. Placement and bounds then use those, so clustering again keeps
+    /// every candidate within the bounds of its final vertex, not only of an intermediate one.
+    hermite: Option<Hermite<'a>>,
+    /// How far (cells) a member may lie from the merged vertex, and from its tangent plane.
+    reach: f32,
+    off: f32,
+}
+
+/// Candidate positions and normals, and the candidates each vertex stands for.
+type Hermite<'a> = (&'a [[f32; 3]], &'a [[f32; 3]], &'a Samples);
+
+/// The candidates each vertex of a clustered mesh stands for: those of vertex `i` are
+/// `list[start[i]..start[i + 1]]`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Samples {
+    start: Vec<u32>,
+    list: Vec<u32>,
 }
 
 /// The clustered mesh: positions, normals, triangles, and for each output vertex the candidate
@@ -68,6 +99,7 @@ pub(crate) struct Clustered {
     pub normals: Vec<[f32; 3]>,
     pub tris: Vec<[u32; 3]>,
     pub kept: Vec<u32>,
+    pub samples: Samples,
 }
 
 impl<'a> Clustering<'a> {
@@ -78,6 +110,38 @@ impl<'a> Clustering<'a> {
         self
     }
 
+    /// Lets members lie up to `reach` cells from the merged vertex and `off` cells from its
+    /// tangent plane (instead of [`MAX_REACH_CELLS`] and [`MAX_MOVE_CELLS`]).
+    pub(crate) fn with_bounds(mut self, reach: f32, off: f32) -> Self {
+        self.reach = reach;
+        self.off = off;
+        self
+    }
+
+    /// Places and bounds clusters by the candidates `samples` says each vertex stands for
+    /// (`positions` and `normals` are the candidates').
+    pub(crate) fn with_samples(
+        mut self,
+        positions: &'a [[f32; 3]],
+        normals: &'a [[f32; 3]],
+        samples: &'a Samples,
+    ) -> Self {
+        self.hermite = Some((positions, normals, samples));
+        self
+    }
+
+    /// The candidate samples (position, normal) vertex `v` stands for.
+    fn samples(&self, v: u32) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
+        let (positions, normals, list): (&[[f32; 3]], &[[f32; 3]], &[u32]) = match self.hermite {
+            Some((p, n, s)) => (p, n, &s.list[s.start[v as usize] as usize..s.start[v as usize + 1] as usize]),
+            None => (self.positions, self.normals, std::slice::from_ref(&NO_LIST)),
+        };
+        let own = self.hermite.is_none().then_some(v);
+        list.iter()
+            .map(move |&c| own.unwrap_or(c))
+            .map(move |c| (Vec3::from(positions[c as usize]), Vec3::from(normals[c as usize])))
+    }
+
     pub(crate) fn new(
         positions: &'a [[f32; 3]],
         normals: &'a [[f32; 3]],
@@ -85,7 +149,17 @@ impl<'a> Clustering<'a> {
         locked: &'a [bool],
         cell: f32,
     ) -> Self {
-        Clustering { positions, normals, tris, locked, cell, max_rms: None }
+        Clustering {
+            positions,
+            normals,
+            tris,
+            locked,
+            cell,
+            max_rms: None,
+            hermite: None,
+            reach: MAX_REACH_CELLS,
+            off: MAX_MOVE_CELLS,
+        }
     }
 
     /// Clusters by `rep` (for each vertex, a vertex of its cluster that stands for it, the
@@ -94,6 +168,7 @@ impl<'a> Clustering<'a> {
         let n = self.positions.len();
         debug_assert_eq!(rep.len(), n);
         let mut pos: Vec<Vec3> = self.positions.iter().map(|&p| Vec3::from(p)).collect();
+        let mut nrm: Vec<Vec3> = self.normals.iter().map(|&q| Vec3::from(q)).collect();
         let mut first = vec![NONE; n];
         let mut next = vec![NONE; n];
         let mut bad = vec![false; n];
@@ -111,8 +186,8 @@ impl<'a> Clustering<'a> {
         for r in 0..n {
             if rep[r] as usize == r && next[first[r] as usize] != NONE {
                 match self.place(r as u32, &first, &next) {
-                    Some(p) => pos[r] = p,
-                    None => self.split(r, &mut rep, &mut first, &mut next, &mut pos),
+                    Some((p, q)) => (pos[r], nrm[r]) = (p, q),
+                    None => self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm),
                 }
             }
         }
@@ -125,7 +200,7 @@ impl<'a> Clustering<'a> {
                 if m[0] == m[1] || m[1] == m[2] || m[0] == m[2] {
                     continue;
                 }
-                if m != *tri && self.turns_over(*tri, m, &pos) {
+                if m != *tri && (self.turns_over(*tri, m, &pos) || self.cuts_away(m, &pos, &nrm)) {
                     for r in m {
                         bad[r as usize] = true;
                     }
@@ -136,7 +211,7 @@ impl<'a> Clustering<'a> {
             let mut any = false;
             for r in 0..n {
                 if bad[r] && rep[r] as usize == r && next[first[r] as usize] != NONE {
-                    self.split(r, &mut rep, &mut first, &mut next, &mut pos);
+                    self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
                     any = true;
                 }
             }
@@ -148,12 +223,21 @@ impl<'a> Clustering<'a> {
     }
 
     /// Makes every member of cluster `r` a cluster of its own, at its own position.
-    fn split(&self, r: usize, rep: &mut [u32], first: &mut [u32], next: &mut [u32], pos: &mut [Vec3]) {
+    fn split(
+        &self,
+        r: usize,
+        rep: &mut [u32],
+        first: &mut [u32],
+        next: &mut [u32],
+        pos: &mut [Vec3],
+        nrm: &mut [Vec3],
+    ) {
         let mut m = first[r];
         while m != NONE {
             let after = next[m as usize];
             rep[m as usize] = m;
             pos[m as usize] = Vec3::from(self.positions[m as usize]);
+            nrm[m as usize] = Vec3::from(self.normals[m as usize]);
             first[m as usize] = m;
             next[m as usize] = NONE;
             m = after;
@@ -167,27 +251,28 @@ impl<'a> Clustering<'a> {
     /// Where cluster `r` goes: the minimiser of its members' tangent planes (biased to their
     /// mean where the planes leave a direction free), kept within half a cell of the members'
     /// box; `None` when a member would stray from it (see the module's notes).
-    fn place(&self, r: u32, first: &[u32], next: &[u32]) -> Option<Vec3> {
+    fn place(&self, r: u32, first: &[u32], next: &[u32]) -> Option<(Vec3, Vec3)> {
         let origin = Vec3::from(self.positions[r as usize]);
         let mut qef = Qef::default();
         let (mut lo, mut hi, mut normal) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN), Vec3::ZERO);
         for m in self.members(r, first, next) {
-            let (p, q) = (Vec3::from(self.positions[m as usize]), Vec3::from(self.normals[m as usize]));
-            qef.add((p - origin).as_dvec3(), q.as_dvec3());
-            lo = lo.min(p);
-            hi = hi.max(p);
-            normal += q;
+            for (p, q) in self.samples(m) {
+                qef.add((p - origin).as_dvec3(), q.as_dvec3());
+                lo = lo.min(p);
+                hi = hi.max(p);
+                normal += q;
+            }
         }
         let margin = Vec3::splat(0.5 * self.cell);
         let p = (origin + qef.solve().as_vec3()).clamp(lo - margin, hi + margin);
         let normal = normal.normalize_or_zero();
-        let (off, reach) = (MAX_MOVE_CELLS * self.cell, (MAX_REACH_CELLS * self.cell).powi(2));
-        let strays = self.members(r, first, next).any(|m| {
-            let (q, qn) = (Vec3::from(self.positions[m as usize]), Vec3::from(self.normals[m as usize]));
-            qn.dot(normal) <= 0.0 || normal.dot(q - p).abs() > off || q.distance_squared(p) > reach
-        });
+        let (off, reach) = (self.off * self.cell, (self.reach * self.cell).powi(2));
+        let strays = self
+            .members(r, first, next)
+            .flat_map(|m| self.samples(m))
+            .any(|(q, qn)| qn.dot(normal) <= 0.0 || normal.dot(q - p).abs() > off || q.distance_squared(p) > reach);
         let rms = |max: f32| ((qef.error((p - origin).as_dvec3()) / qef.count() as f64).sqrt() as f32) <= max;
-        (!strays && p.is_finite() && self.max_rms.is_none_or(rms)).then_some(p)
+        (!strays && p.is_finite() && self.max_rms.is_none_or(rms)).then_some((p, normal))
     }
 
     /// Whether candidate triangle `tri`, carried to `m` (positions `pos`), turns over or loses
@@ -205,6 +290,18 @@ impl<'a> Clustering<'a> {
         let n1 = (new[1] - new[0]).cross(new[2] - new[0]);
         let l1 = n1.length_squared();
         n1.dot(reference) <= 0.0 || l1 <= 1e-12 * (self.cell * self.cell).powi(2)
+    }
+
+    /// Whether triangle `m` (positions `pos`, vertex normals `nrm`) cuts away from the surface:
+    /// its centroid or an edge midpoint lies farther than [`MAX_CHORD_CELLS`] from the tangent
+    /// planes of all three corners (a chord across a tip or a groove narrower than a cell).
+    fn cuts_away(&self, m: [u32; 3], pos: &[Vec3], nrm: &[Vec3]) -> bool {
+        let p = m.map(|v| pos[v as usize]);
+        let n = m.map(|v| nrm[v as usize]);
+        let limit = MAX_CHORD_CELLS * self.cell;
+        [(p[0] + p[1] + p[2]) / 3.0, (p[0] + p[1]) * 0.5, (p[1] + p[2]) * 0.5, (p[2] + p[0]) * 0.5]
+            .into_iter()
+            .any(|x| (0..3).all(|k| n[k].dot(x - p[k]).abs() > limit))
     }
 
     /// Marks, for every vertex whose link is not one simple cycle (a simple path or cycle for a
@@ -284,14 +381,31 @@ impl<'a> Clustering<'a> {
                 index[v as usize] = 0;
             }
         }
-        let mut out = Clustered { positions: Vec::new(), normals: Vec::new(), tris: Vec::new(), kept: Vec::new() };
+        let mut out = Clustered {
+            positions: Vec::new(),
+            normals: Vec::new(),
+            tris: Vec::new(),
+            kept: Vec::new(),
+            samples: Samples { start: vec![0], list: Vec::new() },
+        };
         for r in 0..n {
             if index[r] == NONE {
                 continue;
             }
             debug_assert_eq!(rep[r] as usize, r);
             index[r] = out.positions.len() as u32;
-            let normal: Vec3 = self.members(r as u32, first, next).map(|m| Vec3::from(self.normals[m as usize])).sum();
+            let mut normal = Vec3::ZERO;
+            for m in self.members(r as u32, first, next) {
+                normal += self.samples(m).map(|(_, q)| q).sum::<Vec3>();
+                match self.hermite {
+                    Some((_, _, s)) => out
+                        .samples
+                        .list
+                        .extend_from_slice(&s.list[s.start[m as usize] as usize..s.start[m as usize + 1] as usize]),
+                    None => out.samples.list.push(m),
+                }
+            }
+            out.samples.start.push(out.samples.list.len() as u32);
             out.positions.push(pos[r].to_array());
             out.normals.push(normal.normalize_or(Vec3::from(self.normals[r])).to_array());
             out.kept.push(r as u32);
@@ -371,6 +485,85 @@ fn link_is_disk(edges: &[(u32, u32)], open: bool) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A regular octahedron (±x, ±y, ±z) with outward triangles, and the vertex normals `normals`.
+    type Candidates = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+    fn octahedron(normals: [[f32; 3]; 6]) -> Candidates {
+        let positions = vec![
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+        ];
+        let tris = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+        (positions, normals.to_vec(), tris)
+    }
+
+    fn outward() -> [[f32; 3]; 6] {
+        [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]
+    }
+
+    #[test]
+    fn a_safe_cluster_merges_and_the_surface_stays_closed() {
+        let (p, n, t) = octahedron(outward());
+        let locked = [false; 6];
+        // +x and +y into one vertex: their two shared triangles fall away, a bipyramid is left.
+        let c = Clustering::new(&p, &n, &t, &locked, 10.0).run(vec![0, 1, 0, 3, 4, 5]);
+        assert_eq!((c.positions.len(), c.tris.len()), (5, 6));
+        assert_eq!(c.kept, vec![0, 1, 3, 4, 5]);
+        // The planes x = 1 and y = 1 meet at (1, 1, 0).
+        assert!(Vec3::from(c.positions[0]).distance(Vec3::new(1.0, 1.0, 0.0)) < 1e-4, "{:?}", c.positions[0]);
+    }
+
+    #[test]
+    fn a_cluster_whose_vertex_turns_a_triangle_over_is_taken_apart() {
+        // Tangent planes at +x and +y that meet at (-2, -2, 0), beyond -x and -y: the merged
+        // vertex passes every distance bound of a cell of 10 but turns its neighbours over.
+        let mut normals = outward();
+        let k = 13f32.sqrt();
+        normals[0] = [2.0 / k, -3.0 / k, 0.0];
+        normals[2] = [3.0 / k, -2.0 / k, 0.0];
+        let (p, n, t) = octahedron(normals);
+        let c = Clustering::new(&p, &n, &t, &[false; 6], 10.0).run(vec![0, 1, 0, 3, 4, 5]);
+        assert_eq!((c.positions.len(), c.tris.len()), (6, 8), "taken apart: the octahedron unchanged");
+        assert_eq!(c.positions, p);
+    }
+
+    #[test]
+    fn a_cluster_that_pinches_or_flattens_the_surface_is_taken_apart() {
+        // Normals that let the members merge (so only the surface's shape can refuse).
+        let (p, n, t) = octahedron([[0.0, 0.0, 1.0]; 6]);
+        // +x with -x: opposite vertices; the triangles around the merged vertex touch in two
+        // fans (a pinch). +x, -x, +y: three of four around the equator leave triangles back
+        // to back.
+        for rep in [vec![0, 0, 2, 3, 4, 5], vec![0, 0, 0, 3, 4, 5]] {
+            let c = Clustering::new(&p, &n, &t, &[false; 6], 10.0).run(rep.clone());
+            assert_eq!(c.tris.len(), 8, "{rep:?}");
+        }
+        // Everything into one vertex: the piece would vanish.
+        let c = Clustering::new(&p, &n, &t, &[false; 6], 10.0).run(vec![0; 6]);
+        assert_eq!(c.tris.len(), 8);
+    }
+
+    #[test]
+    fn a_triangle_cutting_across_a_ridge_cuts_away_and_one_along_a_plane_does_not() {
+        let none: [[f32; 3]; 0] = [];
+        let c = Clustering::new(&none, &none, &[], &[], 1.0);
+        // A tent z = -|x|: corners on both faces and on the ridge, with their faces' normals.
+        let k = std::f32::consts::FRAC_1_SQRT_2;
+        let pos = [Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, 0.0)];
+        let nrm = [Vec3::new(-k, 0.0, k), Vec3::new(k, 0.0, k), Vec3::Z];
+        assert!(c.cuts_away([0, 1, 2], &pos, &nrm));
+        // The same corners on a flat floor, and a shallow tent (its chord within 0.3 cells).
+        let flat = [Vec3::Z; 3];
+        let low = [Vec3::new(-1.0, 0.0, -0.2), Vec3::new(1.0, 0.0, -0.2), Vec3::new(0.0, 1.0, 0.0)];
+        assert!(!c.cuts_away([0, 1, 2], &low.map(|p| p * Vec3::new(1.0, 1.0, 0.0)), &flat));
+        let n = Vec3::new(-0.2, 0.0, 1.0).normalize();
+        assert!(!c.cuts_away([0, 1, 2], &low, &[n, n * Vec3::new(-1.0, 1.0, 1.0), Vec3::Z]));
+    }
 
     #[test]
     fn links_are_disks_only_when_one_simple_cycle() {

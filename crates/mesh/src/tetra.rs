@@ -15,19 +15,19 @@
 //! agree). The body diagonal's vertex is the least-squares meeting point of the cell's tangent
 //! planes with the diagonal, kept inside the edge.
 //!
-//! **Clustering.** Every vertex belongs to the node it is nearest to. Around each node, its
-//! vertices are merged one at a time along the mesh edges that join them, each merge an edge
-//! collapse that is made only if the link condition holds (the two ends share exactly the two
-//! opposite corners of the edge's triangles), no vertex falls below valence three, no
-//! surviving triangle turns over, and every merged candidate stays near the new vertex and its
-//! tangent plane ([`MAX_MOVE_CELLS`], [`MAX_REACH_CELLS`]). A collapse that passes these checks
-//! keeps a closed 2-manifold closed and manifold with the same topology, so the output is closed
-//! and edge-manifold always: the study's loop and island tests become one exact local test. The
-//! merged vertex is placed by the QEF of its candidates' tangent planes. A second pass collapses
-//! the remaining short edges ([`SHORT_EDGE_CELLS`]) under the same checks. Vertices on edges
-//! that lie in a chunk face are shared with the neighbouring chunk and never merged; so chunk
-//! meshes stay crack-free and each chunk's clustering depends on its own block alone
-//! (incremental). [`crate::tetra_volume`] clusters the welded whole mesh instead, faces included.
+//! **Clustering.** Every vertex belongs to the node it is nearest to, and each node's vertices
+//! become one vertex placed by the QEF of their tangent planes; the candidate triangles are
+//! carried through in one pass, those whose corners fall together dropped. Then
+//! [`SHORT_EDGE_ROUNDS`] rounds merge the remaining edges shorter than [`SHORT_EDGE_CELLS`] in
+//! pairs, shortest first, where the pair's planes stay within [`SHORT_EDGE_RMS_CELLS`] of the
+//! merged vertex. Nothing is assumed safe: after each clustering the result is verified exactly
+//! (every vertex's link one simple cycle, no triangle turned over, no small piece vanished, every
+//! member near the merged vertex and its tangent plane: [`MAX_MOVE_CELLS`], [`MAX_REACH_CELLS`])
+//! and the clusters that fail are taken apart until none does (`cluster.rs` proves this ends
+//! closed and manifold). Vertices on edges that lie in a chunk face are shared with the
+//! neighbouring chunk and never merged; so chunk meshes stay crack-free and each chunk's
+//! clustering depends on its own block alone (incremental). the whole-volume mesher (`tetra_volume`) clusters the
+//! welded whole mesh instead, faces included.
 
 use std::sync::OnceLock;
 
@@ -410,7 +410,9 @@ fn cluster_twice(out: &Mesh, tris: &[[u32; 3]], rep: Vec<u32>, locked: &[bool], 
         let locked: Vec<bool> = c.kept.iter().map(|&v| locked[v as usize]).collect();
         let pairs = crate::cluster::short_pairs(&c, &locked, SHORT_EDGE_CELLS * cell);
         let next = Clustering::new(&c.positions, &c.normals, &c.tris, &locked, cell)
+            .with_samples(&out.positions, &out.normals, &c.samples)
             .with_max_rms(SHORT_EDGE_RMS_CELLS * cell)
+            .with_bounds(SHORT_EDGE_REACH_CELLS, SHORT_EDGE_MOVE_CELLS)
             .run(pairs);
         let kept = next.kept.iter().map(|&v| c.kept[v as usize]).collect();
         c = Clustered { kept, ..next };
@@ -424,9 +426,17 @@ pub const SHORT_EDGE_ROUNDS: usize = 2;
 /// The rounds merge edges shorter than this many cells, shortest first.
 pub const SHORT_EDGE_CELLS: f32 = 0.9;
 
-/// A pair stays merged only if its members' tangent planes pass within this root-mean-square
+/// A pair stays merged only if its candidates' tangent planes pass within this root-mean-square
 /// distance (cells) of the merged vertex, so edges and corners are not cut.
 pub const SHORT_EDGE_RMS_CELLS: f32 = 0.05;
+
+/// And if every candidate lies within this distance (cells) of the merged vertex (the node
+/// clusters' [`MAX_REACH_CELLS`] would refuse most pairs: their candidates span two nodes) ...
+pub const SHORT_EDGE_REACH_CELLS: f32 = 1.0;
+
+/// ... and within this distance (cells) of its tangent plane (tighter than the node clusters'
+/// [`MAX_MOVE_CELLS`]).
+pub const SHORT_EDGE_MOVE_CELLS: f32 = 0.2;
 
 /// Replaces `out` with the clustered mesh (materials: those of the vertices standing for the
 /// clusters); returns the candidate vertex standing for each output vertex.

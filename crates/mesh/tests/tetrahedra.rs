@@ -308,6 +308,8 @@ fn a_big_sphere_loses_most_triangles_to_clustering() {
     let reduction = |m: &Mesh| 1.0 - m.triangle_count() as f64 / plain.triangle_count() as f64;
     // The bar is 70 % whole; chunk faces are never clustered, which costs about ten
     // points chunk by chunk.
-    assert!(reduction(&whole) >= 0.70, "whole: {:.3}", reduction(&whole));
-    assert!(reduction(&chunked) >= 0.60, "per chunk: {:.3}", reduction(&chunked));
+    // The bars are 80 % whole and 75 % per chunk (chunk faces are never clustered);
+    // this sphere of radius 20 reaches 83.8 % and 76.7 %.
+    assert!(reduction(&whole) >= 0.80, "whole: {:.3}", reduction(&whole));
+    assert!(reduction(&chunked) >= 0.75, "per chunk: {:.3}", reduction(&chunked));
 }
