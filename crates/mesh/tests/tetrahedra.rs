@@ -291,6 +291,13 @@ proptest! {
         let lists = lists_volume(&v);
         for m in [strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra)).ok().unwrap(), tetra_volume_per_chunk(&v).unwrap()] {
             prop_assert!(check_closed_manifold(&m).is_ok(), "{:?}", check_closed_manifold(&m));
+            // Smooth surfaces stay within half a cell of the plain mesh (the analytic shapes and
+            // the quality shapes); where shapes meet in creases and slivers the clustered vertex
+            // goes towards the crease (the QEF), which the plain mesh chamfers, as at the rotated
+            // box's edges: 1,000 cases measured up to 0.75 cells. This bound catches a vertex
+            // placed astray.
+            let h = hausdorff(&plain, &m, 2.0);
+            prop_assert!(h <= 1.0, "Hausdorff {} cells from the plain mesh", h);
             if lists > 2000.0 {
                 let vol = signed_volume(&m);
                 prop_assert!((vol - lists).abs() / lists < 0.03, "mesh {} lists {}", vol, lists);
