@@ -14,6 +14,8 @@
 //! Safety is then verified on the result, not assumed: a cluster is taken apart again (its
 //! members kept as they were) when
 //!
+//! - its members are not joined by the mesh's edges among themselves (it would join separate
+//!   pieces or sheets, or let a small piece vanish into a cluster holding another surface);
 //! - a member lies farther than [`MAX_MOVE_CELLS`] from the merged vertex's tangent plane, farther
 //!   than [`MAX_REACH_CELLS`] from the merged vertex, or faces away from the cluster's mean
 //!   normal (the two sides of a sheet thinner than a cell never merge);
@@ -181,6 +183,33 @@ impl<'a> Clustering<'a> {
             next[v] = first[r];
             first[r] = v as u32;
         }
+        // Take apart the clusters whose members are not joined by the mesh's edges among
+        // themselves: they would join separate pieces or sheets, or let a small piece vanish
+        // into a cluster that also holds another surface.
+        let mut root: Vec<u32> = (0..n as u32).collect();
+        fn find(root: &mut [u32], mut v: u32) -> u32 {
+            while root[v as usize] != v {
+                root[v as usize] = root[root[v as usize] as usize];
+                v = root[v as usize];
+            }
+            v
+        }
+        for tri in self.tris {
+            for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+                if rep[a as usize] == rep[b as usize] {
+                    let (ra, rb) = (find(&mut root, a), find(&mut root, b));
+                    root[ra.max(rb) as usize] = ra.min(rb);
+                }
+            }
+        }
+        for r in 0..n {
+            if rep[r] as usize == r && next[first[r] as usize] != NONE {
+                let own = find(&mut root, r as u32);
+                if self.members(r as u32, &first, &next).any(|m| find(&mut root, m) != own) {
+                    self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
+                }
+            }
+        }
         // Place each cluster; take apart the ones whose members stray. Clusters taken apart
         // later go back to their members' positions; the others keep theirs.
         for r in 0..n {
@@ -200,7 +229,10 @@ impl<'a> Clustering<'a> {
                 if m[0] == m[1] || m[1] == m[2] || m[0] == m[2] {
                     continue;
                 }
-                if m != *tri && (self.turns_over(*tri, m, &pos) || self.cuts_away(m, &pos, &nrm)) {
+                // A triangle moves when any corner's cluster has moved (its standing vertex is
+                // a member too, so a triangle may keep its corners and still move).
+                let moved = m.iter().any(|&r| next[first[r as usize] as usize] != NONE);
+                if moved && (self.turns_over(*tri, m, &pos) || self.cuts_away(m, &pos, &nrm)) {
                     for r in m {
                         bad[r as usize] = true;
                     }
@@ -533,6 +565,20 @@ mod tests {
     }
 
     #[test]
+    fn a_triangle_that_keeps_its_corners_but_moves_is_checked_too() {
+        // +x stands for the cluster {+x, +y}; planes meeting at (-1, 0.6, 0) turn over only the
+        // triangles around +x that +y is not in (their corners do not change, their position
+        // does).
+        let mut normals = outward();
+        let (a, b) = (Vec3::new(0.6, 2.0, 0.0).normalize(), Vec3::new(0.4, -1.0, 0.0).normalize());
+        normals[0] = a.to_array();
+        normals[2] = b.to_array();
+        let (p, n, t) = octahedron(normals);
+        let c = Clustering::new(&p, &n, &t, &[false; 6], 10.0).run(vec![0, 1, 0, 3, 4, 5]);
+        assert_eq!((c.positions.len(), c.tris.len()), (6, 8), "taken apart");
+    }
+
+    #[test]
     fn a_cluster_that_pinches_or_flattens_the_surface_is_taken_apart() {
         // Normals that let the members merge (so only the surface's shape can refuse).
         let (p, n, t) = octahedron([[0.0, 0.0, 1.0]; 6]);
@@ -546,6 +592,22 @@ mod tests {
         // Everything into one vertex: the piece would vanish.
         let c = Clustering::new(&p, &n, &t, &[false; 6], 10.0).run(vec![0; 6]);
         assert_eq!(c.tris.len(), 8);
+    }
+
+    #[test]
+    fn a_cluster_joining_two_separate_pieces_is_taken_apart() {
+        // A speck (a tiny octahedron) at the big octahedron's +x corner, all of it clustered
+        // with that corner: its triangles would all fall away while the corner keeps its own
+        // link, so only the members' connectedness can refuse.
+        let (mut p, mut n, mut t) = octahedron(outward());
+        let (q, _, u) = octahedron(outward());
+        p.extend(q.iter().map(|v| [1.0 + 0.01 * v[0], 0.01 * v[1], 0.01 * v[2]]));
+        n.extend([[1.0, 0.0, 0.0]; 6]);
+        t.extend(u.iter().map(|f| f.map(|v| v + 6)));
+        let mut rep: Vec<u32> = (0..12).collect();
+        rep[6..].fill(0);
+        let c = Clustering::new(&p, &n, &t, &[false; 12], 10.0).run(rep);
+        assert_eq!((c.positions.len(), c.tris.len()), (12, 16), "the speck is kept");
     }
 
     #[test]
