@@ -371,6 +371,14 @@ fn a_world_is_hosted_joined_and_dug_together() {
         host.state().studio.editor.world().is_some_and(strata_editor::room::is_shareable),
         "the world is shared at one level"
     );
+    // The host's own connection makes the room; a guest asking before that is told there is
+    // no such room (a user joins after being given the address, by then long made).
+    let start = Instant::now();
+    while !in_room(host.state()) {
+        assert!(start.elapsed() < Duration::from_secs(60), "the host's room: {}", host.state().studio.status());
+        host.step();
+        std::thread::sleep(Duration::from_millis(5));
+    }
     let mut guest = harness("world-guest", default_scene());
     frames(&mut guest);
     session_dialog(
