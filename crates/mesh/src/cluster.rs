@@ -94,6 +94,13 @@ pub(crate) struct Samples {
     list: Vec<u32>,
 }
 
+impl Samples {
+    /// The candidates vertex `v` stands for.
+    fn of(&self, v: u32) -> &[u32] {
+        &self.list[self.start[v as usize] as usize..self.start[v as usize + 1] as usize]
+    }
+}
+
 /// The clustered mesh: positions, normals, triangles, and for each output vertex the candidate
 /// vertex standing for its cluster.
 pub(crate) struct Clustered {
@@ -135,7 +142,7 @@ impl<'a> Clustering<'a> {
     /// The candidate samples (position, normal) vertex `v` stands for.
     fn samples(&self, v: u32) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
         let (positions, normals, list): (&[[f32; 3]], &[[f32; 3]], &[u32]) = match self.hermite {
-            Some((p, n, s)) => (p, n, &s.list[s.start[v as usize] as usize..s.start[v as usize + 1] as usize]),
+            Some((p, n, s)) => (p, n, s.of(v)),
             None => (self.positions, self.normals, std::slice::from_ref(&NO_LIST)),
         };
         let own = self.hermite.is_none().then_some(v);
@@ -430,10 +437,7 @@ impl<'a> Clustering<'a> {
             for m in self.members(r as u32, first, next) {
                 normal += self.samples(m).map(|(_, q)| q).sum::<Vec3>();
                 match self.hermite {
-                    Some((_, _, s)) => out
-                        .samples
-                        .list
-                        .extend_from_slice(&s.list[s.start[m as usize] as usize..s.start[m as usize + 1] as usize]),
+                    Some((_, _, s)) => out.samples.list.extend_from_slice(s.of(m)),
                     None => out.samples.list.push(m),
                 }
             }

@@ -383,9 +383,7 @@ fn cluster_block(n: usize, sp: f32, s: &mut TetraScratch, out: &mut Mesh) {
     let mut rep: Vec<u32> = (0..count as u32).collect();
     let mut locked = vec![false; count];
     for (v, (site, &t)) in s.sites.iter().zip(&s.ts).enumerate() {
-        let d = offset(DIRS[site.dir as usize]);
-        let l = site.lower.map(usize::from);
-        if (0..3).any(|k| d[k] == 0 && (l[k] == 0 || l[k] == n)) {
+        if on_chunk_face(site, n) {
             locked[v] = true;
             continue;
         }
