@@ -92,6 +92,17 @@ fn same(a: &StudioApp, b: &StudioApp) -> bool {
     idle(a) && idle(b) && digests(a) == digests(b)
 }
 
+/// Steps the host until its own connection has made the room. A guest asking before that is
+/// told there is no such room; a user joins after being given the address, by then long made.
+fn wait_for_the_room(host: &mut H) {
+    let start = Instant::now();
+    while !in_room(host.state()) {
+        assert!(start.elapsed() < Duration::from_secs(60), "the host's room: {}", host.state().studio.status());
+        host.step();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
 fn in_room(app: &StudioApp) -> bool {
     app.studio
         .collab
@@ -131,6 +142,7 @@ fn two_studios_host_join_sculpt_see_each_other_undo_through_the_room_and_leave()
     assert!(!host.state().modal_open(), "Host closes the dialog: {}", host.state().studio.message);
     let url = host.state().studio.collab.as_ref().expect("hosting").share.clone();
     assert!(url.starts_with("ws://127.0.0.1:"), "the address to share: {url}");
+    wait_for_the_room(&mut host);
     // The joiner has unsaved work of its own: joining asks about it first.
     let mut guest = harness("guest", strata_editor::Scene::default());
     frames(&mut guest);
@@ -371,14 +383,7 @@ fn a_world_is_hosted_joined_and_dug_together() {
         host.state().studio.editor.world().is_some_and(strata_editor::room::is_shareable),
         "the world is shared at one level"
     );
-    // The host's own connection makes the room; a guest asking before that is told there is
-    // no such room (a user joins after being given the address, by then long made).
-    let start = Instant::now();
-    while !in_room(host.state()) {
-        assert!(start.elapsed() < Duration::from_secs(60), "the host's room: {}", host.state().studio.status());
-        host.step();
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    wait_for_the_room(&mut host);
     let mut guest = harness("world-guest", default_scene());
     frames(&mut guest);
     session_dialog(
