@@ -17,14 +17,33 @@
 //! - its members are not joined by the mesh's edges among themselves (it would join separate
 //!   pieces or sheets, or let a small piece vanish into a cluster holding another surface);
 //! - a member lies farther than [`MAX_MOVE_CELLS`] from the merged vertex's tangent plane, farther
-//!   than [`MAX_REACH_CELLS`] from the merged vertex, or faces away from the cluster's mean
-//!   normal (the two sides of a sheet thinner than a cell never merge);
+//!   than [`MAX_REACH_CELLS`] from the merged vertex (for the short-edge rounds, their own
+//!   bound), or faces away from the cluster's mean normal (the two sides of a sheet thinner than
+//!   a cell never merge), or none lies within [`MAX_REACH_CELLS`] of it. The vertex goes where
+//!   its members' tangent planes meet (a crease or a corner stays sharp), or where that strays,
+//!   halfway to their mean or at their mean (chamfered as the candidates are);
 //! - a triangle it belongs to turns over or collapses to no area, or cuts away from the surface
 //!   (its centroid or an edge midpoint farther than [`MAX_CHORD_CELLS`] from all three corners'
 //!   tangent planes: a chord across a tip or a groove narrower than a cell);
 //! - a vertex it belongs to, or one beside it, has a link (the triangles around it, each seen as
 //!   the directed edge opposite the vertex) that is not one simple cycle of at least three edges,
-//!   or for a vertex that stays, not one simple path or cycle.
+//!   or for a vertex that stays, not one simple path or cycle;
+//! - a candidate triangle folds onto an edge (two of its corners fall together) that is no edge
+//!   of the clustered surface;
+//! - in a mesh clustered again, a candidate lies farther than [`MAX_REACH_CELLS`] from its vertex
+//!   and from every triangle around it (a tip or a fin cut short), where the vertex or one beside
+//!   it belongs to the cluster.
+//!
+//! **Distance.** The clustering maps each candidate vertex to its cluster's vertex and each
+//! candidate triangle linearly onto the triangle, edge or vertex its corners go to. A point of a
+//! candidate triangle is a weighted mean of its corners, and its image the same mean of theirs,
+//! so the two lie no farther apart than the farthest corner from its cluster's vertex. Every
+//! clustered triangle is the image of a candidate triangle, and every candidate triangle's image
+//! lies on the clustered surface (a folded one's edge is kept, a collapsed one's vertex keeps
+//! triangles), so each surface lies within [`MAX_REACH_CELLS`] of the other (their Hausdorff
+//! distance) wherever every candidate stays that near its vertex: always for the node clusters.
+//! The short-edge rounds let a pair reach farther (a pair's candidates span two nodes); there
+//! the candidates beyond the bound are checked against the triangles around their vertex.
 //!
 //! Every vertex's link being one simple cycle is exactly a closed, consistently oriented,
 //! vertex- and edge-manifold surface: each edge `v–a` then has one triangle that runs `v → a` and
@@ -51,9 +70,11 @@ static NO_LIST: u32 = 0;
 pub const MAX_MOVE_CELLS: f32 = 0.35;
 
 /// Nor into a vertex farther than this (cells). With 0.75 the bunny's ear tips (at 64 cells)
-/// were cut by 0.63 cells; 0.6 keeps every clustered mesh the tests and the quality table
-/// measure within half a cell of the unclustered one.
-pub const MAX_REACH_CELLS: f32 = 0.6;
+/// were cut by 0.63 cells; with 0.6 a cube's corner under random CSG edits stood 0.56 cells
+/// from the unclustered mesh. Every point of a clustered triangle is a weighted mean of its
+/// corners, each within this distance of the candidates it stands for, so the clustered surface
+/// stays within it of the candidate one (see the module's notes).
+pub const MAX_REACH_CELLS: f32 = 0.5;
 
 /// No clustered triangle's centroid or edge midpoint lies farther than this (cells) from every
 /// corner's tangent plane.
@@ -87,11 +108,13 @@ pub(crate) struct Clustering<'a> {
 type Hermite<'a> = (&'a [[f32; 3]], &'a [[f32; 3]], &'a Samples);
 
 /// The candidates each vertex of a clustered mesh stands for: those of vertex `i` are
-/// `list[start[i]..start[i + 1]]`.
+/// `list[start[i]..start[i + 1]]`; `far[i]` says whether one of them lies farther than
+/// [`MAX_REACH_CELLS`] from the vertex.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Samples {
     start: Vec<u32>,
     list: Vec<u32>,
+    far: Vec<bool>,
 }
 
 impl Samples {
@@ -184,6 +207,9 @@ impl<'a> Clustering<'a> {
         let mut mapped: Vec<[u32; 3]> = Vec::with_capacity(self.tris.len());
         let mut offsets: Vec<u32> = Vec::new();
         let mut link: Vec<(u32, u32)> = Vec::new();
+        let mut folded: Vec<(u32, u32)> = Vec::new();
+        // Whether a merged cluster has a candidate beyond [`MAX_REACH_CELLS`] of its vertex.
+        let mut far = vec![false; n];
         // Members of each cluster as linked lists (in vertex order).
         for v in (0..n).rev() {
             let r = rep[v] as usize;
@@ -222,7 +248,7 @@ impl<'a> Clustering<'a> {
         for r in 0..n {
             if rep[r] as usize == r && next[first[r] as usize] != NONE {
                 match self.place(r as u32, &first, &next) {
-                    Some((p, q)) => (pos[r], nrm[r]) = (p, q),
+                    Some((p, q, beyond)) => (pos[r], nrm[r], far[r]) = (p, q, beyond),
                     None => self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm),
                 }
             }
@@ -230,10 +256,16 @@ impl<'a> Clustering<'a> {
         loop {
             // Carry the triangles through; mark clusters whose triangles turn over.
             mapped.clear();
+            folded.clear();
             bad.fill(false);
             for tri in self.tris {
                 let m = tri.map(|v| rep[v as usize]);
                 if m[0] == m[1] || m[1] == m[2] || m[0] == m[2] {
+                    // A triangle folded onto an edge: that edge must stay in the surface.
+                    if m[0] != m[1] || m[1] != m[2] {
+                        let other = if m[0] == m[1] { m[2] } else { m[1] };
+                        folded.push((m[0], other));
+                    }
                     continue;
                 }
                 // A triangle moves when any corner's cluster has moved (its standing vertex is
@@ -247,6 +279,16 @@ impl<'a> Clustering<'a> {
                 mapped.push(m);
             }
             self.check_links(&rep, &mapped, &mut offsets, &mut link, &mut bad);
+            if self.hermite.is_some() {
+                self.check_far_samples(&rep, &pos, &first, &next, &far, &offsets, &link, &mut bad);
+            }
+            for &(a, b) in &folded {
+                let around = &link[offsets[a as usize] as usize..offsets[a as usize + 1] as usize];
+                if !around.iter().any(|&(u, w)| u == b || w == b) {
+                    bad[a as usize] = true;
+                    bad[b as usize] = true;
+                }
+            }
             let mut any = false;
             for r in 0..n {
                 if bad[r] && rep[r] as usize == r && next[first[r] as usize] != NONE {
@@ -258,7 +300,7 @@ impl<'a> Clustering<'a> {
                 break;
             }
         }
-        self.output(&rep, &pos, &first, &next, &mapped)
+        self.output(&rep, &pos, (&first, &next), &far, &mapped)
     }
 
     /// Makes every member of cluster `r` a cluster of its own, at its own position.
@@ -290,7 +332,7 @@ impl<'a> Clustering<'a> {
     /// Where cluster `r` goes: the minimiser of its members' tangent planes (biased to their
     /// mean where the planes leave a direction free), kept within half a cell of the members'
     /// box; `None` when a member would stray from it (see the module's notes).
-    fn place(&self, r: u32, first: &[u32], next: &[u32]) -> Option<(Vec3, Vec3)> {
+    fn place(&self, r: u32, first: &[u32], next: &[u32]) -> Option<(Vec3, Vec3, bool)> {
         let origin = Vec3::from(self.positions[r as usize]);
         let mut qef = Qef::default();
         let (mut lo, mut hi, mut normal) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN), Vec3::ZERO);
@@ -303,15 +345,27 @@ impl<'a> Clustering<'a> {
             }
         }
         let margin = Vec3::splat(0.5 * self.cell);
-        let p = (origin + qef.solve().as_vec3()).clamp(lo - margin, hi + margin);
+        let sharp = (origin + qef.solve().as_vec3()).clamp(lo - margin, hi + margin);
+        let mean = origin + qef.mass_point().as_vec3();
         let normal = normal.normalize_or_zero();
         let (off, reach) = (self.off * self.cell, (self.reach * self.cell).powi(2));
-        let strays = self
-            .members(r, first, next)
-            .flat_map(|m| self.samples(m))
-            .any(|(q, qn)| qn.dot(normal) <= 0.0 || normal.dot(q - p).abs() > off || q.distance_squared(p) > reach);
-        let rms = |max: f32| ((qef.error((p - origin).as_dvec3()) / qef.count() as f64).sqrt() as f32) <= max;
-        (!strays && p.is_finite() && self.max_rms.is_none_or(rms)).then_some((p, normal))
+        let near = (MAX_REACH_CELLS * self.cell).powi(2);
+        let (mut nearest, mut farthest) = (f32::MAX, 0f32);
+        let mut fits = |p: Vec3| {
+            (nearest, farthest) = (f32::MAX, 0.0);
+            let strays = self.members(r, first, next).flat_map(|m| self.samples(m)).any(|(q, qn)| {
+                let d = q.distance_squared(p);
+                (nearest, farthest) = (nearest.min(d), farthest.max(d));
+                qn.dot(normal) <= 0.0 || normal.dot(q - p).abs() > off || d > reach
+            });
+            let rms = |max: f32| ((qef.error((p - origin).as_dvec3()) / qef.count() as f64).sqrt() as f32) <= max;
+            !strays && nearest <= near && p.is_finite() && self.max_rms.is_none_or(rms)
+        };
+        // The planes' meeting point keeps a crease or a corner sharp; where it lies too far from
+        // a member (a corner sharper than the candidates' chamfer by more than the reach), the
+        // vertex goes halfway to the members' mean, then to the mean, chamfering as they do.
+        let p = [sharp, sharp.lerp(mean, 0.5), mean].into_iter().find(|&p| fits(p))?;
+        Some((p, normal, farthest > near))
     }
 
     /// Whether candidate triangle `tri`, carried to `m` (positions `pos`), turns over or loses
@@ -341,6 +395,61 @@ impl<'a> Clustering<'a> {
         [(p[0] + p[1] + p[2]) / 3.0, (p[0] + p[1]) * 0.5, (p[1] + p[2]) * 0.5, (p[2] + p[0]) * 0.5]
             .into_iter()
             .any(|x| (0..3).all(|k| n[k].dot(x - p[k]).abs() > limit))
+    }
+
+    /// For a mesh clustered again (whose clusters may reach farther than [`MAX_REACH_CELLS`]
+    /// from their candidates): marks the clusters around every vertex with a candidate farther
+    /// than that from the vertex and from every triangle around it (a tip or a fin cut short).
+    /// Only vertices that moved, or whose neighbours did, are looked at: the others kept their
+    /// triangles, which passed this check when they were made.
+    #[allow(clippy::too_many_arguments)]
+    fn check_far_samples(
+        &self,
+        rep: &[u32],
+        pos: &[Vec3],
+        first: &[u32],
+        next: &[u32],
+        far: &[bool],
+        offsets: &[u32],
+        link: &[(u32, u32)],
+        bad: &mut [bool],
+    ) {
+        let near = MAX_REACH_CELLS * self.cell;
+        let moved = |v: u32| next[first[v as usize] as usize] != NONE;
+        for r in 0..rep.len() {
+            if rep[r] as usize != r || !self.is_far(r as u32, first, next, far) {
+                continue;
+            }
+            let fan = &link[offsets[r] as usize..offsets[r + 1] as usize];
+            if !(moved(r as u32) || fan.iter().any(|&(u, w)| moved(u) || moved(w))) {
+                continue;
+            }
+            let p = pos[r];
+            let far = self.members(r as u32, first, next).flat_map(|m| self.samples(m)).any(|(q, _)| {
+                q.distance_squared(p) > near * near
+                    && fan.iter().all(|&(u, w)| {
+                        let [a, b, c, x] = [p, pos[u as usize], pos[w as usize], q].map(Vec3::as_dvec3);
+                        crate::checks::point_triangle_distance(x, a, b, c) > near as f64
+                    })
+            });
+            if far {
+                bad[r] = true;
+                for &(u, w) in fan {
+                    bad[u as usize] = true;
+                    bad[w as usize] = true;
+                }
+            }
+        }
+    }
+
+    /// Whether cluster `r` has a candidate farther than [`MAX_REACH_CELLS`] from its vertex
+    /// (`far`: the merged clusters'; a vertex standing alone is as it came).
+    fn is_far(&self, r: u32, first: &[u32], next: &[u32], far: &[bool]) -> bool {
+        if next[first[r as usize] as usize] != NONE {
+            far[r as usize]
+        } else {
+            self.hermite.is_some_and(|(_, _, s)| s.far[r as usize])
+        }
     }
 
     /// Marks, for every vertex whose link is not one simple cycle (a simple path or cycle for a
@@ -412,7 +521,14 @@ impl<'a> Clustering<'a> {
         }
     }
 
-    fn output(&self, rep: &[u32], pos: &[Vec3], first: &[u32], next: &[u32], mapped: &[[u32; 3]]) -> Clustered {
+    fn output(
+        &self,
+        rep: &[u32],
+        pos: &[Vec3],
+        (first, next): (&[u32], &[u32]),
+        far: &[bool],
+        mapped: &[[u32; 3]],
+    ) -> Clustered {
         let n = self.positions.len();
         let mut index = vec![NONE; n];
         for m in mapped {
@@ -425,7 +541,7 @@ impl<'a> Clustering<'a> {
             normals: Vec::new(),
             tris: Vec::new(),
             kept: Vec::new(),
-            samples: Samples { start: vec![0], list: Vec::new() },
+            samples: Samples { start: vec![0], list: Vec::new(), far: Vec::new() },
         };
         for r in 0..n {
             if index[r] == NONE {
@@ -442,6 +558,7 @@ impl<'a> Clustering<'a> {
                 }
             }
             out.samples.start.push(out.samples.list.len() as u32);
+            out.samples.far.push(self.is_far(r as u32, first, next, far));
             out.positions.push(pos[r].to_array());
             out.normals.push(normal.normalize_or(Vec3::from(self.normals[r])).to_array());
             out.kept.push(r as u32);
@@ -552,6 +669,24 @@ mod tests {
         assert_eq!(c.kept, vec![0, 1, 3, 4, 5]);
         // The planes x = 1 and y = 1 meet at (1, 1, 0).
         assert!(Vec3::from(c.positions[0]).distance(Vec3::new(1.0, 1.0, 0.0)) < 1e-4, "{:?}", c.positions[0]);
+    }
+
+    #[test]
+    fn a_corner_beyond_the_reach_is_chamfered_instead() {
+        let (p, n, t) = octahedron(outward());
+        let locked = [false; 6];
+        // The cluster {+x, +y} as its member lists.
+        let mut first = vec![NONE; 6];
+        let mut next = vec![NONE; 6];
+        (first[0], next[0]) = (0, 2);
+        let at = |cell: f32| Clustering::new(&p, &n, &t, &locked, cell).place(0, &first, &next).map(|(v, ..)| v);
+        // Cells of 10: the planes x = 1 and y = 1 meet at (1, 1, 0), within the reach.
+        assert!(at(10.0).unwrap().distance(Vec3::new(1.0, 1.0, 0.0)) < 1e-4);
+        // Cells of 1.9 (reach 0.95): (1, 1, 0) lies 1 from both members, so the vertex goes
+        // halfway to their mean (0.5, 0.5, 0).
+        assert!(at(1.9).unwrap().distance(Vec3::new(0.75, 0.75, 0.0)) < 1e-4);
+        // Cells of 1.2 (reach 0.6): not even the mean (0.71 from both) lies within the reach.
+        assert_eq!(at(1.2), None);
     }
 
     #[test]

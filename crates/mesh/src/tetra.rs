@@ -429,7 +429,9 @@ pub const SHORT_EDGE_CELLS: f32 = 0.9;
 pub const SHORT_EDGE_RMS_CELLS: f32 = 0.05;
 
 /// And if every candidate lies within this distance (cells) of the merged vertex (the node
-/// clusters' [`MAX_REACH_CELLS`] would refuse most pairs: their candidates span two nodes) ...
+/// clusters' [`MAX_REACH_CELLS`] would refuse most pairs: their candidates span two nodes; at
+/// 0.5 the sphere of radius 20 kept 73.8 % whole, 66.5 % per chunk, against 82.9 % and 75.8 %;
+/// candidates beyond [`MAX_REACH_CELLS`] are checked against the triangles around the vertex) ...
 pub const SHORT_EDGE_REACH_CELLS: f32 = 1.0;
 
 /// ... and within this distance (cells) of its tangent plane (tighter than the node clusters'
