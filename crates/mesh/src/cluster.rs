@@ -41,9 +41,13 @@
 //! clustered triangle is the image of a candidate triangle, and every candidate triangle's image
 //! lies on the clustered surface (a folded one's edge is kept, a collapsed one's vertex keeps
 //! triangles), so each surface lies within [`MAX_REACH_CELLS`] of the other (their Hausdorff
-//! distance) wherever every candidate stays that near its vertex: always for the node clusters.
-//! The short-edge rounds let a pair reach farther (a pair's candidates span two nodes); there
-//! the candidates beyond the bound are checked against the triangles around their vertex.
+//! distance) wherever every candidate stays that near its vertex: always for the node clusters,
+//! a proof. The short-edge rounds let a pair reach farther (a pair's candidates span two nodes);
+//! there a candidate beyond the bound is only checked against the triangles around its vertex,
+//! and the vertex placed within the bound of some candidate. That holds the candidates and the
+//! vertices themselves, not every point of the triangles between them: for the rounds the
+//! half-cell distance is measured (the random-edit property test, at vertices, edge midpoints and
+//! centroids), not proven.
 //!
 //! Every vertex's link being one simple cycle is exactly a closed, consistently oriented,
 //! vertex- and edge-manifold surface: each edge `v–a` then has one triangle that runs `v → a` and
@@ -54,7 +58,10 @@
 //! always succeed: a vertex whose cluster and whose neighbours' clusters are all taken apart has
 //! exactly its candidate triangles around it, whose link is a cycle because the candidate mesh
 //! is closed and manifold; so every failing check names at least one cluster still whole, and at
-//! worst every cluster is taken apart and the candidate mesh comes back unchanged.
+//! worst every cluster is taken apart and the candidate mesh comes back unchanged. A folded
+//! triangle has two corners in one cluster, which is merged; the far-candidate check looks only
+//! at vertices that moved or have a neighbour that did (the others keep the triangles that passed
+//! it when they were made) and marks those.
 
 use glam::Vec3;
 use smallvec::SmallVec;
@@ -71,9 +78,10 @@ pub const MAX_MOVE_CELLS: f32 = 0.35;
 
 /// Nor into a vertex farther than this (cells). With 0.75 the bunny's ear tips (at 64 cells)
 /// were cut by 0.63 cells; with 0.6 a cube's corner under random CSG edits stood 0.56 cells
-/// from the unclustered mesh. Every point of a clustered triangle is a weighted mean of its
+/// from the unclustered mesh. Every point of a node-clustered triangle is a weighted mean of its
 /// corners, each within this distance of the candidates it stands for, so the clustered surface
-/// stays within it of the candidate one (see the module's notes).
+/// stays within it of the candidate one (see the module's notes; the short-edge rounds are
+/// checked, not bounded, by it).
 pub const MAX_REACH_CELLS: f32 = 0.5;
 
 /// No clustered triangle's centroid or edge midpoint lies farther than this (cells) from every
@@ -329,9 +337,12 @@ impl<'a> Clustering<'a> {
         std::iter::successors(Some(first[r as usize]), |&m| Some(next[m as usize]).filter(|&n| n != NONE))
     }
 
-    /// Where cluster `r` goes: the minimiser of its members' tangent planes (biased to their
-    /// mean where the planes leave a direction free), kept within half a cell of the members'
-    /// box; `None` when a member would stray from it (see the module's notes).
+    /// Where cluster `r` goes, its mean normal, and whether a member lies farther than
+    /// [`MAX_REACH_CELLS`] from it. The place is the minimiser of the members' tangent planes
+    /// (biased to their mean where the planes leave a direction free, kept within half a cell of
+    /// the members' box), or where a member would stray from that, the point halfway to the
+    /// members' mean, or the mean; `None` when members stray from all three (see the module's
+    /// notes).
     fn place(&self, r: u32, first: &[u32], next: &[u32]) -> Option<(Vec3, Vec3, bool)> {
         let origin = Vec3::from(self.positions[r as usize]);
         let mut qef = Qef::default();
@@ -425,14 +436,14 @@ impl<'a> Clustering<'a> {
                 continue;
             }
             let p = pos[r];
-            let far = self.members(r as u32, first, next).flat_map(|m| self.samples(m)).any(|(q, _)| {
+            let cut = self.members(r as u32, first, next).flat_map(|m| self.samples(m)).any(|(q, _)| {
                 q.distance_squared(p) > near * near
                     && fan.iter().all(|&(u, w)| {
                         let [a, b, c, x] = [p, pos[u as usize], pos[w as usize], q].map(Vec3::as_dvec3);
                         crate::checks::point_triangle_distance(x, a, b, c) > near as f64
                     })
             });
-            if far {
+            if cut {
                 bad[r] = true;
                 for &(u, w) in fan {
                     bad[u as usize] = true;

@@ -22,7 +22,8 @@
 //! pairs, shortest first, where the pair's planes stay within [`SHORT_EDGE_RMS_CELLS`] of the
 //! merged vertex. Nothing is assumed safe: after each clustering the result is verified exactly
 //! (every vertex's link one simple cycle, no triangle turned over, no small piece vanished, every
-//! member near the merged vertex and its tangent plane: [`MAX_MOVE_CELLS`], [`MAX_REACH_CELLS`])
+//! member near the merged vertex and its tangent plane: [`MAX_MOVE_CELLS`], [`MAX_REACH_CELLS`]
+//! for the node clusters, [`SHORT_EDGE_MOVE_CELLS`], [`SHORT_EDGE_REACH_CELLS`] for the rounds)
 //! and the clusters that fail are taken apart until none does (`cluster.rs` proves this ends
 //! closed and manifold). Vertices on edges that lie in a chunk face are shared with the
 //! neighbouring chunk and never merged; so chunk meshes stay crack-free and each chunk's

@@ -291,8 +291,9 @@ proptest! {
         let lists = lists_volume(&v);
         for m in [strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::new(strata_mesh::Mesher::ClusteredTetrahedra)).ok().unwrap(), tetra_volume_per_chunk(&v).unwrap()] {
             prop_assert!(check_closed_manifold(&m).is_ok(), "{:?}", check_closed_manifold(&m));
-            // The bar: within half a cell of the plain mesh (the clustering's bound,
-            // `cluster.rs`), creases, corners, fins and grooves narrower than a cell included.
+            // The bar: within half a cell of the plain mesh, creases, corners, fins and
+            // grooves narrower than a cell included (proven for the node clusters, checked for
+            // the short-edge rounds: `cluster.rs`).
             let h = hausdorff(&plain, &m, 2.0);
             prop_assert!(h <= f64::from(strata_mesh::tetra::MAX_REACH_CELLS) + 1e-4, "Hausdorff {} cells from the plain mesh", h);
             if lists > 2000.0 {
