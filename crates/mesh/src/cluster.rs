@@ -244,7 +244,7 @@ impl<'a> Clustering<'a> {
             }
         }
         for r in 0..n {
-            if rep[r] as usize == r && next[first[r] as usize] != NONE {
+            if rep[r] as usize == r && merged(&first, &next, r as u32) {
                 let own = find(&mut root, r as u32);
                 if self.members(r as u32, &first, &next).any(|m| find(&mut root, m) != own) {
                     self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
@@ -254,7 +254,7 @@ impl<'a> Clustering<'a> {
         // Place each cluster; take apart the ones whose members stray. Clusters taken apart
         // later go back to their members' positions; the others keep theirs.
         for r in 0..n {
-            if rep[r] as usize == r && next[first[r] as usize] != NONE {
+            if rep[r] as usize == r && merged(&first, &next, r as u32) {
                 match self.place(r as u32, &first, &next) {
                     Some((p, q, beyond)) => (pos[r], nrm[r], far[r]) = (p, q, beyond),
                     None => self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm),
@@ -278,7 +278,7 @@ impl<'a> Clustering<'a> {
                 }
                 // A triangle moves when any corner's cluster has moved (its standing vertex is
                 // a member too, so a triangle may keep its corners and still move).
-                let moved = m.iter().any(|&r| next[first[r as usize] as usize] != NONE);
+                let moved = m.iter().any(|&r| merged(&first, &next, r));
                 if moved && (self.turns_over(*tri, m, &pos) || self.cuts_away(m, &pos, &nrm)) {
                     for r in m {
                         bad[r as usize] = true;
@@ -299,7 +299,7 @@ impl<'a> Clustering<'a> {
             }
             let mut any = false;
             for r in 0..n {
-                if bad[r] && rep[r] as usize == r && next[first[r] as usize] != NONE {
+                if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) {
                     self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
                     any = true;
                 }
@@ -426,7 +426,7 @@ impl<'a> Clustering<'a> {
         bad: &mut [bool],
     ) {
         let near = MAX_REACH_CELLS * self.cell;
-        let moved = |v: u32| next[first[v as usize] as usize] != NONE;
+        let moved = |v: u32| merged(first, next, v);
         for r in 0..rep.len() {
             if rep[r] as usize != r || !self.is_far(r as u32, first, next, far) {
                 continue;
@@ -456,11 +456,7 @@ impl<'a> Clustering<'a> {
     /// Whether cluster `r` has a candidate farther than [`MAX_REACH_CELLS`] from its vertex
     /// (`far`: the merged clusters'; a vertex standing alone is as it came).
     fn is_far(&self, r: u32, first: &[u32], next: &[u32], far: &[bool]) -> bool {
-        if next[first[r as usize] as usize] != NONE {
-            far[r as usize]
-        } else {
-            self.hermite.is_some_and(|(_, _, s)| s.far[r as usize])
-        }
+        if merged(first, next, r) { far[r as usize] } else { self.hermite.is_some_and(|(_, _, s)| s.far[r as usize]) }
     }
 
     /// Marks, for every vertex whose link is not one simple cycle (a simple path or cycle for a
@@ -577,6 +573,12 @@ impl<'a> Clustering<'a> {
         out.tris = mapped.iter().map(|m| m.map(|v| index[v as usize])).collect();
         out
     }
+}
+
+/// Whether the cluster standing at `r` (its member lists `first` and `next`) has more than one
+/// member, so that its vertex moved.
+fn merged(first: &[u32], next: &[u32], r: u32) -> bool {
+    next[first[r as usize] as usize] != NONE
 }
 
 /// The edges of `mesh` shorter than `max_len` between vertices that may move, matched greedily
