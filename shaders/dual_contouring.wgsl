@@ -333,6 +333,10 @@ fn neighbour(k: u32, shift: vec3<i32>) -> u32 {
         return k;
     }
     let base = load_chunk(k).seam_base;
+    if (params.mixed == 1u) {
+        // All 27 offsets, (dx + 1) + 3 (dy + 1) + 9 (dz + 1).
+        return data[base + u32(shift.x + 1) + 3u * u32(shift.y + 1) + 9u * u32(shift.z + 1)];
+    }
     var slot = 0u;
     if (all(shift == vec3<i32>(-1, 0, 0))) {
         slot = 0u;
@@ -425,7 +429,24 @@ struct Polygon {
     inside: bool,
 };
 
+// Crossing `i` of chunk `c` (x crossings, then y, then z): its lower node and its axis (w).
+fn owned_crossing(c: Chunk, i: u32) -> vec4<u32> {
+    var axis = 0u;
+    var index = i;
+    if (i >= c.z_base) {
+        axis = 2u;
+        index = i - c.z_base;
+    } else if (i >= c.y_base) {
+        axis = 1u;
+        index = i - c.y_base;
+    }
+    return vec4<u32>(crossing_lower(c, axis, index), axis);
+}
+
 fn polygon_of(k: u32, i: u32) -> Polygon {
+    if (params.mixed == 1u) {
+        return mixed_polygon_of(k, i);
+    }
     var out: Polygon;
     out.count = 0u;
     out.mids = 0u;
@@ -434,18 +455,9 @@ fn polygon_of(k: u32, i: u32) -> Polygon {
         return out;
     }
     // Crossing i of the chunk: its axis and lower node (by rank: find it on its line).
-    var axis = 0u;
-    var index = i;
-    let ny = c.y_base;
-    let nz = c.z_base;
-    if (i >= nz) {
-        axis = 2u;
-        index = i - nz;
-    } else if (i >= ny) {
-        axis = 1u;
-        index = i - ny;
-    }
-    let lower = crossing_lower(c, axis, index);
+    let found = owned_crossing(c, i);
+    let axis = found.w;
+    let lower = found.xyz;
     let u = (axis + 1u) % 3u;
     let v = (axis + 2u) % 3u;
     if (lower[u] >= c.n || lower[v] >= c.n) {
@@ -545,6 +557,9 @@ fn crossing_lower(c: Chunk, axis: u32, index: u32) -> vec3<u32> {
 fn polygon_counts(p: Polygon) -> vec2<u32> {
     if (p.count == 0u) {
         return vec2<u32>(0u);
+    }
+    if (p.count == 3u) {
+        return vec2<u32>(1u, 0u);
     }
     if (p.count == 4u) {
         return vec2<u32>(2u, 0u);
@@ -717,6 +732,12 @@ fn quad_emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
                 indices[tri + j] = ids[order[s[j]]];
             }
             tri += 6u;
+        } else if (p.count == 3u) {
+            // A coarser cell holds two of the ring's cells (across levels): one triangle.
+            for (var j = 0u; j < 3u; j++) {
+                indices[tri + j] = ids[order[j]];
+            }
+            tri += 3u;
         } else {
             var centre = vec3<f32>(0.0);
             var normal = vec3<f32>(0.0);
@@ -776,6 +797,14 @@ fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
         return vec3<i32>(0);
     }
     let base = load_chunk(k).seam_base;
+    if (params.mixed == 1u) {
+        for (var s = 0u; s < 27u; s++) {
+            if (data[base + s] == lo) {
+                return vec3<i32>(i32(s % 3u) - 1, i32((s / 3u) % 3u) - 1, i32(s / 9u) - 1);
+            }
+        }
+        return vec3<i32>(0);
+    }
     let shifts = array<vec3<i32>, 6>(
         vec3<i32>(-1, 0, 0), vec3<i32>(0, -1, 0), vec3<i32>(0, 0, -1),
         vec3<i32>(-1, -1, 0), vec3<i32>(0, -1, -1), vec3<i32>(-1, 0, -1),
@@ -786,6 +815,205 @@ fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
         }
     }
     return vec3<i32>(0);
+}
+
+// ---- Quads across levels (`params.mixed`), as the CPU's `DualCache::assemble_mixed` joins a
+// volume whose chunks differ in level: every sign-changing edge of a chunk's own level (those
+// on its `+` faces too) whose four cells around it are of that level or coarser, and whose
+// finest chunk of (+,+), (−,+), (+,−), (−,−) is this one, joins the vertices of the components
+// holding it in those cells, each in whichever chunk holds it at that chunk's level; a finer
+// edge inside a coarser cell's face takes the component of the face segment that cuts it. A
+// coarser cell holding two of the cells makes a triangle of the polygon. No midpoints, no
+// centres. A chunk's neighbour table holds all 27 offsets here.
+//
+// Positions are exact integers in sixteenths of a grid unit (a chunk is 256 of them, a cell
+// 4, 8 or 16): the CPU's points a hundredth of a finest cell beside the edge are one sixteenth
+// here, inside the same cells.
+
+fn floor_div(a: i32, b: i32) -> i32 {
+    let q = a / b;
+    return select(q, q - 1, (a % b) != 0 && a < 0);
+}
+
+fn floor_div3(a: vec3<i32>, b: i32) -> vec3<i32> {
+    return vec3<i32>(floor_div(a.x, b), floor_div(a.y, b), floor_div(a.z, b));
+}
+
+// Cell edge bit of the edge along `axis` at `off` (0 or 1 across) from the cell's least corner.
+fn cell_edge(axis: u32, off: vec3<u32>) -> u32 {
+    return 4u * axis + off[(axis + 1u) % 3u] + 2u * off[(axis + 2u) % 3u];
+}
+
+// The corner of a cell's face (normal `fa`, at `side`) whose two face edges `mask` holds: its
+// offsets along the face's first and second axes (the CPU's `corner_of`).
+fn face_corner(mask: u32, fa: u32, side: u32) -> vec2<u32> {
+    let fu = (fa + 1u) % 3u;
+    let fv = (fa + 2u) % 3u;
+    var corner = vec2<u32>(0u);
+    for (var o = 0u; o < 2u; o++) {
+        var off = vec3<u32>(0u);
+        off[fa] = side;
+        off[fv] = o;
+        if (((mask >> cell_edge(fu, off)) & 1u) == 1u) {
+            corner.y = o;
+        }
+        var off2 = vec3<u32>(0u);
+        off2[fa] = side;
+        off2[fu] = o;
+        if (((mask >> cell_edge(fv, off2)) & 1u) == 1u) {
+            corner.x = o;
+        }
+    }
+    return corner;
+}
+
+// The component (0xffffffff: none) of cell `cell` of chunk `c` (its cells `size` sixteenths a
+// side) whose edges on the face with normal `fa` at `side` hold the face segment a finer edge
+// inside that face belongs to, the finer edge's inside end at `inside_end` (sixteenths from the
+// cell's least corner): the one component on the face, or of several the first whose segment's
+// corner lies within a cell (L1) of that end (the CPU's `ChunkDual::vertex_on_face`).
+fn component_on_face(c: Chunk, cell: vec3<u32>, fa: u32, side: u32, inside_end: vec3<i32>, size: i32) -> u32 {
+    let face = face_edges(fa, side);
+    let case_index = case_of(c, cell);
+    let count = data[DUAL_TABLE + case_index * 5u];
+    var first = 0xffffffffu;
+    var on_face = 0u;
+    for (var j = 0u; j < count; j++) {
+        if ((data[DUAL_TABLE + case_index * 5u + 1u + j] & face) != 0u) {
+            if (on_face == 0u) {
+                first = j;
+            }
+            on_face += 1u;
+        }
+    }
+    if (on_face < 2u) {
+        return first;
+    }
+    let fu = (fa + 1u) % 3u;
+    let fv = (fa + 2u) % 3u;
+    for (var j = 0u; j < count; j++) {
+        let mask = data[DUAL_TABLE + case_index * 5u + 1u + j] & face;
+        if (mask == 0u) {
+            continue;
+        }
+        let corner = vec2<i32>(face_corner(mask, fa, side)) * size;
+        if (abs(inside_end[fu] - corner.x) + abs(inside_end[fv] - corner.y) < size) {
+            return j;
+        }
+    }
+    return 0xffffffffu;
+}
+
+fn mixed_polygon_of(k: u32, i: u32) -> Polygon {
+    var out: Polygon;
+    out.count = 0u;
+    out.mids = 0u;
+    let c = load_chunk(k);
+    if (c.seam_slot != 1u) {
+        return out;
+    }
+    let found = owned_crossing(c, i);
+    let axis = found.w;
+    let lower = found.xyz;
+    let u = (axis + 1u) % 3u;
+    let v = (axis + 2u) % 3u;
+    let own = i32(round(c.spacing * 16.0));
+    var along = vec3<i32>(0);
+    along[axis] = 1;
+    // The edge's ends and middle, sixteenths in this chunk's frame.
+    let e0 = vec3<i32>(lower) * own;
+    let e1 = e0 + along * own;
+    // The four cells around it, counter-clockwise around +axis: (−,−), (+,−), (+,+), (−,+).
+    let su = array<i32, 4>(-1, 1, 1, -1);
+    let sv = array<i32, 4>(-1, -1, 1, 1);
+    var chunks: array<u32, 4>;
+    var shifts: array<vec3<i32>, 4>;
+    var sizes: array<i32, 4>;
+    var finest = 1000;
+    for (var q = 0u; q < 4u; q++) {
+        var p = e0 * 2 + along * own;
+        p[u] += su[q];
+        p[v] += sv[q];
+        // (Doubled: the middle of a finest edge is an odd number of 32nds.)
+        let shift = floor_div3(p, 512);
+        let kk = neighbour(k, shift);
+        if (kk == 0xffffffffu) {
+            return out;
+        }
+        chunks[q] = kk;
+        shifts[q] = shift;
+        sizes[q] = i32(round(load_chunk(kk).spacing * 16.0));
+        finest = min(finest, sizes[q]);
+    }
+    if (finest != own) {
+        return out;
+    }
+    // The finest chunk around the edge owns it: of several, the first of (+,+), (−,+), (+,−),
+    // (−,−).
+    let order = array<u32, 4>(2u, 3u, 1u, 0u);
+    for (var o = 0u; o < 4u; o++) {
+        let q = order[o];
+        if (sizes[q] == finest) {
+            if (chunks[q] != k) {
+                return out;
+            }
+            break;
+        }
+    }
+    let lower_inside = inside(c, lower.x, lower.y, lower.z) == 1u;
+    for (var q = 0u; q < 4u; q++) {
+        let kk = chunks[q];
+        let cc = load_chunk(kk);
+        let size = sizes[q];
+        var p = e0 * 2 + along * own;
+        p[u] += su[q];
+        p[v] += sv[q];
+        let frame = shifts[q] * 256;
+        let cell = floor_div3(p - frame * 2, size * 2);
+        // The edge's ends from the cell's least corner (sixteenths).
+        let r0 = e0 - frame - cell * size;
+        let r1 = e1 - frame - cell * size;
+        let on_u = r0[u] == 0 || r0[u] == size;
+        let on_v = r0[v] == 0 || r0[v] == size;
+        var j = 0xffffffffu;
+        let local = vec3<u32>(cell);
+        if (on_u && on_v) {
+            var off = vec3<u32>(0u);
+            off[u] = u32(r0[u] / size);
+            off[v] = u32(r0[v] / size);
+            let edge = cell_edge(axis, off);
+            let case_index = case_of(cc, local);
+            let count = data[DUAL_TABLE + case_index * 5u];
+            for (var m = 0u; m < count; m++) {
+                if (((data[DUAL_TABLE + case_index * 5u + 1u + m] >> edge) & 1u) == 1u) {
+                    j = m;
+                    break;
+                }
+            }
+        } else {
+            // Inside a face of a coarser cell: the face across the first axis it lies on.
+            let fa = select(u, v, on_v);
+            let side = u32(r0[fa] / size);
+            j = component_on_face(cc, local, fa, side, select(r1, r0, lower_inside), size);
+        }
+        if (j == 0xffffffffu) {
+            return out;
+        }
+        let vertex = cell_vertex(kk, local.x + cc.n * (local.y + cc.n * local.z)) + j;
+        if (out.count == 0u || out.v[out.count - 1u] != vertex) {
+            out.v[out.count] = vertex;
+            out.count += 1u;
+        }
+    }
+    if (out.count > 1u && out.v[0] == out.v[out.count - 1u]) {
+        out.count -= 1u;
+    }
+    if (out.count < 3u) {
+        out.count = 0u;
+        return out;
+    }
+    out.inside = lower_inside;
+    return out;
 }
 
 // ---- Drawing dual contouring where it was made (`GpuMarcher::mesh_dual_for_drawing`): the

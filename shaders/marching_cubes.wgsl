@@ -80,7 +80,9 @@ struct Params {
     extra_count: u32,
     // Where the list of seam headers (one word a block with seams: its header) starts in `data`.
     seam_list_base: u32,
-    unused_e: u32,
+    // Dual contouring's quads: 1 where the batch's volume mixes levels (its chunks' neighbour
+    // tables then hold all 27 offsets, see `dual_contouring.wgsl`), 0 for one level.
+    mixed: u32,
     unused_f: u32,
     unused_g: u32,
 };

@@ -134,7 +134,7 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
         let dual_blocks: Vec<VoxelBlock> = keys.par_iter().map(|&k| volume.extract_block(k)).collect();
         let dual_refs: Vec<&VoxelBlock> = dual_blocks.iter().collect();
         let flags: Vec<bool> = keys.iter().map(|k| meshed.contains(k)).collect();
-        marcher.dual_mesh(&gpu.device, &gpu.queue, &dual_refs, &flags)?;
+        marcher.dual_mesh(&gpu.device, &gpu.queue, &dual_refs, &flags, strata_gpu_mesh::DualJoin::OneLevel)?;
         let dw = t.elapsed();
         if i >= warm {
             dc_whole.push(dw);

@@ -647,6 +647,13 @@ impl Editor {
         self.meshes.caller_dual(i)
     }
 
+    /// Whether caller-meshed dual-contouring surface `i`'s quads are joined across levels
+    /// (`strata_gpu_mesh::DualJoin::AcrossLevels`: its volume has had mixed levels since its
+    /// meshes were made), else at one level.
+    pub fn caller_dual_across_levels(&self, i: usize) -> bool {
+        self.meshes.caller_dual_across_levels(i)
+    }
+
     /// Every chunk of caller-meshed surface `i` that can hold surface (empty for the others).
     pub fn caller_chunks(&self, i: usize) -> Vec<ChunkKey> {
         match self.surface(i) {

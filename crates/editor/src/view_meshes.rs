@@ -52,7 +52,9 @@ struct SurfaceMeshes {
     by_caller: bool,
     /// The caller-meshed surface has mixed levels or been capped by level of detail since it
     /// was made: an edit then moves seams on every side of a chunk, not only the chunks before
-    /// it (kept once set, so undoing the mix still reaches the seams it left).
+    /// it (kept once set, so undoing the mix still reaches the seams it left). For dual
+    /// contouring (levels only, it is not capped): its quads are joined across levels from then
+    /// on, as the CPU's cache joins them once it has met mixed levels.
     mixed_seen: bool,
     /// Blocks: chunks to remesh. Dual: chunks an edit changed (the cache widens them itself).
     queued: BTreeSet<ChunkKey>,
@@ -86,7 +88,8 @@ impl SurfaceMeshes {
                 (Backend::Dual(d), stored.into_iter().collect())
             }
         };
-        SurfaceMeshes { backend, by_caller: false, mixed_seen: false, queued, staged: HashMap::new(), lod }
+        let mixed_seen = !volume.single_level();
+        SurfaceMeshes { backend, by_caller: false, mixed_seen, queued, staged: HashMap::new(), lod }
     }
 
     fn mesh(&self, key: ChunkKey) -> Option<&Mesh> {
@@ -202,14 +205,22 @@ pub(crate) struct ViewMeshes {
     gpu: bool,
 }
 
+/// The chunks around `keys` (each and its 26 neighbours), sorted, without repeats.
+fn around(keys: &[ChunkKey]) -> Vec<ChunkKey> {
+    let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
 /// Whether a surface is meshed by the caller from its blocks under GPU meshing: a scene layer
 /// (not a streamed world) whose mask is clear (masked vertices are shaded from the mask on the
 /// CPU), meshed by marching cubes without per-chunk simplification, or by manifold dual
-/// contouring at one level (the GPU joins quads within one level).
+/// contouring (at one level or across levels: [`ViewMeshes::caller_dual_across_levels`]).
 fn meshed_by_caller(gpu: bool, options: MeshOptions, surface: &dyn EditTarget) -> bool {
     let mesher = match options.mesher {
         Mesher::MarchingCubes => options.simplify.is_none(),
-        Mesher::DualContouring => surface.volume().single_level(),
+        Mesher::DualContouring => true,
         _ => false,
     };
     gpu && mesher && !surface.streamed() && surface.volume().mask().is_clear()
@@ -287,7 +298,8 @@ impl ViewMeshes {
     pub(crate) fn caller_chunks(&self, i: usize, volume: &Volume) -> Vec<ChunkKey> {
         match self.surfaces.get(i) {
             Some(s) if s.by_caller && matches!(s.backend, Backend::Dual(_)) => {
-                dual_mesh_keys(&volume.chunks().map(|(k, _)| k).collect::<Vec<_>>())
+                let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
+                if s.mixed_seen { around(&stored) } else { dual_mesh_keys(&stored) }
             }
             Some(s) if s.by_caller => strata_mesh::surface_chunks(volume),
             _ => Vec::new(),
@@ -297,6 +309,14 @@ impl ViewMeshes {
     /// Whether caller-meshed surface `i` is meshed by dual contouring (else marching cubes).
     pub(crate) fn caller_dual(&self, i: usize) -> bool {
         self.surfaces.get(i).is_some_and(|s| s.by_caller && matches!(s.backend, Backend::Dual(_)))
+    }
+
+    /// Whether caller-meshed dual-contouring surface `i` joins its quads across levels (its
+    /// volume has mixed levels since it was made; else at one level): each chunk's polygons
+    /// then take cells of all 26 chunks around it, and an edit moves the polygons of the chunks
+    /// within two chunks of what it changed.
+    pub(crate) fn caller_dual_across_levels(&self, i: usize) -> bool {
+        self.caller_dual(i) && self.surfaces[i].mixed_seen
     }
 
     /// The voxel block the CPU would mesh for chunk `key` of surface `i` of `volume` (capped
@@ -342,7 +362,21 @@ impl ViewMeshes {
                 }
             }
             Backend::Blocks(c) => s.queued.extend(c.note(volume, changed, reach)),
-            Backend::Dual(_) if s.by_caller => s.queued.extend(dual_mesh_keys(changed)),
+            Backend::Dual(_) if s.by_caller => {
+                let was = s.mixed_seen;
+                s.mixed_seen |= !volume.single_level();
+                if s.mixed_seen && !was {
+                    // From one level to several: every polygon is joined again across levels.
+                    let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
+                    s.queued.extend(around(&stored));
+                } else if s.mixed_seen {
+                    // The vertices of the chunks around a change move (their blocks read it);
+                    // the polygons of the chunks around those use them.
+                    s.queued.extend(around(&around(changed)));
+                } else {
+                    s.queued.extend(dual_mesh_keys(changed));
+                }
+            }
             Backend::Dual(_) => s.queued.extend(changed.iter().copied()),
             // A streamed surface learns of its changes from the world ([`ViewMeshes::streamed_changes`]).
             Backend::Streamed(_) => {}

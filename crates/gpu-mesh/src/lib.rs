@@ -25,8 +25,9 @@
 //!
 //! Dual contouring: [`GpuMarcher::dual_vertices`] solves every mixed cell's component
 //! vertices (`shaders/dual_contouring.wgsl`), [`GpuMarcher::dual_mesh`] joins them into the
-//! CPU's quads too (one level), both read back, and [`GpuMarcher::mesh_dual_for_drawing`] makes
-//! the same for drawing, nothing read back. Not built yet (issue 33): quads across levels.
+//! CPU's quads too (at one level, and across levels as the CPU joins a volume whose chunks
+//! differ in level: [`DualJoin`]), both read back, and [`GpuMarcher::mesh_dual_for_drawing`]
+//! makes the same for drawing, nothing read back.
 #![warn(missing_docs)]
 
 use bytemuck::{Pod, Zeroable};
@@ -73,6 +74,21 @@ pub enum GpuMeshError {
     /// The device reported an error while meshing (lost, out of memory).
     #[error("the GPU failed while meshing: {0}")]
     Device(String),
+}
+
+/// How dual contouring's quads join the cells around each edge, as the CPU's
+/// [`strata_mesh::DualCache`] joins them: the form it takes depends on the volume, not on the
+/// batch (a batch of one level from a volume that mixes levels is joined across levels).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DualJoin {
+    /// A volume of one level: quads of the edges a chunk owns (its lower node in the chunk on
+    /// the axes across it), through face midpoints where a component runs through both of a
+    /// face's segments, fanned from a centre then.
+    OneLevel,
+    /// A volume whose chunks differ in level (or have differed: the CPU's cache keeps this form
+    /// once it has taken it): a polygon per sign-changing edge of the finest level around it,
+    /// made by the finest chunk there, a triangle where a coarser cell holds two of its cells.
+    AcrossLevels,
 }
 
 /// What the shader needs of a device, checked by [`GpuMarcher::new`].
@@ -137,7 +153,9 @@ struct Params {
     extra_base: u32,
     extra_count: u32,
     seam_list_base: u32,
-    unused: [u32; 3],
+    /// Dual contouring's quads joined across levels (1) or at one level (0).
+    mixed: u32,
+    unused: [u32; 2],
 }
 
 /// A block's placement as the shader reads it (the WGSL `Placement`).
@@ -437,24 +455,26 @@ impl GpuMarcher {
         Ok(out)
     }
 
-    /// Manifold dual contouring of one level on the GPU, vertices and quads, read back: per block
-    /// of `blocks` marked in `meshed`, the mesh of the edges it owns, as the CPU's
-    /// [`strata_mesh::DualCache`] makes it (positions in the block's chunk frame; a quad's
-    /// diagonal may differ where both are equally flat, vertices are not shared between
-    /// polygons). The blocks before a meshed one on the axes across its edges (−x, −y, −z and
-    /// their pairs) lend their cells' vertices where they are in the batch; all blocks must be
-    /// of one level and listed line by line (as extraction lists them).
+    /// Manifold dual contouring on the GPU, vertices and quads, read back: per block of
+    /// `blocks` marked in `meshed`, the mesh of the edges it owns, as the CPU's
+    /// [`strata_mesh::DualCache`] makes it by `join` (positions in the block's chunk frame; a
+    /// quad's diagonal may differ where both are equally flat, vertices are not shared between
+    /// polygons). The blocks around a meshed one lend their cells' vertices where they are in
+    /// the batch: for [`DualJoin::OneLevel`] those before it on the axes across its edges (−x,
+    /// −y, −z and their pairs), all of one level; for [`DualJoin::AcrossLevels`] all 26 around
+    /// it (`ChunkKey::around`), of any levels.
     pub fn dual_mesh(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         blocks: &[&VoxelBlock],
         meshed: &[bool],
+        join: DualJoin,
     ) -> Result<Vec<Mesh>, GpuMeshError> {
         if meshed.len() != blocks.len() {
             return Err(GpuMeshError::TooLarge(format!("{} flags for {} blocks", meshed.len(), blocks.len())));
         }
-        let run = self.dual_run(device, queue, blocks, Some(meshed))?;
+        let run = self.dual_run(device, queue, blocks, Some((meshed, join)))?;
         let dual_total = run.first(blocks.len());
         // Every vertex's position, normal and material, and its block (extras: the block they
         // were made for).
@@ -509,13 +529,13 @@ impl GpuMarcher {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         blocks: &[&VoxelBlock],
-        meshed: Option<&[bool]>,
+        meshed: Option<(&[bool], DualJoin)>,
     ) -> Result<DualRun, GpuMeshError> {
         let submitted = self.dual_submit(device, queue, blocks, meshed, None)?;
         submitted.read(device, queue, meshed.is_some())
     }
 
-    /// Dual contouring of one level made on the GPU and drawn from there: [`GpuMarcher::dual_mesh`]
+    /// Dual contouring made on the GPU and drawn from there: [`GpuMarcher::dual_mesh`]
     /// without the read-back, each vertex placed in the world by its chunk's placement (one a
     /// block), each meshed block's indirect arguments and its wireframe's lines written on the
     /// GPU. Per block a [`IndirectMesh`] for the renderer (empty for the blocks that only lend
@@ -527,6 +547,7 @@ impl GpuMarcher {
         blocks: &[&VoxelBlock],
         meshed: &[bool],
         placements: &[DrawPlacement],
+        join: DualJoin,
     ) -> Result<DualDrawBatch, GpuMeshError> {
         if meshed.len() != blocks.len() || placements.len() != blocks.len() {
             return Err(GpuMeshError::TooLarge(format!(
@@ -536,7 +557,7 @@ impl GpuMarcher {
                 blocks.len()
             )));
         }
-        let submitted = self.dual_submit(device, queue, blocks, Some(meshed), Some(placements))?;
+        let submitted = self.dual_submit(device, queue, blocks, Some((meshed, join)), Some(placements))?;
         let (drawn, args, edges) = submitted.drawing.clone().expect("asked for");
         let meshes = (0..blocks.len() as u64)
             .map(|k| IndirectMesh {
@@ -558,14 +579,33 @@ impl GpuMarcher {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         blocks: &[&VoxelBlock],
-        meshed: Option<&[bool]>,
+        meshed: Option<(&[bool], DualJoin)>,
         draw: Option<&[DrawPlacement]>,
     ) -> Result<DualSubmitted, GpuMeshError> {
+        let mixed = matches!(meshed, Some((_, DualJoin::AcrossLevels)));
+        // The quad passes find a crossing by its rank on its line: blocks that crack patching
+        // left out of line order are listed again (copies holding the same crossings).
+        let relisted: Vec<Option<VoxelBlock>> = match meshed {
+            Some(_) => blocks
+                .iter()
+                .map(|b| {
+                    line_counts(b).is_none().then(|| {
+                        let mut copy = (*b).clone();
+                        copy.list_line_by_line();
+                        copy
+                    })
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let listed: Vec<&VoxelBlock> =
+            blocks.iter().enumerate().map(|(k, b)| relisted.get(k).and_then(Option::as_ref).unwrap_or(b)).collect();
+        let blocks = &listed[..];
         let (max_groups, binding) = batch_limits(device, blocks)?;
         let chunk_count = blocks.len() as u32;
         let crossings: u64 = blocks.iter().map(|b| crossing_count(b)).sum();
-        let words: u64 =
-            blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b) + 26).sum::<u64>() + self.table.len() as u64;
+        let words: u64 = blocks.iter().map(|b| block_words(b) + 2 * crossing_count(b) + 20 + 27).sum::<u64>()
+            + self.table.len() as u64;
         let dual_room: u64 = blocks.iter().map(|b| 4 * mixed_cells(b)).sum();
         // Quads: at most five extra vertices and eight triangles an owned crossing.
         let (extra_room, index_room) = if meshed.is_some() { (5 * crossings, 24 * crossings) } else { (0, 0) };
@@ -591,9 +631,9 @@ impl GpuMarcher {
             blocks.iter().enumerate().map(|(k, b)| (key_of(b), k as u32)).collect();
         if meshed.is_some() {
             let level = blocks.first().map(|b| b.level());
-            if blocks.iter().any(|b| Some(b.level()) != level || line_counts(b).is_none()) {
+            if !mixed && blocks.iter().any(|b| Some(b.level()) != level) {
                 return Err(GpuMeshError::TooLarge(
-                    "dual contouring's quads on the GPU take blocks of one level, listed line by line".into(),
+                    "dual contouring's quads of one level take blocks of one level (join them across levels)".into(),
                 ));
             }
         }
@@ -618,9 +658,13 @@ impl GpuMarcher {
                 }
                 seen += block.crossings(axis).len() as u32;
             }
-            // The neighbours that lend vertices: −x, −y, −z, −x−y, −y−z, −z−x.
+            // The neighbours that lend vertices: −x, −y, −z, −x−y, −y−z, −z−x at one level; across
+            // levels all 27 offsets, (dx + 1) + 3 (dy + 1) + 9 (dz + 1).
             let neighbours = data.len() as u32;
-            for d in [[-1, 0, 0], [0, -1, 0], [0, 0, -1], [-1, -1, 0], [0, -1, -1], [-1, 0, -1]] {
+            let one_level = [[-1, 0, 0], [0, -1, 0], [0, 0, -1], [-1, -1, 0], [0, -1, -1], [-1, 0, -1]];
+            let all = (0..27).map(|i| [i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1]);
+            let offsets: Vec<[i32; 3]> = if mixed { all.collect() } else { one_level.to_vec() };
+            for d in offsets {
                 let other = key_of(block).offset(glam::IVec3::from_array(d));
                 data.push(index_of.get(&other).copied().unwrap_or(NONE));
             }
@@ -642,7 +686,7 @@ impl GpuMarcher {
                 crossing_base: cell_table as u32,
                 // For the quad passes: the neighbours, whether it makes quads, its crossings.
                 seam_base: neighbours,
-                seam_slot: meshed.map_or(0, |m| m[k] as u32),
+                seam_slot: meshed.map_or(0, |(m, _)| m[k] as u32),
                 seam_out: NONE,
                 centroid_first: seen,
                 pair_base,
@@ -679,7 +723,8 @@ impl GpuMarcher {
             extra_base: 0,
             extra_count: 0,
             seam_list_base: chunk_table,
-            unused: [0; 3],
+            mixed: mixed as u32,
+            unused: [0; 2],
         };
         let filled = |label: &str, bytes: &[u8], usage| filled_buffer(device, queue, label, bytes, usage);
         let empty_with =
@@ -950,7 +995,8 @@ impl GpuMarcher {
             extra_base,
             extra_count,
             seam_list_base,
-            unused: [0; 3],
+            mixed: 0,
+            unused: [0; 2],
         };
         let uniform = filled("gpu mesh params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
         let chunks = storage("gpu mesh chunks", bytemuck::cast_slice(&infos), wgpu::BufferUsages::empty());

@@ -7,7 +7,7 @@
 
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
-use strata_gpu_mesh::{GpuMarcher, GpuMeshError};
+use strata_gpu_mesh::{DualJoin, GpuMarcher, GpuMeshError};
 use strata_mesh::{Mesh, mesh_block};
 use strata_render::Gpu;
 use strata_volume::Axis;
@@ -411,20 +411,30 @@ fn corner_triangles(mesh: &Mesh) -> Vec<[Vec3; 3]> {
         .collect()
 }
 
-/// Dual contouring wholly on the GPU (one level): vertices and quads give the CPU's mesh chunk
-/// by chunk — the same triangles within 1e-3 cells, but for quads split along their other
-/// diagonal where both are equally flat (planar quads on a box's faces: the same corners and
-/// area). Returns the polygons that passed through face midpoints (fanned from a centre).
-fn assert_dual_mesh_equal(gpu: &Gpu, marcher: &GpuMarcher, v: &Volume, what: &str) -> usize {
+/// Dual contouring wholly on the GPU: vertices and quads give the CPU's mesh chunk by chunk
+/// (joined at one level, or across levels where the volume mixes them, as the CPU joins it) —
+/// the same triangles within 1e-3 finest cells, but for quads split along their other diagonal
+/// where both are equally flat (planar quads on a box's faces: the same corners and area).
+/// Returns the polygons that passed through face midpoints (fanned from a centre) and the
+/// triangles.
+fn assert_dual_mesh_equal(gpu: &Gpu, marcher: &GpuMarcher, v: &Volume, what: &str) -> (usize, usize) {
     let cpu = strata_mesh::DualCache::build(v);
     let polygons = cpu.iter().map(|(_, m)| m.cells.iter().filter(|c| c.x.rem_euclid(32) >= 16).count()).sum();
-    let keys = strata_mesh::surface_chunks(v);
+    let (join, keys) = if v.single_level() {
+        (DualJoin::OneLevel, strata_mesh::surface_chunks(v))
+    } else {
+        // Every chunk around a stored one: each lends its cells, and makes the polygons it owns.
+        let mut keys: Vec<ChunkKey> = v.chunks().flat_map(|(k, _)| k.around()).collect();
+        keys.sort();
+        keys.dedup();
+        (DualJoin::AcrossLevels, keys)
+    };
     let blocks: Vec<VoxelBlock> = keys.iter().map(|&k| v.extract_block(k)).collect();
     let refs: Vec<&VoxelBlock> = blocks.iter().collect();
-    let meshes = marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &vec![true; refs.len()]).unwrap();
+    let meshes = marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &vec![true; refs.len()], join).unwrap();
     let (mut total, mut flipped) = (0, 0);
     let area = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length() * 0.5;
-    let tolerance = 1e-3 * v.level().spacing() as f32;
+    let tolerance = 1e-3 * if v.single_level() { v.level().spacing() as f32 } else { 0.25 };
     for (key, got) in keys.iter().zip(&meshes) {
         let want = cpu.mesh(*key).map(|m| m.mesh.clone()).unwrap_or_default();
         assert_eq!(got.triangle_count(), want.triangle_count(), "{what}: chunk {key:?}'s triangles");
@@ -452,7 +462,8 @@ fn assert_dual_mesh_equal(gpu: &Gpu, marcher: &GpuMarcher, v: &Volume, what: &st
         flipped += unmatched.len();
     }
     assert!(flipped < total || total == 0, "{what}: none of {total} triangles matched");
-    polygons
+    assert_eq!(total, cpu.triangle_count(), "{what}: every chunk the CPU meshes was in the batch");
+    (polygons, total)
 }
 
 #[test]
@@ -481,7 +492,7 @@ fn dual_contouring_quads_on_the_gpu_make_the_cpus_mesh() {
             let p = [0, 1, 2].map(|i| node[(i + 3 - turn) % 3] + at[i]);
             v.add(&Sphere::new(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64), 0.42).unwrap()).unwrap();
         }
-        polygons += assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("tunnel face, turn {turn} at {at:?}"));
+        polygons += assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("tunnel face, turn {turn} at {at:?}")).0;
     }
     assert!(polygons >= 4, "{polygons} polygons through face midpoints");
     // Small thin shapes around a chunk corner.
@@ -534,8 +545,10 @@ fn dual_contouring_for_drawing_is_placed_and_drawn_as_read_back() {
         .iter()
         .map(|k| DrawPlacement { placement: Placement { model, origin: k.origin_grid().as_dvec3() }, tint: [1.0; 3] })
         .collect();
-    let read = marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &meshed).unwrap();
-    let batch = marcher.mesh_dual_for_drawing(&gpu.device, &gpu.queue, &refs, &meshed, &placements).unwrap();
+    let read = marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &meshed, DualJoin::OneLevel).unwrap();
+    let batch = marcher
+        .mesh_dual_for_drawing(&gpu.device, &gpu.queue, &refs, &meshed, &placements, DualJoin::OneLevel)
+        .unwrap();
     let drawn = batch.read_back(&gpu.device, &gpu.queue).unwrap();
     let mut triangles = 0;
     for (k, (want, got)) in read.iter().zip(&drawn).enumerate() {
@@ -556,4 +569,63 @@ fn dual_contouring_for_drawing_is_placed_and_drawn_as_read_back() {
         triangles += got.triangles.len() / 3;
     }
     assert!(triangles > 500, "{triangles} triangles");
+}
+
+/// Dual contouring across levels wholly on the GPU: chunks of levels 0, 1 and 2 side by side
+/// give the CPU's mesh chunk by chunk (polygons of the finest edges, triangles where a coarser
+/// cell holds two cells, finer edges inside coarser faces taking their segment's component):
+/// painted shapes across raised chunks, the issue-28 scene (a coarse cell of two components
+/// beside a finer chunk), and random edits and level maps on and off the grid.
+#[test]
+fn dual_contouring_across_levels_on_the_gpu_makes_the_cpus_mesh() {
+    let Some(gpu) = gpu() else { return };
+    let marcher = GpuMarcher::new(&gpu.device).unwrap();
+    let level = |l: u8| Level::new(l).unwrap();
+    let mut v = Volume::new();
+    let c = DVec3::new(16.0, 15.5, 17.25);
+    v.add(&Sphere::new(c, 10.3).unwrap()).unwrap();
+    v.add(&Cuboid::new(DVec3::new(25.3, 12.1, 20.6), DVec3::new(5.2, 4.4, 6.1)).unwrap()).unwrap();
+    v.subtract(&Sphere::new(c + DVec3::new(3.0, 8.0, -2.0), 4.0).unwrap()).unwrap();
+    v.paint(&Cuboid::new(c + DVec3::new(6.0, 0.0, 0.0), DVec3::new(6.0, 20.0, 20.0)).unwrap(), 4).unwrap();
+    v.set_chunk_level(ChunkKey::new(1, 0, 1), level(1));
+    v.set_chunk_level(ChunkKey::new(0, 1, 1), level(2));
+    let (_, triangles) = assert_dual_mesh_equal(&gpu, &marcher, &v, "painted shapes at levels 0, 1 and 2");
+    assert!(triangles > 2000, "{triangles} triangles");
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(6.0, 15.0, 15.75), 4.5).unwrap()).unwrap();
+    v.subtract(&Sphere::new(DVec3::new(6.75, 14.0, 18.25), 3.75).unwrap()).unwrap();
+    v.set_chunk_level(ChunkKey::new(0, 0, 1), level(1));
+    assert_dual_mesh_equal(&gpu, &marcher, &v, "a coarse cell of two components beside a finer chunk");
+    // Random scenes around the chunk corner at (16, 16, 16), the 2×2×2 chunks there at random
+    // levels; centres and sizes snapped to level-0 nodes, half cells, quarter cells or not.
+    let mut seed = 3301u64;
+    let mut next = move || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut triangles = 0;
+    for case in 0..24 {
+        let mut v = Volume::new();
+        for i in 0..5 {
+            let q = [0.0, 1.0, 0.5, 0.25][(next() * 4.0) as usize];
+            let snap = |x: f64| if q > 0.0 { ((x / q).round() * q).max(q) } else { x };
+            let c = DVec3::new(snap(9.0 + 14.0 * next()), snap(9.0 + 14.0 * next()), snap(9.0 + 14.0 * next()));
+            let size = DVec3::new(snap(0.6 + 5.0 * next()), snap(0.6 + 5.0 * next()), snap(0.6 + 5.0 * next()));
+            let edit = if i % 2 == 0 {
+                v.add(&Sphere::new(c, size.x + 2.0).unwrap())
+            } else if next() < 0.5 {
+                v.subtract(&Sphere::new(c, size.x).unwrap())
+            } else {
+                v.add(&Cuboid::new(c, size).unwrap())
+            };
+            edit.unwrap();
+            let key = ChunkKey::new((next() * 2.0) as i32, (next() * 2.0) as i32, (next() * 2.0) as i32);
+            v.set_chunk_level(key, level((next() * 3.0) as u8));
+        }
+        if v.single_level() {
+            v.set_chunk_level(ChunkKey::new(1, 1, 1), level(1));
+        }
+        triangles += assert_dual_mesh_equal(&gpu, &marcher, &v, &format!("random case {case}")).1;
+    }
+    assert!(triangles > 10_000, "{triangles} triangles");
 }

@@ -17,7 +17,7 @@ use std::path::Path;
 use glam::Mat4;
 use strata_editor::{ChangeList, Editor, Layer, LayerTransform, Scene, View};
 pub use strata_gpu_mesh::GpuMeshError;
-use strata_gpu_mesh::{DrawPlacement, GpuMarcher};
+use strata_gpu_mesh::{DrawPlacement, DualJoin, GpuMarcher};
 use strata_mesh::Mesh;
 use strata_render::{
     Camera, DrawMesh, FrameSettings, Gpu, MeshId, MeshRef, PaletteEntry, Placement, RenderError, Renderer,
@@ -376,9 +376,9 @@ fn mesh_either(
     mesh_keys(editor, &cubes, device, queue, renderer, gpu)
 }
 
-/// Meshes the chunks `keys` (surface, chunk) of surfaces meshed by dual contouring on the GPU
-/// (one level): each batch holds chunks whose quads are made and the chunks before them that
-/// lend their cells' vertices.
+/// Meshes the chunks `keys` (surface, chunk) of surfaces meshed by dual contouring on the GPU:
+/// each batch holds chunks whose quads are made and the chunks that lend their cells' vertices
+/// (at one level the chunks before them, across levels all 26 around them).
 fn mesh_dual_keys(
     editor: &Editor,
     keys: &[(usize, ChunkKey)],
@@ -400,13 +400,20 @@ fn mesh_dual_keys(
         meshed.sort();
         meshed.dedup();
         let model = shown_surface(editor, i).unwrap_or_default();
+        let join = if editor.caller_dual_across_levels(i) { DualJoin::AcrossLevels } else { DualJoin::OneLevel };
+        let lenders = |k: ChunkKey| -> Vec<ChunkKey> {
+            match join {
+                DualJoin::AcrossLevels => k.around().collect(),
+                DualJoin::OneLevel => strata_mesh::MeshCache::dependents(&[k]),
+            }
+        };
         let mut parts: Vec<Vec<ChunkKey>> = meshed.chunks(GPU_BATCH).rev().map(<[ChunkKey]>::to_vec).collect();
         while let Some(part) = parts.pop() {
             if gpu.lost.load(std::sync::atomic::Ordering::Relaxed) {
                 return Err(GpuMeshError::Device("the device was lost".into()));
             }
             // The part's chunks and their lenders, blocks made in parallel.
-            let mut all: Vec<ChunkKey> = part.iter().flat_map(|k| strata_mesh::MeshCache::dependents(&[*k])).collect();
+            let mut all: Vec<ChunkKey> = part.iter().flat_map(|&k| lenders(k)).collect();
             all.sort();
             all.dedup();
             let blocks: Vec<(ChunkKey, Option<VoxelBlock>)> = all
@@ -434,7 +441,7 @@ fn mesh_dual_keys(
                 .map(|(k, _)| DrawPlacement { placement: chunk_placement(model, *k), tint: [1.0; 3] })
                 .collect();
             let made = with_error_scopes(device, || {
-                gpu.marcher.mesh_dual_for_drawing(device, queue, &refs, &flags, &placements)
+                gpu.marcher.mesh_dual_for_drawing(device, queue, &refs, &flags, &placements, join)
             })?;
             let made = match made {
                 Ok(made) => made,

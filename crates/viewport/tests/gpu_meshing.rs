@@ -223,9 +223,11 @@ fn a_device_lost_while_meshing_is_an_error_and_the_cpu_takes_over() {
     assert!(r.mesh_count() > 0 && r.indirect_count() == 0 && r.triangle_count() > 0);
 }
 
-/// Dual contouring under GPU meshing (one level): made and drawn on the GPU, the same picture as
-/// the CPU's dual contouring through strokes, erasing and undo; the renderer kept by change
-/// lists equals one given every chunk anew; a layer whose levels mix goes back to the CPU.
+/// Dual contouring under GPU meshing: made and drawn on the GPU, the same picture as the CPU's
+/// dual contouring through strokes, erasing and undo, at one level and then across levels
+/// (finer chunks made, sculpted across, undone back to one level: the quads stay joined across
+/// levels, as the CPU's stay); the renderer kept by change lists equals one given every chunk
+/// anew.
 #[test]
 fn gpu_dual_contouring_draws_what_the_cpus_draws() {
     use strata_mesh::{MeshOptions, Mesher};
@@ -239,30 +241,42 @@ fn gpu_dual_contouring_draws_what_the_cpus_draws() {
     on_cpu.set_view_mesher(dual).unwrap();
     let mut drawn = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
     let mut want = Renderer::new(&gpu.device, wgpu::TextureFormat::Rgba8UnormSrgb);
-    for step in 0..6 {
+    for step in 0..9 {
         for e in [&mut on_gpu, &mut on_cpu] {
             match step {
                 _ if first_steps(e, step) => {}
                 4 => stroke(e, DVec3::new(8.0, 20.0, 26.0)),
-                _ => {
-                    // Finer chunks: this layer's levels mix, so the CPU contours it.
+                5 => {
+                    // Finer chunks: this layer's levels mix.
                     e.active_layer = 0;
                     e.tool.kind = ToolKind::Detail;
                     e.tool.detail_level = Level::new(1).unwrap();
                     e.tool.radius = 3.0;
                     stroke(e, DVec3::new(20.0, 32.0, 20.0));
                     e.tool.kind = ToolKind::Add;
+                    assert!(!e.scene.layers[0].volume.single_level(), "the layer mixes levels");
+                }
+                // Sculpting across the seams between the levels.
+                6 => stroke(e, DVec3::new(18.0, 31.5, 21.0)),
+                7 => {
+                    e.tool.kind = ToolKind::Erase;
+                    stroke(e, DVec3::new(21.0, 31.0, 19.0));
+                    e.tool.kind = ToolKind::Add;
+                }
+                _ => {
+                    // Back to one level: the quads stay joined across levels.
+                    for _ in 0..3 {
+                        e.undo();
+                    }
+                    assert!(e.scene.layers[0].volume.single_level(), "back to one level");
                 }
             }
             e.finish_meshing();
         }
         apply_both(&gpu, (&mut on_gpu, &mut drawn, &mut meshing), (&mut on_cpu, &mut want));
-        if step < 5 {
-            assert!(on_gpu.meshed_by_caller(0) && on_gpu.caller_dual(0), "step {step}");
-            assert!(drawn.indirect_count() > 0 && drawn.triangle_count() == 0, "step {step}: all on the GPU");
-        } else {
-            assert!(!on_gpu.meshed_by_caller(0) && on_gpu.meshed_by_caller(1), "mixed levels: the CPU's");
-        }
+        assert!(on_gpu.meshed_by_caller(0) && on_gpu.caller_dual(0), "step {step}");
+        assert_eq!(on_gpu.caller_dual_across_levels(0), step >= 5, "step {step}: joined across levels");
+        assert!(drawn.indirect_count() > 0 && drawn.triangle_count() == 0, "step {step}: all on the GPU");
         let (a, b) = (image(&gpu, &mut drawn, false), image(&gpu, &mut want, false));
         let d = differing(&a, &b);
         assert!(d * 1000 <= a.len() / 4, "step {step}: {d} pixels differ");

@@ -234,6 +234,31 @@ impl VoxelBlock {
         &self.seams
     }
 
+    /// Lists each axis's crossings line by line: lines across the axis in
+    /// [`Axis::across`] order (line `u + (n+1) v`), then along each line, as extraction lists
+    /// them wherever no edge was repaired or patched (those it appends). The lookup follows;
+    /// nothing else changes. Returns whether any crossing moved.
+    pub fn list_line_by_line(&mut self) -> bool {
+        let m = self.n + 1;
+        let mut moved = false;
+        for axis in Axis::ALL {
+            let a = axis.index();
+            let (ua, va) = (axis.across().0.index(), axis.across().1.index());
+            let order = |c: &EdgeCrossing| (c.lower[ua] as usize + m * c.lower[va] as usize, c.lower[a]);
+            if self.crossings[a].is_sorted_by_key(order) {
+                continue;
+            }
+            moved = true;
+            self.crossings[a].sort_unstable_by_key(order);
+            for (i, c) in self.crossings[a].iter().enumerate() {
+                let [x, y, z] = c.lower.map(usize::from);
+                let at = x + m * (y + m * z);
+                self.lookup[a][at] = i as u32;
+            }
+        }
+        moved
+    }
+
     /// A block from a dense grid of node states and crossings.
     pub(crate) fn fill_from_dense(&mut self, key: ChunkKey, level: Level, d: &crate::level::Dense, patched: u32) {
         self.fill_from_parts(
@@ -734,6 +759,49 @@ mod tests {
     use super::*;
     use crate::brush::Sphere;
     use glam::DVec3;
+
+    /// Blocks patched to meet neighbours of other levels list the patched crossings after the
+    /// others; listed line by line again they hold the same crossings in line order, and the
+    /// lookup finds each one where it now is.
+    #[test]
+    fn patched_blocks_listed_line_by_line_keep_their_crossings() {
+        let mut v = Volume::new();
+        v.add(&Sphere::new(DVec3::new(16.3, 15.2, 17.7), 9.4).unwrap()).unwrap();
+        v.set_chunk_level(ChunkKey::new(1, 0, 1), Level::new(1).unwrap());
+        v.set_chunk_level(ChunkKey::new(0, 1, 0), Level::new(2).unwrap());
+        let mut moved = 0;
+        for key in [(0, 0, 0), (1, 0, 0), (0, 1, 1), (1, 0, 1), (0, 0, 1), (1, 1, 0)] {
+            let block = v.extract_block(ChunkKey::new(key.0, key.1, key.2));
+            let mut listed = block.clone();
+            if listed.list_line_by_line() {
+                moved += 1;
+            }
+            assert!(!listed.clone().list_line_by_line(), "{key:?}: a second listing moves nothing");
+            let m = block.cells() + 1;
+            for axis in Axis::ALL {
+                let a = axis.index();
+                let (u, w) = (axis.across().0.index(), axis.across().1.index());
+                let order: Vec<(usize, u8)> = listed
+                    .crossings(axis)
+                    .iter()
+                    .map(|c| (c.lower[u] as usize + m * c.lower[w] as usize, c.lower[a]))
+                    .collect();
+                assert!(order.windows(2).all(|p| p[0] < p[1]), "{key:?} {axis:?}: in line order");
+                let mut before = block.crossings(axis).to_vec();
+                let mut after = listed.crossings(axis).to_vec();
+                let by_node = |c: &EdgeCrossing| c.lower;
+                before.sort_by_key(by_node);
+                after.sort_by_key(by_node);
+                assert_eq!(before, after, "{key:?} {axis:?}: the same crossings");
+                for c in listed.crossings(axis) {
+                    let [x, y, z] = c.lower.map(usize::from);
+                    assert_eq!(listed.crossing(axis, x, y, z), Some(c), "{key:?} {axis:?}: the lookup");
+                    assert_eq!(listed.crossing(axis, x, y, z), block.crossing(axis, x, y, z));
+                }
+            }
+        }
+        assert!(moved > 0, "some block was patched out of line order");
+    }
 
     /// Blocks whose chunk and apron owners are uniform alike, beside chunks of other levels
     /// (stored, and capped for level of detail): the shortcut gives the block patching gives.
