@@ -609,8 +609,8 @@ impl Editor {
     }
 
     /// GPU meshing for the viewport: with `on`, the surfaces meshed by marching cubes without
-    /// per-chunk simplification, or by dual contouring at one level (scene layers without a
-    /// mask; not a streamed world), are no longer meshed by the editor. Their changed chunks are listed in [`Editor::take_changes`]
+    /// per-chunk simplification, or by dual contouring (scene layers without a mask; not a
+    /// streamed world), are no longer meshed by the editor. Their changed chunks are listed in [`Editor::take_changes`]
     /// (all of them for a full list: [`Editor::caller_chunks`]) and the caller meshes each from
     /// [`Editor::view_block`] (`strata_viewport` does, on the GPU). Every chunk is queued again
     /// when this changes anything. Exports keep meshing on the CPU.

@@ -122,3 +122,70 @@ fn exports_by_every_mesher_and_tetrahedra_refuse_mixed_levels() {
     assert!(err.to_string().contains("mixes levels"), "{err}");
     assert!(e.export_mesh(MeshOptions::new(Mesher::DualContouring)).is_ok());
 }
+
+/// Under GPU meshing a dual-contoured layer whose chunks mix levels is left to the caller and
+/// joined across levels: after every stroke (adding, erasing, a Detail stroke that raises more
+/// chunks) the chunks listed for it cover every chunk whose mesh, as the CPU's cache joins the
+/// volume from scratch, changed — none is left stale.
+#[test]
+fn gpu_meshing_lists_every_dual_chunk_an_edit_moves_across_levels() {
+    use strata_mesh::DualCache;
+    use strata_volume::{ChunkKey, Level};
+    let mut scene = Scene::default();
+    let v = &mut scene.layers[0].volume;
+    v.add(&Sphere::new(DVec3::new(16.3, 15.8, 16.1), 10.0).unwrap()).unwrap();
+    v.add(&Sphere::new(DVec3::new(30.2, 17.1, 15.4), 7.5).unwrap()).unwrap();
+    v.set_chunk_level(ChunkKey::new(1, 0, 0), Level::new(1).unwrap());
+    v.set_chunk_level(ChunkKey::new(0, 1, 1), Level::new(2).unwrap());
+    let mut e = Editor::new(scene);
+    e.set_view_mesher(MeshOptions::new(Mesher::DualContouring)).unwrap();
+    e.set_gpu_meshing(true);
+    e.finish_meshing();
+    assert!(e.take_changes().full, "the first list is full");
+    assert!(e.caller_dual(0) && e.caller_dual_across_levels(0), "mixed levels are joined across levels");
+    let strokes = [
+        (ToolKind::Add, DVec3::new(16.5, 17.0, 26.0), 3.0),
+        (ToolKind::Erase, DVec3::new(15.2, 16.3, 15.9), 4.0),
+        (ToolKind::Add, DVec3::new(31.0, 8.5, 14.0), 2.5),
+        (ToolKind::Detail, DVec3::new(24.0, 16.0, 16.0), 2.0),
+        (ToolKind::Erase, DVec3::new(32.2, 16.4, 16.7), 3.5),
+        (ToolKind::Add, DVec3::new(17.0, 16.0, 31.5), 2.0),
+    ];
+    let mut moved_total = 0;
+    for (n, &(kind, at, radius)) in strokes.iter().enumerate() {
+        let before = DualCache::build(&e.scene.layers[0].volume);
+        e.tool.kind = kind;
+        e.tool.radius = radius;
+        e.tool.detail_level = Level::new(2).unwrap();
+        let down = Buttons { primary: true, secondary: false };
+        for i in 0..3 {
+            let position = at + DVec3::new(0.0, 0.7 * i as f64, 0.0);
+            let pose = ToolPose {
+                position,
+                orientation: DQuat::IDENTITY,
+                pressure: 1.0,
+                buttons: down,
+                ..ToolPose::default()
+            };
+            e.frame(&pose, Duration::from_millis(50)).unwrap();
+        }
+        e.frame(&ToolPose::at(at, false), Duration::from_millis(50)).unwrap();
+        e.finish_meshing();
+        let after = DualCache::build(&e.scene.layers[0].volume);
+        assert!(!e.scene.layers[0].volume.single_level(), "stroke {n}: still mixed");
+        let changes = e.take_changes();
+        assert!(!changes.full, "stroke {n}: an edit lists its chunks");
+        let listed: std::collections::HashSet<ChunkKey> =
+            changes.meshes.iter().filter(|(i, _)| *i == 0).map(|(_, k)| *k).collect();
+        let mut keys: Vec<ChunkKey> = before.iter().chain(after.iter()).map(|(k, _)| k).collect();
+        keys.sort();
+        keys.dedup();
+        let moved: Vec<ChunkKey> = keys.into_iter().filter(|&k| before.mesh(k) != after.mesh(k)).collect();
+        assert!(!moved.is_empty(), "stroke {n} ({kind:?}) moved some chunk's mesh");
+        for k in &moved {
+            assert!(listed.contains(k), "stroke {n} ({kind:?}): chunk {k:?}'s mesh moved but was not listed");
+        }
+        moved_total += moved.len();
+    }
+    assert!(moved_total > 20, "{moved_total} chunk meshes moved");
+}
