@@ -444,9 +444,6 @@ fn owned_crossing(c: Chunk, i: u32) -> vec4<u32> {
 }
 
 fn polygon_of(k: u32, i: u32) -> Polygon {
-    if (params.mixed == 1u) {
-        return mixed_polygon_of(k, i);
-    }
     var out: Polygon;
     out.count = 0u;
     out.mids = 0u;
@@ -458,6 +455,9 @@ fn polygon_of(k: u32, i: u32) -> Polygon {
     let found = owned_crossing(c, i);
     let axis = found.w;
     let lower = found.xyz;
+    if (params.mixed == 1u) {
+        return mixed_polygon(k, c, axis, lower);
+    }
     let u = (axis + 1u) % 3u;
     let v = (axis + 2u) % 3u;
     if (lower[u] >= c.n || lower[v] >= c.n) {
@@ -827,8 +827,9 @@ fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
 // centres. A chunk's neighbour table holds all 27 offsets here.
 //
 // Positions are exact integers in sixteenths of a grid unit (a chunk is 256 of them, a cell
-// 4, 8 or 16): the CPU's points a hundredth of a finest cell beside the edge are one sixteenth
-// here, inside the same cells.
+// 4, 8 or 16); the points beside the edge that find its cells are in 32nds (the middle of a
+// finest edge is an odd number of them): the CPU's points a hundredth of a finest cell beside
+// the edge are one 32nd of a grid unit beside it here, inside the same cells.
 
 fn floor_div(a: i32, b: i32) -> i32 {
     let q = a / b;
@@ -904,23 +905,18 @@ fn component_on_face(c: Chunk, cell: vec3<u32>, fa: u32, side: u32, inside_end: 
     return 0xffffffffu;
 }
 
-fn mixed_polygon_of(k: u32, i: u32) -> Polygon {
+// The polygon across levels around the crossing along `axis` from node `lower` of chunk `k`
+// (`c`), which makes quads.
+fn mixed_polygon(k: u32, c: Chunk, axis: u32, lower: vec3<u32>) -> Polygon {
     var out: Polygon;
     out.count = 0u;
     out.mids = 0u;
-    let c = load_chunk(k);
-    if (c.seam_slot != 1u) {
-        return out;
-    }
-    let found = owned_crossing(c, i);
-    let axis = found.w;
-    let lower = found.xyz;
     let u = (axis + 1u) % 3u;
     let v = (axis + 2u) % 3u;
     let own = i32(round(c.spacing * 16.0));
     var along = vec3<i32>(0);
     along[axis] = 1;
-    // The edge's ends and middle, sixteenths in this chunk's frame.
+    // The edge's ends, sixteenths in this chunk's frame.
     let e0 = vec3<i32>(lower) * own;
     let e1 = e0 + along * own;
     // The four cells around it, counter-clockwise around +axis: (−,−), (+,−), (+,+), (−,+).
@@ -931,10 +927,10 @@ fn mixed_polygon_of(k: u32, i: u32) -> Polygon {
     var sizes: array<i32, 4>;
     var finest = 1000;
     for (var q = 0u; q < 4u; q++) {
+        // The point beside the edge's middle in this quadrant, 32nds.
         var p = e0 * 2 + along * own;
         p[u] += su[q];
         p[v] += sv[q];
-        // (Doubled: the middle of a finest edge is an odd number of 32nds.)
         let shift = floor_div3(p, 512);
         let kk = neighbour(k, shift);
         if (kk == 0xffffffffu) {

@@ -13,7 +13,10 @@
 //! whole cache update (blocks extracted, vertices solved, quads joined) by the CPU alone, and
 //! with the vertices solved on the GPU and read back (`DualCache::update_solved`), and wholly on
 //! the GPU (`GpuMarcher::dual_mesh`: the changed chunks' quads and their neighbours' vertices in
-//! one batch, read back).
+//! one batch, read back). Then the same across levels: the canvas's stored chunks raised to
+//! level 1 in a checkerboard and more instructions applied, the CPU's cache (joining across
+//! levels) against the GPU (`DualJoin::AcrossLevels`: the chunks within two of a change and the
+//! 26 around each that lend their cells, one batch per 256 meshed chunks, read back).
 
 use std::time::{Duration, Instant};
 
@@ -70,7 +73,7 @@ fn cpu_mesh(blocks: &[&VoxelBlock]) -> usize {
 }
 
 /// The report, as markdown.
-pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
+pub fn run(frames: usize, mixed_frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
     let gpu =
         strata_render::Gpu::headless_with(wgpu::Features::TIMESTAMP_QUERY).context("a GPU adapter (or lavapipe)")?;
     let mut marcher = strata_gpu_mesh::GpuMarcher::new(&gpu.device)?;
@@ -173,6 +176,7 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
     out += &format!("| CPU, all cores | {cm:.2} | {cp:.2} |\n");
     out += &format!("| vertices on the GPU (read back), quads on the CPU | {gm:.2} | {gp:.2} |\n");
     out += &format!("| vertices and quads on the GPU (read back) | {wm:.2} | {wp:.2} |\n\n");
+    out += &across_levels(&gpu, &marcher, &mut volume, mixed_frames, radius)?;
     // The bunny, every surface chunk at once.
     let path = crate::suite::repo_root().join("tests/data/bunny.ply");
     let m = strata_mesh::import::load_mesh(&path)?;
@@ -206,5 +210,78 @@ pub fn run(frames: usize, radius: f64, bunny_cells: u32) -> Result<String> {
     );
     out += "| mesher | ms |\n|---|---:|\n";
     out += &format!("| CPU marching cubes, all cores | {cm:.1} |\n| GPU marching cubes | {gm:.1} |\n");
+    Ok(out)
+}
+
+/// Dual contouring's frame across levels: `volume`'s stored chunks raised to level 1 in a
+/// checkerboard, then `frames` instructions (after three of warm-up), each followed by the CPU
+/// cache's update and by the GPU's polygons of the same chunks (read back); markdown.
+fn across_levels(
+    gpu: &strata_render::Gpu,
+    marcher: &strata_gpu_mesh::GpuMarcher,
+    volume: &mut Volume,
+    frames: usize,
+    radius: f64,
+) -> Result<String> {
+    use std::collections::BTreeSet;
+    use strata_volume::{ChunkKey, Level};
+    let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
+    for k in stored.iter().filter(|k| (k.0.x + k.0.y + k.0.z).rem_euclid(2) == 0) {
+        volume.set_chunk_level(*k, Level::new(1).expect("level 1 exists"));
+    }
+    let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
+        let set: BTreeSet<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
+        set.into_iter().collect()
+    };
+    let warm = 3;
+    let settings = EditSettings { parallel: true, ..Default::default() };
+    let ins = crate::table1_instructions(frames + warm, radius, 2027);
+    let mut cache = strata_mesh::DualCache::build(volume);
+    let (mut cpu, mut gpus, mut meshed_total, mut blocks_total, mut triangles) = (Vec::new(), Vec::new(), 0, 0, 0);
+    for (i, instruction) in ins.iter().enumerate() {
+        let report = volume.apply(instruction.op, &instruction.brush(), &settings)?;
+        let t = Instant::now();
+        cache.update(volume, &report.changed);
+        let c = t.elapsed();
+        let t = Instant::now();
+        let meshed = around(&around(&report.changed));
+        let mut made = 0;
+        let (mut frame_meshed, mut frame_blocks) = (0, 0);
+        for part in meshed.chunks(256) {
+            let keys = around(part);
+            let blocks: Vec<(ChunkKey, VoxelBlock)> = keys
+                .par_iter()
+                .map(|&k| (k, volume.extract_block(k)))
+                .filter(|(_, b)| strata_volume::Axis::ALL.iter().any(|&a| !b.crossings(a).is_empty()))
+                .collect();
+            let wanted: BTreeSet<ChunkKey> = part.iter().copied().collect();
+            let refs: Vec<&VoxelBlock> = blocks.iter().map(|(_, b)| b).collect();
+            let flags: Vec<bool> = blocks.iter().map(|(k, _)| wanted.contains(k)).collect();
+            let meshes =
+                marcher.dual_mesh(&gpu.device, &gpu.queue, &refs, &flags, strata_gpu_mesh::DualJoin::AcrossLevels)?;
+            made += meshes.iter().map(Mesh::triangle_count).sum::<usize>();
+            frame_meshed += flags.iter().filter(|f| **f).count();
+            frame_blocks += refs.len();
+        }
+        let g = t.elapsed();
+        if i >= warm {
+            cpu.push(c);
+            gpus.push(g);
+            meshed_total += frame_meshed;
+            blocks_total += frame_blocks;
+            triangles += made;
+        }
+    }
+    let ((cm, cp), (gm, gp)) = (quantiles(&mut cpu), quantiles(&mut gpus));
+    let per = |n: usize| n as f64 / frames.max(1) as f64;
+    let mut out = format!(
+        "Dual contouring's frame across levels (the canvas's stored chunks raised to level 1 in a checkerboard, {frames} more instructions after {warm} of warm-up; the GPU meshed {:.0} chunks a frame from batches holding {:.0} blocks, {:.0} triangles):\n\n",
+        per(meshed_total),
+        per(blocks_total),
+        per(triangles)
+    );
+    out += "| dual contouring across levels | median (ms) | p95 (ms) |\n|---|---:|---:|\n";
+    out += &format!("| CPU, all cores (the cache's update) | {cm:.2} | {cp:.2} |\n");
+    out += &format!("| vertices and quads on the GPU (blocks extracted, read back) | {gm:.2} | {gp:.2} |\n\n");
     Ok(out)
 }

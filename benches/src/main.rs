@@ -190,6 +190,9 @@ enum Command {
         /// Frames measured (after ten of warm-up).
         #[arg(long, default_value_t = 100)]
         frames: usize,
+        /// Frames measured across levels (after three of warm-up).
+        #[arg(long, default_value_t = 20)]
+        mixed_frames: usize,
         /// The workload's radius.
         #[arg(long, default_value_t = 20.0)]
         radius: f64,
@@ -211,7 +214,9 @@ fn main() -> Result<()> {
         Command::Table1 { count, radii, seed, single } => table1(count, &radii, seed, single),
         Command::Frame { count, radii, seed } => frame(count, &radii, seed),
         Command::MeshSpeed { seed } => mesh_speed(seed),
-        Command::Gpu { frames, radius, bunny } => print!("{}", strata_bench::gpu::run(frames, radius, bunny)?),
+        Command::Gpu { frames, mixed_frames, radius, bunny } => {
+            print!("{}", strata_bench::gpu::run(frames, mixed_frames, radius, bunny)?)
+        }
         Command::Collab { clients, rate, seconds, burst, join_cells, pg } => {
             let pg = pg.or_else(|| std::env::var("STRATA_PG_URL").ok());
             let config = strata_bench::collab::CollabConfig { clients, rate, seconds, burst, join_cells, pg };
