@@ -317,7 +317,7 @@ fn cell_vertex(k: u32, i: u32) -> u32 {
 }
 
 // A ring cell: its chunk (in the batch), local cell, component mask, vertex number, offset of its
-// chunk (0 or −1 on each axis); `ok` false where its chunk is not in the batch or no component
+// chunk (0 or −1 on each axis: one level only); `ok` false where its chunk is not in the batch or no component
 // holds the edge.
 struct RingCell {
     k: u32,
@@ -780,8 +780,9 @@ fn normalize_or_z(v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(0.0, 0.0, 1.0);
 }
 
-// The shift (0 or −1 a component) of the chunk whose dual vertex `v` is, from chunk `k`: the
-// chunk of the batch whose vertices hold it, compared with `k`'s neighbours.
+// The shift (0 or −1 a component at one level, −1, 0 or 1 across levels) of the chunk whose
+// dual vertex `v` is, from chunk `k`: the chunk of the batch whose vertices hold it, compared
+// with `k`'s neighbours.
 fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
     var lo = 0u;
     var hi = params.chunk_count;
@@ -827,9 +828,9 @@ fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
 // centres. A chunk's neighbour table holds all 27 offsets here.
 //
 // Positions are exact integers in sixteenths of a grid unit (a chunk is 256 of them, a cell
-// 4, 8 or 16); the points beside the edge that find its cells are in 32nds (the middle of a
-// finest edge is an odd number of them): the CPU's points a hundredth of a finest cell beside
-// the edge are one 32nd of a grid unit beside it here, inside the same cells.
+// 4, 8 or 16); the points beside the edge's middle that find its cells are in 32nds: the CPU's
+// points a hundredth of a finest cell beside the edge are one 32nd of a grid unit beside it
+// here, inside the same cells.
 
 fn floor_div(a: i32, b: i32) -> i32 {
     let q = a / b;

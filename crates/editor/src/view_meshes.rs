@@ -367,8 +367,10 @@ impl ViewMeshes {
                 s.mixed_seen |= !volume.single_level();
                 if s.mixed_seen && !was {
                     // From one level to several: every polygon is joined again across levels.
+                    // (And around what the change touched: a chunk it emptied is not stored.)
                     let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
                     s.queued.extend(around(&stored));
+                    s.queued.extend(around(&around(changed)));
                 } else if s.mixed_seen {
                     // The vertices of the chunks around a change move (their blocks read it);
                     // the polygons of the chunks around those use them.

@@ -584,7 +584,8 @@ impl GpuMarcher {
     ) -> Result<DualSubmitted, GpuMeshError> {
         let mixed = matches!(meshed, Some((_, DualJoin::AcrossLevels)));
         // The quad passes find a crossing by its rank on its line: blocks that crack patching
-        // left out of line order are listed again (copies holding the same crossings).
+        // filled from a dense grid (y and z crossings in node order) are listed again (copies
+        // holding the same crossings).
         let relisted: Vec<Option<VoxelBlock>> = match meshed {
             Some(_) => blocks
                 .iter()
@@ -630,6 +631,10 @@ impl GpuMarcher {
         let index_of: std::collections::HashMap<strata_volume::ChunkKey, u32> =
             blocks.iter().enumerate().map(|(k, b)| (key_of(b), k as u32)).collect();
         if meshed.is_some() {
+            if blocks.iter().any(|b| line_counts(b).is_none()) {
+                // (Two crossings on one edge: no block this crate's extraction makes.)
+                return Err(GpuMeshError::TooLarge("a block's crossings cannot be listed line by line".into()));
+            }
             let level = blocks.first().map(|b| b.level());
             if !mixed && blocks.iter().any(|b| Some(b.level()) != level) {
                 return Err(GpuMeshError::TooLarge(

@@ -459,6 +459,14 @@ fn assert_dual_mesh_equal(gpu: &Gpu, marcher: &GpuMarcher, v: &Volume, what: &st
         }
         let (a, b): (f32, f32) = (unmatched.iter().map(area).sum(), left.iter().map(area).sum());
         assert!((a - b).abs() <= 1e-3 * b.max(1e-6) + 1e-5, "{what}: chunk {key:?}: re-split area {a} against {b}");
+        // And the same orientation: a polygon's vector area does not depend on the diagonal it
+        // is split along, and a triangle wound the other way turns it round.
+        let vector = |ts: &[[Vec3; 3]]| ts.iter().map(|t| (t[1] - t[0]).cross(t[2] - t[0]) * 0.5).sum::<Vec3>();
+        let (va, vb) = (vector(&unmatched), vector(&left));
+        assert!(
+            (va - vb).length() <= 1e-3 * b.max(1e-6) + 1e-5,
+            "{what}: chunk {key:?}: re-split vector area {va} against {vb}"
+        );
         flipped += unmatched.len();
     }
     assert!(flipped < total || total == 0, "{what}: none of {total} triangles matched");

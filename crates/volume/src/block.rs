@@ -236,8 +236,10 @@ impl VoxelBlock {
 
     /// Lists each axis's crossings line by line: lines across the axis in
     /// [`Axis::across`] order (line `u + (n+1) v`), then along each line, as extraction lists
-    /// them wherever no edge was repaired or patched (those it appends). The lookup follows;
-    /// nothing else changes. Returns whether any crossing moved.
+    /// them from the stored lines (a block filled from a dense grid, as crack patching and
+    /// [`VoxelBlock::from_fn`] fill one, lists every axis in node order, z then y then x, which
+    /// is line order for x only). The lookup follows; nothing else changes. Returns whether any
+    /// crossing moved.
     pub fn list_line_by_line(&mut self) -> bool {
         let m = self.n + 1;
         let mut moved = false;
