@@ -590,8 +590,8 @@ impl DualCache {
     /// shared faces patched to the coarser side's contour, and a finer edge inside a coarser
     /// cell's face taking the component of the face segment that cuts it (as the finer edges on
     /// that segment's ends do), every polygon edge is shared by an even number of polygons, so
-    /// the surface is closed. Vertices and meshes are recomputed for the 3×3×3 chunks around
-    /// each change.
+    /// the surface is closed. Vertices are recomputed for the 3×3×3 chunks around each change,
+    /// and polygons for the chunks around those whose cells, owned edges or level changed.
     fn update_mixed(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
         let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
             let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
@@ -618,15 +618,26 @@ impl DualCache {
             })
             .collect();
         let levels = self.levels.as_mut().expect("set above");
+        // A chunk's polygons read the cells, owned edges and levels of the chunks around it:
+        // only those around a chunk whose dual data or level changed are joined again.
+        let mut moved: Vec<ChunkKey> = Vec::new();
         for (key, d, level) in fresh {
-            levels.insert(key, level);
-            if d.cells.is_empty() && d.edges.is_empty() {
+            let empty = d.cells.is_empty() && d.edges.is_empty();
+            let same = levels.insert(key, level) == Some(level)
+                && match self.duals.get(&key) {
+                    Some(old) => !empty && *old == d,
+                    None => empty,
+                };
+            if !same {
+                moved.push(key);
+            }
+            if empty {
                 self.duals.remove(&key);
             } else {
                 self.duals.insert(key, d);
             }
         }
-        let mesh_keys = around(&vertex_keys);
+        let mesh_keys = around(&moved);
         let meshes: Vec<(ChunkKey, DualChunkMesh)> =
             mesh_keys.par_iter().map(|&key| (key, self.assemble_mixed(volume, key))).collect();
         for (key, m) in meshes {
