@@ -354,6 +354,20 @@ fn neighbour(k: u32, shift: vec3<i32>) -> u32 {
     return data[base + slot];
 }
 
+// The component (x; 0xffffffff: none) of cell `cell` of chunk `c` whose loop holds the cell's
+// edge `edge` (a `cell_edge` bit), in the order of the cell's vertices, and its edges (y).
+fn component_holding(c: Chunk, cell: vec3<u32>, edge: u32) -> vec2<u32> {
+    let case_index = case_of(c, cell);
+    let count = data[DUAL_TABLE + case_index * 5u];
+    for (var j = 0u; j < count; j++) {
+        let mask = data[DUAL_TABLE + case_index * 5u + 1u + j];
+        if (((mask >> edge) & 1u) == 1u) {
+            return vec2<u32>(j, mask);
+        }
+    }
+    return vec2<u32>(0xffffffffu, 0u);
+}
+
 fn ring_cell(k: u32, cell: vec3<i32>, axis: u32, l: vec3<i32>) -> RingCell {
     let n = i32(load_chunk(k).n);
     let shift = vec3<i32>(select(0, -1, cell.x < 0), select(0, -1, cell.y < 0), select(0, -1, cell.z < 0));
@@ -364,18 +378,12 @@ fn ring_cell(k: u32, cell: vec3<i32>, axis: u32, l: vec3<i32>) -> RingCell {
     }
     let local = vec3<u32>(cell - shift * n);
     let c = load_chunk(kk);
-    let case_index = case_of(c, local);
-    let count = data[DUAL_TABLE + case_index * 5u];
-    let offset = vec3<u32>(l - cell);
-    let edge = 4u * axis + offset[(axis + 1u) % 3u] + 2u * offset[(axis + 2u) % 3u];
-    for (var j = 0u; j < count; j++) {
-        let mask = data[DUAL_TABLE + case_index * 5u + 1u + j];
-        if (((mask >> edge) & 1u) == 1u) {
-            let index = local.x + c.n * (local.y + c.n * local.z);
-            return RingCell(kk, local, mask, cell_vertex(kk, index) + j, shift, true);
-        }
+    let found = component_holding(c, local, cell_edge(axis, vec3<u32>(l - cell)));
+    if (found.x == 0xffffffffu) {
+        return r;
     }
-    return r;
+    let index = local.x + c.n * (local.y + c.n * local.z);
+    return RingCell(kk, local, found.y, cell_vertex(kk, index) + found.x, shift, true);
 }
 
 // The cell-edge bits of the face with normal `fa` at `side` (the CPU's `face_edges`).
@@ -828,9 +836,8 @@ fn vertex_shift(k: u32, v: u32) -> vec3<i32> {
 // centres. A chunk's neighbour table holds all 27 offsets here.
 //
 // Positions are exact integers in sixteenths of a grid unit (a chunk is 256 of them, a cell
-// 4, 8 or 16); the points beside the edge's middle that find its cells are in 32nds: the CPU's
-// points a hundredth of a finest cell beside the edge are one 32nd of a grid unit beside it
-// here, inside the same cells.
+// 4, 8 or 16): the CPU's points a hundredth of a finest cell beside the edge's middle are one
+// sixteenth beside it here, inside the same cells.
 
 fn floor_div(a: i32, b: i32) -> i32 {
     let q = a / b;
@@ -923,16 +930,18 @@ fn mixed_polygon(k: u32, c: Chunk, axis: u32, lower: vec3<u32>) -> Polygon {
     // The four cells around it, counter-clockwise around +axis: (−,−), (+,−), (+,+), (−,+).
     let su = array<i32, 4>(-1, 1, 1, -1);
     let sv = array<i32, 4>(-1, -1, 1, 1);
+    var points: array<vec3<i32>, 4>;
     var chunks: array<u32, 4>;
     var shifts: array<vec3<i32>, 4>;
     var sizes: array<i32, 4>;
     var finest = 1000;
     for (var q = 0u; q < 4u; q++) {
-        // The point beside the edge's middle in this quadrant, 32nds.
-        var p = e0 * 2 + along * own;
+        // The point beside the edge's middle in this quadrant.
+        var p = e0 + along * (own / 2);
         p[u] += su[q];
         p[v] += sv[q];
-        let shift = floor_div3(p, 512);
+        points[q] = p;
+        let shift = floor_div3(p, 256);
         let kk = neighbour(k, shift);
         if (kk == 0xffffffffu) {
             return out;
@@ -962,11 +971,8 @@ fn mixed_polygon(k: u32, c: Chunk, axis: u32, lower: vec3<u32>) -> Polygon {
         let kk = chunks[q];
         let cc = load_chunk(kk);
         let size = sizes[q];
-        var p = e0 * 2 + along * own;
-        p[u] += su[q];
-        p[v] += sv[q];
         let frame = shifts[q] * 256;
-        let cell = floor_div3(p - frame * 2, size * 2);
+        let cell = floor_div3(points[q] - frame, size);
         // The edge's ends from the cell's least corner (sixteenths).
         let r0 = e0 - frame - cell * size;
         let r1 = e1 - frame - cell * size;
@@ -975,18 +981,7 @@ fn mixed_polygon(k: u32, c: Chunk, axis: u32, lower: vec3<u32>) -> Polygon {
         var j = 0xffffffffu;
         let local = vec3<u32>(cell);
         if (on_u && on_v) {
-            var off = vec3<u32>(0u);
-            off[u] = u32(r0[u] / size);
-            off[v] = u32(r0[v] / size);
-            let edge = cell_edge(axis, off);
-            let case_index = case_of(cc, local);
-            let count = data[DUAL_TABLE + case_index * 5u];
-            for (var m = 0u; m < count; m++) {
-                if (((data[DUAL_TABLE + case_index * 5u + 1u + m] >> edge) & 1u) == 1u) {
-                    j = m;
-                    break;
-                }
-            }
+            j = component_holding(cc, local, cell_edge(axis, vec3<u32>(r0 / size))).x;
         } else {
             // Inside a face of a coarser cell: the face across the first axis it lies on.
             let fa = select(u, v, on_v);

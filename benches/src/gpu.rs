@@ -229,10 +229,7 @@ fn across_levels(
     for k in stored.iter().filter(|k| (k.0.x + k.0.y + k.0.z).rem_euclid(2) == 0) {
         volume.set_chunk_level(*k, Level::new(1).expect("level 1 exists"));
     }
-    let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
-        let set: BTreeSet<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
-        set.into_iter().collect()
-    };
+    let around = strata_mesh::MeshCache::around;
     let warm = 3;
     let settings = EditSettings { parallel: true, ..Default::default() };
     let ins = crate::table1_instructions(frames + warm, radius, 2027);

@@ -205,14 +205,6 @@ pub(crate) struct ViewMeshes {
     gpu: bool,
 }
 
-/// The chunks around `keys` (each and its 26 neighbours), sorted, without repeats.
-fn around(keys: &[ChunkKey]) -> Vec<ChunkKey> {
-    let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
-    out.sort();
-    out.dedup();
-    out
-}
-
 /// Whether a surface is meshed by the caller from its blocks under GPU meshing: a scene layer
 /// (not a streamed world) whose mask is clear (masked vertices are shaded from the mask on the
 /// CPU), meshed by marching cubes without per-chunk simplification, or by manifold dual
@@ -299,7 +291,7 @@ impl ViewMeshes {
         match self.surfaces.get(i) {
             Some(s) if s.by_caller && matches!(s.backend, Backend::Dual(_)) => {
                 let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
-                if s.mixed_seen { around(&stored) } else { dual_mesh_keys(&stored) }
+                if s.mixed_seen { MeshCache::around(&stored) } else { dual_mesh_keys(&stored) }
             }
             Some(s) if s.by_caller => strata_mesh::surface_chunks(volume),
             _ => Vec::new(),
@@ -369,12 +361,12 @@ impl ViewMeshes {
                     // From one level to several: every polygon is joined again across levels.
                     // (And around what the change touched: a chunk it emptied is not stored.)
                     let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
-                    s.queued.extend(around(&stored));
-                    s.queued.extend(around(&around(changed)));
+                    s.queued.extend(MeshCache::around(&stored));
+                    s.queued.extend(MeshCache::around(&MeshCache::around(changed)));
                 } else if s.mixed_seen {
                     // The vertices of the chunks around a change move (their blocks read it);
                     // the polygons of the chunks around those use them.
-                    s.queued.extend(around(&around(changed)));
+                    s.queued.extend(MeshCache::around(&MeshCache::around(changed)));
                 } else {
                     s.queued.extend(dual_mesh_keys(changed));
                 }

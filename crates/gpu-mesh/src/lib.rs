@@ -585,18 +585,23 @@ impl GpuMarcher {
         let mixed = matches!(meshed, Some((_, DualJoin::AcrossLevels)));
         // The quad passes find a crossing by its rank on its line: blocks that crack patching
         // filled from a dense grid (y and z crossings in node order) are listed again (copies
-        // holding the same crossings).
+        // holding the same crossings); one that still cannot be (two crossings on one edge: no
+        // block this crate's extraction makes) is refused.
         let relisted: Vec<Option<VoxelBlock>> = match meshed {
             Some(_) => blocks
                 .iter()
                 .map(|b| {
-                    line_counts(b).is_none().then(|| {
-                        let mut copy = (*b).clone();
-                        copy.list_line_by_line();
-                        copy
-                    })
+                    if line_counts(b).is_some() {
+                        return Ok(None);
+                    }
+                    let mut copy = (*b).clone();
+                    copy.list_line_by_line();
+                    match line_counts(&copy) {
+                        Some(_) => Ok(Some(copy)),
+                        None => Err(GpuMeshError::TooLarge("a block's crossings cannot be listed line by line".into())),
+                    }
                 })
-                .collect(),
+                .collect::<Result<_, _>>()?,
             None => Vec::new(),
         };
         let listed: Vec<&VoxelBlock> =
@@ -631,10 +636,6 @@ impl GpuMarcher {
         let index_of: std::collections::HashMap<strata_volume::ChunkKey, u32> =
             blocks.iter().enumerate().map(|(k, b)| (key_of(b), k as u32)).collect();
         if meshed.is_some() {
-            if blocks.iter().any(|b| line_counts(b).is_none()) {
-                // (Two crossings on one edge: no block this crate's extraction makes.)
-                return Err(GpuMeshError::TooLarge("a block's crossings cannot be listed line by line".into()));
-            }
             let level = blocks.first().map(|b| b.level());
             if !mixed && blocks.iter().any(|b| Some(b.level()) != level) {
                 return Err(GpuMeshError::TooLarge(
@@ -642,6 +643,15 @@ impl GpuMarcher {
                 ));
             }
         }
+        // The neighbours that lend vertices: −x, −y, −z, −x−y, −y−z, −z−x at one level; across
+        // levels all 27 offsets, (dx + 1) + 3 (dy + 1) + 9 (dz + 1).
+        let offsets: Vec<glam::IVec3> = if mixed {
+            (0..27).map(|i| glam::IVec3::new(i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1)).collect()
+        } else {
+            [[-1, 0, 0], [0, -1, 0], [0, 0, -1], [-1, -1, 0], [0, -1, -1], [-1, 0, -1]]
+                .map(glam::IVec3::from_array)
+                .to_vec()
+        };
         let mut data = self.table.clone();
         let mut infos = Vec::with_capacity(blocks.len());
         let mut cell_table = tables;
@@ -663,15 +673,9 @@ impl GpuMarcher {
                 }
                 seen += block.crossings(axis).len() as u32;
             }
-            // The neighbours that lend vertices: −x, −y, −z, −x−y, −y−z, −z−x at one level; across
-            // levels all 27 offsets, (dx + 1) + 3 (dy + 1) + 9 (dz + 1).
             let neighbours = data.len() as u32;
-            let one_level = [[-1, 0, 0], [0, -1, 0], [0, 0, -1], [-1, -1, 0], [0, -1, -1], [-1, 0, -1]];
-            let all = (0..27).map(|i| [i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1]);
-            let offsets: Vec<[i32; 3]> = if mixed { all.collect() } else { one_level.to_vec() };
-            for d in offsets {
-                let other = key_of(block).offset(glam::IVec3::from_array(d));
-                data.push(index_of.get(&other).copied().unwrap_or(NONE));
+            for &d in &offsets {
+                data.push(index_of.get(&key_of(block).offset(d)).copied().unwrap_or(NONE));
             }
             infos.push(ChunkInfo {
                 n: n as u32,

@@ -177,6 +177,14 @@ impl MeshCache {
         keys
     }
 
+    /// Each chunk of `keys` and the 26 around it, sorted, without repeats.
+    pub fn around(keys: &[ChunkKey]) -> Vec<ChunkKey> {
+        let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
+        out.sort();
+        out.dedup();
+        out
+    }
+
     /// The chunks whose meshes depend on the chunks in `changed` of `volume`: where every chunk
     /// has one level, [`MeshCache::dependents`]; where levels mix (or did, in this cache), the
     /// 3×3×3 chunks around each, whose seams the change can move. Sorted, without repeats.
@@ -193,10 +201,7 @@ impl MeshCache {
         if volume.single_level() && !self.mixed {
             return Self::dependents(changed);
         }
-        let mut keys: Vec<ChunkKey> = changed.iter().flat_map(|k| k.around()).collect();
-        keys.sort();
-        keys.dedup();
-        keys
+        Self::around(changed)
     }
 
     /// Remeshes what an edit that changed `changed` can have affected, in parallel. Returns the

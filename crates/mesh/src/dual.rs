@@ -593,12 +593,7 @@ impl DualCache {
     /// the surface is closed. Vertices are recomputed for the 3×3×3 chunks around each change,
     /// and polygons for the chunks around those whose cells, owned edges or level changed.
     fn update_mixed(&mut self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
-        let around = |keys: &[ChunkKey]| -> Vec<ChunkKey> {
-            let mut out: Vec<ChunkKey> = keys.iter().flat_map(|k| k.around()).collect();
-            out.sort();
-            out.dedup();
-            out
-        };
+        let around = MeshCache::around;
         if self.levels.is_none() {
             // From one level to several: everything is recomputed once.
             self.duals.clear();
