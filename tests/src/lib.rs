@@ -26,3 +26,24 @@ pub fn box_mesh(min: DVec3, size: DVec3) -> (Vec<DVec3>, Vec<[u32; 3]>) {
     ];
     (v, t)
 }
+
+/// The nice values of this process's threads whose names start with `prefix`, read from
+/// `/proc` (Linux; empty elsewhere). Higher is a lower scheduling priority.
+pub fn thread_nice(prefix: &str) -> Vec<i32> {
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else { return Vec::new() };
+    let mut out = Vec::new();
+    for task in tasks.flatten() {
+        let Ok(name) = std::fs::read_to_string(task.path().join("comm")) else { continue };
+        if !name.trim_end().starts_with(prefix) {
+            continue;
+        }
+        let Ok(stat) = std::fs::read_to_string(task.path().join("stat")) else { continue };
+        // After the name in parentheses come the fields from the third on; the nice value is
+        // the nineteenth.
+        let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else { continue };
+        if let Some(nice) = rest.split_whitespace().nth(16).and_then(|f| f.parse().ok()) {
+            out.push(nice);
+        }
+    }
+    out
+}

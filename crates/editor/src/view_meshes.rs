@@ -41,7 +41,14 @@ struct Streamed {
     meshes: HashMap<ChunkKey, Mesh>,
     /// Where the viewer is (grid units): queued chunks nearest it are meshed first.
     focus: DVec3,
+    /// Meshes the workers finished by the last frame's remesh: requests beyond twice that
+    /// (and [`MIN_BACKLOG`]) stay queued on the main thread, where they cost no snapshot, can
+    /// be superseded for free and are ordered by the focus of the frame that sends them.
+    finished_last: usize,
 }
+
+/// The fewest requests a streamed surface keeps with its workers.
+const MIN_BACKLOG: usize = 16;
 
 /// One surface's meshes and the work waiting for them.
 #[derive(Debug)]
@@ -72,7 +79,12 @@ impl SurfaceMeshes {
         let stored: Vec<ChunkKey> = volume.chunks().map(|(k, _)| k).collect();
         let (backend, queued) = match options.mesher.block() {
             _ if streamed => {
-                let s = Streamed { workers: MeshWorkers::new(1), meshes: HashMap::new(), focus: DVec3::ZERO };
+                let s = Streamed {
+                    workers: MeshWorkers::new(1),
+                    meshes: HashMap::new(),
+                    focus: DVec3::ZERO,
+                    finished_last: 0,
+                };
                 let queued = stored.iter().flat_map(|&k| MeshWorkers::readers(volume, k)).collect();
                 (Backend::Streamed(s), queued)
             }
@@ -471,24 +483,9 @@ impl ViewMeshes {
                     continue;
                 }
                 Backend::Streamed(st) => {
-                    let focus = st.focus;
-                    let distance = |k: &ChunkKey| {
-                        let centre =
-                            k.origin_grid().as_dvec3() + DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64 / 2.0);
-                        centre.distance_squared(focus)
-                    };
-                    let mut order: Vec<(f64, ChunkKey)> = s.queued.iter().map(|k| (distance(k), *k)).collect();
-                    order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                    for (_, k) in order {
-                        if t0.elapsed() >= budget {
-                            break;
-                        }
-                        s.queued.remove(&k);
-                        if loaded(k) {
-                            st.workers.submit(volume, k);
-                        }
-                    }
-                    for (k, mesh) in st.workers.finished() {
+                    let finished = st.workers.finished();
+                    st.finished_last = finished.len();
+                    for (k, mesh) in finished {
                         // A chunk that left memory meanwhile keeps no mesh.
                         if !loaded(k) {
                             continue;
@@ -501,6 +498,35 @@ impl ViewMeshes {
                         };
                         if had {
                             shown.push((layer, k));
+                        }
+                    }
+                    // The workers keep about two frames of work; the rest waits here, nearest
+                    // the focus sent first.
+                    let room = (2 * st.finished_last).max(MIN_BACKLOG).saturating_sub(st.workers.pending());
+                    let focus = st.focus;
+                    let distance = |k: &ChunkKey| {
+                        let centre =
+                            k.origin_grid().as_dvec3() + DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64 / 2.0);
+                        centre.distance_squared(focus)
+                    };
+                    let mut order: Vec<(f64, ChunkKey)> = s.queued.iter().map(|k| (distance(k), *k)).collect();
+                    let nearest = |a: &(f64, ChunkKey), b: &(f64, ChunkKey)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                    if order.len() > room {
+                        if room == 0 {
+                            order.clear();
+                        } else {
+                            order.select_nth_unstable_by(room - 1, nearest);
+                            order.truncate(room);
+                        }
+                    }
+                    order.sort_unstable_by(nearest);
+                    for (_, k) in order {
+                        if t0.elapsed() >= budget {
+                            break;
+                        }
+                        s.queued.remove(&k);
+                        if loaded(k) {
+                            st.workers.submit(volume, k);
                         }
                     }
                     continue;

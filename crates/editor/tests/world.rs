@@ -185,3 +185,43 @@ fn a_world_dig_is_undone_after_its_chunks_left_memory() {
     assert!(e.try_redo().unwrap());
     assert_eq!(snapshot(&e, &keys), dug, "redo digs again");
 }
+
+/// A streamed world's chunks are handed to the mesher a few frames' worth at a time (the rest
+/// waits on the main thread); every loaded chunk still gets its mesh, the one meshing it
+/// directly gives, and a chunk without surface gets none.
+#[test]
+fn every_streamed_chunk_is_meshed_as_direct_meshing_makes_it_a_backlog_at_a_time() {
+    let home = DVec3::new(8.0, 0.0, 8.0);
+    let world = World::in_memory(
+        &Recipe::with_seed(33),
+        WorldSettings { view_distance: 72.0, threads: 1, detail_distance: 0.0, ..WorldSettings::default() },
+    )
+    .unwrap();
+    let mut e = Editor::on_world(world, Material::builtin());
+    assert!(e.world_mut().unwrap().settle(&[home], SETTLE));
+    e.stream(home);
+    let mut frames = 0;
+    while e.pending() > 0 {
+        e.frame(&ToolPose::at(home, false), Duration::from_millis(1)).unwrap();
+        std::thread::sleep(Duration::from_millis(1));
+        frames += 1;
+        assert!(frames < 20_000, "meshing never ends: {} pending", e.pending());
+    }
+    let w = e.world().unwrap();
+    let keys: Vec<ChunkKey> = w.loaded().collect();
+    let (mut block, mut direct) = (strata_volume::VoxelBlock::default(), strata_mesh::Mesh::default());
+    let mut meshed = 0;
+    for &k in &keys {
+        w.volume().extract_block_into(k, &mut block);
+        strata_mesh::mesh_block(&block, &mut direct);
+        match e.chunk_mesh(0, k) {
+            Some(m) => {
+                assert_eq!(m.positions, direct.positions, "chunk {k:?}");
+                assert_eq!(m.indices, direct.indices, "chunk {k:?}");
+                meshed += 1;
+            }
+            None => assert!(direct.indices.is_empty(), "chunk {k:?} has surface but no mesh"),
+        }
+    }
+    assert!(meshed > 16, "{meshed} of {} chunks meshed: more than one backlog's worth", keys.len());
+}

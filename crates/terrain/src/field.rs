@@ -22,12 +22,15 @@ use noise::{NoiseFn, Perlin};
 use strata_volume::coords::CHUNK_CELLS;
 use strata_volume::{Axis, Level, MaterialId, NodeField};
 
+use crate::bound::PerlinRange;
 use crate::recipe::{Recipe, RecipeError};
 
 /// Fractal sum of Perlin octaves, normalised into `[-1, 1]`.
 #[derive(Clone, Debug)]
 struct Fbm {
     octaves: Vec<Perlin>,
+    /// Proven ranges of each octave's noise over a box.
+    ranges: Vec<PerlinRange>,
     inv_wavelength: f64,
     lacunarity: f64,
     gain: f64,
@@ -36,10 +39,12 @@ struct Fbm {
 
 impl Fbm {
     fn new(seed: u32, salt: u32, octaves: u32, wavelength: f64, lacunarity: f64, gain: f64) -> Self {
-        let octaves: Vec<Perlin> =
-            (0..octaves).map(|k| Perlin::new(seed.wrapping_mul(0x9E37_79B9).wrapping_add(salt * 97 + k))).collect();
+        let seeds: Vec<u32> =
+            (0..octaves).map(|k| seed.wrapping_mul(0x9E37_79B9).wrapping_add(salt * 97 + k)).collect();
+        let octaves: Vec<Perlin> = seeds.iter().map(|&s| Perlin::new(s)).collect();
+        let ranges = seeds.iter().map(|&s| PerlinRange::new(s)).collect();
         let norm = (0..octaves.len()).map(|k| gain.powi(k as i32)).sum::<f64>();
-        Fbm { octaves, inv_wavelength: 1.0 / wavelength, lacunarity, gain, norm: 1.0 / norm }
+        Fbm { octaves, ranges, inv_wavelength: 1.0 / wavelength, lacunarity, gain, norm: 1.0 / norm }
     }
 
     /// Plain and ridged sums at a ground point.
@@ -67,6 +72,22 @@ impl Fbm {
         }
         sum * self.norm
     }
+
+    /// A range holding [`Fbm::get3`] at every point of the box `[lo, hi]` (grid units): each
+    /// octave's box is the one its samples are taken in (the same products with the same
+    /// frequencies, which keep their order), so its range holds them.
+    fn range3(&self, lo: DVec3, hi: DVec3) -> (f64, f64) {
+        let (mut f, mut amp) = (self.inv_wavelength, 1.0);
+        let (mut a, mut b) = (0.0, 0.0);
+        for r in &self.ranges {
+            let (l, h) = r.range([lo.x * f, lo.y * f, lo.z * f], [hi.x * f, hi.y * f, hi.z * f]);
+            a += amp * l;
+            b += amp * h;
+            f *= 2.0;
+            amp *= 0.5;
+        }
+        (a * self.norm, b * self.norm)
+    }
 }
 
 /// The columns of the last chunk footprint a thread computed: `(field, x, z, level)` and
@@ -80,6 +101,45 @@ static FIELDS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(
 
 thread_local! {
     static COLUMNS: RefCell<ColumnCache> = const { RefCell::new(None) };
+}
+
+/// Nodes a side of the boxes whose surface and caves [`NodeField::node_states`] decides at
+/// once where the noises' ranges allow (see [`crate::bound`]).
+const BOX: usize = 4;
+
+/// What a box of nodes is, by one of the density's terms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Decision {
+    /// Not asked yet.
+    Unknown,
+    /// The term is true at every node of the box.
+    All,
+    /// At none.
+    None,
+    /// Each node must be sampled.
+    Sample,
+}
+
+impl From<Option<bool>> for Decision {
+    fn from(d: Option<bool>) -> Self {
+        match d {
+            Some(true) => Decision::All,
+            Some(false) => Decision::None,
+            None => Decision::Sample,
+        }
+    }
+}
+
+impl Decision {
+    /// The box's answer, or the node's own by `sample`.
+    #[inline]
+    fn or_else(self, sample: impl FnOnce() -> bool) -> bool {
+        match self {
+            Decision::All => true,
+            Decision::None => false,
+            _ => sample(),
+        }
+    }
 }
 
 /// A recipe made ready to evaluate: its noises built once.
@@ -162,6 +222,53 @@ impl TerrainField {
         if c.strength > 0.0 { c.strength * (1.0 - c.threshold) - self.fade(y) } else { f64::NEG_INFINITY }
     }
 
+    /// Whether the caves decide every node of the box `[lo, hi]` (grid units) whichever the
+    /// surface: `Some(false)` where no node of it can be in a cave, `Some(true)` where every
+    /// node is, `None` where the nodes must be sampled. From the cave noise's proven range over
+    /// the box ([`crate::bound`]) and the fade's extremes at the box's top and bottom.
+    fn caves_in_box(&self, lo: DVec3, hi: DVec3) -> Option<bool> {
+        let c = &self.recipe.caves;
+        if c.strength <= 0.0 {
+            return Some(false);
+        }
+        // The fade falls as y rises: the cave term is largest at the top, smallest at the bottom.
+        if self.cave_max(hi.y) < -self.margin(hi.y, 0.0) {
+            return Some(false);
+        }
+        let (a, b) = self.caves.range3(lo, hi);
+        let eps = self.margin(lo.y.abs().max(hi.y.abs()), 0.0);
+        if c.strength * (b - c.threshold) - self.fade(hi.y) < -eps {
+            Some(false)
+        } else if c.strength * (a - c.threshold) - self.fade(lo.y) > eps {
+            Some(true)
+        } else {
+            None
+        }
+    }
+
+    /// Whether every node of the box `[lo, hi]` (grid units), whose columns' heights lie in
+    /// `[h0, h1]`, is under the surface (`s ≤ 0`): `Some(true)` where all are, `Some(false)`
+    /// where none is, `None` where the nodes must be sampled. From the overhang noise's proven
+    /// range over the box ([`crate::bound`]).
+    fn under_surface_in_box(&self, lo: DVec3, hi: DVec3, h0: f64, h1: f64) -> Option<bool> {
+        let o = &self.recipe.overhangs;
+        let (b0, b1) = if o.amplitude > 0.0 {
+            let (f0, f1) = self.overhangs.range3(lo, hi);
+            (o.amplitude * f0, o.amplitude * f1)
+        } else {
+            (0.0, 0.0)
+        };
+        let eps = self.margin(lo.y.abs().max(hi.y.abs()), h0.abs().max(h1.abs()));
+        // s = y − h − bump.
+        if hi.y - h0 - b0 < -eps {
+            Some(true)
+        } else if lo.y - h1 - b1 > eps {
+            Some(false)
+        } else {
+            None
+        }
+    }
+
     /// The density at `p` given its column height `h` ([`TerrainField::height`] at `p.x, p.z`):
     /// negative or zero inside. For samplers that compute a column's height once.
     #[inline]
@@ -231,6 +338,27 @@ impl TerrainField {
         })
     }
 
+    /// The height of the column at `(x, z)`: from the thread's column cache when the column is
+    /// one of its footprint's (the same value, computed from the same coordinates), else
+    /// [`TerrainField::height`].
+    fn column_height(&self, x: f64, z: f64) -> f64 {
+        let cached = COLUMNS.with(|cell| {
+            let cache = cell.try_borrow().ok()?;
+            let ((id, ox, oz, level), heights) = cache.as_ref()?;
+            if *id != self.id {
+                return None;
+            }
+            let level = Level::new(*level)?;
+            let (n, sp) = (level.cells(), level.spacing());
+            let (ox, oz) = (*ox as f64, *oz as f64);
+            let (i, k) = (((x - ox) / sp).round(), ((z - oz) / sp).round());
+            let inside = (0.0..=n as f64).contains(&i) && (0.0..=n as f64).contains(&k);
+            let (i, k) = (i as usize, k as usize);
+            (inside && ox + i as f64 * sp == x && oz + k as f64 * sp == z).then(|| heights[i + (n + 1) * k])
+        });
+        cached.unwrap_or_else(|| self.height(x, z))
+    }
+
     /// The material of a solid node at height `y` on column `(x, z)` of the footprint (own
     /// columns: `x, z < n`).
     fn material(&self, y: f64, cols: &[f64], x: usize, z: usize, n: usize, sp: f64) -> MaterialId {
@@ -271,10 +399,20 @@ impl NodeField for TerrainField {
             return Some(d);
         }
         let (y0, y1) = (origin.y as f64, (origin.y + CHUNK_CELLS) as f64);
-        self.with_columns(origin, level, |cols| {
-            let (lo, hi) = cols.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
-            self.bound(y0, y1, lo, hi)
-        })
+        let (lo, hi) = self.with_columns(origin, level, |cols| {
+            cols.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)))
+        });
+        if let Some(d) = self.bound(y0, y1, lo, hi) {
+            return Some(d);
+        }
+        // Wholly under the surface (below anything the overhangs can lower it to): the caves
+        // alone decide, where their range over the chunk does.
+        let eps = self.margin(y0.abs().max(y1.abs()), lo.abs().max(hi.abs()));
+        if y1 - lo + self.recipe.overhangs.amplitude < -eps {
+            let o = origin.as_dvec3();
+            return self.caves_in_box(o, o + DVec3::splat(CHUNK_CELLS as f64)).map(|cave| !cave);
+        }
+        None
     }
 
     fn node_states(&self, origin: I64Vec3, level: Level, rows: &mut [u128]) {
@@ -282,13 +420,51 @@ impl NodeField for TerrainField {
         let m = n + 1;
         let sp = level.spacing();
         let a = self.recipe.overhangs.amplitude;
+        let o = origin.as_dvec3();
+        // Boxes of BOX³ nodes whose surface and caves are decided at once where the noises'
+        // ranges allow, found the first time a node of the box needs them.
+        let boxes = m.div_ceil(BOX);
+        let mut caves = vec![Decision::Unknown; boxes * boxes * boxes];
+        let mut surface = caves.clone();
+        let corners = |x: usize, y: usize, z: usize| {
+            let first = DVec3::new((x / BOX) as f64, (y / BOX) as f64, (z / BOX) as f64) * (BOX as f64 * sp);
+            let lo = o + first;
+            (lo, (lo + DVec3::splat((BOX - 1) as f64 * sp)).min(o + DVec3::splat(n as f64 * sp)))
+        };
+        let index = |x: usize, y: usize, z: usize| x / BOX + boxes * (y / BOX + boxes * (z / BOX));
         self.with_columns(origin, level, |cols| {
+            // A cave at node (x, y, z), at `p`.
+            let mut cave_at = |x: usize, y: usize, z: usize, p: DVec3| -> bool {
+                let b = &mut caves[index(x, y, z)];
+                if *b == Decision::Unknown {
+                    let (lo, hi) = corners(x, y, z);
+                    *b = Decision::from(self.caves_in_box(lo, hi));
+                }
+                b.or_else(|| self.cave(p).is_some_and(|c| c > 0.0))
+            };
+            // Under the surface at node (x, y, z), at `p` on a column of height `h`.
+            let mut under_at = |x: usize, y: usize, z: usize, p: DVec3, h: f64| -> bool {
+                let b = &mut surface[index(x, y, z)];
+                if *b == Decision::Unknown {
+                    let (lo, hi) = corners(x, y, z);
+                    let (x0, z0) = ((x / BOX) * BOX, (z / BOX) * BOX);
+                    let (mut h0, mut h1) = (f64::INFINITY, f64::NEG_INFINITY);
+                    for cz in z0..(z0 + BOX).min(m) {
+                        for cx in x0..(x0 + BOX).min(m) {
+                            h0 = h0.min(cols[cx + m * cz]);
+                            h1 = h1.max(cols[cx + m * cz]);
+                        }
+                    }
+                    *b = Decision::from(self.under_surface_in_box(lo, hi, h0, h1));
+                }
+                b.or_else(|| self.surface(p, h) <= 0.0)
+            };
             for z in 0..m {
                 for x in 0..m {
                     let h = cols[x + m * z];
-                    let (px, pz) = (origin.x as f64 + x as f64 * sp, origin.z as f64 + z as f64 * sp);
+                    let (px, pz) = (o.x + x as f64 * sp, o.z + z as f64 * sp);
                     for y in 0..m {
-                        let py = origin.y as f64 + y as f64 * sp;
+                        let py = o.y + y as f64 * sp;
                         let eps = self.margin(py, h);
                         if py - h - a > eps {
                             // Above anything the overhangs can lift the surface to.
@@ -296,14 +472,10 @@ impl NodeField for TerrainField {
                         }
                         let p = DVec3::new(px, py, pz);
                         let no_cave = self.cave_max(py) < -eps;
-                        let solid = if py - h + a < -eps {
-                            // Below the surface: solid unless a cave can be here and is.
-                            no_cave || self.cave(p).is_none_or(|c| c <= 0.0)
-                        } else {
-                            let s = self.surface(p, h);
-                            s <= 0.0 && (no_cave || self.cave(p).is_none_or(|c| c <= 0.0))
-                        };
-                        if solid {
+                        // Below the surface (solid unless a cave can be here and is), or in the
+                        // overhangs' band.
+                        let under = py - h + a < -eps || under_at(x, y, z, p, h);
+                        if under && (no_cave || !cave_at(x, y, z, p)) {
                             rows[y + m * z] |= 1 << x;
                         }
                     }
@@ -314,25 +486,26 @@ impl NodeField for TerrainField {
 
     fn crossing(&self, from: DVec3, axis: Axis, spacing: f64, _from_inside: bool) -> (f64, DVec3) {
         let dir = axis.unit();
-        // Along y the column height is the same at every point.
-        let column = (axis == Axis::Y).then(|| self.height(from.x, from.z));
-        let f = |p: DVec3| match column {
-            Some(h) if p.x == from.x && p.z == from.z => self.density_h(p, h),
-            _ => self.density(p),
-        };
-        let (fa, fb) = (f(from), f(from + dir * spacing));
+        let to = from + dir * spacing;
+        // The edge's ends are nodes: their columns' heights are those of the footprint the
+        // chunk's states were just found from.
+        let (h_from, h_to) = (self.column_height(from.x, from.z), self.column_height(to.x, to.z));
+        let (fa, fb) = (self.density_h(from, h_from), self.density_h(to, h_to));
         let secant = |lo: f64, flo: f64, hi: f64, fhi: f64| {
             let t = if flo != fhi { lo + (hi - lo) * flo / (flo - fhi) } else { 0.5 * (lo + hi) };
             t.clamp(lo, hi)
         };
         let t1 = secant(0.0, fa, 1.0, fb);
         let r = from + dir * (t1 * spacing);
-        let fr = f(r);
+        // Along y every point has the edge's column; otherwise `r` has its own, which the
+        // normal's step along y shares.
+        let h_r = if axis == Axis::Y { h_from } else { self.height(r.x, r.z) };
+        let fr = self.density_h(r, h_r);
         let t = if (fr <= 0.0) == (fa <= 0.0) { secant(t1, fr, 1.0, fb) } else { secant(0.0, fa, t1, fr) };
         let e = 0.05 * spacing;
         let grad = DVec3::new(
             (self.density(r + DVec3::X * e) - fr) / e,
-            (f(r + DVec3::Y * e) - fr) / e,
+            (self.density_h(r + DVec3::Y * e, h_r) - fr) / e,
             (self.density(r + DVec3::Z * e) - fr) / e,
         );
         (t, grad)

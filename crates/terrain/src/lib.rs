@@ -18,6 +18,7 @@
 //! bytes on any number of threads and in any order.
 #![warn(missing_docs)]
 
+mod bound;
 mod field;
 mod recipe;
 mod region;

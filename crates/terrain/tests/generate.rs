@@ -77,6 +77,34 @@ fn chunks_far_above_and_below_are_decided_without_visiting_nodes() {
 }
 
 #[test]
+fn chunks_under_the_surface_that_the_caves_provably_miss_or_fill_are_decided_by_the_cave_noise() {
+    // Caves down to far below the view, rarer than by default: between the floor and the
+    // surface the heights decide nothing, the cave noise's proven range over a chunk does.
+    let mut recipe = Recipe::with_seed(19);
+    recipe.caves.floor = -2000.0;
+    recipe.caves.threshold = 0.7;
+    let field = TerrainField::new(&recipe).unwrap();
+    let keys = block(IVec3::new(-3, -12, -3), IVec3::new(3, -6, 3));
+    let mut decided = 0;
+    for &k in &keys {
+        decided += generate_chunk(k, Level::BASE, &field).decided as usize;
+    }
+    assert!(decided > keys.len() / 4 && decided < keys.len(), "{decided} of {} decided", keys.len());
+    let v = generate(&field, &keys, Level::BASE);
+    v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
+    for &k in &keys {
+        check_nodes(&field, &v, k, Level::BASE);
+    }
+    // The same at a finer level, on a few of them.
+    let level = Level::new(1).unwrap();
+    let few = block(IVec3::new(0, -9, 0), IVec3::new(1, -8, 1));
+    let v = generate(&field, &few, level);
+    for &k in &few {
+        check_nodes(&field, &v, k, level);
+    }
+}
+
+#[test]
 fn finer_levels_store_the_density_sign_too() {
     let field = TerrainField::new(&Recipe::with_seed(11)).unwrap();
     let keys = block(IVec3::new(0, -1, 0), IVec3::new(1, 0, 0));

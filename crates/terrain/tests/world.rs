@@ -411,3 +411,20 @@ fn sky_is_loaded_without_workers_but_an_edit_in_the_sky_comes_back_from_the_data
     assert_eq!(world.loaded().collect::<HashSet<_>>(), world.chunks_in_view(&[home]));
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[cfg(target_os = "linux")]
+#[test]
+fn generating_threads_run_below_the_normal_priority() {
+    let world = World::in_memory(&Recipe::with_seed(2), settings(40.0)).unwrap();
+    // The threads lower themselves as they start.
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    loop {
+        let nice = strata_tests::thread_nice("terrain-");
+        if nice.len() >= 2 && nice.iter().all(|&n| n > 0) {
+            break;
+        }
+        assert!(std::time::Instant::now() < deadline, "terrain threads' nice values: {nice:?}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    drop(world);
+}

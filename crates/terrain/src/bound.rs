@@ -1,0 +1,187 @@
+//! Proven ranges of the `noise` crate's 3D Perlin noise over a box, so that a box of nodes the
+//! cave noise cannot carve (or must carve) is decided without sampling a node.
+//!
+//! The crate's `perlin_3d` at a point `p` takes the lattice cell `c = ⌊p⌋` and `d = p − c`
+//! (`d ∈ [0, 1)³`), the gradient `G_k` of each corner `k` (chosen by the permutation table's hash
+//! of the corner; two components ±1, one 0), the corner values `g_k = G_k · (d − k)`, and
+//! interpolates them trilinearly with the weights `s(d_x)`, `s(d_y)`, `s(d_z)` of the quintic
+//! `s(t) = t³ (t (6t − 15) + 10)`, times `2/√3`, clamped to `[−1, 1]`.
+//!
+//! Over a box of `d` inside one cell every piece has an exact range: `g_k` is linear in `d`, so
+//! its range is the sum of its two terms' ranges; `s` increases on `[0, 1]`, so a weight's range
+//! is `s` at the box's ends; and `lerp(a, b, t) = b t + a (1 − t)` is linear in each of `a`, `b`
+//! and `t` on its own, so over a box of the three its extremes lie at the box's corners. Taking
+//! the pieces as independent only widens the range, so the result holds every value of the
+//! noise in the box. A box crossing cell boundaries is split at them and the ranges joined.
+//! The crate computes in `f64`; the range is widened by [`ROUNDING`], far more than its rounding
+//! (a few units in the last place of values below 2).
+
+use noise::permutationtable::{NoiseHasher, PermutationTable};
+
+/// Added to both ends of a range: above the noise's own rounding (values below 2, a few dozen
+/// operations).
+const ROUNDING: f64 = 1e-9;
+
+/// `2/√3`: the crate's scale of the 3D noise.
+const SCALE: f64 = 1.154_700_538_379_251_5;
+
+/// Boxes spanning more lattice cells than this on an axis get the noise's whole range (the
+/// callers bound chunks and smaller boxes; a box that large decides nothing anyway).
+const MAX_CELLS_PER_AXIS: i64 = 8;
+
+/// The quintic weight.
+#[inline]
+fn quintic(t: f64) -> f64 {
+    t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+}
+
+/// The range of `b t + a (1 − t)` over `a`, `b`, `t` in their ranges (`t ⊂ [0, 1]`).
+#[inline]
+fn lerp(a: (f64, f64), b: (f64, f64), t: (f64, f64)) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for ta in [t.0, t.1] {
+        for va in [a.0, a.1] {
+            for vb in [b.0, b.1] {
+                let v = vb * ta + va * (1.0 - ta);
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// The range of one corner's value `G · (d − k)` for `d` in `[lo, hi]` (cell-local).
+#[inline]
+fn corner(hash: usize, k: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+    // (term range for +1, for -1) per axis.
+    let plus = |i: usize| (lo[i] - k[i], hi[i] - k[i]);
+    let minus = |i: usize| (k[i] - hi[i], k[i] - lo[i]);
+    let sum = |a: (f64, f64), b: (f64, f64)| (a.0 + b.0, a.1 + b.1);
+    match hash & 0b1111 {
+        0 | 12 => sum(plus(0), plus(1)),
+        1 | 13 => sum(minus(0), plus(1)),
+        2 => sum(plus(0), minus(1)),
+        3 => sum(minus(0), minus(1)),
+        4 => sum(plus(0), plus(2)),
+        5 => sum(minus(0), plus(2)),
+        6 => sum(plus(0), minus(2)),
+        7 => sum(minus(0), minus(2)),
+        8 => sum(plus(1), plus(2)),
+        9 | 14 => sum(minus(1), plus(2)),
+        10 => sum(plus(1), minus(2)),
+        _ => sum(minus(1), minus(2)),
+    }
+}
+
+/// Ranges of one Perlin noise (the crate's, for the same seed).
+#[derive(Clone, Copy)]
+pub(crate) struct PerlinRange {
+    table: PermutationTable,
+}
+
+impl std::fmt::Debug for PerlinRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("PerlinRange")
+    }
+}
+
+impl PerlinRange {
+    /// The ranges of `noise::Perlin::new(seed)`.
+    pub(crate) fn new(seed: u32) -> Self {
+        PerlinRange { table: PermutationTable::new(seed) }
+    }
+
+    /// A range holding the noise at every point of the box `[lo, hi]` (noise coordinates).
+    pub(crate) fn range(&self, lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+        let c0 = lo.map(|v| v.floor() as i64);
+        let c1 = hi.map(|v| v.floor() as i64);
+        if (0..3).any(|i| c1[i] - c0[i] >= MAX_CELLS_PER_AXIS || !(lo[i].is_finite() && hi[i].is_finite())) {
+            return (-1.0, 1.0);
+        }
+        let mut out = (f64::INFINITY, f64::NEG_INFINITY);
+        for cz in c0[2]..=c1[2] {
+            for cy in c0[1]..=c1[1] {
+                for cx in c0[0]..=c1[0] {
+                    let c = [cx, cy, cz];
+                    // The part of the box in this cell, cell-local, inside [0, 1].
+                    let l: [f64; 3] = std::array::from_fn(|i| (lo[i] - c[i] as f64).clamp(0.0, 1.0));
+                    let h: [f64; 3] = std::array::from_fn(|i| (hi[i] - c[i] as f64).clamp(0.0, 1.0));
+                    let r = self.cell(c, l, h);
+                    out = (out.0.min(r.0), out.1.max(r.1));
+                }
+            }
+        }
+        ((out.0 - ROUNDING).max(-1.0), (out.1 + ROUNDING).min(1.0))
+    }
+
+    /// The range over the cell-local box `[l, h]` of the cell at `c`, before the rounding margin.
+    fn cell(&self, c: [i64; 3], l: [f64; 3], h: [f64; 3]) -> (f64, f64) {
+        let g = |x: i64, y: i64, z: i64| {
+            let at = [(c[0] + x) as isize, (c[1] + y) as isize, (c[2] + z) as isize];
+            corner(self.table.hash(&at), [x as f64, y as f64, z as f64], l, h)
+        };
+        let w: [(f64, f64); 3] = std::array::from_fn(|i| (quintic(l[i]), quintic(h[i])));
+        let x0 = lerp(lerp(g(0, 0, 0), g(0, 0, 1), w[2]), lerp(g(0, 1, 0), g(0, 1, 1), w[2]), w[1]);
+        let x1 = lerp(lerp(g(1, 0, 0), g(1, 0, 1), w[2]), lerp(g(1, 1, 0), g(1, 1, 1), w[2]), w[1]);
+        let r = lerp(x0, x1, w[0]);
+        (r.0 * SCALE, r.1 * SCALE)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use noise::{NoiseFn, Perlin};
+    use proptest::prelude::*;
+
+    use super::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
+
+        /// Every sample of a box lies in its range, and the range is not the trivial one for
+        /// small boxes (a range that always answered `[-1, 1]` would pass the first part).
+        #[test]
+        fn the_range_holds_every_sample_of_the_box(
+            seed in any::<u32>(),
+            origin in prop::array::uniform3(-300.0f64..300.0),
+            size in prop::array::uniform3(0.0f64..1.5),
+            on_lattice in any::<bool>(),
+        ) {
+            let lo = if on_lattice { origin.map(f64::round) } else { origin };
+            let hi: [f64; 3] = std::array::from_fn(|i| lo[i] + size[i]);
+            let noise = Perlin::new(seed);
+            let (a, b) = PerlinRange::new(seed).range(lo, hi);
+            prop_assert!(a <= b);
+            let steps = 6;
+            let mut seen = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in 0..=steps {
+                for j in 0..=steps {
+                    for i in 0..=steps {
+                        let t = [i, j, k].map(|s| s as f64 / steps as f64);
+                        let p: [f64; 3] = std::array::from_fn(|q| lo[q] + t[q] * size[q]);
+                        let v = noise.get(p);
+                        prop_assert!(a <= v && v <= b, "{v} at {p:?} outside [{a}, {b}]");
+                        seen = (seen.0.min(v), seen.1.max(v));
+                    }
+                }
+            }
+            if size.iter().all(|&s| s < 0.1) {
+                // Small boxes get ranges not much wider than what they hold.
+                prop_assert!(b - a < (seen.1 - seen.0) + 1.5, "[{a}, {b}] for samples in {seen:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_point_gets_the_noise_itself() {
+        let noise = Perlin::new(7);
+        let range = PerlinRange::new(7);
+        for p in [[0.25, 1.5, -3.75], [10.0, 11.0, 12.0], [-0.1, -0.2, -0.3]] {
+            let v = noise.get(p);
+            let (a, b) = range.range(p, p);
+            assert!(a <= v && v <= b && b - a < 1e-8, "{v} against [{a}, {b}]");
+        }
+    }
+}
