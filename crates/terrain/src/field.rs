@@ -9,8 +9,13 @@
 //! - **nodes** whose column height puts them further from the surface than the overhang noise
 //!   can reach are decided from the column alone (a 2D sample shared by the column's 17 nodes),
 //!   and the cave noise is sampled only where the cave bound allows a cave;
+//! - **boxes** of 4³ nodes (`BOX`) are decided whole where the noises' proven ranges over the box
+//!   ([`crate::bound`]) allow: no cave can reach the box, or all of it is cave, or the surface
+//!   lies wholly above or below it; a chunk wholly under the surface is decided whole the same
+//!   way by the cave noise;
 //! - **crossings** are found only on the edges where the node states differ: two secant steps
-//!   on the exact density, and a normal from three forward differences.
+//!   on the exact density, and a normal from three forward differences; an edge's nodes take
+//!   their columns' heights from the footprint cache.
 //!
 //! Every decision uses the same density expression, with margins larger than its rounding, so a
 //! node's state is exactly `density(node) ≤ 0` whichever path decided it.
