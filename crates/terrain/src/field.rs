@@ -95,17 +95,35 @@ impl Fbm {
     }
 }
 
-/// The columns of the last chunk footprint a thread computed: `(field, x, z, level)` and
-/// heights. The field's id is part of the key: two fields (two worlds, or a recipe changed and
-/// generated again) on one thread share the cache, and heights are the field's own.
-type ColumnCache = Option<((u64, i64, i64, u8), Vec<f64>)>;
+/// A footprint's key: `(field, x, z, level)`. The field's id is part of it: two fields (two
+/// worlds, or a recipe changed and generated again) on one thread share the cache, and heights
+/// are the field's own.
+type FootprintKey = (u64, i64, i64, u8);
+
+/// The columns of the chunk footprints a thread computed last, up to [`FOOTPRINTS`] of them:
+/// a world's workers take chunks nearest the viewer first, so the chunks of one column of
+/// chunks come far apart in a worker's order, not one after the other.
+#[derive(Debug, Default)]
+struct ColumnCache {
+    /// Key → slot.
+    slots: std::collections::HashMap<FootprintKey, usize>,
+    /// Each slot's key and heights (x-major, `(n + 1)²`).
+    entries: Vec<(FootprintKey, Vec<f64>)>,
+    /// The slot filled next once all are taken (the oldest).
+    next: usize,
+    /// The slot of the footprint asked for last (what [`TerrainField::column_height`] reads).
+    last: Option<usize>,
+}
+
+/// Footprints a thread keeps (a base-level one is 2.3 KB, a level-1 one 8.7 KB).
+const FOOTPRINTS: usize = 512;
 
 /// Ids of fields built so far ([`TerrainField::new`]; a clone keeps its field's id, and its
 /// recipe).
 static FIELDS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 thread_local! {
-    static COLUMNS: RefCell<ColumnCache> = const { RefCell::new(None) };
+    static COLUMNS: RefCell<ColumnCache> = RefCell::new(ColumnCache::default());
 }
 
 /// Nodes a side of the boxes whose surface and caves [`NodeField::node_states`] decides at
@@ -323,33 +341,50 @@ impl TerrainField {
     }
 
     /// Heights of the `(n + 1)²` columns of the chunk footprint at `origin` (x-major), from the
-    /// thread's cache when the last footprint it computed was this one.
+    /// thread's cache of the footprints it computed last when this is one of them.
     fn with_columns<R>(&self, origin: I64Vec3, level: Level, f: impl FnOnce(&[f64]) -> R) -> R {
         COLUMNS.with(|cell| {
             let mut cache = cell.borrow_mut();
             let key = (self.id, origin.x, origin.z, level.get());
-            if cache.as_ref().is_none_or(|(k, _)| *k != key) {
-                let n = level.cells();
-                let sp = level.spacing();
-                let mut h = Vec::with_capacity((n + 1) * (n + 1));
-                for z in 0..=n {
-                    for x in 0..=n {
-                        h.push(self.height(origin.x as f64 + x as f64 * sp, origin.z as f64 + z as f64 * sp));
+            let slot = match cache.slots.get(&key) {
+                Some(&slot) => slot,
+                None => {
+                    let slot = if cache.entries.len() < FOOTPRINTS {
+                        cache.entries.push((key, Vec::new()));
+                        cache.entries.len() - 1
+                    } else {
+                        let slot = cache.next;
+                        cache.next = (slot + 1) % FOOTPRINTS;
+                        let old = cache.entries[slot].0;
+                        cache.slots.remove(&old);
+                        slot
+                    };
+                    cache.slots.insert(key, slot);
+                    let n = level.cells();
+                    let sp = level.spacing();
+                    let (k, h) = &mut cache.entries[slot];
+                    *k = key;
+                    h.clear();
+                    for z in 0..=n {
+                        for x in 0..=n {
+                            h.push(self.height(origin.x as f64 + x as f64 * sp, origin.z as f64 + z as f64 * sp));
+                        }
                     }
+                    slot
                 }
-                *cache = Some((key, h));
-            }
-            f(&cache.as_ref().expect("just filled").1)
+            };
+            cache.last = Some(slot);
+            f(&cache.entries[slot].1)
         })
     }
 
-    /// The height of the column at `(x, z)`: from the thread's column cache when the column is
-    /// one of its footprint's (the same value, computed from the same coordinates), else
+    /// The height of the column at `(x, z)`: from the footprint the thread asked for last when
+    /// the column is one of its (the same value, computed from the same coordinates), else
     /// [`TerrainField::height`].
     fn column_height(&self, x: f64, z: f64) -> f64 {
         let cached = COLUMNS.with(|cell| {
             let cache = cell.try_borrow().ok()?;
-            let ((id, ox, oz, level), heights) = cache.as_ref()?;
+            let ((id, ox, oz, level), heights) = &cache.entries[cache.last?];
             if *id != self.id {
                 return None;
             }
@@ -532,5 +567,46 @@ impl NodeField for TerrainField {
                 }
             }
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The footprint cache answers with the heights themselves, whatever it held before: after
+    /// more footprints than it keeps (the first evicted), for a footprint asked again, for two
+    /// fields on one thread, at two levels, and for points that are not columns of the last
+    /// footprint.
+    #[test]
+    fn cached_columns_are_the_heights_whatever_the_cache_held() {
+        let a = TerrainField::new(&Recipe::with_seed(1)).unwrap();
+        let b = TerrainField::new(&Recipe::with_seed(2)).unwrap();
+        let check = |field: &TerrainField, origin: I64Vec3, level: Level| {
+            let (n, sp) = (level.cells(), level.spacing());
+            field.with_columns(origin, level, |cols| {
+                for z in 0..=n {
+                    for x in 0..=n {
+                        let (px, pz) = (origin.x as f64 + x as f64 * sp, origin.z as f64 + z as f64 * sp);
+                        assert_eq!(cols[x + (n + 1) * z].to_bits(), field.height(px, pz).to_bits());
+                    }
+                }
+            });
+            // The last footprint's columns, and points beside them.
+            for (dx, dz) in [(0.0, 0.0), (16.0 * sp, 3.0 * sp), (0.25, 0.0), (-1.0, 2.0), (17.0, 0.0)] {
+                let (x, z) = (origin.x as f64 + dx, origin.z as f64 + dz);
+                assert_eq!(field.column_height(x, z).to_bits(), field.height(x, z).to_bits(), "({x}, {z})");
+            }
+        };
+        let first = I64Vec3::new(-16, 0, 32);
+        check(&a, first, Level::BASE);
+        for i in 0..(FOOTPRINTS as i64 + 40) {
+            a.with_columns(I64Vec3::new(16 * i, 0, 0), Level::BASE, |_| ());
+        }
+        check(&a, first, Level::BASE);
+        check(&b, first, Level::BASE);
+        check(&a, first, Level::BASE);
+        check(&a, first, Level::new(1).unwrap());
+        check(&b, I64Vec3::new(16 * 3, 0, 0), Level::BASE);
     }
 }
