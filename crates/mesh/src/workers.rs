@@ -51,11 +51,9 @@ impl std::fmt::Debug for MeshWorkers {
     }
 }
 
-/// Lowers the calling worker thread's scheduling priority to the least: meshing then runs on
-/// every core nothing else wants, and a frame's thread never waits for a worker's time slice
-/// (on a 2-core machine with a terrain generator and a mesher busy, frames of 13 ms at p99
-/// became 8–9 ms). Lowering is never refused; if the system did refuse, the worker would keep
-/// the normal priority, which is only slower frames.
+/// Lowers the calling worker thread's scheduling priority to the least, so that a frame's
+/// thread never waits for its time slice (ARCHITECTURE: "Worker threads"). A refusal only leaves
+/// the normal priority.
 fn background_priority() {
     let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
 }
@@ -74,8 +72,6 @@ impl MeshWorkers {
                 std::thread::Builder::new()
                     .name(format!("mesher-{i}"))
                     .spawn(move || {
-                        // Meshing yields to the thread that draws frames (see
-                        // `background_priority`).
                         background_priority();
                         let mut block = VoxelBlock::default();
                         loop {

@@ -529,7 +529,8 @@ impl NodeField for TerrainField {
         let to = from + dir * spacing;
         // The edge's ends are nodes: their columns' heights are those of the footprint the
         // chunk's states were just found from.
-        let (h_from, h_to) = (self.column_height(from.x, from.z), self.column_height(to.x, to.z));
+        let h_from = self.column_height(from.x, from.z);
+        let h_to = if axis == Axis::Y { h_from } else { self.column_height(to.x, to.z) };
         let (fa, fb) = (self.density_h(from, h_from), self.density_h(to, h_to));
         let secant = |lo: f64, flo: f64, hi: f64, fhi: f64| {
             let t = if flo != fhi { lo + (hi - lo) * flo / (flo - fhi) } else { 0.5 * (lo + hi) };
