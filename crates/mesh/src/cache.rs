@@ -25,7 +25,9 @@ pub enum BlockMesher {
 }
 
 impl BlockMesher {
-    /// Meshes `block` into `out` (tetrahedra need `scratch`).
+    /// Meshes `block` into `out` (tetrahedra need `scratch`), the block alone: clustered
+    /// tetrahedra then keep every chunk-face vertex ([`MeshCache`] clusters faces with the
+    /// neighbours' blocks: [`crate::tetra::mesh_chunk_clustered`]).
     pub fn mesh(self, block: &VoxelBlock, scratch: &mut TetraScratch, out: &mut Mesh) {
         match self {
             BlockMesher::MarchingCubes => mesh_block(block, out),
@@ -187,7 +189,9 @@ impl MeshCache {
 
     /// The chunks whose meshes depend on the chunks in `changed` of `volume`: where every chunk
     /// has one level, [`MeshCache::dependents`]; where levels mix (or did, in this cache), the
-    /// 3×3×3 chunks around each, whose seams the change can move. Sorted, without repeats.
+    /// 3×3×3 chunks around each, whose seams the change can move, and the same for clustered
+    /// tetrahedra, whose face clusters each chunk makes with its neighbours. Sorted, without
+    /// repeats.
     pub fn affected(&self, volume: &Volume, changed: &[ChunkKey]) -> Vec<ChunkKey> {
         if self.effective(volume, false) != self.used {
             // Tetrahedra asked for and the volume went from one level to several or back: every
@@ -198,9 +202,11 @@ impl MeshCache {
             keys.dedup();
             return keys;
         }
-        if volume.single_level() && !self.mixed {
+        if volume.single_level() && !self.mixed && self.used != BlockMesher::ClusteredTetrahedra {
             return Self::dependents(changed);
         }
+        // Seams between levels, or clustered tetrahedra, whose face clusters read two cells
+        // into each chunk beside a face and are pinned by both chunks.
         Self::around(changed)
     }
 
@@ -276,7 +282,13 @@ impl MeshCache {
                         None => volume.extract_block_into(key, block),
                     }
                     let mut mesh = Mesh::default();
-                    mesher.mesh(block, scratch, &mut mesh);
+                    if mesher == BlockMesher::ClusteredTetrahedra {
+                        // One level, no cap (see `effective`): the face clusters are made with the
+                        // neighbours' blocks.
+                        crate::tetra::mesh_chunk_clustered(volume, key, block, scratch, &mut mesh);
+                    } else {
+                        mesher.mesh(block, scratch, &mut mesh);
+                    }
                     if let Some(how) = simplify_by {
                         // The bound was checked by `set_simplify` and meshes are finite.
                         mesh = simplify(&mesh, how).unwrap_or(mesh);

@@ -110,7 +110,20 @@ pub(crate) struct Clustering<'a> {
     /// How far (cells) a member may lie from the merged vertex, and from its tangent plane.
     reach: f32,
     off: f32,
+    /// With a value, the side (chunk) each candidate triangle comes from: every vertex's
+    /// triangles of each side must then form one simple path or cycle (see [`Clustering::with_sides`]).
+    sides: Option<&'a [u8]>,
+    /// With a value, clusters already made elsewhere: `pin[v]` is an index into the places, or
+    /// `NONE` (see [`Clustering::with_pins`]).
+    pins: Option<Pins<'a>>,
+    /// With a value `(axis, step)`: merged vertices are placed on multiples of `step` along
+    /// `axis` (see [`Clustering::with_snap`]).
+    snap: Option<(usize, f32)>,
 }
+
+/// For each candidate vertex, `NONE` or the index of its pinned cluster's place (position,
+/// normal).
+pub(crate) type Pins<'a> = (&'a [u32], &'a [([f32; 3], [f32; 3])]);
 
 /// Candidate positions and normals, and the candidates each vertex stands for.
 type Hermite<'a> = (&'a [[f32; 3]], &'a [[f32; 3]], &'a Samples);
@@ -127,7 +140,7 @@ pub(crate) struct Samples {
 
 impl Samples {
     /// The candidates vertex `v` stands for.
-    fn of(&self, v: u32) -> &[u32] {
+    pub(crate) fn of(&self, v: u32) -> &[u32] {
         &self.list[self.start[v as usize] as usize..self.start[v as usize + 1] as usize]
     }
 }
@@ -170,6 +183,41 @@ impl<'a> Clustering<'a> {
         self
     }
 
+    /// Verifies also that every vertex's triangles from each side (`sides[t]` for candidate
+    /// triangle `t`: the chunk it lies in) form one simple path or cycle, so that each chunk's
+    /// part of the surface around a vertex shared by two chunks is one fan: clustering each
+    /// chunk's inside afterwards, with the shared vertices kept, then keeps their links whole.
+    pub(crate) fn with_sides(mut self, sides: &'a [u8]) -> Self {
+        self.sides = Some(sides);
+        self
+    }
+
+    /// Clusters whose members are pinned: `pin[v]` names the place (position, normal) of the
+    /// cluster of `v` (all members of one cluster name the same), or is `NONE`. A pinned cluster
+    /// was made and verified together with the neighbouring chunk (the face clusters of
+    /// regularised tetrahedra): it goes where it is told, even with one member here, and is
+    /// never taken apart; its standing vertex must be locked.
+    pub(crate) fn with_pins(mut self, pin: &'a [u32], places: &'a [([f32; 3], [f32; 3])]) -> Self {
+        self.pins = Some((pin, places));
+        self
+    }
+
+    /// Places merged vertices on multiples of `step` (a power of two) along `axis` before they
+    /// are verified: a chunk face's clusters, made in the upper chunk's frame, then move into the
+    /// lower chunk's by adding the chunk's width without rounding, so both chunks hold the same
+    /// vertex bit for bit.
+    pub(crate) fn with_snap(mut self, axis: usize, step: f32) -> Self {
+        self.snap = Some((axis, step));
+        self
+    }
+
+    /// The place of the pinned cluster standing at `r`, if it is one.
+    fn pinned(&self, r: usize) -> Option<(Vec3, Vec3)> {
+        let (pin, places) = self.pins?;
+        let i = pin[r];
+        (i != NONE).then(|| (Vec3::from(places[i as usize].0), Vec3::from(places[i as usize].1)))
+    }
+
     /// The candidate samples (position, normal) vertex `v` stands for.
     fn samples(&self, v: u32) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
         let (positions, normals, list): (&[[f32; 3]], &[[f32; 3]], &[u32]) = match self.hermite {
@@ -199,6 +247,9 @@ impl<'a> Clustering<'a> {
             hermite: None,
             reach: MAX_REACH_CELLS,
             off: MAX_MOVE_CELLS,
+            sides: None,
+            pins: None,
+            snap: None,
         }
     }
 
@@ -216,6 +267,7 @@ impl<'a> Clustering<'a> {
         let mut offsets: Vec<u32> = Vec::new();
         let mut link: Vec<(u32, u32)> = Vec::new();
         let mut folded: Vec<(u32, u32)> = Vec::new();
+        let mut mapped_sides: Vec<u8> = Vec::new();
         // Whether a merged cluster has a candidate beyond [`MAX_REACH_CELLS`] of its vertex.
         let mut far = vec![false; n];
         // Members of each cluster as linked lists (in vertex order).
@@ -244,7 +296,7 @@ impl<'a> Clustering<'a> {
             }
         }
         for r in 0..n {
-            if rep[r] as usize == r && merged(&first, &next, r as u32) {
+            if rep[r] as usize == r && merged(&first, &next, r as u32) && self.pinned(r).is_none() {
                 let own = find(&mut root, r as u32);
                 if self.members(r as u32, &first, &next).any(|m| find(&mut root, m) != own) {
                     self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
@@ -254,7 +306,14 @@ impl<'a> Clustering<'a> {
         // Place each cluster; take apart the ones whose members stray. Clusters taken apart
         // later go back to their members' positions; the others keep theirs.
         for r in 0..n {
-            if rep[r] as usize == r && merged(&first, &next, r as u32) {
+            if rep[r] as usize != r {
+                continue;
+            }
+            if let Some((p, q)) = self.pinned(r) {
+                (pos[r], nrm[r]) = (p, q);
+                continue;
+            }
+            if merged(&first, &next, r as u32) {
                 match self.place(r as u32, &first, &next) {
                     Some((p, q, beyond)) => (pos[r], nrm[r], far[r]) = (p, q, beyond),
                     None => self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm),
@@ -264,9 +323,10 @@ impl<'a> Clustering<'a> {
         loop {
             // Carry the triangles through; mark clusters whose triangles turn over.
             mapped.clear();
+            mapped_sides.clear();
             folded.clear();
             bad.fill(false);
-            for tri in self.tris {
+            for (t, tri) in self.tris.iter().enumerate() {
                 let m = tri.map(|v| rep[v as usize]);
                 if m[0] == m[1] || m[1] == m[2] || m[0] == m[2] {
                     // A triangle folded onto an edge: that edge must stay in the surface.
@@ -285,8 +345,11 @@ impl<'a> Clustering<'a> {
                     }
                 }
                 mapped.push(m);
+                if let Some(sides) = self.sides {
+                    mapped_sides.push(sides[t]);
+                }
             }
-            self.check_links(&rep, &mapped, &mut offsets, &mut link, &mut bad);
+            self.check_links(&rep, &mapped, &mapped_sides, &mut offsets, &mut link, &mut bad);
             if self.hermite.is_some() {
                 self.check_far_samples(&rep, &pos, &first, &next, &far, &offsets, &link, &mut bad);
             }
@@ -299,7 +362,7 @@ impl<'a> Clustering<'a> {
             }
             let mut any = false;
             for r in 0..n {
-                if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) {
+                if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) && self.pinned(r).is_none() {
                     self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
                     any = true;
                 }
@@ -375,7 +438,13 @@ impl<'a> Clustering<'a> {
         // The planes' meeting point keeps a crease or a corner sharp; where it lies too far from
         // a member (a corner sharper than the candidates' chamfer by more than the reach), the
         // vertex goes halfway to the members' mean, then to the mean, chamfering as they do.
-        let p = [sharp, sharp.lerp(mean, 0.5), mean].into_iter().find(|&p| fits(p))?;
+        let snap = |mut p: Vec3| {
+            if let Some((axis, step)) = self.snap {
+                p[axis] = (p[axis] / step).round() * step;
+            }
+            p
+        };
+        let p = [sharp, sharp.lerp(mean, 0.5), mean].into_iter().map(snap).find(|&p| fits(p))?;
         Some((p, normal, farthest > near))
     }
 
@@ -460,11 +529,13 @@ impl<'a> Clustering<'a> {
     }
 
     /// Marks, for every vertex whose link is not one simple cycle (a simple path or cycle for a
-    /// vertex that stays), the clusters of the vertex and of every vertex beside it.
+    /// vertex that stays), or with sides, whose link's part from one side is not one simple path
+    /// or cycle, the clusters of the vertex and of every vertex beside it.
     fn check_links(
         &self,
         rep: &[u32],
         mapped: &[[u32; 3]],
+        mapped_sides: &[u8],
         offsets: &mut Vec<u32>,
         link: &mut Vec<(u32, u32)>,
         bad: &mut [bool],
@@ -482,14 +553,20 @@ impl<'a> Clustering<'a> {
         }
         link.clear();
         link.resize(mapped.len() * 3, (NONE, NONE));
+        // With sides: the side of each link edge's triangle.
+        let mut link_sides = vec![0u8; if mapped_sides.is_empty() { 0 } else { mapped.len() * 3 }];
         let mut fill: Vec<u32> = offsets[..n].to_vec();
-        for m in mapped {
+        for (t, m) in mapped.iter().enumerate() {
             for k in 0..3 {
                 let v = m[k] as usize;
                 link[fill[v] as usize] = (m[(k + 1) % 3], m[(k + 2) % 3]);
+                if let Some(side) = mapped_sides.get(t) {
+                    link_sides[fill[v] as usize] = *side;
+                }
                 fill[v] += 1;
             }
         }
+        let mut part: SmallVec<[(u32, u32); 16]> = SmallVec::new();
         let mut marks: Vec<u32> = Vec::new();
         let mut vanished: Vec<u32> = Vec::new();
         for v in 0..n {
@@ -503,7 +580,15 @@ impl<'a> Clustering<'a> {
                 }
                 continue;
             }
-            if link_is_disk(edges, self.locked[v]) {
+            let sided =
+                &link_sides[if link_sides.is_empty() { 0..0 } else { offsets[v] as usize..offsets[v + 1] as usize }];
+            let sides_whole = sided.iter().all(|&s| s == sided[0])
+                || [0u8, 1].into_iter().all(|side| {
+                    part.clear();
+                    part.extend(edges.iter().zip(sided).filter(|e| *e.1 == side).map(|e| *e.0));
+                    part.is_empty() || link_is_disk(&part, true)
+                });
+            if sides_whole && link_is_disk(edges, self.locked[v]) {
                 continue;
             }
             marks.push(v as u32);
@@ -567,6 +652,7 @@ impl<'a> Clustering<'a> {
             out.samples.start.push(out.samples.list.len() as u32);
             out.samples.far.push(self.is_far(r as u32, first, next, far));
             out.positions.push(pos[r].to_array());
+            let normal = self.pinned(r).map_or(normal, |(_, q)| q);
             out.normals.push(normal.normalize_or(Vec3::from(self.normals[r])).to_array());
             out.kept.push(r as u32);
         }
@@ -682,6 +768,45 @@ mod tests {
         assert_eq!(c.kept, vec![0, 1, 3, 4, 5]);
         // The planes x = 1 and y = 1 meet at (1, 1, 0).
         assert!(Vec3::from(c.positions[0]).distance(Vec3::new(1.0, 1.0, 0.0)) < 1e-4, "{:?}", c.positions[0]);
+    }
+
+    #[test]
+    fn with_sides_each_sides_triangles_around_a_vertex_form_one_fan() {
+        let (p, n, t) = octahedron(outward());
+        let locked = [false; 6];
+        let run =
+            |sides: &[u8]| Clustering::new(&p, &n, &t, &locked, 10.0).with_sides(sides).run(vec![0, 1, 0, 3, 4, 5]);
+        // {+x, +y} merged: its four triangles, two from each side, side by side: kept.
+        let c = run(&[0, 1, 0, 1, 0, 0, 0, 0]);
+        assert_eq!((c.positions.len(), c.tris.len()), (5, 6));
+        // The same cluster where each side's two triangles lie opposite each other (the surface
+        // would pass from one chunk to the other and back around the vertex): taken apart,
+        // though the whole link is one cycle.
+        let c = run(&[0, 1, 0, 0, 0, 0, 0, 1]);
+        assert_eq!((c.positions.len(), c.tris.len()), (6, 8));
+    }
+
+    #[test]
+    fn a_pinned_cluster_goes_where_it_is_told_and_stays() {
+        // +x and +y pinned to (1, 1, 0.5) with its own normal, though their planes meet at
+        // (1, 1, 0); +x stands for it and is locked, as a chunk's pinned face cluster is.
+        let (p, n, t) = octahedron(outward());
+        let mut locked = [false; 6];
+        locked[0] = true;
+        let pin = [0, NONE, 0, NONE, NONE, NONE];
+        let places = [([1.0, 1.0, 0.5], [0.0, 0.0, 1.0])];
+        let c = Clustering::new(&p, &n, &t, &locked, 10.0).with_pins(&pin, &places).run(vec![0, 1, 0, 3, 4, 5]);
+        assert_eq!((c.positions.len(), c.tris.len()), (5, 6));
+        assert_eq!((c.positions[0], c.normals[0]), places[0]);
+        // Even where its members would fail the checks here (planes that turn a triangle over):
+        // it was verified with the members this chunk does not see.
+        let mut normals = outward();
+        let k = 13f32.sqrt();
+        normals[0] = [2.0 / k, -3.0 / k, 0.0];
+        normals[2] = [3.0 / k, -2.0 / k, 0.0];
+        let (p, n, t) = octahedron(normals);
+        let c = Clustering::new(&p, &n, &t, &locked, 10.0).with_pins(&pin, &places).run(vec![0, 1, 0, 3, 4, 5]);
+        assert_eq!(c.positions.len(), 5);
     }
 
     #[test]

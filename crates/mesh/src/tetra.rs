@@ -25,10 +25,19 @@
 //! member near the merged vertex and its tangent plane: [`MAX_MOVE_CELLS`], [`MAX_REACH_CELLS`]
 //! for the node clusters, [`SHORT_EDGE_MOVE_CELLS`], [`SHORT_EDGE_REACH_CELLS`] for the rounds)
 //! and the clusters that fail are taken apart until none does (`cluster.rs` proves this ends
-//! closed and manifold). Vertices on edges that lie in a chunk face are shared with the
-//! neighbouring chunk and never merged; so chunk meshes stay crack-free and each chunk's
-//! clustering depends on its own block alone (incremental). the whole-volume mesher (`tetra_volume`) clusters the
-//! welded whole mesh instead, faces included.
+//! closed and manifold).
+//!
+//! **Chunk by chunk** ([`mesh_chunk_clustered`], the viewport's form): a vertex on a chunk face
+//! is shared with the neighbouring chunk, so both must agree on it. Each face's node clusters
+//! (at nodes [`FACE_EDGE_NODES`] or more from the face's edges) are made by one function of the
+//! two chunks' blocks, from the slab [`SLAB_CELLS`] cells deep on each side, and verified there
+//! with one more rule (each chunk's triangles around a vertex form one fan); both chunks compute
+//! the same clusters bit for bit and pin them, then cluster their insides. The other face
+//! vertices (near the face's edges, and of clusters the slab took apart) stay unmerged, and the
+//! short-edge rounds leave every shared vertex alone. A change then reaches the meshes of the
+//! chunks around it ([`crate::MeshCache::affected`]). A lone block ([`mesh_block_tetra`]) keeps
+//! all its face vertices. The whole-volume mesher (`tetra_volume`) clusters the welded whole
+//! mesh instead, faces included.
 
 use std::sync::OnceLock;
 
@@ -141,14 +150,30 @@ pub struct TetraScratch {
     /// Position along the edge from its lower node.
     ts: Vec<f32>,
     tris: Vec<[u32; 3]>,
+    /// The node clusters of the chunk's faces, made with its neighbours (block-local nodes,
+    /// positions in the block's frame); empty for a lone block.
+    faces: Vec<FaceCluster>,
+    /// For each output vertex, the face cluster it is, or `NONE`.
+    face_of: Vec<u32>,
+    /// The face cluster at each node of the block, or `NONE`.
+    face_at: Vec<u32>,
+    neighbour: VoxelBlock,
+    slab: SlabScratch,
 }
 
 /// Marching tetrahedra of one block, with integrated clustering when `cluster`, into `out`
 /// (cleared first): positions in grid units from the block's origin, like
 /// [`crate::mesh_block`]. Vertices on edges in a chunk face are shared with the neighbouring
-/// block's mesh (same position bit for bit) and are never merged; the others belong to this
+/// block's mesh (same position bit for bit) and are never merged (the block alone cannot say
+/// how the neighbour clusters them: [`mesh_chunk_clustered`] can); the others belong to this
 /// chunk alone.
 pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraScratch, out: &mut Mesh) {
+    scratch.faces.clear();
+    mesh_candidates_and_cluster(block, cluster, scratch, out);
+}
+
+/// [`mesh_block_tetra`] with the face clusters in `scratch.faces` (none for a lone block).
+fn mesh_candidates_and_cluster(block: &VoxelBlock, cluster: bool, scratch: &mut TetraScratch, out: &mut Mesh) {
     out.clear();
     let n = block.cells();
     let m = n + 1;
@@ -164,14 +189,39 @@ pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraSc
     s.sites.clear();
     s.ts.clear();
     s.tris.clear();
+    s.face_of.clear();
     let sp = block.level().spacing() as f32;
     let with_materials = block.has_materials();
+    let node = |x: usize, y: usize, z: usize| x + m * (y + m * z);
+    let mut ids: SmallVec<[u32; 4]> = SmallVec::new();
+    for_each_piece(block, [0..n, 0..n, 0..n], |edges| {
+        ids.clear();
+        for &(dir, lower) in edges {
+            ids.push(vertex(block, s, out, dir, lower, sp, with_materials, node(lower[0], lower[1], lower[2])));
+        }
+        push_piece(&ids, &out.positions, &mut s.tris);
+    });
+    if cluster {
+        cluster_block(n, sp, s, out);
+    } else {
+        out.indices.extend(s.tris.iter().flatten());
+    }
+}
+
+/// Calls `piece` with the lattice edges (direction index, lower node) of each surface piece of
+/// the mixed cells of `block` within `cells` (per axis), in the piece's cyclic order.
+fn for_each_piece(
+    block: &VoxelBlock,
+    cells: [std::ops::Range<usize>; 3],
+    mut piece: impl FnMut(&[(usize, [usize; 3])]),
+) {
     let table = table();
     let tets = tetrahedra();
-    let node = |x: usize, y: usize, z: usize| x + m * (y + m * z);
-    for z in 0..n {
-        for y in 0..n {
-            let mut mixed = block.mixed_cells(y, z);
+    let xs = if cells[0].is_empty() { 0 } else { ((1u128 << (cells[0].end - cells[0].start)) - 1) << cells[0].start };
+    let mut edges: SmallVec<[(usize, [usize; 3]); 4]> = SmallVec::new();
+    for z in cells[2].clone() {
+        for y in cells[1].clone() {
+            let mut mixed = block.mixed_cells(y, z) & xs;
             while mixed != 0 {
                 let x = mixed.trailing_zeros() as usize;
                 mixed &= mixed - 1;
@@ -186,46 +236,239 @@ pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraSc
                     if case.edges.is_empty() {
                         continue;
                     }
-                    let mut ids: SmallVec<[u32; 4]> = SmallVec::new();
+                    edges.clear();
                     for &(a, b) in &case.edges {
                         let (ca, cb) = (corners[a as usize], corners[b as usize]);
                         let o = offset(ca);
-                        let lower = [x + o[0], y + o[1], z + o[2]];
-                        let dir = dir_of(ca ^ cb);
-                        ids.push(vertex(
-                            block,
-                            s,
-                            out,
-                            dir,
-                            lower,
-                            sp,
-                            with_materials,
-                            node(lower[0], lower[1], lower[2]),
-                        ));
+                        edges.push((dir_of(ca ^ cb), [x + o[0], y + o[1], z + o[2]]));
                     }
-                    if ids.len() == 3 {
-                        s.tris.push([ids[0], ids[1], ids[2]]);
-                    } else {
-                        // Split the quad along its shorter diagonal (inside the tetrahedron, so
-                        // the choice is free).
-                        let p = |i: usize| Vec3::from(out.positions[ids[i] as usize]);
-                        if p(0).distance_squared(p(2)) <= p(1).distance_squared(p(3)) {
-                            s.tris.push([ids[0], ids[1], ids[2]]);
-                            s.tris.push([ids[0], ids[2], ids[3]]);
-                        } else {
-                            s.tris.push([ids[1], ids[2], ids[3]]);
-                            s.tris.push([ids[1], ids[3], ids[0]]);
-                        }
-                    }
+                    piece(&edges);
                 }
             }
         }
     }
-    if cluster {
-        cluster_block(n, sp, s, out);
-    } else {
-        out.indices.extend(s.tris.iter().flatten());
+}
+
+/// Adds the triangles of one surface piece (its vertices `ids` in cyclic order) to `tris`: a
+/// triangle, or a quad split along its shorter diagonal (inside the tetrahedron, so the choice
+/// is free).
+fn push_piece(ids: &[u32], positions: &[[f32; 3]], tris: &mut Vec<[u32; 3]>) {
+    if ids.len() == 3 {
+        tris.push([ids[0], ids[1], ids[2]]);
+        return;
     }
+    let p = |i: usize| Vec3::from(positions[ids[i] as usize]);
+    if p(0).distance_squared(p(2)) <= p(1).distance_squared(p(3)) {
+        tris.push([ids[0], ids[1], ids[2]]);
+        tris.push([ids[0], ids[2], ids[3]]);
+    } else {
+        tris.push([ids[1], ids[2], ids[3]]);
+        tris.push([ids[1], ids[3], ids[0]]);
+    }
+}
+
+/// Cells on each side of a chunk face from which the face's node clusters are made and
+/// verified: a face node's members lie in the cells beside it, and the links of the vertices
+/// beside those reach one cell further.
+const SLAB_CELLS: usize = 2;
+
+/// Face nodes this close (nodes) to a chunk's edge keep their vertices as they are: the checks
+/// of their clusters would reach into the chunks across the edge.
+const FACE_EDGE_NODES: usize = 2;
+
+/// A node cluster of a chunk face, made and verified alike by the two chunks that share the face
+/// (see [`face_clusters`]).
+#[derive(Clone, Copy, Debug)]
+struct FaceCluster {
+    /// The face node in the chunk's block.
+    node: [usize; 3],
+    /// Position (grid units from the block's origin) and unit normal.
+    position: [f32; 3],
+    normal: [f32; 3],
+    material: VertexMaterial,
+}
+
+/// Buffers of [`face_clusters`].
+#[derive(Debug, Default)]
+struct SlabScratch {
+    /// Vertex of each lattice edge of the slab, or `NONE`.
+    ids: Vec<u32>,
+    /// Each vertex's direction index, lower node (the upper chunk's block frame) and position
+    /// along its edge.
+    sites: Vec<(usize, [i64; 3], f32)>,
+    mesh: Mesh,
+    tris: Vec<[u32; 3]>,
+    /// The chunk each triangle lies in: 0 the lower, 1 the upper.
+    sides: Vec<u8>,
+    found: Vec<FaceCluster>,
+}
+
+/// The node clusters of the face along `axis` between the chunks of blocks `lower` and `upper`
+/// (one level, `upper` the next chunk along `axis`), in `out` in the upper block's frame.
+///
+/// Both chunks call this with the same two blocks, so they make the same clusters bit for bit.
+/// The candidate mesh of the slab [`SLAB_CELLS`] cells deep on each side is clustered at the face
+/// nodes at least [`FACE_EDGE_NODES`] nodes from the face's edges, every other vertex kept, and
+/// verified as every clustering is (the slab's outer vertices stand as chunk-face vertices do),
+/// with one more rule: around every vertex, each chunk's triangles form one fan. A cluster that
+/// passes is whole in both chunks' checks; each chunk then clusters its inside with these fixed
+/// (`cluster.rs`: with every inside cluster taken apart a chunk holds exactly the slab's verified
+/// surface, so its own checks always end; the fans' ends are edges between shared vertices, which
+/// neither chunk moves, so the two chunks' fans still close into one cycle around each vertex).
+fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut SlabScratch) {
+    s.found.clear();
+    let n = upper.cells();
+    if lower.cells() != n || n < 2 * FACE_EDGE_NODES + 1 {
+        return;
+    }
+    let m = n + 1;
+    let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+    let layers = 2 * SLAB_CELLS + 1;
+    s.ids.clear();
+    s.ids.resize(7 * layers * m * m, NONE);
+    s.sites.clear();
+    s.mesh.clear();
+    s.tris.clear();
+    s.sides.clear();
+    let sp = upper.level().spacing() as f32;
+    let with_materials = lower.has_materials() && upper.has_materials();
+    let mut ids: SmallVec<[u32; 4]> = SmallVec::new();
+    for (side, block) in [lower, upper].into_iter().enumerate() {
+        let mut cells = [0..n, 0..n, 0..n];
+        cells[axis] = if side == 0 { n - SLAB_CELLS..n } else { 0..SLAB_CELLS };
+        let shift = if side == 0 { -(n as i64) } else { 0 };
+        for_each_piece(block, cells, |edges| {
+            ids.clear();
+            for &(dir, l) in edges {
+                let mut node = l.map(|c| c as i64);
+                node[axis] += shift;
+                let slot = dir
+                    + 7 * ((node[axis] + SLAB_CELLS as i64) as usize
+                        + layers * (node[u] as usize + m * node[w] as usize));
+                if s.ids[slot] == NONE {
+                    s.ids[slot] = s.mesh.positions.len() as u32;
+                    let (t, normal) = edge_point(block, dir, l);
+                    let d = offset(DIRS[dir]);
+                    let p = Vec3::new(node[0] as f32, node[1] as f32, node[2] as f32)
+                        + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * t;
+                    s.mesh.positions.push((p * sp).to_array());
+                    s.mesh.normals.push(normal.normalize_or(Vec3::Z).to_array());
+                    if with_materials {
+                        s.mesh.materials.push(VertexMaterial::single(edge_vertex_material(block, dir, l)));
+                    }
+                    s.sites.push((dir, node, t));
+                }
+                ids.push(s.ids[slot]);
+            }
+            let before = s.tris.len();
+            push_piece(&ids, &s.mesh.positions, &mut s.tris);
+            s.sides.resize(s.tris.len().max(before), side as u8);
+        });
+    }
+    // Clusters at the face's inner nodes; the slab's outer vertices stay.
+    let count = s.sites.len();
+    let mut rep: Vec<u32> = (0..count as u32).collect();
+    let mut locked = vec![false; count];
+    let mut first = vec![NONE; m * m];
+    let free = FACE_EDGE_NODES as i64..=(n - FACE_EDGE_NODES) as i64;
+    let mut any = false;
+    for (v, &(dir, node, t)) in s.sites.iter().enumerate() {
+        let d = offset(DIRS[dir]);
+        let outer = (d[axis] == 0 && node[axis].unsigned_abs() as usize == SLAB_CELLS)
+            || [u, w].iter().any(|&k| d[k] == 0 && (node[k] == 0 || node[k] == n as i64));
+        if outer {
+            locked[v] = true;
+            continue;
+        }
+        let mut near = node;
+        if t > 0.5 {
+            (0..3).for_each(|k| near[k] += d[k] as i64);
+        }
+        if near[axis] != 0 || !free.contains(&near[u]) || !free.contains(&near[w]) {
+            continue;
+        }
+        let slot = &mut first[near[u] as usize + m * near[w] as usize];
+        if *slot == NONE {
+            *slot = v as u32;
+        } else {
+            any = true;
+        }
+        rep[v] = *slot;
+    }
+    if !any {
+        return;
+    }
+    let c = Clustering::new(&s.mesh.positions, &s.mesh.normals, &s.tris, &locked, sp)
+        .with_sides(&s.sides)
+        .with_snap(axis, sp / 16384.0)
+        .run(rep);
+    for (i, &v) in c.kept.iter().enumerate() {
+        if c.samples.of(i as u32).len() < 2 {
+            continue;
+        }
+        let (dir, node, t) = s.sites[v as usize];
+        let d = offset(DIRS[dir]);
+        let near = if t > 0.5 { [0, 1, 2].map(|k| node[k] + d[k] as i64) } else { node };
+        s.found.push(FaceCluster {
+            node: near.map(|c| c as usize),
+            position: c.positions[i],
+            normal: c.normals[i],
+            material: s.mesh.materials.get(v as usize).copied().unwrap_or_default(),
+        });
+    }
+}
+
+/// The face clusters of chunk `key` (block `block`) with its six neighbours, into `s.faces`.
+fn chunk_faces(volume: &strata_volume::Volume, key: ChunkKey, block: &VoxelBlock, s: &mut TetraScratch) {
+    s.faces.clear();
+    let n = block.cells();
+    let sp = block.level().spacing() as f32;
+    for axis in 0..3 {
+        for upper_face in [false, true] {
+            // A face with no surface in this chunk's slab gives this chunk nothing to pin.
+            let layers = if upper_face { n - SLAB_CELLS..n } else { 0..SLAB_CELLS };
+            let mut cells = [0..n, 0..n, 0..n];
+            cells[axis] = layers;
+            let mut mixed = false;
+            for_each_piece(block, cells, |_| mixed = true);
+            if !mixed {
+                continue;
+            }
+            let mut step = glam::IVec3::ZERO;
+            step[axis] = if upper_face { 1 } else { -1 };
+            volume.extract_block_into(key.offset(step), &mut s.neighbour);
+            if upper_face {
+                face_clusters(block, &s.neighbour, axis, &mut s.slab);
+            } else {
+                face_clusters(&s.neighbour, block, axis, &mut s.slab);
+            }
+            for f in &s.slab.found {
+                let mut f = *f;
+                if upper_face {
+                    // Into this block's frame: exact, as the position lies on the snap's steps.
+                    f.node[axis] = n;
+                    f.position[axis] += n as f32 * sp;
+                }
+                s.faces.push(f);
+            }
+        }
+    }
+}
+
+/// The regularised tetrahedra mesh of chunk `key` of `volume` as the viewport meshes it, into
+/// `out` (its block extracted into `block`): the chunk's own clusters, and the node clusters of
+/// its faces made together with the neighbouring chunks' blocks, so that chunk meshes cluster
+/// across their faces and still meet exactly. `volume` must have one level.
+pub fn mesh_chunk_clustered(
+    volume: &strata_volume::Volume,
+    key: ChunkKey,
+    block: &mut VoxelBlock,
+    scratch: &mut TetraScratch,
+    out: &mut Mesh,
+) {
+    volume.extract_block_into(key, block);
+    chunk_faces(volume, key, block, scratch);
+    mesh_candidates_and_cluster(block, true, scratch, out);
 }
 
 /// The vertex on lattice edge (`dir`, `lower`), made on first use.
@@ -254,36 +497,47 @@ fn vertex(
     }
     let id = out.positions.len() as u32;
     *slot = id;
+    let (t, normal) = edge_point(block, dir, lower);
     let d = offset(DIRS[dir]);
     let base = Vec3::new(lower[0] as f32, lower[1] as f32, lower[2] as f32);
-    let (t, normal) = if dir < 3 {
-        let c = block.crossing(Axis::from_index(dir), lower[0], lower[1], lower[2]).expect("checked above");
-        (c.t, unpack_normal(c.normal).as_vec3())
-    } else if dir < 6 {
-        face_diagonal(block, lower, d)
-    } else {
-        body_diagonal(block, lower)
-    };
     let p = base + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * t;
     out.positions.push((p * sp).to_array());
     out.normals.push(normal.normalize_or(Vec3::Z).to_array());
     if with_materials {
-        // The solid end of the edge gives its material whole.
-        let solid = if block.inside(lower[0], lower[1], lower[2]) {
-            lower
-        } else {
-            [lower[0] + d[0], lower[1] + d[1], lower[2] + d[2]]
-        };
-        let material = if dir < 3 {
-            edge_material(block, Axis::from_index(dir), lower.map(|c| c as u8))
-        } else {
-            block.material(solid[0], solid[1], solid[2])
-        };
-        out.materials.push(VertexMaterial::single(material));
+        out.materials.push(VertexMaterial::single(edge_vertex_material(block, dir, lower)));
     }
     s.sites.push(Site { dir: dir as u8, lower: lower.map(|c| c as u8) });
     s.ts.push(t);
     id
+}
+
+/// Where the surface crosses lattice edge (`dir`, `lower`) of `block`: the position along the
+/// edge from its lower node, and the normal there (not normalised).
+fn edge_point(block: &VoxelBlock, dir: usize, lower: [usize; 3]) -> (f32, Vec3) {
+    if dir < 3 {
+        let c = block
+            .crossing(Axis::from_index(dir), lower[0], lower[1], lower[2])
+            .expect("a voxel block has a crossing on every edge whose nodes differ");
+        (c.t, unpack_normal(c.normal).as_vec3())
+    } else if dir < 6 {
+        face_diagonal(block, lower, offset(DIRS[dir]))
+    } else {
+        body_diagonal(block, lower)
+    }
+}
+
+/// The material of the vertex on lattice edge (`dir`, `lower`): the solid end's, whole.
+fn edge_vertex_material(block: &VoxelBlock, dir: usize, lower: [usize; 3]) -> strata_volume::MaterialId {
+    if dir < 3 {
+        return edge_material(block, Axis::from_index(dir), lower.map(|c| c as u8));
+    }
+    let d = offset(DIRS[dir]);
+    let solid = if block.inside(lower[0], lower[1], lower[2]) {
+        lower
+    } else {
+        [lower[0] + d[0], lower[1] + d[1], lower[2] + d[2]]
+    };
+    block.material(solid[0], solid[1], solid[2])
 }
 
 /// The crossing on a face diagonal from `lower` along the two axes of `d`: where the segment
@@ -362,49 +616,101 @@ fn site_key(key: ChunkKey, block: &VoxelBlock, site: Site, t: f32) -> EdgeKey {
     (3 + site.dir, key.0.as_i64vec3() * crate::weld::KEY_STEPS + l * s)
 }
 
-/// [`mesh_block_tetra`] together with each output vertex's identity across chunks.
-pub(crate) fn mesh_block_tetra_keyed(
-    block: &VoxelBlock,
-    cluster: bool,
-    scratch: &mut TetraScratch,
-    out: &mut Mesh,
-) -> Vec<EdgeKey> {
-    mesh_block_tetra(block, cluster, scratch, out);
+/// The identity across chunks of each vertex of the mesh last made with `scratch` from `block`:
+/// a face cluster's by its node, any other by its lattice edge.
+fn vertex_keys(block: &VoxelBlock, scratch: &TetraScratch) -> Vec<EdgeKey> {
     let key = block.key().unwrap_or(ChunkKey::new(0, 0, 0));
-    scratch.sites.iter().zip(&scratch.ts).map(|(&site, &t)| site_key(key, block, site, t)).collect()
+    let steps = block.level().steps_per_cell() as i64;
+    scratch
+        .sites
+        .iter()
+        .zip(&scratch.ts)
+        .enumerate()
+        .map(|(v, (&site, &t))| match scratch.face_of.get(v).copied().unwrap_or(NONE) {
+            NONE => site_key(key, block, site, t),
+            f => {
+                let node = I64Vec3::from_array(scratch.faces[f as usize].node.map(|c| c as i64));
+                (FACE_CLUSTER_KEY, key.0.as_i64vec3() * crate::weld::KEY_STEPS + node * steps)
+            }
+        })
+        .collect()
 }
 
+/// The direction code of a face cluster's identity (after the lattice edges' 0..10).
+const FACE_CLUSTER_KEY: u8 = 16;
+
 /// Clusters the candidate mesh of one block in place: the private vertices by their nearest
-/// node (vertices on edges in a chunk face are shared with a neighbour and stay).
+/// node (vertices on edges in a chunk face are shared with a neighbour and stay), the members of
+/// the face clusters in `s.faces` into those, as they were made with the neighbours.
 fn cluster_block(n: usize, sp: f32, s: &mut TetraScratch, out: &mut Mesh) {
     let m = n + 1;
     let count = out.positions.len();
     s.node_rep.clear();
     s.node_rep.resize(m * m * m, NONE);
+    s.face_at.clear();
+    if !s.faces.is_empty() {
+        s.face_at.resize(m * m * m, NONE);
+        for (i, f) in s.faces.iter().enumerate() {
+            s.face_at[f.node[0] + m * (f.node[1] + m * f.node[2])] = i as u32;
+        }
+    }
     let mut rep: Vec<u32> = (0..count as u32).collect();
     let mut locked = vec![false; count];
+    let mut pin = vec![NONE; if s.faces.is_empty() { 0 } else { count }];
     for (v, (site, &t)) in s.sites.iter().zip(&s.ts).enumerate() {
-        if on_chunk_face(site, n) {
+        let near = nearest_node(site, t);
+        let at = near[0] + m * (near[1] + m * near[2]);
+        let face = s.face_at.get(at).copied().unwrap_or(NONE);
+        if face == NONE && on_chunk_face(site, n) {
             locked[v] = true;
             continue;
         }
-        let near = nearest_node(site, t);
-        let slot = &mut s.node_rep[near[0] + m * (near[1] + m * near[2])];
+        let slot = &mut s.node_rep[at];
         if *slot == NONE {
             *slot = v as u32;
         }
         rep[v] = *slot;
+        if face != NONE {
+            // A face cluster: shared with the neighbour, so it stays where it was made.
+            locked[v] = true;
+            pin[v] = face;
+        }
     }
-    let clustered = cluster_twice(out, &s.tris, rep, &locked, sp);
+    let clustered = if s.faces.is_empty() {
+        cluster_twice(out, &s.tris, rep, &locked, sp, None)
+    } else {
+        let places: Vec<([f32; 3], [f32; 3])> = s.faces.iter().map(|f| (f.position, f.normal)).collect();
+        cluster_twice(out, &s.tris, rep, &locked, sp, Some((&pin, &places)))
+    };
     let kept = finish(clustered, out);
+    s.face_of = kept.iter().map(|&v| pin.get(v as usize).copied().unwrap_or(NONE)).collect();
+    if !out.materials.is_empty() {
+        for (material, &f) in out.materials.iter_mut().zip(&s.face_of) {
+            if f != NONE {
+                *material = s.faces[f as usize].material;
+            }
+        }
+    }
     s.sites = kept.iter().map(|&v| s.sites[v as usize]).collect();
     s.ts = kept.iter().map(|&v| s.ts[v as usize]).collect();
 }
 
 /// Clusters the candidate mesh `out` (triangles `tris`) by `rep`, then merges the remaining
 /// short edges in pairs, [`SHORT_EDGE_ROUNDS`] rounds, each verified as the first.
-fn cluster_twice(out: &Mesh, tris: &[[u32; 3]], rep: Vec<u32>, locked: &[bool], cell: f32) -> Clustered {
-    let mut c = Clustering::new(&out.positions, &out.normals, tris, locked, cell).run(rep);
+fn cluster_twice(
+    out: &Mesh,
+    tris: &[[u32; 3]],
+    rep: Vec<u32>,
+    locked: &[bool],
+    cell: f32,
+    pins: Option<crate::cluster::Pins<'_>>,
+) -> Clustered {
+    let first = Clustering::new(&out.positions, &out.normals, tris, locked, cell);
+    let first = match pins {
+        Some((pin, places)) => first.with_pins(pin, places),
+        None => first,
+    };
+    let mut c = first.run(rep);
     for _ in 0..SHORT_EDGE_ROUNDS {
         let locked: Vec<bool> = c.kept.iter().map(|&v| locked[v as usize]).collect();
         let pairs = crate::cluster::short_pairs(&c, &locked, SHORT_EDGE_CELLS * cell);
@@ -489,14 +795,21 @@ fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart,
         .map_init(
             || (VoxelBlock::default(), TetraScratch::default()),
             |(block, scratch), &key| {
-                volume.extract_block_into(key, block);
                 let mut m = Mesh::default();
-                let ids = mesh_block_tetra_keyed(block, cluster, scratch, &mut m);
+                if cluster {
+                    mesh_chunk_clustered(volume, key, block, scratch, &mut m);
+                } else {
+                    volume.extract_block_into(key, block);
+                    mesh_block_tetra(block, false, scratch, &mut m);
+                }
+                let ids = vertex_keys(block, scratch);
                 let n = block.cells();
                 let side = n + 1;
                 let origin = key.0.as_i64vec3() * n as i64;
                 // Shared vertices first, each group in its old order.
-                let shared: Vec<bool> = scratch.sites.iter().map(|site| on_chunk_face(site, n)).collect();
+                let shared: Vec<bool> = (scratch.sites.iter().enumerate())
+                    .map(|(v, site)| scratch.face_of.get(v).is_some_and(|&f| f != NONE) || on_chunk_face(site, n))
+                    .collect();
                 let order: Vec<u32> = (0..shared.len() as u32)
                     .filter(|&v| shared[v as usize])
                     .chain((0..shared.len() as u32).filter(|&v| !shared[v as usize]))
@@ -540,8 +853,8 @@ pub(crate) fn tetra_volume(volume: &strata_volume::Volume, cluster: bool) -> Opt
 }
 
 /// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
-/// viewport (vertices on chunk faces never merged), welded into one mesh (grid units,
-/// absolute). `None` for a volume whose chunks mix levels.
+/// viewport ([`mesh_chunk_clustered`]: chunk faces clustered with both chunks, the vertices near
+/// their edges never merged), welded into one mesh (grid units, absolute). `None` for a volume whose chunks mix levels.
 pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
     if !volume.single_level() {
         return None;
@@ -595,7 +908,7 @@ pub(crate) fn tetra_volume_impl(volume: &strata_volume::Volume, cluster: bool) -
             }
         }
         let locked = vec![false; out.positions.len()];
-        let clustered = cluster_twice(&out, &tris, rep, &locked, spacing);
+        let clustered = cluster_twice(&out, &tris, rep, &locked, spacing, None);
         finish(clustered, &mut out);
     }
     out
