@@ -230,7 +230,19 @@ impl MeshCache {
     /// the edits noted since do not reach are reused. A chunk queued without being noted (a
     /// level of detail changed, an undo) is remeshed whole.
     pub fn note(&mut self, volume: &Volume, changed: &[ChunkKey], reach: Option<Reach>) -> Vec<ChunkKey> {
-        let keys = self.affected(volume, changed);
+        let mut keys = self.affected(volume, changed);
+        if let Some(r) = reach
+            && self.used == BlockMesher::ClusteredTetrahedra
+            && self.effective(volume, false) == self.used
+        {
+            // A clustered tetrahedra chunk reads the nodes and edges within two cells of its
+            // box (its faces' slabs): an edit that reaches none of them leaves its mesh.
+            let margin = crate::tetra::SLAB_CELLS as f64 * volume.level().spacing();
+            keys.retain(|k| {
+                let lo = k.origin_grid().as_dvec3() - DVec3::splat(margin);
+                r.meets(lo, lo + DVec3::splat(strata_volume::coords::CHUNK_CELLS as f64 + 2.0 * margin))
+            });
+        }
         for &k in &keys {
             let r = self.reach.entry(k).or_insert(reach);
             *r = r.zip(reach).map(|(a, b)| a.union(b));
@@ -277,16 +289,16 @@ impl MeshCache {
                         let parts = mesh_parts(volume, key, level, reach, old.as_ref(), block, part);
                         return (key, parts.mesh.clone(), Some(parts));
                     }
-                    match cap {
-                        Some(c) => volume.extract_block_capped(key, c, block),
-                        None => volume.extract_block_into(key, block),
-                    }
                     let mut mesh = Mesh::default();
                     if mesher == BlockMesher::ClusteredTetrahedra {
                         // One level, no cap (see `effective`): the face clusters are made with the
                         // neighbours' blocks.
                         crate::tetra::mesh_chunk_clustered(volume, key, block, scratch, &mut mesh);
                     } else {
+                        match cap {
+                            Some(c) => volume.extract_block_capped(key, c, block),
+                            None => volume.extract_block_into(key, block),
+                        }
                         mesher.mesh(block, scratch, &mut mesh);
                     }
                     if let Some(how) = simplify_by {

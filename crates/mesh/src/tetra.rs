@@ -196,10 +196,11 @@ fn mesh_candidates_and_cluster(block: &VoxelBlock, cluster: bool, scratch: &mut 
     let mut ids: SmallVec<[u32; 4]> = SmallVec::new();
     for_each_piece(block, [0..n, 0..n, 0..n], |edges| {
         ids.clear();
-        for &(dir, lower) in edges {
+        for &(dir, lower, _) in edges {
             ids.push(vertex(block, s, out, dir, lower, sp, with_materials, node(lower[0], lower[1], lower[2])));
         }
-        push_piece(&ids, &out.positions, &mut s.tris);
+        let ts = &s.ts;
+        push_piece(&ids, edges, |v| ts[v as usize], &mut s.tris);
     });
     if cluster {
         cluster_block(n, sp, s, out);
@@ -208,17 +209,17 @@ fn mesh_candidates_and_cluster(block: &VoxelBlock, cluster: bool, scratch: &mut 
     }
 }
 
-/// Calls `piece` with the lattice edges (direction index, lower node) of each surface piece of
-/// the mixed cells of `block` within `cells` (per axis), in the piece's cyclic order.
-fn for_each_piece(
-    block: &VoxelBlock,
-    cells: [std::ops::Range<usize>; 3],
-    mut piece: impl FnMut(&[(usize, [usize; 3])]),
-) {
+/// One lattice edge of a surface piece: direction index, lower node, and the lower node's
+/// offset (0 or 1 per axis) in the piece's cell.
+type PieceEdge = (usize, [usize; 3], [usize; 3]);
+
+/// Calls `piece` with the lattice edges of each surface piece of the mixed cells of `block`
+/// within `cells` (per axis), in the piece's cyclic order.
+fn for_each_piece(block: &VoxelBlock, cells: [std::ops::Range<usize>; 3], mut piece: impl FnMut(&[PieceEdge])) {
     let table = table();
     let tets = tetrahedra();
     let xs = if cells[0].is_empty() { 0 } else { ((1u128 << (cells[0].end - cells[0].start)) - 1) << cells[0].start };
-    let mut edges: SmallVec<[(usize, [usize; 3]); 4]> = SmallVec::new();
+    let mut edges: SmallVec<[PieceEdge; 4]> = SmallVec::new();
     for z in cells[2].clone() {
         for y in cells[1].clone() {
             let mut mixed = block.mixed_cells(y, z) & xs;
@@ -240,7 +241,7 @@ fn for_each_piece(
                     for &(a, b) in &case.edges {
                         let (ca, cb) = (corners[a as usize], corners[b as usize]);
                         let o = offset(ca);
-                        edges.push((dir_of(ca ^ cb), [x + o[0], y + o[1], z + o[2]]));
+                        edges.push((dir_of(ca ^ cb), [x + o[0], y + o[1], z + o[2]], o));
                     }
                     piece(&edges);
                 }
@@ -249,15 +250,20 @@ fn for_each_piece(
     }
 }
 
-/// Adds the triangles of one surface piece (its vertices `ids` in cyclic order) to `tris`: a
-/// triangle, or a quad split along its shorter diagonal (inside the tetrahedron, so the choice
-/// is free).
-fn push_piece(ids: &[u32], positions: &[[f32; 3]], tris: &mut Vec<[u32; 3]>) {
+/// Adds the triangles of one surface piece (its vertices `ids` in cyclic order, on `edges` at
+/// `ts` along them) to `tris`: a triangle, or a quad split along its shorter diagonal (inside
+/// the tetrahedron, so the choice is free). The lengths are measured in the cell's own frame,
+/// so every block holding the cell (a chunk's, a face slab's) splits it alike, bit for bit.
+fn push_piece(ids: &[u32], edges: &[PieceEdge], ts: impl Fn(u32) -> f32, tris: &mut Vec<[u32; 3]>) {
     if ids.len() == 3 {
         tris.push([ids[0], ids[1], ids[2]]);
         return;
     }
-    let p = |i: usize| Vec3::from(positions[ids[i] as usize]);
+    let p = |i: usize| {
+        let (dir, _, o) = edges[i];
+        let d = offset(DIRS[dir]);
+        Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32) + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * ts(ids[i])
+    };
     if p(0).distance_squared(p(2)) <= p(1).distance_squared(p(3)) {
         tris.push([ids[0], ids[1], ids[2]]);
         tris.push([ids[0], ids[2], ids[3]]);
@@ -270,7 +276,7 @@ fn push_piece(ids: &[u32], positions: &[[f32; 3]], tris: &mut Vec<[u32; 3]>) {
 /// Cells on each side of a chunk face from which the face's node clusters are made and
 /// verified: a face node's members lie in the cells beside it, and the links of the vertices
 /// beside those reach one cell further.
-const SLAB_CELLS: usize = 2;
+pub(crate) const SLAB_CELLS: usize = 2;
 
 /// Face nodes this close (nodes) to a chunk's edge keep their vertices as they are: the checks
 /// of their clusters would reach into the chunks across the edge.
@@ -339,7 +345,7 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
         let shift = if side == 0 { -(n as i64) } else { 0 };
         for_each_piece(block, cells, |edges| {
             ids.clear();
-            for &(dir, l) in edges {
+            for &(dir, l, _) in edges {
                 let mut node = l.map(|c| c as i64);
                 node[axis] += shift;
                 let slot = dir
@@ -361,7 +367,8 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
                 ids.push(s.ids[slot]);
             }
             let before = s.tris.len();
-            push_piece(&ids, &s.mesh.positions, &mut s.tris);
+            let sites = &s.sites;
+            push_piece(&ids, edges, |v| sites[v as usize].2, &mut s.tris);
             s.sides.resize(s.tris.len().max(before), side as u8);
         });
     }

@@ -10,7 +10,7 @@ use strata_mesh::checks::{self, check_closed_manifold, hausdorff, signed_volume}
 use strata_mesh::tetra::tetra_volume_per_chunk;
 use strata_mesh::{BlockMesher, Mesh, MeshCache, TetraScratch, mesh_block_tetra};
 use strata_volume::brush::{Brush, Capsule, Cuboid, Sphere, Torus};
-use strata_volume::{Axis, ChunkKey, CsgOp, EditSettings, Level, Volume, VoxelBlock};
+use strata_volume::{Axis, ChunkKey, CsgOp, EditSettings, Level, Reach, Volume, VoxelBlock};
 
 fn mesh_one(block: &VoxelBlock, cluster: bool) -> Mesh {
     let mut mesh = Mesh::default();
@@ -220,33 +220,48 @@ fn incremental_chunk_meshes_equal_a_full_rebuild_and_meet_across_borders() {
 }
 
 /// Clustered tetrahedra make each chunk face's clusters from both chunks' blocks: a change two
-/// cells short of a face, inside one chunk, moves the mesh of the chunk across the face too.
+/// cells short of a face, inside one chunk, moves the mesh of the chunk across the face too; a
+/// change farther from every face than the slabs reach moves no other chunk's mesh.
 #[test]
 fn a_change_beside_a_chunk_face_remeshes_the_chunk_across_it() {
-    for bump in [DVec3::new(14.8, 26.9, 20.2), DVec3::new(24.3, 14.9, 25.1)] {
-        let mut volume = volume_of(&[&Sphere::new(DVec3::new(16.3, 15.7, 16.2), 12.0).unwrap()]);
-        let mut cache = MeshCache::build_with(&volume, BlockMesher::ClusteredTetrahedra);
-        let report = volume.add(&Sphere::new(bump, 1.0).unwrap()).unwrap();
-        let own = ChunkKey(bump.as_ivec3().div_euclid(IVec3::splat(16)));
-        assert_eq!(report.changed, vec![own], "the bump stays inside one chunk");
-        let remeshed = cache.update(&volume, &report.changed);
-        let full = MeshCache::build_with(&volume, BlockMesher::ClusteredTetrahedra);
-        let across = if bump.x < 16.0 { own.offset(IVec3::X) } else { own.offset(IVec3::Y) };
-        assert!(remeshed.contains(&across));
-        assert_ne!(
-            MeshCache::build_with(
-                &volume_of(&[&Sphere::new(DVec3::new(16.3, 15.7, 16.2), 12.0).unwrap()]),
-                BlockMesher::ClusteredTetrahedra
-            )
-            .mesh(across),
-            full.mesh(across),
-            "the change moved a face cluster of the chunk across the face"
-        );
-        for (k, m) in full.iter() {
-            assert_eq!(cache.mesh(k), Some(m), "chunk {k:?}");
+    let ball = || volume_of(&[&Sphere::new(DVec3::new(16.3, 15.7, 16.2), 12.0).unwrap()]);
+    let before = MeshCache::build_with(&ball(), BlockMesher::ClusteredTetrahedra);
+    for (bump, across) in [
+        (DVec3::new(14.8, 26.9, 20.2), Some(IVec3::X)),
+        (DVec3::new(24.3, 14.9, 25.1), Some(IVec3::Y)),
+        (DVec3::new(9.37, 8.77, 9.27), None),
+    ] {
+        for with_reach in [false, true] {
+            let mut volume = ball();
+            let mut cache = MeshCache::build_with(&volume, BlockMesher::ClusteredTetrahedra);
+            let report = volume.add(&Sphere::new(bump, 1.0).unwrap()).unwrap();
+            let own = ChunkKey(bump.as_ivec3().div_euclid(IVec3::splat(16)));
+            assert_eq!(report.changed, vec![own], "the bump stays inside one chunk");
+            // (CSG edits report no reach; every changed node and both ends of every changed
+            // edge lie within two cells of the bump's centre.)
+            let reach = with_reach.then(|| Reach { min: bump - 2.0, max: bump + 2.0 });
+            let remeshed = cache.update_reached(&volume, &report.changed, reach);
+            let full = MeshCache::build_with(&volume, BlockMesher::ClusteredTetrahedra);
+            match across {
+                Some(d) => {
+                    let across = own.offset(d);
+                    assert!(remeshed.contains(&across));
+                    assert_ne!(
+                        before.mesh(across),
+                        full.mesh(across),
+                        "the change moved a face cluster across the face"
+                    );
+                }
+                None if with_reach => assert_eq!(remeshed, vec![own], "nothing else reads the change"),
+                None => assert_eq!(remeshed.len(), 27),
+            }
+            assert_eq!(cache.len(), full.len());
+            for (k, m) in full.iter() {
+                assert_eq!(cache.mesh(k), Some(m), "chunk {k:?}");
+            }
+            let parts: Vec<(ChunkKey, Mesh)> = cache.iter().map(|(k, m)| (k, m.clone())).collect();
+            check_closed_manifold(&weld_by_position(&parts)).unwrap();
         }
-        let parts: Vec<(ChunkKey, Mesh)> = cache.iter().map(|(k, m)| (k, m.clone())).collect();
-        check_closed_manifold(&weld_by_position(&parts)).unwrap();
     }
 }
 
