@@ -1,5 +1,6 @@
 //! Profiling aid: meshes a sphere of radius 60 cells with each mesher, one thread, and prints the
-//! times, and regularised tetrahedra chunk by chunk as the viewport meshes them (`cargo run --release -p strata-mesh --example tetra_prof`).
+//! times, and regularised tetrahedra chunk by chunk as the viewport meshes them (`chunks`: only
+//! those; `cargo run --release -p strata-mesh --example tetra_prof`).
 use std::time::Instant;
 
 use glam::DVec3;
@@ -11,7 +12,9 @@ fn main() {
     let mut v = Volume::new();
     v.add(&Sphere::new(DVec3::splat(64.3), 60.0).unwrap()).unwrap();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let which: Vec<Mesher> = match std::env::args().nth(1) {
+    let arg = std::env::args().nth(1);
+    let which: Vec<Mesher> = match arg.as_deref() {
+        Some("chunks") => Vec::new(),
         Some(k) => vec![k.parse().unwrap()],
         None => vec![Mesher::MarchingCubes, Mesher::Tetrahedra, Mesher::ClusteredTetrahedra],
     };
@@ -26,7 +29,7 @@ fn main() {
         }
         println!("{:<24} {:>8} triangles {:>8.2} ms", m.name(), tris, best);
     }
-    if std::env::args().nth(1).is_none() {
+    if arg.is_none() || arg.as_deref() == Some("chunks") {
         // As the viewport meshes it: chunk by chunk.
         let mut best = f64::MAX;
         let mut tris = 0;
