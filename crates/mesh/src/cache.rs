@@ -27,7 +27,7 @@ pub enum BlockMesher {
 impl BlockMesher {
     /// Meshes `block` into `out` (tetrahedra need `scratch`), the block alone: clustered
     /// tetrahedra then keep every chunk-face vertex ([`MeshCache`] clusters faces with the
-    /// neighbours' blocks: [`crate::tetra::mesh_chunk_clustered`]).
+    /// neighbours' blocks, each face once for a batch of chunks).
     pub fn mesh(self, block: &VoxelBlock, scratch: &mut TetraScratch, out: &mut Mesh) {
         match self {
             BlockMesher::MarchingCubes => mesh_block(block, out),
@@ -274,6 +274,12 @@ impl MeshCache {
         // those parts.
         let jobs: Vec<(ChunkKey, Option<Reach>, Option<Parts>)> =
             keys.iter().map(|&k| (k, self.reach.remove(&k).flatten(), self.parts.remove(&k))).collect();
+        // Clustered tetrahedra: every face of these chunks made once, shared by its two chunks.
+        let faces = if mesher == BlockMesher::ClusteredTetrahedra {
+            crate::tetra::ChunkFaces::of(volume, keys)
+        } else {
+            crate::tetra::ChunkFaces::default()
+        };
         let done: Vec<(ChunkKey, Arc<Mesh>, Option<Parts>)> = jobs
             .into_par_iter()
             .map_init(
@@ -293,7 +299,7 @@ impl MeshCache {
                     if mesher == BlockMesher::ClusteredTetrahedra {
                         // One level, no cap (see `effective`): the face clusters are made with the
                         // neighbours' blocks.
-                        crate::tetra::mesh_chunk_clustered(volume, key, block, scratch, &mut mesh);
+                        crate::tetra::mesh_chunk_clustered(volume, key, &faces, block, scratch, &mut mesh);
                     } else {
                         match cap {
                             Some(c) => volume.extract_block_capped(key, c, block),

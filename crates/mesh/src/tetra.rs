@@ -39,9 +39,10 @@
 //! all its face vertices. The whole-volume mesher (`tetra_volume`) clusters the welded whole
 //! mesh instead, faces included.
 
+use std::collections::HashMap;
 use std::sync::OnceLock;
 
-use glam::{DVec3, I64Vec3, Vec3};
+use glam::{DVec3, I64Vec3, IVec3, Vec3};
 use smallvec::SmallVec;
 use strata_volume::normal::unpack_normal;
 use strata_volume::{Axis, ChunkKey, VoxelBlock};
@@ -157,15 +158,13 @@ pub struct TetraScratch {
     face_of: Vec<u32>,
     /// The face cluster at each node of the block, or `NONE`.
     face_at: Vec<u32>,
-    neighbour: VoxelBlock,
-    slab: SlabScratch,
 }
 
 /// Marching tetrahedra of one block, with integrated clustering when `cluster`, into `out`
 /// (cleared first): positions in grid units from the block's origin, like
 /// [`crate::mesh_block`]. Vertices on edges in a chunk face are shared with the neighbouring
 /// block's mesh (same position bit for bit) and are never merged (the block alone cannot say
-/// how the neighbour clusters them: [`mesh_chunk_clustered`] can); the others belong to this
+/// how the neighbour clusters them: [`crate::MeshCache`] can); the others belong to this
 /// chunk alone.
 pub fn mesh_block_tetra(block: &VoxelBlock, cluster: bool, scratch: &mut TetraScratch, out: &mut Mesh) {
     scratch.faces.clear();
@@ -425,56 +424,78 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
     }
 }
 
-/// The face clusters of chunk `key` (block `block`) with its six neighbours, into `s.faces`.
-fn chunk_faces(volume: &strata_volume::Volume, key: ChunkKey, block: &VoxelBlock, s: &mut TetraScratch) {
-    s.faces.clear();
-    let n = block.cells();
-    let sp = block.level().spacing() as f32;
-    for axis in 0..3 {
-        for upper_face in [false, true] {
-            // A face with no surface in this chunk's slab gives this chunk nothing to pin.
-            let layers = if upper_face { n - SLAB_CELLS..n } else { 0..SLAB_CELLS };
-            let mut cells = [0..n, 0..n, 0..n];
-            cells[axis] = layers;
-            let mut mixed = false;
-            for_each_piece(block, cells, |_| mixed = true);
-            if !mixed {
-                continue;
-            }
-            let mut step = glam::IVec3::ZERO;
-            step[axis] = if upper_face { 1 } else { -1 };
-            volume.extract_block_into(key.offset(step), &mut s.neighbour);
-            if upper_face {
-                face_clusters(block, &s.neighbour, axis, &mut s.slab);
-            } else {
-                face_clusters(&s.neighbour, block, axis, &mut s.slab);
-            }
-            for f in &s.slab.found {
-                let mut f = *f;
-                if upper_face {
-                    // Into this block's frame: exact, as the position lies on the snap's steps.
-                    f.node[axis] = n;
-                    f.position[axis] += n as f32 * sp;
-                }
-                s.faces.push(f);
-            }
-        }
+/// The node clusters of the faces of some chunks, each face made once ([`face_clusters`]): by
+/// the face's upper chunk and axis, in that chunk's block frame.
+#[derive(Debug, Default)]
+pub(crate) struct ChunkFaces(HashMap<(ChunkKey, u8), Vec<FaceCluster>>);
+
+impl ChunkFaces {
+    /// The faces of the chunks `keys` of `volume` (one level), in parallel.
+    pub(crate) fn of(volume: &strata_volume::Volume, keys: &[ChunkKey]) -> Self {
+        use rayon::prelude::*;
+        let step = |axis: u8| {
+            let mut d = IVec3::ZERO;
+            d[axis as usize] = 1;
+            d
+        };
+        let mut faces: Vec<(ChunkKey, u8)> =
+            keys.iter().flat_map(|&k| (0..3u8).flat_map(move |a| [(k, a), (k.offset(step(a)), a)])).collect();
+        faces.sort_unstable();
+        faces.dedup();
+        let made: Vec<((ChunkKey, u8), Vec<FaceCluster>)> = faces
+            .par_iter()
+            .filter(|&&(upper, axis)| {
+                // Blocks of one state each hold no surface, so no slab between them does.
+                !(volume.plain_block_uniform(upper) && volume.plain_block_uniform(upper.offset(-step(axis))))
+            })
+            .map_init(
+                || (VoxelBlock::default(), VoxelBlock::default(), SlabScratch::default()),
+                |(lower_block, upper_block, s), &(upper, axis)| {
+                    volume.extract_block_into(upper.offset(-step(axis)), lower_block);
+                    volume.extract_block_into(upper, upper_block);
+                    face_clusters(lower_block, upper_block, axis as usize, s);
+                    ((upper, axis), std::mem::take(&mut s.found))
+                },
+            )
+            .filter(|(_, found)| !found.is_empty())
+            .collect();
+        ChunkFaces(made.into_iter().collect())
     }
 }
 
 /// The regularised tetrahedra mesh of chunk `key` of `volume` as the viewport meshes it, into
 /// `out` (its block extracted into `block`): the chunk's own clusters, and the node clusters of
-/// its faces made together with the neighbouring chunks' blocks, so that chunk meshes cluster
+/// its faces, made together with the neighbouring chunks' blocks (`faces`, which must hold the
+/// chunk's faces: [`ChunkFaces::of`] a set of keys with `key`), so that chunk meshes cluster
 /// across their faces and still meet exactly. `volume` must have one level.
-pub fn mesh_chunk_clustered(
+pub(crate) fn mesh_chunk_clustered(
     volume: &strata_volume::Volume,
     key: ChunkKey,
+    faces: &ChunkFaces,
     block: &mut VoxelBlock,
     scratch: &mut TetraScratch,
     out: &mut Mesh,
 ) {
     volume.extract_block_into(key, block);
-    chunk_faces(volume, key, block, scratch);
+    let n = block.cells();
+    let sp = block.level().spacing() as f32;
+    scratch.faces.clear();
+    for axis in 0..3u8 {
+        let mut d = IVec3::ZERO;
+        d[axis as usize] = 1;
+        // The face below (this chunk is its upper side: its frame already) and the one above.
+        for (upper, this_is_lower) in [(key, false), (key.offset(d), true)] {
+            for f in faces.0.get(&(upper, axis)).into_iter().flatten() {
+                let mut f = *f;
+                if this_is_lower {
+                    // Into this block's frame: exact, as the position lies on the snap's steps.
+                    f.node[axis as usize] = n;
+                    f.position[axis as usize] += n as f32 * sp;
+                }
+                scratch.faces.push(f);
+            }
+        }
+    }
     mesh_candidates_and_cluster(block, true, scratch, out);
 }
 
@@ -797,14 +818,15 @@ fn on_chunk_face(site: &Site, n: usize) -> bool {
 /// `cluster`), shared vertices first with their identities, and each vertex's nearest node.
 fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<NearNode>)> {
     use rayon::prelude::*;
-    crate::surface_chunks(volume)
-        .par_iter()
+    let keys = crate::surface_chunks(volume);
+    let faces = if cluster { ChunkFaces::of(volume, &keys) } else { ChunkFaces::default() };
+    keys.par_iter()
         .map_init(
             || (VoxelBlock::default(), TetraScratch::default()),
             |(block, scratch), &key| {
                 let mut m = Mesh::default();
                 if cluster {
-                    mesh_chunk_clustered(volume, key, block, scratch, &mut m);
+                    mesh_chunk_clustered(volume, key, &faces, block, scratch, &mut m);
                 } else {
                     volume.extract_block_into(key, block);
                     mesh_block_tetra(block, false, scratch, &mut m);
@@ -860,7 +882,7 @@ pub(crate) fn tetra_volume(volume: &strata_volume::Volume, cluster: bool) -> Opt
 }
 
 /// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
-/// viewport ([`mesh_chunk_clustered`]: chunk faces clustered with both chunks, the vertices near
+/// viewport (chunk faces clustered with both chunks, the vertices near
 /// their edges never merged), welded into one mesh (grid units, absolute). `None` for a volume whose chunks mix levels.
 pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
     if !volume.single_level() {
