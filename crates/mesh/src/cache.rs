@@ -274,12 +274,9 @@ impl MeshCache {
         // those parts.
         let jobs: Vec<(ChunkKey, Option<Reach>, Option<Parts>)> =
             keys.iter().map(|&k| (k, self.reach.remove(&k).flatten(), self.parts.remove(&k))).collect();
-        // Clustered tetrahedra: every face of these chunks made once, shared by its two chunks.
-        let faces = if mesher == BlockMesher::ClusteredTetrahedra {
-            crate::tetra::ChunkFaces::of(volume, keys)
-        } else {
-            crate::tetra::ChunkFaces::default()
-        };
+        // Clustered tetrahedra: each chunk face made once in the batch, by the first of its two
+        // chunks to need it.
+        let faces = crate::tetra::ChunkFaces::default();
         let done: Vec<(ChunkKey, Arc<Mesh>, Option<Parts>)> = jobs
             .into_par_iter()
             .map_init(

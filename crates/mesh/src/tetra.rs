@@ -27,12 +27,13 @@
 //! and the clusters that fail are taken apart until none does (`cluster.rs` proves this ends
 //! closed and manifold).
 //!
-//! **Chunk by chunk** ([`mesh_chunk_clustered`], the viewport's form): a vertex on a chunk face
+//! **Chunk by chunk** (`mesh_chunk_clustered`, the viewport's form): a vertex on a chunk face
 //! is shared with the neighbouring chunk, so both must agree on it. Each face's node clusters
 //! (at nodes [`FACE_EDGE_NODES`] or more from the face's edges) are made by one function of the
 //! two chunks' blocks, from the slab [`SLAB_CELLS`] cells deep on each side, and verified there
-//! with one more rule (each chunk's triangles around a vertex form one fan); both chunks compute
-//! the same clusters bit for bit and pin them, then cluster their insides. The other face
+//! with one more rule (each chunk's triangles around a vertex form one fan); whichever chunk
+//! makes them (the first of the two in a meshing batch; each, when they are meshed in different
+//! batches), they are the same bit for bit, and both chunks pin them, then cluster their insides. The other face
 //! vertices (near the face's edges, and of clusters the slab took apart) stay unmerged, and the
 //! short-edge rounds leave every shared vertex alone. A change then reaches the meshes of the
 //! chunks around it ([`crate::MeshCache::affected`]). A lone block ([`mesh_block_tetra`]) keeps
@@ -40,7 +41,7 @@
 //! mesh instead, faces included.
 
 use std::collections::HashMap;
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use glam::{DVec3, I64Vec3, IVec3, Vec3};
 use smallvec::SmallVec;
@@ -158,6 +159,8 @@ pub struct TetraScratch {
     face_of: Vec<u32>,
     /// The face cluster at each node of the block, or `NONE`.
     face_at: Vec<u32>,
+    neighbour: VoxelBlock,
+    slab: SlabScratch,
 }
 
 /// Marching tetrahedra of one block, with integrated clustering when `cluster`, into `out`
@@ -311,7 +314,8 @@ struct SlabScratch {
 /// The node clusters of the face along `axis` between the chunks of blocks `lower` and `upper`
 /// (one level, `upper` the next chunk along `axis`), in `out` in the upper block's frame.
 ///
-/// Both chunks call this with the same two blocks, so they make the same clusters bit for bit.
+/// It is a function of the two blocks alone, so whichever chunk makes a face (and whenever),
+/// both get the same clusters bit for bit.
 /// The candidate mesh of the slab [`SLAB_CELLS`] cells deep on each side is clustered at the face
 /// nodes at least [`FACE_EDGE_NODES`] nodes from the face's edges, every other vertex kept, and
 /// verified as every clustering is (the slab's outer vertices stand as chunk-face vertices do),
@@ -424,79 +428,72 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
     }
 }
 
-/// The node clusters of the faces of some chunks, each face made once ([`face_clusters`]): by
-/// the face's upper chunk and axis, in that chunk's block frame.
+/// The node clusters of the chunk faces made so far in one meshing batch (each by
+/// [`face_clusters`]), by the face's upper chunk and axis, in that chunk's block frame: the
+/// first of a face's two chunks to need it makes it, the other takes it from here.
 #[derive(Debug, Default)]
-pub(crate) struct ChunkFaces(HashMap<(ChunkKey, u8), Vec<FaceCluster>>);
-
-impl ChunkFaces {
-    /// The faces of the chunks `keys` of `volume` (one level), in parallel.
-    pub(crate) fn of(volume: &strata_volume::Volume, keys: &[ChunkKey]) -> Self {
-        use rayon::prelude::*;
-        let step = |axis: u8| {
-            let mut d = IVec3::ZERO;
-            d[axis as usize] = 1;
-            d
-        };
-        let mut faces: Vec<(ChunkKey, u8)> =
-            keys.iter().flat_map(|&k| (0..3u8).flat_map(move |a| [(k, a), (k.offset(step(a)), a)])).collect();
-        faces.sort_unstable();
-        faces.dedup();
-        let made: Vec<((ChunkKey, u8), Vec<FaceCluster>)> = faces
-            .par_iter()
-            .filter(|&&(upper, axis)| {
-                // Blocks of one state each hold no surface, so no slab between them does.
-                !(volume.plain_block_uniform(upper) && volume.plain_block_uniform(upper.offset(-step(axis))))
-            })
-            .map_init(
-                || (VoxelBlock::default(), VoxelBlock::default(), SlabScratch::default()),
-                |(lower_block, upper_block, s), &(upper, axis)| {
-                    volume.extract_block_into(upper.offset(-step(axis)), lower_block);
-                    volume.extract_block_into(upper, upper_block);
-                    face_clusters(lower_block, upper_block, axis as usize, s);
-                    ((upper, axis), std::mem::take(&mut s.found))
-                },
-            )
-            .filter(|(_, found)| !found.is_empty())
-            .collect();
-        ChunkFaces(made.into_iter().collect())
-    }
-}
+pub(crate) struct ChunkFaces(Mutex<HashMap<(ChunkKey, u8), Arc<Vec<FaceCluster>>>>);
 
 /// The regularised tetrahedra mesh of chunk `key` of `volume` as the viewport meshes it, into
 /// `out` (its block extracted into `block`): the chunk's own clusters, and the node clusters of
-/// its faces, made together with the neighbouring chunks' blocks (`faces`, which must hold the
-/// chunk's faces: [`ChunkFaces::of`] a set of keys with `key`), so that chunk meshes cluster
-/// across their faces and still meet exactly. `volume` must have one level.
+/// its faces, made together with the neighbouring chunks' blocks (or found in `faces`, made by
+/// a neighbour in the same batch), so that chunk meshes cluster across their faces and still
+/// meet exactly. `volume` must have one level.
 pub(crate) fn mesh_chunk_clustered(
     volume: &strata_volume::Volume,
     key: ChunkKey,
     faces: &ChunkFaces,
     block: &mut VoxelBlock,
-    scratch: &mut TetraScratch,
+    s: &mut TetraScratch,
     out: &mut Mesh,
 ) {
     volume.extract_block_into(key, block);
     let n = block.cells();
     let sp = block.level().spacing() as f32;
-    scratch.faces.clear();
-    for axis in 0..3u8 {
-        let mut d = IVec3::ZERO;
-        d[axis as usize] = 1;
-        // The face below (this chunk is its upper side: its frame already) and the one above.
-        for (upper, this_is_lower) in [(key, false), (key.offset(d), true)] {
-            for f in faces.0.get(&(upper, axis)).into_iter().flatten() {
+    s.faces.clear();
+    for axis in 0..3 {
+        for this_is_lower in [false, true] {
+            // A face with no surface in this chunk's slab gives it nothing to pin.
+            let mut cells = [0..n, 0..n, 0..n];
+            cells[axis] = if this_is_lower { n - SLAB_CELLS..n } else { 0..SLAB_CELLS };
+            let mut mixed = false;
+            for_each_piece(block, cells, |_| mixed = true);
+            if !mixed {
+                continue;
+            }
+            let mut d = IVec3::ZERO;
+            d[axis] = 1;
+            let face = (if this_is_lower { key.offset(d) } else { key }, axis as u8);
+            let made = faces.0.lock().ok().and_then(|m| m.get(&face).cloned());
+            let made = match made {
+                Some(m) => m,
+                None => {
+                    let other = if this_is_lower { d } else { -d };
+                    volume.extract_block_into(key.offset(other), &mut s.neighbour);
+                    if this_is_lower {
+                        face_clusters(block, &s.neighbour, axis, &mut s.slab);
+                    } else {
+                        face_clusters(&s.neighbour, block, axis, &mut s.slab);
+                    }
+                    let m = Arc::new(std::mem::take(&mut s.slab.found));
+                    if let Ok(mut map) = faces.0.lock() {
+                        map.insert(face, m.clone());
+                    }
+                    m
+                }
+            };
+            for f in made.iter() {
                 let mut f = *f;
                 if this_is_lower {
                     // Into this block's frame: exact, as the position lies on the snap's steps.
-                    f.node[axis as usize] = n;
-                    f.position[axis as usize] += n as f32 * sp;
+                    f.node[axis] = n;
+                    f.position[axis] += n as f32 * sp;
                 }
-                scratch.faces.push(f);
+                s.faces.push(f);
             }
         }
     }
-    mesh_candidates_and_cluster(block, true, scratch, out);
+    mesh_candidates_and_cluster(block, true, s, out);
 }
 
 /// The vertex on lattice edge (`dir`, `lower`), made on first use.
@@ -818,9 +815,9 @@ fn on_chunk_face(site: &Site, n: usize) -> bool {
 /// `cluster`), shared vertices first with their identities, and each vertex's nearest node.
 fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<NearNode>)> {
     use rayon::prelude::*;
-    let keys = crate::surface_chunks(volume);
-    let faces = if cluster { ChunkFaces::of(volume, &keys) } else { ChunkFaces::default() };
-    keys.par_iter()
+    let faces = ChunkFaces::default();
+    crate::surface_chunks(volume)
+        .par_iter()
         .map_init(
             || (VoxelBlock::default(), TetraScratch::default()),
             |(block, scratch), &key| {
