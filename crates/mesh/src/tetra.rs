@@ -432,7 +432,10 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
 /// [`face_clusters`]), by the face's upper chunk and axis, in that chunk's block frame: the
 /// first of a face's two chunks to need it makes it, the other takes it from here.
 #[derive(Debug, Default)]
-pub(crate) struct ChunkFaces(Mutex<HashMap<(ChunkKey, u8), Arc<Vec<FaceCluster>>>>);
+pub(crate) struct ChunkFaces(Mutex<HashMap<FaceKey, Arc<Vec<FaceCluster>>>>);
+
+/// A chunk face: its upper chunk and its axis.
+type FaceKey = (ChunkKey, u8);
 
 /// The regularised tetrahedra mesh of chunk `key` of `volume` as the viewport meshes it, into
 /// `out` (its block extracted into `block`): the chunk's own clusters, and the node clusters of
