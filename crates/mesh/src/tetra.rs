@@ -33,12 +33,12 @@
 //! two chunks' blocks, from the slab [`SLAB_CELLS`] cells deep on each side, and verified there
 //! with one more rule (each chunk's triangles around a vertex form one fan); whichever chunk
 //! makes them (the first of the two in a meshing batch; each, when they are meshed in different
-//! batches), they are the same bit for bit, and both chunks pin them, then cluster their insides. The other face
-//! vertices (near the face's edges, and of clusters the slab took apart) stay unmerged, and the
-//! short-edge rounds leave every shared vertex alone. A change then reaches the meshes of the
-//! chunks around it ([`crate::MeshCache::affected`]). A lone block ([`mesh_block_tetra`]) keeps
-//! all its face vertices. The whole-volume mesher (`tetra_volume`) clusters the welded whole
-//! mesh instead, faces included.
+//! batches), they are the same bit for bit, and both chunks pin them, then cluster their
+//! insides. The other face vertices (near the face's edges, and of clusters the slab took
+//! apart) stay unmerged, and the short-edge rounds leave every shared vertex alone. A change
+//! then reaches the meshes of the chunks around it ([`crate::MeshCache::affected`]). A lone
+//! block ([`mesh_block_tetra`]) keeps all its face vertices. The whole-volume mesher
+//! (`tetra_volume`) clusters the welded whole mesh instead, faces included.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
@@ -72,6 +72,30 @@ const fn dir_of(mask: usize) -> usize {
 
 fn offset(mask: usize) -> [usize; 3] {
     [mask & 1, (mask >> 1) & 1, (mask >> 2) & 1]
+}
+
+/// The point `t` along lattice edge direction `dir` from `base` (in cells).
+fn along(base: [f32; 3], dir: usize, t: f32) -> Vec3 {
+    let d = offset(DIRS[dir]);
+    Vec3::from(base) + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * t
+}
+
+/// The end of lattice edge (`dir`, from `lower`) that a vertex `t` along it is nearest to: the
+/// node whose cluster it joins (one rule for a chunk's vertices and a face slab's).
+fn nearer_end(lower: [i64; 3], dir: usize, t: f32) -> [i64; 3] {
+    let d = offset(DIRS[dir]);
+    if t <= 0.5 { lower } else { [0, 1, 2].map(|k| lower[k] + d[k] as i64) }
+}
+
+/// Bit `x` set for each `x` in `xs`: the cells of a block row that `xs` keeps.
+fn row_mask(xs: &std::ops::Range<usize>) -> u128 {
+    if xs.is_empty() { 0 } else { ((1u128 << (xs.end - xs.start)) - 1) << xs.start }
+}
+
+/// Whether `block` has a mixed cell within `cells` (per axis).
+fn any_mixed(block: &VoxelBlock, cells: &[std::ops::Range<usize>; 3]) -> bool {
+    let xs = row_mask(&cells[0]);
+    cells[2].clone().any(|z| cells[1].clone().any(|y| block.mixed_cells(y, z) & xs != 0))
 }
 
 /// The surface pieces of one tetrahedron for one corner pattern: tetrahedron-local edges (pairs
@@ -220,7 +244,7 @@ type PieceEdge = (usize, [usize; 3], [usize; 3]);
 fn for_each_piece(block: &VoxelBlock, cells: [std::ops::Range<usize>; 3], mut piece: impl FnMut(&[PieceEdge])) {
     let table = table();
     let tets = tetrahedra();
-    let xs = if cells[0].is_empty() { 0 } else { ((1u128 << (cells[0].end - cells[0].start)) - 1) << cells[0].start };
+    let xs = row_mask(&cells[0]);
     let mut edges: SmallVec<[PieceEdge; 4]> = SmallVec::new();
     for z in cells[2].clone() {
         for y in cells[1].clone() {
@@ -263,8 +287,7 @@ fn push_piece(ids: &[u32], edges: &[PieceEdge], ts: impl Fn(u32) -> f32, tris: &
     }
     let p = |i: usize| {
         let (dir, _, o) = edges[i];
-        let d = offset(DIRS[dir]);
-        Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32) + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * ts(ids[i])
+        along(o.map(|c| c as f32), dir, ts(ids[i]))
     };
     if p(0).distance_squared(p(2)) <= p(1).distance_squared(p(3)) {
         tris.push([ids[0], ids[1], ids[2]]);
@@ -357,10 +380,7 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
                 if s.ids[slot] == NONE {
                     s.ids[slot] = s.mesh.positions.len() as u32;
                     let (t, normal) = edge_point(block, dir, l);
-                    let d = offset(DIRS[dir]);
-                    let p = Vec3::new(node[0] as f32, node[1] as f32, node[2] as f32)
-                        + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * t;
-                    s.mesh.positions.push((p * sp).to_array());
+                    s.mesh.positions.push((along(node.map(|c| c as f32), dir, t) * sp).to_array());
                     s.mesh.normals.push(normal.normalize_or(Vec3::Z).to_array());
                     if with_materials {
                         s.mesh.materials.push(VertexMaterial::single(edge_vertex_material(block, dir, l)));
@@ -390,10 +410,7 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
             locked[v] = true;
             continue;
         }
-        let mut near = node;
-        if t > 0.5 {
-            (0..3).for_each(|k| near[k] += d[k] as i64);
-        }
+        let near = nearer_end(node, dir, t);
         if near[axis] != 0 || !free.contains(&near[u]) || !free.contains(&near[w]) {
             continue;
         }
@@ -417,10 +434,8 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
             continue;
         }
         let (dir, node, t) = s.sites[v as usize];
-        let d = offset(DIRS[dir]);
-        let near = if t > 0.5 { [0, 1, 2].map(|k| node[k] + d[k] as i64) } else { node };
         s.found.push(FaceCluster {
-            node: near.map(|c| c as usize),
+            node: nearer_end(node, dir, t).map(|c| c as usize),
             position: c.positions[i],
             normal: c.normals[i],
             material: s.mesh.materials.get(v as usize).copied().unwrap_or_default(),
@@ -430,7 +445,8 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
 
 /// The node clusters of the chunk faces made so far in one meshing batch (each by
 /// [`face_clusters`]), by the face's upper chunk and axis, in that chunk's block frame: the
-/// first of a face's two chunks to need it makes it, the other takes it from here.
+/// first of a face's two chunks to need it makes it (two at once make it alike), the other takes
+/// it from here.
 #[derive(Debug, Default)]
 pub(crate) struct ChunkFaces(Mutex<HashMap<FaceKey, Arc<Vec<FaceCluster>>>>);
 
@@ -459,9 +475,7 @@ pub(crate) fn mesh_chunk_clustered(
             // A face with no surface in this chunk's slab gives it nothing to pin.
             let mut cells = [0..n, 0..n, 0..n];
             cells[axis] = if this_is_lower { n - SLAB_CELLS..n } else { 0..SLAB_CELLS };
-            let mut mixed = false;
-            for_each_piece(block, cells, |_| mixed = true);
-            if !mixed {
+            if !any_mixed(block, &cells) {
                 continue;
             }
             let mut d = IVec3::ZERO;
@@ -526,10 +540,7 @@ fn vertex(
     let id = out.positions.len() as u32;
     *slot = id;
     let (t, normal) = edge_point(block, dir, lower);
-    let d = offset(DIRS[dir]);
-    let base = Vec3::new(lower[0] as f32, lower[1] as f32, lower[2] as f32);
-    let p = base + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * t;
-    out.positions.push((p * sp).to_array());
+    out.positions.push((along(lower.map(|c| c as f32), dir, t) * sp).to_array());
     out.normals.push(normal.normalize_or(Vec3::Z).to_array());
     if with_materials {
         out.materials.push(VertexMaterial::single(edge_vertex_material(block, dir, lower)));
@@ -788,9 +799,7 @@ fn finish(c: Clustered, out: &mut Mesh) -> Vec<u32> {
 
 /// The node a vertex at `t` along its edge is nearest to (block-local).
 fn nearest_node(site: &Site, t: f32) -> [usize; 3] {
-    let d = offset(DIRS[site.dir as usize]);
-    let l = site.lower.map(usize::from);
-    if t <= 0.5 { l } else { [l[0] + d[0], l[1] + d[1], l[2] + d[2]] }
+    nearer_end(site.lower.map(i64::from), site.dir as usize, t).map(|c| c as usize)
 }
 
 /// One chunk's mesh with its vertices' identities: only the vertices shared with other chunks
@@ -882,8 +891,9 @@ pub(crate) fn tetra_volume(volume: &strata_volume::Volume, cluster: bool) -> Opt
 }
 
 /// Regularised marching tetrahedra chunk by chunk, as [`crate::MeshCache`] meshes them for the
-/// viewport (chunk faces clustered with both chunks, the vertices near
-/// their edges never merged), welded into one mesh (grid units, absolute). `None` for a volume whose chunks mix levels.
+/// viewport (chunk faces clustered with both chunks, the vertices near their edges never
+/// merged), welded into one mesh (grid units, absolute). `None` for a volume whose chunks mix
+/// levels.
 pub fn tetra_volume_per_chunk(volume: &strata_volume::Volume) -> Option<Mesh> {
     if !volume.single_level() {
         return None;
