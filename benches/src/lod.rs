@@ -144,7 +144,8 @@ fn views(name: &str, volume: &Volume) -> Vec<ViewRow> {
     let mut at = [0usize; 3];
     for (k, _) in volume.chunks() {
         if let Some(l) = volume.stored_level(k) {
-            at[l.get() as usize] += 1;
+            // The models here hold no chunk coarser than the base level.
+            at[l.get().max(0) as usize] += 1;
         }
     }
     rows.push(ViewRow {
@@ -170,7 +171,7 @@ fn views(name: &str, volume: &Volume) -> Vec<ViewRow> {
         let mut at = [0usize; 3];
         for (k, _) in volume.chunks() {
             if let Some(l) = volume.stored_level(k) {
-                at[cap(k).min(l).get() as usize] += 1;
+                at[cap(k).min(l).get().max(0) as usize] += 1;
             }
         }
         rows.push(ViewRow {
@@ -196,7 +197,7 @@ fn level_changes(volume: &Volume, limit: usize) -> Vec<LevelChangeRow> {
     keys.truncate(limit);
     let _ = v.set_chunk_levels(&keys, Level::BASE);
     let mut rows = Vec::new();
-    for (from, to) in [(0u8, 1u8), (1, 2), (2, 1), (1, 0)] {
+    for (from, to) in [(0i8, 1i8), (1, 2), (2, 1), (1, 0)] {
         let target = Level::new(to).expect("a level");
         let t = Instant::now();
         for &k in &keys {
@@ -234,7 +235,11 @@ fn detail_memory(volume: &Volume) -> Vec<DetailMemoryRow> {
     let _ = detailed.set_chunk_levels(&near, Level::FINEST);
     let row = |name: &str, v: &Volume| DetailMemoryRow {
         layout: name.into(),
-        chunks_at: v.level_counts(),
+        chunks_at: {
+            // Levels 0–2 (the models hold no coarser chunk).
+            let c = v.level_counts();
+            [c[Level::BASE.index()], c[Level::BASE.index() + 1], c[Level::BASE.index() + 2]]
+        },
         bytes: v.memory().total(),
     };
     vec![

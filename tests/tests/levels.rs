@@ -6,7 +6,7 @@ use strata_mesh::checks;
 use strata_volume::brush::Sphere;
 use strata_volume::{ChunkKey, Level, Volume};
 
-fn level(k: u8) -> Level {
+fn level(k: i8) -> Level {
     Level::new(k).unwrap()
 }
 
@@ -100,7 +100,7 @@ mod random {
         /// of every level), size in quarter cells.
         Edit { op: u8, shape: u8, c: [i32; 3], size: [i32; 3] },
         /// The chunk at `key` (in the 3³ block around the origin) to a level.
-        Level { key: [i32; 3], level: u8 },
+        Level { key: [i32; 3], level: i8 },
         /// A sculpting tool (0 smooth, 1 inflate, 2 clay, 3 grab, 4 pinch, 5 flatten) at a
         /// point in quarter cells with a radius in quarter cells.
         Tool { tool: u8, c: [i32; 3], radius: i32 },
@@ -111,7 +111,7 @@ mod random {
             3 => (0u8..10, 0u8..4, prop::array::uniform3(-24i32..152), prop::array::uniform3(24i32..80)).prop_map(
                 |(op, shape, c, size)| Step::Edit { op: if op < 6 { 0 } else if op < 9 { 1 } else { 2 }, shape, c, size }
             ),
-            2 => (prop::array::uniform3(-1i32..2), 0u8..3).prop_map(|(key, level)| Step::Level { key, level }),
+            2 => (prop::array::uniform3(-1i32..2), -1i8..3).prop_map(|(key, level)| Step::Level { key, level }),
             2 => (0u8..6, prop::array::uniform3(16i32..112), 8i32..32).prop_map(|(tool, c, radius)| Step::Tool { tool, c, radius }),
         ]
     }
@@ -254,7 +254,7 @@ fn fine_detail_on_a_coarse_face_is_patched_closed() {
 #[test]
 fn all_face_cases_on_every_orientation_and_level_pair_mesh_closed() {
     let mut checked = 0;
-    for (coarse, fine) in [(0u8, 1u8), (0, 2), (1, 2)] {
+    for (coarse, fine) in [(-1i8, 0i8), (-1, 1), (-1, 2), (0, 1), (0, 2), (1, 2)] {
         let sc = level(coarse).spacing();
         for axis in strata_volume::Axis::ALL {
             let (ua, va) = axis.across();
@@ -296,7 +296,7 @@ fn all_face_cases_on_every_orientation_and_level_pair_mesh_closed() {
             }
         }
     }
-    assert_eq!(checked, 3 * 3 * 2 * 16 * 3);
+    assert_eq!(checked, 6 * 3 * 2 * 16 * 3);
 }
 
 /// Raising a sphere of radius 20 keeps its enclosed volume within 0.5 % and every vertex of its
@@ -310,7 +310,7 @@ fn a_raised_sphere_keeps_its_volume_and_surface() {
     v.add(&Sphere::new(c, r).unwrap()).unwrap();
     let old = strata_mesh::mesh_volume_with(&v, strata_mesh::MeshOptions::default())
         .expect("marching cubes meshes every volume");
-    for target in [1u8, 2] {
+    for target in [1i8, 2] {
         let mut w = v.clone();
         for k in list_keys(&w) {
             let _ = w.set_chunk_level(k, level(target));
@@ -413,7 +413,7 @@ fn level_of_detail_meshes_stay_within_a_coarse_cell_and_closed() {
     v.subtract(&strata_volume::brush::Cuboid::new(DVec3::new(30.0, 16.0, 16.0), DVec3::new(8.0, 20.0, 3.0)).unwrap())
         .unwrap();
     let full = closed(&v);
-    for cap in [1u8, 0] {
+    for cap in [1i8, 0, -1] {
         let lod = strata_mesh::mesh_volume_reported(&v, strata_mesh::MeshOptions::default(), Some(&|_| level(cap)))
             .expect("marching cubes meshes every volume")
             .0;
@@ -424,7 +424,7 @@ fn level_of_detail_meshes_stay_within_a_coarse_cell_and_closed() {
         assert!(h <= coarse_cell, "cap {cap}: {h} > {coarse_cell}");
         assert!(lod.indices.len() < full.indices.len());
     }
-    let rings = |k: ChunkKey| level(((k.0.x + 2 * k.0.y + k.0.z).rem_euclid(3)) as u8);
+    let rings = |k: ChunkKey| level(((k.0.x + 2 * k.0.y + k.0.z).rem_euclid(4)) as i8 - 1);
     let mixed = strata_mesh::mesh_volume_reported(&v, strata_mesh::MeshOptions::default(), Some(&rings))
         .expect("marching cubes meshes every volume")
         .0;

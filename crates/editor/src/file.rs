@@ -501,7 +501,8 @@ pub fn scene_record(scene: &Scene, with_references: bool) -> Result<SceneRecord,
             transform: l.transform,
             visible: l.visible,
             locked: l.locked,
-            level: l.volume.level().get(),
+            // A volume's own level is never below the base level, so its number fits.
+            level: l.volume.level().get().max(0) as u8,
             cell_size: l.volume.cell_size(),
             solid,
             lists,
@@ -774,12 +775,13 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
     let mut layers = Vec::with_capacity(record.layers.len());
     for l in record.layers {
         let name = l.name;
-        let level = Level::new(l.level).unwrap_or_else(|| {
-            report
-                .repairs
-                .push(format!("layer {name:?}: resolution level {} does not exist; it uses level 0", l.level));
-            Level::BASE
-        });
+        let level =
+            i8::try_from(l.level).ok().and_then(Level::new).filter(|l| *l >= Level::BASE).unwrap_or_else(|| {
+                report
+                    .repairs
+                    .push(format!("layer {name:?}: resolution level {} does not exist; it uses level 0", l.level));
+                Level::BASE
+            });
         let cell_size = if l.cell_size.is_finite() && l.cell_size > 0.0 {
             l.cell_size
         } else {

@@ -553,7 +553,7 @@ fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query()
         let solid_source = source_of(SOLID_KEY) as u8;
         for stored in [0u8, 1, 2, 3, 200] {
             let what = format!("{config}, layer level {stored}");
-            let level = Level::new(stored).unwrap_or(Level::BASE);
+            let level = i8::try_from(stored).ok().and_then(Level::new).unwrap_or(Level::BASE);
             let crafted_volume = assemble(level, crafted.iter().cloned());
             let mut record = file::scene_record(&scene_of(crafted_volume.clone()), true).unwrap();
             record.layers[0].level = stored;
@@ -563,7 +563,7 @@ fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query()
             // finer one and reach past the chunk's nodes. (Runs written for a coarser level fit
             // a finer one's node count: nothing in the file tells them apart, and they are kept.)
             let mut expected = 0;
-            if stored > strata_volume::coords::MAX_LEVEL {
+            if stored > strata_volume::coords::MAX_LEVEL as u8 {
                 expected += 1;
                 assert!(
                     loaded
@@ -575,7 +575,7 @@ fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query()
                     loaded.report
                 );
             }
-            if solid_source > level.get() {
+            if solid_source as i8 > level.get() {
                 expected += 1;
                 assert!(
                     loaded
@@ -625,7 +625,7 @@ fn every_layer_level_against_every_chunk_level_loads_without_a_panicking_query()
 #[test]
 fn a_chunk_whose_own_level_is_wrong_or_out_of_range_is_dropped_and_named() {
     for true_level in [0u8, 2] {
-        let s = scene_of(ball(Level::new(true_level).unwrap()));
+        let s = scene_of(ball(Level::new(true_level as i8).unwrap()));
         let record = file::scene_record(&s, true).unwrap();
         let at = record.layers[0].lists.iter().position(|c| c.key == ChunkKey::new(0, 1, 1)).expect("a chunk of lists");
         for wrong in [0u8, 1, 2, 3, 255].into_iter().filter(|&w| w != true_level) {
@@ -816,9 +816,9 @@ fn a_repair_keeps_the_chunks_stored_at_other_levels_than_the_layers() {
     let sources: Vec<Volume> = (0..=strata_volume::coords::MAX_LEVEL).map(|k| ball(Level::new(k).unwrap())).collect();
     let damaged = ChunkKey::new(0, 1, 0);
     let near = |k: ChunkKey| (k.0 - damaged.0).abs().max_element() <= 1;
-    for (stored, source) in [(0u8, 2usize), (2, 0), (1, 0), (1, 2)] {
+    for (stored, source) in [(0i8, 2usize), (2, 0), (1, 0), (1, 2)] {
         let what = format!("chunks at level {source} in a layer of level {stored}");
-        let level = Level::new(stored).unwrap();
+        let level = Level::new(stored as i8).unwrap();
         let original = &sources[source];
         let crafted = assemble(level, original.chunks().map(|(k, c)| (k, c.clone(), None)));
         let mut record = file::scene_record(&scene_of(crafted), true).unwrap();
@@ -852,7 +852,7 @@ fn a_repair_keeps_the_chunks_stored_at_other_levels_than_the_layers() {
         }
         // Away from the damage, every node of the layer's level reads as before.
         let n = level.cells() as i64;
-        let coarse = Level::new(stored.min(source as u8)).unwrap();
+        let coarse = Level::new(stored.min(source as i8)).unwrap();
         let f = 1i64 << (stored - coarse.get());
         for z in (0..3 * n).step_by(f as usize) {
             for y in (0..3 * n).step_by(f as usize) {

@@ -588,7 +588,7 @@ fn dual_contouring_for_drawing_is_placed_and_drawn_as_read_back() {
 fn dual_contouring_across_levels_on_the_gpu_makes_the_cpus_mesh() {
     let Some(gpu) = gpu() else { return };
     let marcher = GpuMarcher::new(&gpu.device).unwrap();
-    let level = |l: u8| Level::new(l).unwrap();
+    let level = |l: i8| Level::new(l).unwrap();
     let mut v = Volume::new();
     let c = DVec3::new(16.0, 15.5, 17.25);
     v.add(&Sphere::new(c, 10.3).unwrap()).unwrap();
@@ -628,7 +628,7 @@ fn dual_contouring_across_levels_on_the_gpu_makes_the_cpus_mesh() {
             };
             edit.unwrap();
             let key = ChunkKey::new((next() * 2.0) as i32, (next() * 2.0) as i32, (next() * 2.0) as i32);
-            v.set_chunk_level(key, level((next() * 3.0) as u8));
+            v.set_chunk_level(key, level((next() * 4.0) as i8 - 1));
         }
         if v.single_level() {
             v.set_chunk_level(ChunkKey::new(1, 1, 1), level(1));

@@ -957,7 +957,7 @@ fn cell_id(key: ChunkKey, level: Level, local: [usize; 3]) -> I64Vec3 {
     let f = 1i64 << (strata_volume::coords::MAX_LEVEL - level.get());
     let corner = key.0.as_i64vec3() * (16 << strata_volume::coords::MAX_LEVEL)
         + I64Vec3::new(local[0] as i64, local[1] as i64, local[2] as i64) * f;
-    I64Vec3::new(corner.x * 4 + level.get() as i64, corner.y, corner.z)
+    I64Vec3::new(corner.x * 4 + level.index() as i64, corner.y, corner.z)
 }
 
 #[cfg(test)]

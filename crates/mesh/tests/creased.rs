@@ -46,14 +46,14 @@ fn assert_same(v: &Volume, degrees: f32) -> Result<(), TestCaseError> {
 #[derive(Clone, Debug)]
 enum Step {
     Edit { subtract: bool, cube: bool, snap: u8, c: [f64; 3], size: f64, angle: f64, material: u8 },
-    Level { key: [i32; 3], level: u8 },
+    Level { key: [i32; 3], level: i8 },
 }
 
 fn step() -> impl Strategy<Value = Step> {
     prop_oneof![
         3 => (any::<bool>(), any::<bool>(), 0u8..3, prop::array::uniform3(-20.0f64..40.0), 1.0f64..14.0, 0.0f64..3.0, 0u8..3)
             .prop_map(|(subtract, cube, snap, c, size, angle, material)| Step::Edit { subtract, cube, snap, c, size, angle, material }),
-        1 => (prop::array::uniform3(-1i32..2), 0u8..2).prop_map(|(key, level)| Step::Level { key, level }),
+        1 => (prop::array::uniform3(-1i32..2), -1i8..2).prop_map(|(key, level)| Step::Level { key, level }),
     ]
 }
 

@@ -51,13 +51,13 @@ fn dab_of(v: &mut Volume, tool: u8, c: DVec3, r: f64, dir: DVec3, material: u8) 
 
 /// Shapes across the corner where eight 64³ chunks meet (grid point (16, 16, 16)), with centres
 /// and sizes in eighths of a grid unit (nodes and half-cells of the fine level); chunks listed in
-/// `coarse` are lowered to level 0 or 1.
-fn scene(shapes: &[(u8, [i32; 3], i32)], coarse: &[(u8, u8)], material: u8) -> Volume {
+/// `coarse` are lowered to level −1, 0 or 1.
+fn scene(shapes: &[(u8, [i32; 3], i32)], coarse: &[(u8, i8)], material: u8) -> Volume {
     scene_at(fine(), shapes, coarse, material)
 }
 
 /// [`scene`] with new chunks at `level`.
-fn scene_at(level: Level, shapes: &[(u8, [i32; 3], i32)], coarse: &[(u8, u8)], material: u8) -> Volume {
+fn scene_at(level: Level, shapes: &[(u8, [i32; 3], i32)], coarse: &[(u8, i8)], material: u8) -> Volume {
     let mut v = Volume::with_level(level);
     for &(kind, c, size) in shapes {
         let c = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * 0.125;
@@ -144,7 +144,7 @@ proptest! {
     #[test]
     fn parts_remeshed_where_edits_reach_equal_whole_chunks_and_stay_closed(
         shapes in prop::collection::vec((0u8..3, prop::array::uniform3(80i32..176), 24i32..72), 1..3),
-        coarse in prop::collection::vec((0u8..8, 0u8..2), 0..2),
+        coarse in prop::collection::vec((0u8..8, -1i8..2), 0..2),
         material in 0u8..3,
         strokes in prop::collection::vec(
             (0u8..13, prop::array::uniform3(96i32..160), prop::array::uniform3(-8i32..8), 0u8..3,

@@ -98,7 +98,7 @@ impl Fbm {
 /// A footprint's key: `(field, x, z, level)`. The field's id is part of it: two fields (two
 /// worlds, or a recipe changed and generated again) on one thread share the cache, and heights
 /// are the field's own.
-type FootprintKey = (u64, i64, i64, u8);
+type FootprintKey = (u64, i64, i64, i8);
 
 /// The columns of the chunk footprints a thread computed last, up to [`FOOTPRINTS`] of them:
 /// a world's workers take chunks nearest the viewer first, so the chunks of one column of

@@ -817,7 +817,7 @@ mod tests {
         v.add(&Sphere::new(DVec3::new(70.3, 30.1, 33.7), 9.6).unwrap()).unwrap();
         let lists: Vec<ChunkKey> = v.chunks().filter(|(k, _)| v.stored_level(*k).is_some()).map(|(k, _)| k).collect();
         for (i, &k) in lists.iter().enumerate() {
-            v.set_chunk_level(k, Level::new((i % 3) as u8).unwrap());
+            v.set_chunk_level(k, Level::new((i % 3) as i8).unwrap());
         }
         let odd = |k: ChunkKey| if (k.0.x + k.0.y + k.0.z) % 2 == 0 { Level::BASE } else { Level::FINEST };
         let caps: [Option<&(dyn Fn(ChunkKey) -> Level + Sync)>; 2] = [None, Some(&odd)];
@@ -858,7 +858,7 @@ mod tests {
         let lists: Vec<ChunkKey> =
             fine.chunks().filter(|(k, _)| fine.stored_level(*k).is_some()).map(|(k, _)| k).collect();
         for (i, &k) in lists.iter().enumerate() {
-            mixed.set_chunk_level(k, Level::new((i % 3) as u8).unwrap());
+            mixed.set_chunk_level(k, Level::new((i % 3) as i8).unwrap());
         }
         let listed: std::collections::HashSet<ChunkKey> = lists.iter().copied().collect();
         let middle = |k: ChunkKey| if listed.contains(&k) { Level::new(1).unwrap() } else { Level::FINEST };

@@ -16,7 +16,9 @@ pub const CHUNK_CELLS: i64 = 16;
 /// Fixed-point steps across one chunk side.
 pub const CHUNK_STEPS: u32 = 1 << 16;
 /// Finest supported resolution level: 16 << 2 = 64 cells per chunk side.
-pub const MAX_LEVEL: u8 = 2;
+pub const MAX_LEVEL: i8 = 2;
+/// Coarsest supported resolution level: 8 cells of two grid units per chunk side.
+pub const MIN_LEVEL: i8 = -1;
 
 /// Identifies a chunk: the chunk `k` covers grid coordinates `[16 k, 16 k + 16)` on each axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -114,66 +116,133 @@ impl ChunkBox {
     }
 }
 
-/// A per-chunk resolution level: level `k` has `16 << k` cells along each side of the chunk.
+/// A per-chunk resolution level: level `k` has `16 · 2^k` cells along each side of the chunk,
+/// from [`MIN_LEVEL`] (−1: 8 cells of two grid units, for far terrain) to [`MAX_LEVEL`] (2: 64).
+/// Serialised as its number in one signed byte, so files written before the coarse level
+/// existed (levels 0–2) read the same.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(try_from = "u8", into = "u8")]
+#[serde(try_from = "i8", into = "i8")]
 pub struct Level(u8);
 
-impl TryFrom<u8> for Level {
+impl TryFrom<i8> for Level {
     type Error = String;
 
-    fn try_from(k: u8) -> Result<Self, String> {
-        Level::new(k).ok_or_else(|| format!("resolution level {k} is above the maximum {MAX_LEVEL}"))
+    fn try_from(k: i8) -> Result<Self, String> {
+        Level::new(k).ok_or_else(|| format!("resolution level {k} is outside {MIN_LEVEL}..={MAX_LEVEL}"))
     }
 }
 
-impl From<Level> for u8 {
-    fn from(l: Level) -> u8 {
-        l.0
+impl From<Level> for i8 {
+    fn from(l: Level) -> i8 {
+        l.get()
     }
 }
+
+/// How many levels there are (arrays indexed by [`Level::index`]).
+pub const LEVEL_COUNT: usize = (MAX_LEVEL - MIN_LEVEL) as usize + 1;
 
 impl Level {
+    /// The coarsest level, [`MIN_LEVEL`]: 8 cells per chunk side, each two grid units.
+    pub const COARSEST: Level = Level(0);
+
     /// The base level, 16 cells per chunk side.
-    pub const BASE: Level = Level(0);
+    pub const BASE: Level = Level((-MIN_LEVEL) as u8);
 
     /// The finest level, [`MAX_LEVEL`] (64 cells per chunk side).
-    pub const FINEST: Level = Level(MAX_LEVEL);
+    pub const FINEST: Level = Level((MAX_LEVEL - MIN_LEVEL) as u8);
 
-    /// The level `k`, or `None` above [`MAX_LEVEL`].
-    pub const fn new(k: u8) -> Option<Level> {
-        if k <= MAX_LEVEL { Some(Level(k)) } else { None }
+    /// Every level, coarsest first.
+    pub const ALL: [Level; LEVEL_COUNT] = [Level(0), Level(1), Level(2), Level(3)];
+
+    /// The level `k`, or `None` outside [`MIN_LEVEL`]`..=`[`MAX_LEVEL`].
+    pub const fn new(k: i8) -> Option<Level> {
+        if k >= MIN_LEVEL && k <= MAX_LEVEL { Some(Level((k - MIN_LEVEL) as u8)) } else { None }
     }
 
-    /// The level number.
+    /// The level number (0 the base level, negative coarser, positive finer).
     #[inline]
-    pub fn get(self) -> u8 {
-        self.0
+    pub fn get(self) -> i8 {
+        self.0 as i8 + MIN_LEVEL
+    }
+
+    /// Its place among the levels, coarsest 0: an index into arrays of [`LEVEL_COUNT`].
+    #[inline]
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+
+    /// The next finer level, if any.
+    #[inline]
+    pub fn finer(self) -> Option<Level> {
+        (self < Level::FINEST).then_some(Level(self.0 + 1))
+    }
+
+    /// The next coarser level, if any.
+    #[inline]
+    pub fn coarser(self) -> Option<Level> {
+        (self > Level::COARSEST).then(|| Level(self.0 - 1))
+    }
+
+    /// How many times finer than `coarse` this level is (`2^(self - coarse)`); `coarse` must
+    /// not be finer.
+    #[inline]
+    pub fn ratio_to(self, coarse: Level) -> usize {
+        debug_assert!(coarse <= self);
+        1 << (self.0 - coarse.0)
+    }
+
+    /// Its two-bit code in a chunk's header: the level number for levels 0–2, as chunks were
+    /// stored before the coarse level existed, and 3 for level −1.
+    #[inline]
+    pub(crate) fn code(self) -> u8 {
+        self.get().rem_euclid(4) as u8
+    }
+
+    /// The level of a header code ([`Level::code`]).
+    #[inline]
+    pub(crate) fn from_code(c: u8) -> Option<Level> {
+        match c {
+            0..=2 => Level::new(c as i8),
+            3 => Some(Level::COARSEST),
+            _ => None,
+        }
+    }
+
+    /// The node at grid point `g` (on this level's lattice: even coordinates at level −1).
+    #[inline]
+    pub fn node_of_grid(self, g: I64Vec3) -> I64Vec3 {
+        if self >= Level::BASE { g * (1 << (self.0 - Level::BASE.0)) } else { g.div_euclid(I64Vec3::splat(2)) }
     }
 
     /// Cells (and node lines) along one chunk side.
     #[inline]
     pub fn cells(self) -> usize {
-        16 << self.0
+        8 << self.0
     }
 
     /// Fixed-point steps per cell.
     #[inline]
     pub fn steps_per_cell(self) -> u32 {
-        4096 >> self.0
+        8192 >> self.0
+    }
+
+    /// log2 of [`Level::steps_per_cell`].
+    #[inline]
+    pub fn steps_shift(self) -> u32 {
+        13 - self.0 as u32
     }
 
     /// Distance between neighbouring nodes in grid units.
     #[inline]
     pub fn spacing(self) -> f64 {
         // Exact powers of two; a table avoids a division on hot paths.
-        [1.0, 0.5, 0.25][self.0 as usize]
+        [2.0, 1.0, 0.5, 0.25][self.0 as usize]
     }
 
     /// Nodes per grid unit (`1 / spacing`).
     #[inline]
     pub fn nodes_per_unit(self) -> f64 {
-        [1.0, 2.0, 4.0][self.0 as usize]
+        [0.5, 1.0, 2.0, 4.0][self.0 as usize]
     }
 }
 
@@ -240,7 +309,7 @@ pub fn on_finest_node(q: LocalPos) -> bool {
 /// The cell (edge index along the line) a fixed-point position lies in.
 #[inline]
 pub fn edge_of(q: LocalPos, level: Level) -> usize {
-    (q.0 as u32 >> (12 - level.0)) as usize
+    (q.0 as u32 >> level.steps_shift()) as usize
 }
 
 #[cfg(test)]

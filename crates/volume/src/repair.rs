@@ -224,7 +224,7 @@ impl Volume {
             repaired_nodes: 0,
             reach: None,
         });
-        let node_shift = offset.as_i64vec3() * (1i64 << self.level.get());
+        let node_shift = self.level.node_of_grid(offset.as_i64vec3());
         self.carry_materials(other, node_shift, &report.undo.previous, &mut report.undo.materials);
         Ok(report)
     }

@@ -55,7 +55,7 @@ pub struct ChunkMap {
     solid: HashSet<ChunkKey, Hash>,
     /// List chunks stored at each level (derived, kept by `insert` and `remove`).
     #[serde(skip)]
-    levels: [u32; crate::coords::MAX_LEVEL as usize + 1],
+    levels: [u32; crate::coords::LEVEL_COUNT],
 }
 
 /// Unchecked deserialised form of [`ChunkMap`].
@@ -75,10 +75,10 @@ impl TryFrom<RawChunkMap> for ChunkMap {
         if r.solid.iter().any(|k| r.lists.contains_key(k)) {
             return Err("a chunk stored both as lists and as solid".into());
         }
-        let mut levels = [0; crate::coords::MAX_LEVEL as usize + 1];
+        let mut levels = [0; crate::coords::LEVEL_COUNT];
         for c in r.lists.values() {
             if let Chunk::Lists(l) = c {
-                levels[l.level().get() as usize] += 1;
+                levels[l.level().index()] += 1;
             }
         }
         Ok(ChunkMap { lists: r.lists, solid: r.solid, levels })
@@ -116,7 +116,7 @@ impl ChunkMap {
             }
             lists => {
                 if let Chunk::Lists(l) = &lists {
-                    self.levels[l.level().get() as usize] += 1;
+                    self.levels[l.level().index()] += 1;
                 }
                 self.lists.insert(key, lists);
             }
@@ -129,7 +129,7 @@ impl ChunkMap {
         match self.lists.remove(key) {
             Some(c) => {
                 if let Chunk::Lists(l) = &c {
-                    self.levels[l.level().get() as usize] -= 1;
+                    self.levels[l.level().index()] -= 1;
                 }
                 Some(c)
             }
@@ -138,7 +138,7 @@ impl ChunkMap {
     }
 
     /// How many list chunks are stored at each level.
-    pub fn level_counts(&self) -> [u32; crate::coords::MAX_LEVEL as usize + 1] {
+    pub fn level_counts(&self) -> [u32; crate::coords::LEVEL_COUNT] {
         self.levels
     }
 
@@ -239,12 +239,14 @@ impl Volume {
         Self::with_level(Level::BASE)
     }
 
-    /// An empty volume whose chunks are created at `level` (`16 << level` cells per side).
+    /// An empty volume whose chunks are created at `level` (`16 · 2^level` cells per side). A
+    /// volume's own level is at least [`Level::BASE`] (a coarser one is taken as the base
+    /// level): coarser chunks are only ever lowered there for distance.
     pub fn with_level(level: Level) -> Self {
         Volume {
             chunks: ChunkMap::default(),
             materials: Default::default(),
-            level,
+            level: level.max(Level::BASE),
             cell_size: 1.0,
             mask: Default::default(),
         }
@@ -253,13 +255,14 @@ impl Volume {
     /// A volume holding exactly `chunks` (later entries replace earlier ones with the same key;
     /// solid chunks as [`Chunk::Solid`]), for loaders that read chunks one at a time. Nothing is
     /// checked: call [`Volume::check_invariants`] or [`Volume::repair`] before editing it.
-    /// `None` if `cell_size` is not finite and positive.
+    /// `None` if `cell_size` is not finite and positive, or `level` is coarser than
+    /// [`Level::BASE`] (see [`Volume::with_level`]).
     pub fn from_chunks(
         level: Level,
         cell_size: f64,
         chunks: impl IntoIterator<Item = (ChunkKey, Chunk)>,
     ) -> Option<Self> {
-        if !(cell_size.is_finite() && cell_size > 0.0) {
+        if !(cell_size.is_finite() && cell_size > 0.0) || level < Level::BASE {
             return None;
         }
         let mut v = Volume {
@@ -357,11 +360,11 @@ impl Volume {
     /// Whether every list chunk is stored at the volume's level (then no seam needs patching).
     pub fn single_level(&self) -> bool {
         let counts = self.chunks.level_counts();
-        counts.iter().enumerate().all(|(k, &c)| c == 0 || k == self.level.get() as usize)
+        counts.iter().enumerate().all(|(k, &c)| c == 0 || k == self.level.index())
     }
 
     /// How many list chunks are stored at each level (index: level number).
-    pub fn level_counts(&self) -> [u32; crate::coords::MAX_LEVEL as usize + 1] {
+    pub fn level_counts(&self) -> [u32; crate::coords::LEVEL_COUNT] {
         self.chunks.level_counts()
     }
 

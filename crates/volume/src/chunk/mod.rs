@@ -328,16 +328,20 @@ impl<'a> LineRef<'a> {
 }
 
 /// One bit per line of one family (start states, nonempty bits): `n² / 64` words, held inline
-/// at level 0 (4 words) and boxed above.
+/// up to level 0 (4 words; the first `.1` of them used) and boxed above.
 #[derive(Clone, Debug)]
 pub(crate) enum FamilyBits {
-    Inline([u64; 4]),
+    Inline([u64; 4], u8),
     Boxed(Box<[u64]>),
 }
 
 impl FamilyBits {
     fn zeroed(words: usize) -> Self {
-        if words <= 4 { FamilyBits::Inline([0; 4]) } else { FamilyBits::Boxed(vec![0; words].into_boxed_slice()) }
+        if words <= 4 {
+            FamilyBits::Inline([0; 4], words as u8)
+        } else {
+            FamilyBits::Boxed(vec![0; words].into_boxed_slice())
+        }
     }
 
     /// The bit of line `index`.
@@ -350,14 +354,14 @@ impl FamilyBits {
     #[inline]
     fn words(&self) -> &[u64] {
         match self {
-            FamilyBits::Inline(w) => &w[..],
+            FamilyBits::Inline(w, n) => &w[..*n as usize],
             FamilyBits::Boxed(w) => &w[..],
         }
     }
 
     fn words_mut(&mut self) -> &mut [u64] {
         match self {
-            FamilyBits::Inline(w) => &mut w[..],
+            FamilyBits::Inline(w, n) => &mut w[..*n as usize],
             FamilyBits::Boxed(w) => &mut w[..],
         }
     }
@@ -367,7 +371,7 @@ impl ChunkLists {
     /// The chunk's resolution level.
     #[inline]
     pub fn level(&self) -> Level {
-        Level::new(self.field(field::LEVEL) as u8).expect("levels are checked when a chunk is built")
+        Level::from_code(self.field(field::LEVEL) as u8).expect("levels are checked when a chunk is built")
     }
 
     /// A header field.
@@ -589,7 +593,7 @@ impl ChunkLists {
     pub(crate) fn family_starts(&self, axis: Axis) -> FamilyBits {
         let level = self.level();
         let n = level.cells();
-        let shift = 12 - level.get() as u32;
+        let shift = level.steps_shift();
         // The states of nodes 0..n (bit j; n at most 64, so node n, never needed, drops out)
         // along a line from its start state: a crossing in cell e flips the nodes after it.
         let states = |start: bool, raw: &[u16]| -> u64 {
@@ -691,7 +695,7 @@ fn assemble(
     let stored: usize = nonempty.iter().map(|&w| nonzero_bytes(w)).sum();
     let len = head + (stored.next_multiple_of(2) + 4 * m).div_ceil(8);
     let mut data = vec![0u64; len].into_boxed_slice();
-    write_bits(&mut data, field::LEVEL.0, field::LEVEL.1, level.get() as u64);
+    write_bits(&mut data, field::LEVEL.0, field::LEVEL.1, level.code() as u64);
     write_bits(&mut data, field::CORNER.0, field::CORNER.1, corner as u64);
     write_bits(&mut data, field::LEN.0, field::LEN.1, len as u64);
     write_bits(&mut data, field::CROSSINGS.0, field::CROSSINGS.1, m as u64);

@@ -9,10 +9,17 @@ fn spheres() -> [Sphere; 2] {
 }
 
 fn sample_lists() -> (Volume, ChunkLists) {
+    sample_lists_at(Level::BASE)
+}
+
+/// The sample chunk, lowered or raised to `level`.
+fn sample_lists_at(level: Level) -> (Volume, ChunkLists) {
     let mut v = Volume::new();
     let [a, b] = spheres();
     v.add(&a).unwrap();
     v.subtract(&b).unwrap();
+    v.set_chunk_level(crate::ChunkKey::new(0, 0, 0), level);
+    assert_eq!(v.stored_level(crate::ChunkKey::new(0, 0, 0)), Some(level));
     let lists = match v.chunk(crate::ChunkKey::new(0, 0, 0)) {
         Some(Chunk::Lists(l)) => l.clone(),
         other => panic!("expected lists, got {other:?}"),
@@ -36,6 +43,18 @@ fn derived_start_states_equal_the_node_states() {
             assert_eq!(starts.get(index), expect, "{axis:?} line {index}");
             assert_eq!(cursor.next_line().start_inside, expect);
         }
+    }
+}
+
+#[test]
+fn serialised_lists_round_trip_at_every_level() {
+    for level in Level::ALL {
+        let (_, lists) = sample_lists_at(level);
+        let bytes = postcard::to_allocvec(&lists).unwrap();
+        let raw = postcard::from_bytes::<RawChunkLists>(&bytes).unwrap_or_else(|e| panic!("level {level:?}: {e}"));
+        let back = ChunkLists::from_raw(raw).unwrap_or_else(|e| panic!("level {level:?}: {e}"));
+        assert_eq!(back, lists, "level {level:?}");
+        assert_eq!(back.level(), level);
     }
 }
 

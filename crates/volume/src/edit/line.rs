@@ -95,8 +95,7 @@ pub(super) fn edit_chunk(
     let mut sampler = LineSampler::new(ctx.brush, ctx.op == CsgOp::Subtract);
     let at = |axis: Axis, u: usize, v: usize| LineAt { origin_grid: origin, level, axis, u, v };
     let mut repaired = 0u64;
-    let table_level =
-        ctx.tables[level.get() as usize].as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
+    let table_level = ctx.tables[level.index()].as_ref().map(|t| (t, ((origin - t.base) / CHUNK_CELLS) * n as i64));
     if let Some((t, offset)) = table_level
         && ctx.op != CsgOp::Intersect
         && covers_chunk(t, offset, origin, n)

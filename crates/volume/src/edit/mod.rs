@@ -278,7 +278,7 @@ struct EditCtx<'a> {
     /// surface are decided by one field value.
     distance_field: bool,
     /// Span tables by level (index: level number), for the levels of the chunks edited.
-    tables: [Option<SpanTable>; crate::coords::MAX_LEVEL as usize + 1],
+    tables: [Option<SpanTable>; crate::coords::LEVEL_COUNT],
     /// Whether chunks note the x lines whose node states they change (for the materials).
     rows: bool,
     /// For a brush cut by the mask: the brush before the cut, when it is a distance field, and
@@ -376,17 +376,17 @@ impl Volume {
         };
         // One span table per level among the chunks edited (mixed levels are rare: most edits
         // build one). A line shared by chunks of two levels is found the same way in both.
-        let mut levels = [false; crate::coords::MAX_LEVEL as usize + 1];
-        levels[self.level.get() as usize] = true;
+        let mut levels = [false; crate::coords::LEVEL_COUNT];
+        levels[self.level.index()] = true;
         if !self.single_level() {
             for k in &keys {
                 if let Some(l) = self.stored_level(*k) {
-                    levels[l.get() as usize] = true;
+                    levels[l.index()] = true;
                 }
             }
         }
         let tables = std::array::from_fn(|k| {
-            let level = Level::new(k as u8).expect("within the maximum level");
+            let level = Level::ALL[k];
             if levels[k] { SpanTable::build(brush, &bounds, cmin, level, settings.parallel) } else { None }
         });
         let rule = match op {

@@ -351,8 +351,7 @@ mod tests {
 
     /// A one-cell face at `level` with the given corner states and crossings at fractions `t`
     /// of each edge whose corners differ.
-    fn one_cell(states: [bool; 4], t: [f64; 4]) -> FaceGrid {
-        let level = Level::BASE;
+    fn one_cell(level: Level, states: [bool; 4], t: [f64; 4]) -> FaceGrid {
         let mut g = FaceGrid::uniform(level, Axis::Z, false);
         let s = level.steps_per_cell() as f64;
         for (k, (i, j)) in [(0, 0), (1, 0), (1, 1), (0, 1)].into_iter().enumerate() {
@@ -370,7 +369,7 @@ mod tests {
                 g.set_crossing(e, pack(quantize_steps(t[k] * s, 0, level), pack_normal(DVec3::X)));
             }
         }
-        // The rest of the (16-cell) grid around the cell: made consistent, not looked at.
+        // The rest of the grid around the cell: made consistent, not looked at.
         g.make_consistent();
         g
     }
@@ -388,32 +387,38 @@ mod tests {
             for (a, ta) in ts.iter().enumerate() {
                 for tb in &ts[a..] {
                     let t = [*ta, *tb, 1.0 - ta, 1.0 - tb];
-                    let g = one_cell(states, t);
-                    assert!(consistent(&g));
-                    for depth in 1..=2u8 {
-                        let f = g.clone().refine_to(Level::new(depth).unwrap());
-                        assert!(consistent(&f), "case {case:04b}, t {t:?}: refined face inconsistent");
-                        let chains = g.chains(&f, 0, 0);
-                        assert_eq!(chains.len(), g.cell_segments(0, 0).len());
-                        let links = f.cell_segments_all();
-                        let linked =
-                            |a: FaceEdge, b: FaceEdge| links.iter().any(|&(p, q)| (p, q) == (a, b) || (q, p) == (a, b));
-                        let fine_on = |c: FaceEdge| -> FaceEdge {
-                            let r = f.n / g.n;
-                            (0..r)
-                                .map(|k| if c.0 == 0 { (0, c.1 * r + k, c.2 * r) } else { (1, c.1 * r, c.2 * r + k) })
-                                .find(|&e| f.crossing(e) != NONE)
-                                .expect("a coarse crossing stays on its edge")
-                        };
-                        for (pa, pb, inner) in chains {
-                            let mut path = vec![fine_on(pa)];
-                            path.extend(inner);
-                            path.push(fine_on(pb));
-                            for w in path.windows(2) {
-                                assert!(
-                                    linked(w[0], w[1]),
-                                    "case {case:04b}, t {t:?}: chain {path:?} is not the refined contour"
-                                );
+                    for from in [Level::COARSEST, Level::BASE] {
+                        let g = one_cell(from, states, t);
+                        assert!(consistent(&g));
+                        for to in Level::ALL.into_iter().filter(|&l| l > from) {
+                            let f = g.clone().refine_to(to);
+                            assert!(consistent(&f), "case {case:04b}, t {t:?}: refined face inconsistent");
+                            let chains = g.chains(&f, 0, 0);
+                            assert_eq!(chains.len(), g.cell_segments(0, 0).len());
+                            let links = f.cell_segments_all();
+                            let linked = |a: FaceEdge, b: FaceEdge| {
+                                links.iter().any(|&(p, q)| (p, q) == (a, b) || (q, p) == (a, b))
+                            };
+                            let fine_on =
+                                |c: FaceEdge| -> FaceEdge {
+                                    let r = f.n / g.n;
+                                    (0..r)
+                                        .map(|k| {
+                                            if c.0 == 0 { (0, c.1 * r + k, c.2 * r) } else { (1, c.1 * r, c.2 * r + k) }
+                                        })
+                                        .find(|&e| f.crossing(e) != NONE)
+                                        .expect("a coarse crossing stays on its edge")
+                                };
+                            for (pa, pb, inner) in chains {
+                                let mut path = vec![fine_on(pa)];
+                                path.extend(inner);
+                                path.push(fine_on(pb));
+                                for w in path.windows(2) {
+                                    assert!(
+                                        linked(w[0], w[1]),
+                                        "case {case:04b}, t {t:?}: chain {path:?} is not the refined contour"
+                                    );
+                                }
                             }
                         }
                     }
@@ -437,7 +442,7 @@ mod tests {
     #[test]
     fn refined_crossings_lie_on_the_coarse_segments() {
         // Two adjacent inside corners: the segment from the left edge to the right edge.
-        let g = one_cell([true, true, false, false], [0.5, 0.2, 0.5, 0.6]);
+        let g = one_cell(Level::BASE, [true, true, false, false], [0.5, 0.2, 0.5, 0.6]);
         let f = g.clone().refine();
         let s = f.level.steps_per_cell() as f64;
         let (p, q) = (g.point((1, 0, 0)), g.point((1, 1, 0)));

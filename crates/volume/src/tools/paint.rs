@@ -69,7 +69,7 @@ impl Volume {
                     let w = weight(p) * mask.as_ref().map_or(1.0, |m| 1.0 - m.at(p));
                     if w > 0.0
                         && (w >= 1.0
-                            || w > dither(origin * (1 << level.get()) + I64Vec3::new(x as i64, y as i64, z as i64)))
+                            || w > dither(level.node_of_grid(origin) + I64Vec3::new(x as i64, y as i64, z as i64)))
                     {
                         ids[i] = id;
                         touched = true;

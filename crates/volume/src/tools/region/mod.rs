@@ -279,7 +279,7 @@ impl Volume {
             // A huge box: the finest level anywhere.
             let counts = self.level_counts();
             let top = counts.iter().rposition(|&c| c > 0).unwrap_or(0);
-            return self.level.max(Level::new(top as u8).expect("a stored level"));
+            return self.level.max(Level::ALL[top]);
         }
         ChunkBox::between(lo, hi).keys().filter_map(|k| self.stored_level(k)).fold(self.level, Level::max)
     }

@@ -530,7 +530,7 @@ mod tests {
             // Mixed levels in half the cases: a few chunks raised.
             if case % 2 == 1 {
                 for key in [ChunkKey::new(1, 1, 1), ChunkKey::new(2, 1, 1), ChunkKey::new(1, 2, 2)] {
-                    v.set_chunk_level(key, Level::new(1 + (next(2) as u8)).unwrap());
+                    v.set_chunk_level(key, Level::new(1 + (next(2) as i8)).unwrap());
                 }
             }
             for _ in 0..6 {
