@@ -25,6 +25,29 @@ fn closed(v: &Volume) -> strata_mesh::Mesh {
     mesh
 }
 
+/// A uniform chunk whose list neighbours all share the coarse level, with the surface through
+/// the cells at its corner edge (whose crossings its neighbours own): a solid slab with a notch
+/// along the edge where four chunks meet. Read at the volume's level while its neighbours
+/// meshed those cells at theirs, the corner opened (far terrain found it); read at theirs it is
+/// closed.
+#[test]
+fn a_uniform_chunk_among_coarse_chunks_meshes_closed() {
+    use strata_volume::brush::Cuboid;
+    for notch in [0.6, 0.4, 0.9] {
+        let mut v = Volume::new();
+        v.add(&Cuboid::new(DVec3::new(0.0, -16.0, 0.0), DVec3::new(40.0, 24.0, 40.0)).unwrap()).unwrap();
+        let half = DVec3::splat(20.0 + notch / 2.0).with_z(50.0);
+        v.subtract(&Cuboid::new(DVec3::new(20.0 - notch / 2.0, 20.0 - notch / 2.0, 0.0), half).unwrap()).unwrap();
+        for k in list_keys(&v) {
+            let _ = v.set_chunk_level(k, Level::COARSEST);
+        }
+        v.check_invariants().unwrap();
+        assert_eq!(v.stored_level(ChunkKey::new(-1, -1, 0)), None, "notch {notch}: the chunk at the corner is uniform");
+        assert_eq!(v.stored_level(ChunkKey::new(0, -1, 0)), Some(Level::COARSEST));
+        closed(&v);
+    }
+}
+
 #[test]
 fn one_raised_chunk_in_a_sphere_meshes_closed() {
     let mut v = Volume::new();

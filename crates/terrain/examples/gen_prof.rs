@@ -1,6 +1,7 @@
 //! Where a chunk's generation goes: node states, crossings and the whole chunk, over Table 9's
 //! block of 1,024 chunks (8 × 8 chunk columns from below the cave floor to the sky).
-//! `cargo run --release -p strata-terrain --example gen_prof`
+//! `cargo run --release -p strata-terrain --example gen_prof [level]` (the base level, 0, unless
+//! given: −1 for the coarse level far terrain uses).
 
 use std::time::Instant;
 
@@ -12,7 +13,11 @@ fn main() {
     let field = TerrainField::new(&Recipe::with_seed(2021)).expect("the default recipe");
     let keys: Vec<ChunkKey> =
         (0..8).flat_map(|x| (0..8).flat_map(move |z| (-8..8).map(move |y| ChunkKey::new(x, y, z)))).collect();
-    let level = Level::BASE;
+    let level = std::env::args()
+        .nth(1)
+        .map(|a| a.parse::<i8>().ok().and_then(Level::new).expect("a level from -1 to 2"))
+        .unwrap_or(Level::BASE);
+    let sp = level.spacing();
     let m = level.cells() + 1;
     for round in 0..3 {
         let t = Instant::now();
@@ -40,8 +45,8 @@ fn main() {
                         let b = rows[y + m * z] >> (x + 1) & 1;
                         if a != b {
                             crossings += 1;
-                            let p = o.as_dvec3() + DVec3::new(x as f64, y as f64, z as f64);
-                            std::hint::black_box(field.crossing(p, Axis::X, 1.0, a == 1));
+                            let p = o.as_dvec3() + DVec3::new(x as f64, y as f64, z as f64) * sp;
+                            std::hint::black_box(field.crossing(p, Axis::X, sp, a == 1));
                         }
                     }
                 }

@@ -60,6 +60,12 @@ pub struct WorldSettings {
     pub detail_distance: f64,
     /// The level of the chunks near the viewers (1: 32³ cells a chunk, 2: 64³).
     pub detail_level: Level,
+    /// Chunks with no point within this horizontal distance of any viewer (and the vertical
+    /// ratio of it) are generated at [`Level::COARSEST`] (8³ cells of two grid units a chunk,
+    /// about a quarter of a base chunk's generation time): a clipmap whose far ring is coarse.
+    /// Edits never land in a coarse chunk: the chunks near an edit are generated again at the
+    /// base level first. 0 turns it off.
+    pub coarse_distance: f64,
 }
 
 impl Default for WorldSettings {
@@ -73,6 +79,7 @@ impl Default for WorldSettings {
             memory_budget: 512 << 20,
             detail_distance: 0.0,
             detail_level: Level::new(1).expect("level 1 exists"),
+            coarse_distance: 0.0,
         }
     }
 }
@@ -190,6 +197,8 @@ pub struct World {
     desired_for: Vec<IVec3>,
     /// The view stencil (offsets from a viewer's chunk), computed once.
     stencil: Arc<[IVec3]>,
+    /// The offsets whose side of the coarse distance a one-chunk move can change, computed once.
+    coarse_shell: Arc<[IVec3]>,
     /// Chunks whose contents changed since [`World::take_changed`] (for meshers).
     changed: Vec<ChunkKey>,
     /// Notes written with the next flush.
@@ -249,6 +258,9 @@ impl World {
         if !(settings.detail_distance.is_finite() && (0.0..=1e6).contains(&settings.detail_distance)) {
             return Err(WorldError::Setting("detail_distance"));
         }
+        if !(settings.coarse_distance.is_finite() && (0.0..=1e6).contains(&settings.coarse_distance)) {
+            return Err(WorldError::Setting("coarse_distance"));
+        }
         let in_store = match &store {
             Some(store) => store.edited_keys()?.into_iter().collect(),
             None => KeySet::default(),
@@ -293,6 +305,7 @@ impl World {
             desired: KeySet::default(),
             desired_for: Vec::new(),
             stencil: Arc::new([]),
+            coarse_shell: Arc::new([]),
             changed: Vec::new(),
             notes: Vec::new(),
             last_flush: Instant::now(),
@@ -424,15 +437,81 @@ impl World {
         out
     }
 
-    /// The level chunk `key` is generated at for viewers in the chunks `at`.
+    /// The level chunk `key` is generated at for viewers in the chunks `at`: the detail level
+    /// within the detail distance, the coarsest level beyond the coarse distance, else the
+    /// base level.
     fn level_for(&self, key: ChunkKey, at: &[IVec3]) -> Level {
-        let d = self.settings.detail_distance;
-        if d > 0.0 && at.iter().any(|&c| self.within(key.0 - c, d)) { self.settings.detail_level } else { self.level }
+        let (d, c) = (self.settings.detail_distance, self.settings.coarse_distance);
+        if d > 0.0 && at.iter().any(|&v| self.within(key.0 - v, d)) {
+            self.settings.detail_level
+        } else if c > 0.0 && !at.iter().any(|&v| self.within(key.0 - v, c)) {
+            Level::COARSEST
+        } else {
+            self.level
+        }
     }
 
     /// The level chunk `key` is generated at for the current viewers.
     pub fn generated_level(&self, key: ChunkKey) -> Level {
         self.level_for(key, &self.desired_for)
+    }
+
+    /// The offsets from a viewer's chunk on whose side of the horizontal distance `r` (and its
+    /// vertical ratio) a move of the viewer by one chunk on each axis can change: within `r` plus
+    /// two chunk widths and not within `r` less two (a move shifts a chunk's nearest point by
+    /// under 23 grid units and its height range by one chunk).
+    fn shell(&self, r: f64) -> Vec<IVec3> {
+        let c = CHUNK_CELLS as f64;
+        let (outer, inner) = (r + 2.0 * c, (r - 2.0 * c).max(0.0));
+        let h = (outer / c).ceil() as i32 + 1;
+        let v = (outer * self.settings.vertical_ratio / c).ceil() as i32 + 1;
+        let mut out = Vec::new();
+        for z in -h..=h {
+            for x in -h..=h {
+                for y in -v..=v {
+                    let o = IVec3::new(x, y, z);
+                    if self.within(o, outer) && !self.within(o, inner) {
+                        out.push(o);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Loaded chunks that may have crossed the detail or the coarse distance when the viewers
+    /// moved from the chunks `from` to [`World::desired_for`].
+    fn level_candidates(&mut self, from: &[IVec3]) -> KeySet {
+        let mut out = KeySet::default();
+        if self.settings.detail_distance > 0.0 {
+            let r = (self.settings.detail_distance / CHUNK_CELLS as f64).ceil() as i32 + 2;
+            let rv =
+                (self.settings.detail_distance * self.settings.vertical_ratio / CHUNK_CELLS as f64).ceil() as i32 + 2;
+            for c in from.iter().chain(self.desired_for.iter()) {
+                for z in -r..=r {
+                    for y in -rv..=rv {
+                        for x in -r..=r {
+                            out.insert(ChunkKey(*c + IVec3::new(x, y, z)));
+                        }
+                    }
+                }
+            }
+        }
+        if self.settings.coarse_distance > 0.0 {
+            let small_move = from.len() == self.desired_for.len()
+                && from.iter().zip(&self.desired_for).all(|(a, b)| (*a - *b).abs().max_element() <= 1);
+            if small_move {
+                if self.coarse_shell.is_empty() {
+                    self.coarse_shell = self.shell(self.settings.coarse_distance).into();
+                }
+                for c in from.iter().chain(self.desired_for.iter()) {
+                    out.extend(self.coarse_shell.iter().map(|&o| ChunkKey(*c + o)));
+                }
+            } else {
+                out.extend(self.loaded.iter().copied());
+            }
+        }
+        out
     }
 
     fn stencil_cached(&mut self) -> Arc<[IVec3]> {
@@ -524,33 +603,18 @@ impl World {
             // Outside the lock (workers go on with what they hold): drop stale requests, add the
             // new ones, order by distance (the old order is nearly right: the sort is cheap).
             jobs.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
-            // Chunks that crossed the detail distance are generated again at their new level
-            // (the old version stays until the new one is integrated); edited ones keep theirs.
-            if self.settings.detail_distance > 0.0 {
-                let r = (self.settings.detail_distance / CHUNK_CELLS as f64).ceil() as i32 + 2;
-                let rv = (self.settings.detail_distance * self.settings.vertical_ratio / CHUNK_CELLS as f64).ceil()
-                    as i32
-                    + 2;
-                let mut near = KeySet::default();
-                for c in from.iter().chain(self.desired_for.iter()) {
-                    for z in -r..=r {
-                        for y in -rv..=rv {
-                            for x in -r..=r {
-                                near.insert(ChunkKey(*c + IVec3::new(x, y, z)));
-                            }
-                        }
-                    }
+            // Chunks that crossed the detail or the coarse distance are generated again at their
+            // new level (the old version stays until the new one is integrated); edited ones
+            // keep theirs.
+            for key in self.level_candidates(&from) {
+                let Some(now) = self.volume.stored_level(key) else { continue };
+                let busy = self.pending.contains_key(&key);
+                if busy || !self.loaded.contains(&key) || self.dirty.contains(&key) || self.edited.contains(&key) {
+                    continue;
                 }
-                for key in near {
-                    let Some(now) = self.volume.stored_level(key) else { continue };
-                    let busy = self.pending.contains_key(&key);
-                    if busy || !self.loaded.contains(&key) || self.dirty.contains(&key) || self.edited.contains(&key) {
-                        continue;
-                    }
-                    let want = self.level_for(key, &self.desired_for);
-                    if want != now {
-                        wanted.push(key);
-                    }
+                let want = self.level_for(key, &self.desired_for);
+                if want != now {
+                    wanted.push(key);
                 }
             }
             for key in wanted {
@@ -644,7 +708,8 @@ impl World {
     }
 
     /// Loads, now, every chunk in `keys` that is not in memory (edited versions first from the
-    /// evicted-but-unflushed ones, then the database, else generated).
+    /// evicted-but-unflushed ones, then the database, else generated at its level, never
+    /// coarser than the base level: what is loaded now is loaded to be edited or read closely).
     pub fn load_now(&mut self, keys: &[ChunkKey]) -> Result<(), WorldError> {
         for &key in keys {
             // A request in flight (a regeneration at another level) must not replace what an
@@ -660,7 +725,8 @@ impl World {
                 self.dirty.insert(key);
                 continue;
             }
-            let level = self.level_for(key, &self.desired_for);
+            // What is loaded now is loaded to be edited or restored: never coarser than the base.
+            let level = self.level_for(key, &self.desired_for).max(self.level);
             let (stored, edited) = produce(&self.field, self.store.as_deref(), level, key)
                 .map_err(|why| WorldError::Unreadable(key.0.to_array(), why))?;
             self.failed.remove(&key);
@@ -697,10 +763,27 @@ impl World {
             return Err(WorldError::Edit(format!("an edit reaching {} chunks is too large for a world", near.len())));
         }
         self.load_now(&near)?;
+        self.raise_to_base(&near);
         let before = self.bytes_of(&near);
         let report = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()))?;
         self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
         Ok(report)
+    }
+
+    /// Generates again, at the base level, every loaded chunk of `keys` that is coarser (far
+    /// terrain, never edited: edits land at the base level or finer), so that an edit never
+    /// writes at less than the base resolution. A request in flight for one is dropped.
+    fn raise_to_base(&mut self, keys: &[ChunkKey]) {
+        for &key in keys {
+            if !self.volume.stored_level(key).is_some_and(|l| l < self.level) {
+                continue;
+            }
+            if self.pending.remove(&key).is_some() {
+                self.ready.retain(|d| d.key != key);
+            }
+            let g = generate_chunk(key, self.level, &*self.field);
+            self.integrate(key, StoredChunk { chunk: g.chunk, materials: g.materials });
+        }
     }
 
     /// Heap bytes of each of `keys`' chunks now.

@@ -95,25 +95,36 @@ fn chunks_under_the_surface_that_the_caves_provably_miss_or_fill_are_decided_by_
     for &k in &keys {
         check_nodes(&field, &v, k, Level::BASE);
     }
-    // The same at a finer level, on a few of them.
-    let level = Level::new(1).unwrap();
+    // The same at a finer and at the coarse level, on a few of them.
     let few = block(IVec3::new(0, -9, 0), IVec3::new(1, -8, 1));
-    let v = generate(&field, &few, level);
-    for &k in &few {
-        check_nodes(&field, &v, k, level);
+    for level in [Level::new(1).unwrap(), Level::COARSEST] {
+        let v = generate(&field, &few, level);
+        for &k in &few {
+            check_nodes(&field, &v, k, level);
+        }
     }
 }
 
 #[test]
-fn finer_levels_store_the_density_sign_too() {
+fn finer_and_coarser_levels_store_the_density_sign_too() {
     let field = TerrainField::new(&Recipe::with_seed(11)).unwrap();
     let keys = block(IVec3::new(0, -1, 0), IVec3::new(1, 0, 0));
-    let level = Level::new(1).unwrap();
-    let v = generate(&field, &keys, level);
-    v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
-    for &k in &keys {
-        check_nodes(&field, &v, k, level);
+    for level in [Level::new(1).unwrap(), Level::COARSEST] {
+        let v = generate(&field, &keys, level);
+        v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
+        for &k in &keys {
+            check_nodes(&field, &v, k, level);
+        }
     }
+    // Chunks of the coarse level among base ones (far terrain beside near terrain) keep every
+    // invariant across their faces.
+    let mut mixed = Volume::new();
+    for &k in &keys {
+        let level = if (k.0.x + k.0.y) % 2 == 0 { Level::COARSEST } else { Level::BASE };
+        let g = generate_chunk(k, level, &field);
+        mixed.put_chunk(k, g.chunk, g.materials);
+    }
+    mixed.check_invariants_within(&|k| keys.contains(&k)).unwrap();
 }
 
 #[test]
@@ -121,7 +132,11 @@ fn generation_is_the_same_on_any_thread_count_and_in_any_order() {
     let field = TerrainField::new(&Recipe::with_seed(5)).unwrap();
     let keys = block(IVec3::new(-2, -2, -2), IVec3::new(2, 1, 1));
     let bytes = |g: &strata_volume::GeneratedChunk| postcard::to_allocvec(&(&g.chunk, &g.materials)).unwrap();
+    // The coarse level's chunks too, whatever was generated before them on the thread.
+    let coarse: Vec<Vec<u8>> = keys.iter().map(|&k| bytes(&generate_chunk(k, Level::COARSEST, &field))).collect();
     let one: Vec<Vec<u8>> = keys.iter().map(|&k| bytes(&generate_chunk(k, Level::BASE, &field))).collect();
+    let again: Vec<Vec<u8>> = keys.iter().rev().map(|&k| bytes(&generate_chunk(k, Level::COARSEST, &field))).collect();
+    assert!(again.into_iter().rev().eq(coarse), "coarse chunks are the same in any order");
     // Two threads, each taking every other key, the second in reverse order.
     let two: Vec<(usize, Vec<u8>)> = std::thread::scope(|s| {
         let a = s.spawn(|| {
@@ -178,12 +193,13 @@ proptest! {
     /// Random recipes, random chunks near the surface: node states equal the density's sign;
     /// the chunk and its +x, +y, +z neighbours agree on their borders.
     #[test]
-    fn random_recipes_store_the_density_sign(recipe in any_recipe(), x in -50i32..50, y in -3i32..2, z in -50i32..50) {
+    fn random_recipes_store_the_density_sign(recipe in any_recipe(), x in -50i32..50, y in -3i32..2, z in -50i32..50, coarse in any::<bool>()) {
         let field = TerrainField::new(&recipe).unwrap();
         let keys = vec![ChunkKey::new(x, y, z), ChunkKey::new(x + 1, y, z), ChunkKey::new(x, y + 1, z), ChunkKey::new(x, y, z + 1)];
-        let v = generate(&field, &keys, Level::BASE);
+        let level = if coarse { Level::COARSEST } else { Level::BASE };
+        let v = generate(&field, &keys, level);
         prop_assert!(v.check_invariants_within(&|k| keys.contains(&k)).is_ok());
-        check_nodes(&field, &v, keys[0], Level::BASE);
+        check_nodes(&field, &v, keys[0], level);
         let _ = CHUNK_CELLS;
     }
 }
@@ -192,7 +208,7 @@ proptest! {
 /// plane sits on the surface, a tie decided by `density ≤ 0`) and at a half-integer one.
 #[test]
 fn flat_surfaces_on_and_between_grid_planes() {
-    for base in [0.0, 5.0, 5.5, -16.0] {
+    for base in [0.0, 5.0, 5.5, 6.0, -16.0] {
         let mut r = Recipe::with_seed(1);
         r.heights.amplitude = 0.0;
         r.warp.amplitude = 0.0;
@@ -208,6 +224,12 @@ fn flat_surfaces_on_and_between_grid_planes() {
         }
         assert!(v.is_inside(DVec3::new(3.0, base.floor(), 3.0)), "a node on or under the surface is inside");
         assert!(!v.is_inside(DVec3::new(3.0, base.floor() + 1.0, 3.0)));
+        // At the coarse level the planes lie on its nodes (even heights) or between them.
+        let v = generate(&field, &keys, Level::COARSEST);
+        v.check_invariants_within(&|k| keys.contains(&k)).unwrap();
+        for &k in &keys {
+            check_nodes(&field, &v, k, Level::COARSEST);
+        }
     }
 }
 

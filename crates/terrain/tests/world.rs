@@ -334,6 +334,81 @@ fn chunks_near_the_viewer_are_finer_and_follow_it() {
     closed_inside(&world, &loaded);
 }
 
+/// Far terrain coarse (a clipmap): with a coarse distance, chunks beyond it are generated at
+/// level −1, those within it at the base level, those within the detail distance at level 1,
+/// each equal bit for bit to the chunk generated alone at its level; the levels follow the
+/// viewer; the loaded volume keeps every invariant across the seams of all three levels and
+/// its welded mesh is closed. An edit out in the coarse ring is made at the base level, with
+/// the same chunks as the same edit of a world without a coarse ring.
+#[test]
+fn far_chunks_are_coarse_follow_the_viewer_and_are_edited_at_the_base_level() {
+    use strata_volume::Level;
+    let mut s = settings(72.0);
+    s.detail_distance = 16.0;
+    s.coarse_distance = 40.0;
+    let recipe = Recipe::with_seed(8);
+    let field = strata_terrain::TerrainField::new(&recipe).unwrap();
+    let mut world = World::in_memory(&recipe, s.clone()).unwrap();
+    let check = |world: &World| {
+        let loaded: HashSet<ChunkKey> = world.loaded().collect();
+        let mut counts = [0usize; strata_volume::coords::LEVEL_COUNT];
+        for &k in &loaded {
+            let want = world.generated_level(k);
+            if let Some(l) = world.volume().stored_level(k) {
+                assert_eq!(l, want, "{k:?} at the level its distance asks for");
+                counts[l.index()] += 1;
+            }
+            let g = strata_volume::generate_chunk(k, want, &field);
+            assert!(world.volume().chunk(k) == g.chunk.as_ref(), "{k:?} as generated alone at {want:?}");
+        }
+        world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
+        closed_inside(world, &loaded);
+        counts
+    };
+    let home = DVec3::new(8.0, 0.0, 8.0);
+    assert!(world.settle(&[home], SETTLE));
+    let counts = check(&world);
+    let at = |l: Level| counts[l.index()];
+    assert!(
+        at(Level::COARSEST) > 0 && at(Level::BASE) > 0 && at(Level::new(1).unwrap()) > 0,
+        "three levels in view: {counts:?}"
+    );
+    // Moving on: chunks that crossed either distance are generated again at their new level,
+    // one chunk at a time and in one jump.
+    for step in 1..=3 {
+        assert!(world.settle(&[home + DVec3::new(16.0 * step as f64, 0.0, 0.0)], SETTLE));
+    }
+    check(&world);
+    let away = home + DVec3::new(48.0, 0.0, 96.0);
+    assert!(world.settle(&[away], SETTLE));
+    check(&world);
+    // An edit out in the coarse ring, against the same edit of a world whose ring is not coarse.
+    let mut plain = World::in_memory(&recipe, WorldSettings { coarse_distance: 0.0, ..s }).unwrap();
+    assert!(plain.settle(&[away], SETTLE));
+    let far = away + DVec3::new(56.0, 0.0, 8.0);
+    let key = ChunkKey::containing(far).unwrap();
+    let hit = plain.volume().raycast(far + DVec3::Y * 100.0, -DVec3::Y, 300.0).unwrap().point;
+    assert_eq!(world.generated_level(ChunkKey::containing(hit).unwrap()), Level::COARSEST, "{key:?} is far");
+    let report = world.edit(bounds_of(hit, 3.0), crater(hit, 3.0)).unwrap();
+    let expected = plain.edit(bounds_of(hit, 3.0), crater(hit, 3.0)).unwrap();
+    assert!(!report.changed.is_empty());
+    assert_eq!(report.changed, expected.changed);
+    assert_eq!(snapshot(&world, &report.changed), snapshot(&plain, &expected.changed), "the same edit");
+    for &k in &report.changed {
+        assert!(world.volume().stored_level(k).is_none_or(|l| l >= Level::BASE), "{k:?} edited at the base level");
+    }
+    let loaded: HashSet<ChunkKey> = world.loaded().collect();
+    world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
+    closed_inside(&world, &loaded);
+    // The edited chunks keep their level when the viewer moves on; the others follow it.
+    assert!(world.settle(&[away + DVec3::new(-32.0, 0.0, 0.0)], SETTLE));
+    for &k in &report.changed {
+        if let Some(l) = world.volume().stored_level(k) {
+            assert!(l >= Level::BASE, "{k:?} keeps the level it was edited at");
+        }
+    }
+}
+
 /// The welded marching-cubes mesh of the loaded chunks has no open or non-manifold edge except
 /// at the border of what is loaded (where the lists continue in chunks not in memory), seams
 /// between levels included.

@@ -120,9 +120,15 @@ impl ChunkBox {
 /// from [`MIN_LEVEL`] (−1: 8 cells of two grid units, for far terrain) to [`MAX_LEVEL`] (2: 64).
 /// Serialised as its number in one signed byte, so files written before the coarse level
 /// existed (levels 0–2) read the same.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(try_from = "i8", into = "i8")]
 pub struct Level(u8);
+
+impl std::fmt::Debug for Level {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Level({})", self.get())
+    }
+}
 
 impl TryFrom<i8> for Level {
     type Error = String;

@@ -42,14 +42,18 @@ pub(crate) const NEIGHBOURS: [IVec3; 18] = [
 ];
 
 /// Whether the block of `key` can be read by the plain extractor: it and its face and edge
-/// neighbours are all meshed at the level they are stored at, which is the block's level.
+/// neighbours are all meshed at the level they are stored at, which is the block's level, and
+/// the plain extractor's level for it (a uniform chunk's is the volume's). Without the last
+/// condition a uniform chunk whose list neighbours all share another level (far terrain at
+/// the coarse level in a base-level world) was read plainly at the volume's level while they
+/// meshed the cells at its corner edges at theirs, and the surface through them opened.
 pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     let level = map.get(key);
     let same = |k: ChunkKey| {
         let stored_ok = map.volume.stored_level(k).is_none_or(|l| l == level);
         stored_ok && map.get(k) == level
     };
-    same(key) && NEIGHBOURS.iter().all(|&d| same(key.offset(d)))
+    map.volume.level_of(key) == level && same(key) && NEIGHBOURS.iter().all(|&d| same(key.offset(d)))
 }
 
 /// Whether `key` and its face and edge neighbours are all meshed at one level in `map` (then
