@@ -521,9 +521,9 @@ impl Editor {
         let t0 = Instant::now();
         let world_surface = self.scene.layers.len();
         if let Some(world) = self.world.as_mut() {
-            let changed = world.take_changed();
+            let (changed, alone) = (world.take_changed(), world.take_alone());
             let world = &*world;
-            self.meshes.streamed_changes(world_surface, world.volume(), &changed, &|k| world.is_loaded(k));
+            self.meshes.streamed_changes(world_surface, world.volume(), &changed, &alone, &|k| world.is_loaded(k));
         }
         let world = self.world.as_ref();
         let loaded = |k: ChunkKey| world.is_none_or(|w| w.is_loaded(k));

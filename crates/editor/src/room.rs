@@ -41,12 +41,12 @@ pub enum RoomContent {
 /// How a world in a shared room streams: every chunk at the base level (see the module docs),
 /// the rest as `settings` says.
 pub fn shared_world_settings(settings: WorldSettings) -> WorldSettings {
-    WorldSettings { detail_distance: 0.0, ..settings }
+    WorldSettings { detail_distance: 0.0, coarse_distance: 0.0, ..settings }
 }
 
 /// Whether a world streams as a shared room needs (one level everywhere).
 pub fn is_shareable(world: &World) -> bool {
-    world.settings().detail_distance == 0.0
+    world.settings().detail_distance == 0.0 && world.settings().coarse_distance == 0.0
 }
 
 /// The snapshot of what `editor` holds: its scene's file, or its world's content.
@@ -55,7 +55,9 @@ pub fn encode(editor: &Editor) -> Result<Vec<u8>, String> {
         return crate::file::encode_shared(&editor.scene).map_err(|e| e.to_string());
     };
     if !is_shareable(world) {
-        return Err("a world that generates finer chunks near its viewer cannot be shared".into());
+        return Err(
+            "a world that generates finer chunks near its viewer or coarser ones far away cannot be shared".into()
+        );
     }
     let content = WorldContent {
         recipe: world.recipe().clone(),

@@ -391,19 +391,24 @@ impl ViewMeshes {
 
     /// Tells streamed surface `surface` (whose volume is `volume`) that chunks `changed` were
     /// loaded, evicted or edited: the loaded chunks that read them are queued, the others lose
-    /// their meshes (listed in the next change list).
+    /// their meshes (listed in the next change list); and that chunks `alone` were loaded or
+    /// evicted empty where they read as empty either way (no mesh reading them changes): they
+    /// are queued, or lose their meshes, alone.
     pub(crate) fn streamed_changes(
         &mut self,
         surface: usize,
         volume: &Volume,
         changed: &[ChunkKey],
+        alone: &[ChunkKey],
         loaded: &dyn Fn(ChunkKey) -> bool,
     ) {
         let Some(s) = self.surfaces.get_mut(surface) else { return };
         let Backend::Streamed(st) = &mut s.backend else { return };
         let mut dropped = Vec::new();
-        for &k in changed {
-            for d in MeshWorkers::readers(volume, k) {
+        let readers = |k: ChunkKey| MeshWorkers::readers(volume, k);
+        let alone = alone.iter().map(|&k| vec![k]);
+        for ds in changed.iter().map(|&k| readers(k)).chain(alone) {
+            for d in ds {
                 if loaded(d) {
                     s.queued.insert(d);
                 } else {

@@ -818,7 +818,7 @@ fn a_repair_keeps_the_chunks_stored_at_other_levels_than_the_layers() {
     let near = |k: ChunkKey| (k.0 - damaged.0).abs().max_element() <= 1;
     for (stored, source) in [(0i8, 2usize), (2, 0), (1, 0), (1, 2)] {
         let what = format!("chunks at level {source} in a layer of level {stored}");
-        let level = Level::new(stored as i8).unwrap();
+        let level = Level::new(stored).unwrap();
         let original = &sources[source];
         let crafted = assemble(level, original.chunks().map(|(k, c)| (k, c.clone(), None)));
         let mut record = file::scene_record(&scene_of(crafted), true).unwrap();

@@ -144,8 +144,11 @@ impl MeshWorkers {
 
     /// Forgets a request (its chunk left memory): its result will be dropped.
     pub fn cancel(&mut self, key: ChunkKey) {
-        self.latest.remove(&key);
-        if let Ok(mut w) = self.wanted.lock() {
+        // (Only a request made is in `wanted`: most chunks cancelled, beside those that left
+        // memory, were never asked for.)
+        if self.latest.remove(&key).is_some()
+            && let Ok(mut w) = self.wanted.lock()
+        {
             w.remove(&key);
         }
     }

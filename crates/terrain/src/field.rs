@@ -431,6 +431,26 @@ impl TerrainField {
         let h = &self.recipe.heights;
         self.bound(y0, y1, h.base - h.amplitude, h.base + h.amplitude)
     }
+
+    /// The materials of the chunk at `origin` where the recipe's bounds alone prove it solid
+    /// rock: solid ([`TerrainField::decided_by_recipe`]) and deeper than the soil under the
+    /// lowest height the recipe reaches, so every node is rock (`Some(None)` where rock is
+    /// material 0; the canonical form, as the chunk generated at any level has it). `None`
+    /// where the bounds do not prove that. Constant time.
+    pub fn proven_rock_materials(&self, origin: I64Vec3) -> Option<Option<strata_volume::ChunkMaterials>> {
+        if self.decided_by_recipe(origin) != Some(true) {
+            return None;
+        }
+        let h = &self.recipe.heights;
+        let m = &self.recipe.materials;
+        let top = (origin.y + CHUNK_CELLS) as f64;
+        // `material` takes rock where the depth below the column's height exceeds the soil
+        // depth; the margin covers rounding in the heights.
+        let lowest = h.base - h.amplitude;
+        let eps = self.margin(top.abs(), lowest.abs());
+        (lowest - top > m.soil_depth + eps)
+            .then(|| (m.rock != 0).then_some(strata_volume::ChunkMaterials::Uniform(m.rock)))
+    }
 }
 
 impl NodeField for TerrainField {

@@ -118,7 +118,8 @@ pub struct UpdateReport {
     /// Whether the memory budget held chunks back.
     pub over_budget: bool,
     /// Of the chunks integrated, those the recipe proves empty (sky above anything the terrain
-    /// reaches, not edited): loaded at once, without a worker.
+    /// reaches) or solid rock (below the caves and the soil), not edited: loaded at once,
+    /// without a worker.
     pub proven_empty: usize,
 }
 
@@ -141,20 +142,82 @@ fn background_priority() {
     let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
 }
 
+/// Queue order: farthest first (workers pop the nearest from the end).
+fn farthest_first(a: &Job, b: &Job) -> std::cmp::Ordering {
+    b.distance.total_cmp(&a.distance).then(b.key.cmp(&a.key))
+}
+
+/// How many of the nearest jobs a queue keeps in order: more than the workers take between two
+/// moves of a viewer across a chunk (a full sort of a fast flight's 15,000 jobs took most of a
+/// frame's update).
+const ORDERED: usize = 1024;
+
+/// Orders `jobs` far enough for workers popping from the end: the nearest [`ORDERED`] last, in
+/// order, every other job before them. Returns where the ordered tail starts.
+fn order_tail(jobs: &mut [Job]) -> usize {
+    if jobs.len() <= 2 * ORDERED {
+        jobs.sort_unstable_by(farthest_first);
+        return 0;
+    }
+    let from = jobs.len() - ORDERED;
+    jobs.select_nth_unstable_by(from, farthest_first);
+    jobs[from..].sort_unstable_by(farthest_first);
+    from
+}
+
+/// A list of jobs whose tail from `ordered_from` is in order ([`order_tail`]).
+#[derive(Default)]
+struct Jobs {
+    list: Vec<Job>,
+    ordered_from: usize,
+}
+
+impl Jobs {
+    fn pop(&mut self) -> Option<Job> {
+        self.list.pop()
+    }
+
+    /// Replaces the list and orders it.
+    fn set(&mut self, mut list: Vec<Job>) {
+        self.ordered_from = order_tail(&mut list);
+        self.list = list;
+    }
+
+    /// Orders it again once the workers took most of the ordered tail.
+    fn keep_ordered(&mut self) {
+        if self.ordered_from > 0 && self.list.len() < self.ordered_from + ORDERED / 4 {
+            self.ordered_from = order_tail(&mut self.list);
+        }
+    }
+}
+
 /// The workers' queue.
 #[derive(Default)]
 struct Queue {
-    /// Sorted by distance, farthest first (workers pop the nearest from the end).
-    jobs: Vec<Job>,
+    /// Chunks not loaded, nearest last (workers pop the nearest from the end).
+    jobs: Jobs,
+    /// Loaded chunks to be generated again at another level, the same way; taken only when
+    /// `jobs` is empty (the view fills before it sharpens).
+    refine: Jobs,
     shutdown: bool,
+}
+
+/// A chunk's contents as a worker produced them.
+struct Produced {
+    stored: StoredChunk,
+    /// Read from the database (an edited chunk).
+    edited: bool,
+    /// Uniform by the recipe's bounds (the same at every level).
+    proven: bool,
 }
 
 /// A finished request.
 struct Done {
     key: ChunkKey,
     ticket: u64,
-    /// The contents, and whether they came from the database (an edited chunk).
-    result: Result<(StoredChunk, bool), String>,
+    /// The level it was generated at.
+    level: Level,
+    result: Result<Produced, String>,
 }
 
 /// Shared with the workers.
@@ -189,6 +252,9 @@ pub struct World {
     ready: Vec<Done>,
     /// Chunks that could not be read (they are neither loaded nor editable).
     failed: KeyMap<String>,
+    /// Loaded chunks generated from the recipe (neither edited nor uniform by its bounds), with
+    /// the level they were generated at: those that follow the viewers' distance.
+    generated: KeyMap<Level>,
     /// Chunks the database holds (edited ones): read at open, kept by every flush. A chunk not
     /// among them is what the recipe makes.
     in_store: KeySet,
@@ -201,6 +267,9 @@ pub struct World {
     coarse_shell: Arc<[IVec3]>,
     /// Chunks whose contents changed since [`World::take_changed`] (for meshers).
     changed: Vec<ChunkKey>,
+    /// Chunks loaded or evicted empty (where nothing was, or nothing is left), since
+    /// [`World::take_alone`].
+    alone: Vec<ChunkKey>,
     /// Notes written with the next flush.
     notes: Vec<(String, Vec<u8>)>,
     last_flush: Instant,
@@ -301,12 +370,14 @@ impl World {
             next_ticket: 0,
             ready: Vec::new(),
             failed: KeyMap::default(),
+            generated: KeyMap::default(),
             in_store,
             desired: KeySet::default(),
             desired_for: Vec::new(),
             stencil: Arc::new([]),
             coarse_shell: Arc::new([]),
             changed: Vec::new(),
+            alone: Vec::new(),
             notes: Vec::new(),
             last_flush: Instant::now(),
             shared,
@@ -380,9 +451,20 @@ impl World {
         self.changed.len()
     }
 
-    /// Chunks whose contents changed (loaded, evicted, edited) since the last call.
+    /// Chunks whose contents changed (loaded, evicted, edited) since the last call: a mesher
+    /// remeshes every chunk that reads them. A chunk loaded or evicted empty where it read as
+    /// empty either way is not among them ([`World::take_alone`]).
     pub fn take_changed(&mut self) -> Vec<ChunkKey> {
         std::mem::take(&mut self.changed)
+    }
+
+    /// Chunks loaded empty where nothing was loaded, or evicted empty, since the last call (most
+    /// of them sky, as a view moves): no mesh that reads them changes, since a chunk not in
+    /// memory reads as empty, but their own mesh may (the surface can pass through the cells
+    /// at their edges, whose crossings their neighbours own), so a mesher meshes or drops them
+    /// alone.
+    pub fn take_alone(&mut self) -> Vec<ChunkKey> {
+        std::mem::take(&mut self.alone)
     }
 
     /// Whether a chunk at offset `o` from a viewer's chunk is in view: the chunk column's
@@ -449,6 +531,15 @@ impl World {
         } else {
             self.level
         }
+    }
+
+    /// The level a chunk entering the view is generated at first: with a coarse distance, a
+    /// chunk the viewers want at the base level comes coarse first and is generated again at
+    /// the base level once every chunk in view is loaded, so a fast flight fills the view
+    /// before it sharpens it.
+    fn first_level(&self, key: ChunkKey, at: &[IVec3]) -> Level {
+        let want = self.level_for(key, at);
+        if self.settings.coarse_distance > 0.0 && want == self.level { Level::COARSEST } else { want }
     }
 
     /// The level chunk `key` is generated at for the current viewers.
@@ -585,53 +676,77 @@ impl World {
                     true
                 }
             });
-            // Chunks the recipe proves empty (the sky) need no worker, unless the database holds an
-            // edit of it.
+            // Chunks the recipe proves empty (the sky) or solid rock (below the caves and the
+            // soil) need no worker, unless the database holds an edit of them.
             wanted.retain(|&k| {
-                if self.in_store.contains(&k) || self.field.decided_by_recipe(k.origin_grid()) != Some(false) {
+                if self.in_store.contains(&k) {
                     return true;
                 }
-                self.integrate(k, StoredChunk { chunk: None, materials: None });
+                let stored = match self.field.decided_by_recipe(k.origin_grid()) {
+                    Some(false) => StoredChunk { chunk: None, materials: None },
+                    Some(true) => match self.field.proven_rock_materials(k.origin_grid()) {
+                        Some(materials) => StoredChunk { chunk: Some(strata_volume::Chunk::Solid), materials },
+                        None => return true,
+                    },
+                    None => return true,
+                };
+                self.integrate(k, stored);
                 report.integrated += 1;
                 report.proven_empty += 1;
                 false
             });
-            let mut jobs = {
+            let (mut jobs, mut refine) = {
                 let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
-                std::mem::take(&mut q.jobs)
+                (std::mem::take(&mut q.jobs.list), std::mem::take(&mut q.refine.list))
             };
             // Outside the lock (workers go on with what they hold): drop stale requests, add the
             // new ones, order by distance (the old order is nearly right: the sort is cheap).
             jobs.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
+            refine.retain(|j| self.pending.get(&j.key) == Some(&j.ticket));
             // Chunks that crossed the detail or the coarse distance are generated again at their
             // new level (the old version stays until the new one is integrated); edited ones
             // keep theirs.
+            let mut again = Vec::new();
             for key in self.level_candidates(&from) {
-                let Some(now) = self.volume.stored_level(key) else { continue };
-                let busy = self.pending.contains_key(&key);
-                if busy || !self.loaded.contains(&key) || self.dirty.contains(&key) || self.edited.contains(&key) {
+                let Some(&now) = self.generated.get(&key) else { continue };
+                if self.pending.contains_key(&key) {
                     continue;
                 }
-                let want = self.level_for(key, &self.desired_for);
-                if want != now {
-                    wanted.push(key);
+                if self.level_for(key, &self.desired_for) != now {
+                    again.push(key);
                 }
             }
             for key in wanted {
                 self.next_ticket += 1;
                 self.pending.insert(key, self.next_ticket);
-                let level = self.level_for(key, &self.desired_for);
-                jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0, level });
+                jobs.push(Job { key, ticket: self.next_ticket, distance: 0.0, level: Level::BASE });
+            }
+            for key in again {
+                self.next_ticket += 1;
+                self.pending.insert(key, self.next_ticket);
+                refine.push(Job { key, ticket: self.next_ticket, distance: 0.0, level: Level::BASE });
             }
             for j in jobs.iter_mut() {
                 j.distance = Self::distance(viewers, j.key);
-                j.level = self.level_for(j.key, &self.desired_for);
+                j.level = self.first_level(j.key, &self.desired_for);
             }
-            jobs.sort_unstable_by(|a, b| b.distance.total_cmp(&a.distance).then(b.key.cmp(&a.key)));
+            // A level change asked for before the viewers moved back is dropped.
+            refine.retain_mut(|j| {
+                j.level = self.level_for(j.key, &self.desired_for);
+                let keep = self.generated.get(&j.key) != Some(&j.level);
+                if !keep {
+                    self.pending.remove(&j.key);
+                }
+                keep
+            });
+            for j in refine.iter_mut() {
+                j.distance = Self::distance(viewers, j.key);
+            }
             {
                 let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
                 // Workers found the queue empty meanwhile; nothing else adds to it.
-                q.jobs = jobs;
+                q.jobs.set(jobs);
+                q.refine.set(refine);
             }
             self.shared.wake.notify_all();
         }
@@ -647,8 +762,9 @@ impl World {
                 Self::distance(viewers, b.key).total_cmp(&Self::distance(viewers, a.key)).then(b.key.cmp(&a.key))
             });
         }
+        let mut sharpen = Vec::new();
         while let Some(done) = self.ready.pop() {
-            let bytes = done.result.as_ref().map_or(0, |s| s.0.chunk.as_ref().map_or(0, |c| c.heap_bytes()));
+            let bytes = done.result.as_ref().map_or(0, |p| p.stored.chunk.as_ref().map_or(0, |c| c.heap_bytes()));
             if self.loaded_bytes + bytes > self.settings.memory_budget {
                 report.over_budget = true;
                 self.ready.push(done);
@@ -656,16 +772,19 @@ impl World {
             }
             self.pending.remove(&done.key);
             match done.result {
-                Ok((stored, edited)) => {
+                Ok(p) => {
                     if self.dirty.contains(&done.key) {
                         // Edited since it was asked for: the edit wins.
                         continue;
                     }
-                    if edited {
-                        self.edited.insert(done.key);
-                    }
-                    self.integrate(done.key, stored);
+                    self.integrate_produced(done.key, done.level, p);
                     report.integrated += 1;
+                    // Generated coarse first (or asked for before the viewers moved): generated
+                    // again at the level it is wanted at once the view is full.
+                    if self.generated.get(&done.key).is_some_and(|&l| l != self.level_for(done.key, &self.desired_for))
+                    {
+                        sharpen.push(done.key);
+                    }
                 }
                 Err(why) => {
                     self.failed.insert(done.key, why);
@@ -674,6 +793,26 @@ impl World {
             if start.elapsed() >= self.settings.frame_budget {
                 break;
             }
+        }
+        if !sharpen.is_empty() {
+            let jobs: Vec<Job> = sharpen
+                .into_iter()
+                .map(|key| {
+                    self.next_ticket += 1;
+                    self.pending.insert(key, self.next_ticket);
+                    let level = self.level_for(key, &self.desired_for);
+                    Job { key, ticket: self.next_ticket, distance: Self::distance(viewers, key), level }
+                })
+                .collect();
+            let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
+            let mut all = std::mem::take(&mut q.refine.list);
+            all.extend(jobs);
+            q.refine.set(all);
+            drop(q);
+            self.shared.wake.notify_all();
+        } else if let Ok(mut q) = self.shared.queue.lock() {
+            q.jobs.keep_ordered();
+            q.refine.keep_ordered();
         }
         report.pending = self.pending.len();
         debug_assert_eq!(
@@ -688,23 +827,48 @@ impl World {
         report
     }
 
+    /// Integrates what a worker (or [`World::load_now`]) produced at `level`, noting whether it
+    /// follows the viewers' distance.
+    fn integrate_produced(&mut self, key: ChunkKey, level: Level, p: Produced) {
+        if p.edited {
+            self.edited.insert(key);
+        }
+        if p.edited || p.proven {
+            self.generated.remove(&key);
+        } else {
+            self.generated.insert(key, level);
+        }
+        self.integrate(key, p.stored);
+    }
+
     fn integrate(&mut self, key: ChunkKey, stored: StoredChunk) {
         self.loaded_bytes += stored.chunk.as_ref().map_or(0, |c| c.heap_bytes());
+        let empty = stored.chunk.is_none();
         let (old, _) = self.volume.put_chunk(key, stored.chunk, stored.materials);
         self.loaded_bytes -= old.as_ref().map_or(0, |c| c.heap_bytes());
-        self.loaded.insert(key);
-        self.changed.push(key);
+        if self.loaded.insert(key) && empty && old.is_none() {
+            // Nothing that reads it changes: a chunk not in memory reads as empty.
+            self.alone.push(key);
+        } else {
+            self.changed.push(key);
+        }
     }
 
     fn evict(&mut self, key: ChunkKey) {
+        self.generated.remove(&key);
         let (chunk, materials) = self.volume.take_chunk(key);
         self.loaded_bytes -= chunk.as_ref().map_or(0, |c| c.heap_bytes());
         self.loaded.remove(&key);
         self.edited.remove(&key);
+        // An empty chunk leaving memory changes nothing that reads it (it reads as empty).
+        if chunk.is_none() {
+            self.alone.push(key)
+        } else {
+            self.changed.push(key)
+        }
         if self.dirty.remove(&key) {
             self.evicted_dirty.insert(key, StoredChunk { chunk, materials });
         }
-        self.changed.push(key);
     }
 
     /// Loads, now, every chunk in `keys` that is not in memory (edited versions first from the
@@ -727,13 +891,10 @@ impl World {
             }
             // What is loaded now is loaded to be edited or restored: never coarser than the base.
             let level = self.level_for(key, &self.desired_for).max(self.level);
-            let (stored, edited) = produce(&self.field, self.store.as_deref(), level, key)
+            let p = produce(&self.field, self.store.as_deref(), level, key)
                 .map_err(|why| WorldError::Unreadable(key.0.to_array(), why))?;
             self.failed.remove(&key);
-            if edited {
-                self.edited.insert(key);
-            }
-            self.integrate(key, stored);
+            self.integrate_produced(key, level, p);
         }
         Ok(())
     }
@@ -775,14 +936,15 @@ impl World {
     /// writes at less than the base resolution. A request in flight for one is dropped.
     fn raise_to_base(&mut self, keys: &[ChunkKey]) {
         for &key in keys {
-            if !self.volume.stored_level(key).is_some_and(|l| l < self.level) {
+            if self.generated.get(&key).is_none_or(|&l| l >= self.level) {
                 continue;
             }
             if self.pending.remove(&key).is_some() {
                 self.ready.retain(|d| d.key != key);
             }
             let g = generate_chunk(key, self.level, &*self.field);
-            self.integrate(key, StoredChunk { chunk: g.chunk, materials: g.materials });
+            let stored = StoredChunk { chunk: g.chunk, materials: g.materials };
+            self.integrate_produced(key, self.level, Produced { stored, edited: false, proven: g.decided });
         }
     }
 
@@ -795,6 +957,7 @@ impl World {
     /// `before` (their bytes before the change; a key without one makes a full recount).
     fn after_change(&mut self, keys: &[ChunkKey], before: &KeyMap<usize>) {
         for &k in keys {
+            self.generated.remove(&k);
             self.dirty.insert(k);
             self.edited.insert(k);
             self.loaded.insert(k);
@@ -977,21 +1140,22 @@ impl Drop for World {
     }
 }
 
-/// A chunk's contents: its edited version from the database (`true`), else generated at
-/// `level`.
-fn produce(
-    field: &TerrainField,
-    store: Option<&WorldStore>,
-    level: Level,
-    key: ChunkKey,
-) -> Result<(StoredChunk, bool), String> {
+/// A chunk's contents: its edited version from the database, else generated at `level`.
+fn produce(field: &TerrainField, store: Option<&WorldStore>, level: Level, key: ChunkKey) -> Result<Produced, String> {
     if let Some(store) = store
         && let Some(stored) = store.read(key).map_err(|e| e.to_string())?
     {
-        return Ok((stored, true));
+        return Ok(Produced { stored, edited: true, proven: false });
     }
     let g = generate_chunk(key, level, field);
-    Ok((StoredChunk { chunk: g.chunk, materials: g.materials }, false))
+    // A uniform chunk has no level: the volume (at the base level) reads its materials per base
+    // node.
+    let materials = if level != Level::BASE && g.chunk == Some(strata_volume::Chunk::Solid) {
+        strata_volume::solid_chunk_materials(key, Level::BASE, field)
+    } else {
+        g.materials
+    };
+    Ok(Produced { stored: StoredChunk { chunk: g.chunk, materials }, edited: false, proven: g.decided })
 }
 
 fn work(field: &TerrainField, store: Option<&WorldStore>, shared: &Shared, tx: &Sender<Done>) {
@@ -1002,14 +1166,14 @@ fn work(field: &TerrainField, store: Option<&WorldStore>, shared: &Shared, tx: &
                 if q.shutdown || shared.stop.load(Ordering::SeqCst) {
                     return;
                 }
-                if let Some(j) = q.jobs.pop() {
+                if let Some(j) = q.jobs.pop().or_else(|| q.refine.pop()) {
                     break j;
                 }
                 q = shared.wake.wait(q).expect("the queue lock is never poisoned");
             }
         };
         let result = produce(field, store, job.level, job.key);
-        if tx.send(Done { key: job.key, ticket: job.ticket, result }).is_err() {
+        if tx.send(Done { key: job.key, ticket: job.ticket, level: job.level, result }).is_err() {
             return;
         }
     }

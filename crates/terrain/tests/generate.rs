@@ -105,6 +105,32 @@ fn chunks_under_the_surface_that_the_caves_provably_miss_or_fill_are_decided_by_
     }
 }
 
+/// Chunks the recipe's bounds prove solid rock (below every cave and deeper than the soil under
+/// the lowest height) have the materials the world loads them with at once, as generated at
+/// every level; the bound holds down from a few chunks below the surface, and not above.
+#[test]
+fn proven_rock_is_what_generation_makes_at_every_level() {
+    for seed in [3, 2021] {
+        let field = TerrainField::new(&Recipe::with_seed(seed)).unwrap();
+        let mut proven = 0;
+        for y in -40..4 {
+            for (x, z) in [(0, 0), (7, -3)] {
+                let key = ChunkKey::new(x, y, z);
+                let Some(materials) = field.proven_rock_materials(key.origin_grid()) else { continue };
+                proven += 1;
+                for level in [Level::COARSEST, Level::BASE] {
+                    let g = generate_chunk(key, level, &field);
+                    assert_eq!(g.chunk, Some(strata_volume::Chunk::Solid), "{key:?} at {level:?}");
+                    let base = strata_volume::solid_chunk_materials(key, Level::BASE, &field);
+                    assert_eq!(materials, base, "{key:?}: rock per base node");
+                }
+            }
+        }
+        assert!(proven > 20, "seed {seed}: {proven} proven");
+        assert!(field.proven_rock_materials(ChunkKey::new(0, 0, 0).origin_grid()).is_none());
+    }
+}
+
 #[test]
 fn finer_and_coarser_levels_store_the_density_sign_too() {
     let field = TerrainField::new(&Recipe::with_seed(11)).unwrap();

@@ -336,7 +336,8 @@ fn chunks_near_the_viewer_are_finer_and_follow_it() {
 
 /// Far terrain coarse (a clipmap): with a coarse distance, chunks beyond it are generated at
 /// level −1, those within it at the base level, those within the detail distance at level 1,
-/// each equal bit for bit to the chunk generated alone at its level; the levels follow the
+/// each equal bit for bit to the chunk generated alone at its level (a solid chunk's materials
+/// per base node, as the volume reads a uniform chunk's); the levels follow the
 /// viewer; the loaded volume keeps every invariant across the seams of all three levels and
 /// its welded mesh is closed. An edit out in the coarse ring is made at the base level, with
 /// the same chunks as the same edit of a world without a coarse ring.
@@ -360,6 +361,12 @@ fn far_chunks_are_coarse_follow_the_viewer_and_are_edited_at_the_base_level() {
             }
             let g = strata_volume::generate_chunk(k, want, &field);
             assert!(world.volume().chunk(k) == g.chunk.as_ref(), "{k:?} as generated alone at {want:?}");
+            // A uniform chunk has no level: its materials are per node of the base level.
+            let materials = match g.chunk {
+                Some(strata_volume::Chunk::Solid) => strata_volume::solid_chunk_materials(k, Level::BASE, &field),
+                _ => g.materials,
+            };
+            assert_eq!(world.volume().chunk_materials(k), materials.as_ref(), "{k:?}'s materials");
         }
         world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
         closed_inside(world, &loaded);

@@ -131,6 +131,13 @@ pub fn generate_chunk(key: ChunkKey, level: Level, field: &dyn NodeField) -> Gen
     GeneratedChunk { chunk, materials, decided: false }
 }
 
+/// The materials of chunk `key` if every node of it is solid, per node of `level`: a volume
+/// reads a uniform chunk's materials at its own level, so a solid chunk generated at another
+/// level (far terrain, coarser) takes these at the volume's.
+pub fn solid_chunk_materials(key: ChunkKey, level: Level, field: &dyn NodeField) -> Option<ChunkMaterials> {
+    solid_materials(key.origin_grid(), level, field)
+}
+
 /// Materials of a chunk every node of which is solid.
 fn solid_materials(origin: I64Vec3, level: Level, field: &dyn NodeField) -> Option<ChunkMaterials> {
     let n = level.cells();

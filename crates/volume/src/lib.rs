@@ -55,7 +55,7 @@ pub use block::{EdgeCrossing, SeamPoint, SeamSplit, VoxelBlock};
 pub use chunk::{Chunk, ChunkLists, LineRef};
 pub use coords::{ChunkBox, ChunkKey, Level};
 pub use edit::{CsgOp, EditControl, EditError, EditReport, EditSettings, Reach, UndoRecord};
-pub use generate::{GeneratedChunk, NodeField, generate_chunk};
+pub use generate::{GeneratedChunk, NodeField, generate_chunk, solid_chunk_materials};
 pub use invariants::InvariantViolation;
 pub use mask::{ChunkMask, Mask, MaskUndo, MaskWeight, PROTECTED};
 pub use material::{ChunkMaterials, MATERIAL_IDS, MaterialId};

@@ -294,6 +294,7 @@ impl Studio {
             world_settings: strata_terrain::WorldSettings {
                 view_distance: 192.0,
                 detail_distance: 40.0,
+                coarse_distance: 96.0,
                 ..strata_terrain::WorldSettings::default()
             },
             camera,
