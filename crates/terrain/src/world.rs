@@ -177,10 +177,9 @@ impl Jobs {
         self.list.pop()
     }
 
-    /// Replaces the list and orders it.
-    fn set(&mut self, mut list: Vec<Job>) {
-        self.ordered_from = order_tail(&mut list);
-        self.list = list;
+    /// A list already ordered by [`order_tail`] from `ordered_from`.
+    fn ordered(list: Vec<Job>, ordered_from: usize) -> Jobs {
+        Jobs { list, ordered_from }
     }
 
     /// Orders it again once the workers took most of the ordered tail.
@@ -446,9 +445,10 @@ impl World {
         self.dirty.len() + self.evicted_dirty.len()
     }
 
-    /// Changes (chunks loaded, evicted or edited) waiting for [`World::take_changed`].
+    /// Changes (chunks loaded, evicted or edited) waiting for [`World::take_changed`] and
+    /// [`World::take_alone`].
     pub fn changed_count(&self) -> usize {
-        self.changed.len()
+        self.changed.len() + self.alone.len()
     }
 
     /// Chunks whose contents changed (loaded, evicted, edited) since the last call: a mesher
@@ -742,11 +742,12 @@ impl World {
             for j in refine.iter_mut() {
                 j.distance = Self::distance(viewers, j.key);
             }
+            let (jobs_from, refine_from) = (order_tail(&mut jobs), order_tail(&mut refine));
             {
                 let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
                 // Workers found the queue empty meanwhile; nothing else adds to it.
-                q.jobs.set(jobs);
-                q.refine.set(refine);
+                q.jobs = Jobs::ordered(jobs, jobs_from);
+                q.refine = Jobs::ordered(refine, refine_from);
             }
             self.shared.wake.notify_all();
         }
@@ -794,23 +795,8 @@ impl World {
                 break;
             }
         }
-        if !sharpen.is_empty() {
-            let jobs: Vec<Job> = sharpen
-                .into_iter()
-                .map(|key| {
-                    self.next_ticket += 1;
-                    self.pending.insert(key, self.next_ticket);
-                    let level = self.level_for(key, &self.desired_for);
-                    Job { key, ticket: self.next_ticket, distance: Self::distance(viewers, key), level }
-                })
-                .collect();
-            let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
-            let mut all = std::mem::take(&mut q.refine.list);
-            all.extend(jobs);
-            q.refine.set(all);
-            drop(q);
-            self.shared.wake.notify_all();
-        } else if let Ok(mut q) = self.shared.queue.lock() {
+        self.queue_again(sharpen, viewers);
+        if let Ok(mut q) = self.shared.queue.lock() {
             q.jobs.keep_ordered();
             q.refine.keep_ordered();
         }
@@ -825,6 +811,36 @@ impl World {
             report.flushed = self.flush().is_ok();
         }
         report
+    }
+
+    /// Queues `keys` (loaded chunks generated at another level than they are wanted at) to be
+    /// generated again at their level, after every missing chunk.
+    fn queue_again(&mut self, keys: Vec<ChunkKey>, viewers: &[DVec3]) {
+        if keys.is_empty() {
+            return;
+        }
+        let jobs: Vec<Job> = keys
+            .into_iter()
+            .map(|key| {
+                self.next_ticket += 1;
+                self.pending.insert(key, self.next_ticket);
+                let level = self.level_for(key, &self.desired_for);
+                Job { key, ticket: self.next_ticket, distance: Self::distance(viewers, key), level }
+            })
+            .collect();
+        let mut all = {
+            let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
+            std::mem::take(&mut q.refine.list)
+        };
+        // (Workers take from the main queue meanwhile, or wait for this one.)
+        all.extend(jobs);
+        let from = order_tail(&mut all);
+        {
+            let mut q = self.shared.queue.lock().expect("the queue lock is never poisoned");
+            let taken_meanwhile = std::mem::replace(&mut q.refine, Jobs::ordered(all, from));
+            debug_assert!(taken_meanwhile.list.is_empty(), "only the main thread adds jobs");
+        }
+        self.shared.wake.notify_all();
     }
 
     /// Integrates what a worker (or [`World::load_now`]) produced at `level`, noting whether it
@@ -926,9 +942,27 @@ impl World {
         self.load_now(&near)?;
         self.raise_to_base(&near);
         let before = self.bytes_of(&near);
-        let report = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()))?;
-        self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
-        Ok(report)
+        let result = edit(&mut self.volume).map_err(|e| WorldError::Edit(e.to_string()));
+        if let Ok(report) = &result {
+            self.after_change(report.undo.keys().collect::<Vec<_>>().as_slice(), &before);
+        }
+        // Loading dropped the requests for these chunks; those the edit left alone go on to the
+        // level they are wanted at (but the ring's chunks raised for the edit stay at the base
+        // level, ready for the next edit, until the viewer moves).
+        let again: Vec<ChunkKey> = near
+            .iter()
+            .copied()
+            .filter(|k| {
+                let want = self.level_for(*k, &self.desired_for);
+                want != Level::COARSEST
+                    && self.generated.get(k).is_some_and(|&l| l != want)
+                    && !self.pending.contains_key(k)
+            })
+            .collect();
+        let c = CHUNK_CELLS as f64;
+        let viewers: Vec<DVec3> = self.desired_for.iter().map(|v| (v.as_dvec3() + DVec3::splat(0.5)) * c).collect();
+        self.queue_again(again, &viewers);
+        result
     }
 
     /// Generates again, at the base level, every loaded chunk of `keys` that is coarser (far
@@ -944,7 +978,8 @@ impl World {
             }
             let g = generate_chunk(key, self.level, &*self.field);
             let stored = StoredChunk { chunk: g.chunk, materials: g.materials };
-            self.integrate_produced(key, self.level, Produced { stored, edited: false, proven: g.decided });
+            let proven = self.field.decided_by_recipe(key.origin_grid()).is_some();
+            self.integrate_produced(key, self.level, Produced { stored, edited: false, proven });
         }
     }
 
@@ -1148,6 +1183,10 @@ fn produce(field: &TerrainField, store: Option<&WorldStore>, level: Level, key: 
         return Ok(Produced { stored, edited: true, proven: false });
     }
     let g = generate_chunk(key, level, field);
+    // Uniform at every level only where the recipe's bounds alone decide it: a decision from
+    // the columns of a coarse chunk (every other column of the base level's) proves nothing
+    // about the base level, where a peak between them can cross the chunk.
+    let proven = field.decided_by_recipe(key.origin_grid()).is_some();
     // A uniform chunk has no level: the volume (at the base level) reads its materials per base
     // node.
     let materials = if level != Level::BASE && g.chunk == Some(strata_volume::Chunk::Solid) {
@@ -1155,7 +1194,7 @@ fn produce(field: &TerrainField, store: Option<&WorldStore>, level: Level, key: 
     } else {
         g.materials
     };
-    Ok(Produced { stored: StoredChunk { chunk: g.chunk, materials }, edited: false, proven: g.decided })
+    Ok(Produced { stored: StoredChunk { chunk: g.chunk, materials }, edited: false, proven })
 }
 
 fn work(field: &TerrainField, store: Option<&WorldStore>, shared: &Shared, tx: &Sender<Done>) {

@@ -416,6 +416,32 @@ fn far_chunks_are_coarse_follow_the_viewer_and_are_edited_at_the_base_level() {
     }
 }
 
+/// An edit beside chunks still waiting to be generated again at their level (the viewer just
+/// moved across the detail distance) does not leave them at the old one: once the world
+/// settles, every chunk the edit did not change is at the level its distance asks for.
+#[test]
+fn an_edit_beside_chunks_changing_level_leaves_them_to_reach_it() {
+    let mut s = settings(48.0);
+    s.detail_distance = 20.0;
+    s.threads = 1;
+    let mut world = World::in_memory(&Recipe::with_seed(8), s).unwrap();
+    let home = DVec3::new(8.0, 0.0, 8.0);
+    assert!(world.settle(&[home], SETTLE));
+    let hit = world.volume().raycast(home + DVec3::new(24.0, 100.0, 0.0), -DVec3::Y, 300.0).unwrap().point;
+    // One update at the new place queues the level changes; the edit comes before they are done.
+    let _ = world.update(&[home + DVec3::new(32.0, 0.0, 0.0)]);
+    assert!(world.pending_count() > 0, "level changes queued");
+    let report = world.edit(bounds_of(hit, 2.0), crater(hit, 2.0)).unwrap();
+    assert!(world.settle(&[home + DVec3::new(32.0, 0.0, 0.0)], SETTLE));
+    for k in world.loaded().collect::<Vec<_>>() {
+        if let Some(l) = world.volume().stored_level(k)
+            && !report.changed.contains(&k)
+        {
+            assert_eq!(l, world.generated_level(k), "{k:?}");
+        }
+    }
+}
+
 /// The welded marching-cubes mesh of the loaded chunks has no open or non-manifold edge except
 /// at the border of what is loaded (where the lists continue in chunks not in memory), seams
 /// between levels included.
