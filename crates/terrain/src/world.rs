@@ -489,8 +489,13 @@ impl World {
 
     /// The offsets [`World::in_stencil`] accepts.
     fn stencil(&self) -> Vec<IVec3> {
+        self.offsets_within(self.settings.view_distance, |o| self.in_stencil(o))
+    }
+
+    /// The offsets that `keep` accepts among those whose chunks can be within the horizontal
+    /// distance `r` (and its vertical ratio) of a viewer's chunk.
+    fn offsets_within(&self, r: f64, keep: impl Fn(IVec3) -> bool) -> Vec<IVec3> {
         let c = CHUNK_CELLS as f64;
-        let r = self.settings.view_distance;
         let h = (r / c).ceil() as i32 + 1;
         let v = (r * self.settings.vertical_ratio / c).ceil() as i32 + 1;
         let mut out = Vec::new();
@@ -498,7 +503,7 @@ impl World {
             for x in -h..=h {
                 for y in -v..=v {
                     let o = IVec3::new(x, y, z);
-                    if self.in_stencil(o) {
+                    if keep(o) {
                         out.push(o);
                     }
                 }
@@ -554,20 +559,7 @@ impl World {
     fn shell(&self, r: f64) -> Vec<IVec3> {
         let c = CHUNK_CELLS as f64;
         let (outer, inner) = (r + 2.0 * c, (r - 2.0 * c).max(0.0));
-        let h = (outer / c).ceil() as i32 + 1;
-        let v = (outer * self.settings.vertical_ratio / c).ceil() as i32 + 1;
-        let mut out = Vec::new();
-        for z in -h..=h {
-            for x in -h..=h {
-                for y in -v..=v {
-                    let o = IVec3::new(x, y, z);
-                    if self.within(o, outer) && !self.within(o, inner) {
-                        out.push(o);
-                    }
-                }
-            }
-        }
-        out
+        self.offsets_within(outer, |o| self.within(o, outer) && !self.within(o, inner))
     }
 
     /// Loaded chunks that may have crossed the detail or the coarse distance when the viewers

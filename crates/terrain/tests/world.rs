@@ -291,23 +291,11 @@ fn chunks_near_the_viewer_are_finer_and_follow_it() {
     s.detail_distance = 20.0;
     let mut world = World::in_memory(&Recipe::with_seed(8), s).unwrap();
     let fine = strata_volume::Level::new(1).unwrap();
-    let check = |world: &World| {
-        let loaded: HashSet<ChunkKey> = world.loaded().collect();
-        let mut counts = [0usize; 2];
-        for &k in &loaded {
-            if let Some(l) = world.volume().stored_level(k) {
-                assert_eq!(l, world.generated_level(k), "{k:?} at the level its distance asks for");
-                counts[l.get() as usize] += 1;
-            }
-        }
-        world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
-        closed_inside(world, &loaded);
-        counts
-    };
     let home = DVec3::new(8.0, 0.0, 8.0);
     assert!(world.settle(&[home], SETTLE));
-    let counts = check(&world);
-    assert!(counts[0] > 0 && counts[1] > 0, "both levels in view: {counts:?}");
+    let counts = levels_follow(&world, |_| ());
+    let at = |l: strata_volume::Level| counts[l.index()];
+    assert!(at(strata_volume::Level::BASE) > 0 && at(fine) > 0, "both levels in view: {counts:?}");
     // An edit near the viewer, in fine chunks.
     let hit = world.volume().raycast(home + DVec3::Y * 100.0, -DVec3::Y, 300.0).unwrap().point;
     let report = world.edit(bounds_of(hit, 3.0), crater(hit, 3.0)).unwrap();
@@ -351,14 +339,8 @@ fn far_chunks_are_coarse_follow_the_viewer_and_are_edited_at_the_base_level() {
     let field = strata_terrain::TerrainField::new(&recipe).unwrap();
     let mut world = World::in_memory(&recipe, s.clone()).unwrap();
     let check = |world: &World| {
-        let loaded: HashSet<ChunkKey> = world.loaded().collect();
-        let mut counts = [0usize; strata_volume::coords::LEVEL_COUNT];
-        for &k in &loaded {
+        levels_follow(world, |k| {
             let want = world.generated_level(k);
-            if let Some(l) = world.volume().stored_level(k) {
-                assert_eq!(l, want, "{k:?} at the level its distance asks for");
-                counts[l.index()] += 1;
-            }
             let g = strata_volume::generate_chunk(k, want, &field);
             assert!(world.volume().chunk(k) == g.chunk.as_ref(), "{k:?} as generated alone at {want:?}");
             // A uniform chunk has no level: its materials are per node of the base level.
@@ -367,10 +349,7 @@ fn far_chunks_are_coarse_follow_the_viewer_and_are_edited_at_the_base_level() {
                 _ => g.materials,
             };
             assert_eq!(world.volume().chunk_materials(k), materials.as_ref(), "{k:?}'s materials");
-        }
-        world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
-        closed_inside(world, &loaded);
-        counts
+        })
     };
     let home = DVec3::new(8.0, 0.0, 8.0);
     assert!(world.settle(&[home], SETTLE));
@@ -440,6 +419,24 @@ fn an_edit_beside_chunks_changing_level_leaves_them_to_reach_it() {
             assert_eq!(l, world.generated_level(k), "{k:?}");
         }
     }
+}
+
+/// Every loaded list chunk is at the level its distance asks for (and passes `each`, as every
+/// loaded chunk does), the loaded volume keeps every invariant, and its welded mesh is closed
+/// inside what is loaded; returns how many list chunks each level holds.
+fn levels_follow(world: &World, each: impl Fn(ChunkKey)) -> [usize; strata_volume::coords::LEVEL_COUNT] {
+    let loaded: HashSet<ChunkKey> = world.loaded().collect();
+    let mut counts = [0usize; strata_volume::coords::LEVEL_COUNT];
+    for &k in &loaded {
+        if let Some(l) = world.volume().stored_level(k) {
+            assert_eq!(l, world.generated_level(k), "{k:?} at the level its distance asks for");
+            counts[l.index()] += 1;
+        }
+        each(k);
+    }
+    world.volume().check_invariants_within(&|k| loaded.contains(&k)).unwrap();
+    closed_inside(world, &loaded);
+    counts
 }
 
 /// The welded marching-cubes mesh of the loaded chunks has no open or non-manifold edge except
