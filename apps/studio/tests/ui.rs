@@ -552,14 +552,17 @@ fn the_detail_tool_raises_the_resolution_where_it_is_dragged() {
     drag_over_the_ball(&mut h, 4);
     let v = &h.state().studio.editor.scene.layers[0].volume;
     let counts = v.level_counts();
-    assert!(counts[1] > 0, "chunks under the drag were raised: {counts:?} ({})", h.state().studio.message);
-    assert!(counts[0] > 0, "and the others kept the base level");
+    let (base, fine) = (strata_volume::Level::BASE.index(), strata_volume::Level::new(1).unwrap().index());
+    assert!(counts[fine] > 0, "chunks under the drag were raised: {counts:?} ({})", h.state().studio.message);
+    assert!(counts[base] > 0, "and the others kept the base level");
     v.check_invariants().unwrap();
-    assert!(h.state().studio.status().contains("×32³"), "the status bar counts the chunks by level");
+    let status = h.state().studio.status();
+    assert!(status.contains("×32³") && status.contains("×16³"), "the status bar counts the chunks by level: {status}");
+    assert!(!status.contains("×8³") && !status.contains("×64³"), "by their own levels: {status}");
     assert_eq!(h.state().studio.editor.history().undo_len(), 1, "one stroke, one step");
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.run();
-    assert_eq!(h.state().studio.editor.scene.layers[0].volume.level_counts()[1], 0, "Ctrl+Z undid it");
+    assert_eq!(h.state().studio.editor.scene.layers[0].volume.level_counts()[fine], 0, "Ctrl+Z undid it");
 }
 
 #[test]

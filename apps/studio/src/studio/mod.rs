@@ -481,7 +481,7 @@ impl Studio {
                     .iter()
                     .enumerate()
                     .filter(|(_, c)| **c > 0)
-                    .map(|(k, c)| format!("{c}×{}³", 16 << k))
+                    .map(|(k, c)| format!("{c}×{}³", strata_volume::Level::ALL[k].cells()))
                     .collect();
                 if parts.is_empty() { String::new() } else { format!(" · chunks {}", parts.join(" ")) }
             })
