@@ -137,7 +137,7 @@ impl ChunkMap {
         }
     }
 
-    /// How many list chunks are stored at each level.
+    /// How many list chunks are stored at each level (index: [`crate::Level::index`], coarsest first).
     pub fn level_counts(&self) -> [u32; crate::coords::LEVEL_COUNT] {
         self.levels
     }
@@ -363,7 +363,7 @@ impl Volume {
         counts.iter().enumerate().all(|(k, &c)| c == 0 || k == self.level.index())
     }
 
-    /// How many list chunks are stored at each level (index: level number).
+    /// How many list chunks are stored at each level (index: [`Level::index`], coarsest first).
     pub fn level_counts(&self) -> [u32; crate::coords::LEVEL_COUNT] {
         self.chunks.level_counts()
     }
