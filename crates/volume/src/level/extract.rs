@@ -46,14 +46,30 @@ pub(crate) const NEIGHBOURS: [IVec3; 18] = [
 /// the plain extractor's level for it (a uniform chunk's is the volume's). Without the last
 /// condition a uniform chunk whose list neighbours all share another level (far terrain at
 /// the coarse level in a base-level world) was read plainly at the volume's level while they
-/// meshed the cells at its corner edges at theirs, and the surface through them opened.
+/// meshed the cells at its corner edges at theirs, and the surface through them opened. A
+/// uniform neighbour is read plainly only at the volume's level or below ([`uniform_binds`]).
 pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     let level = map.get(key);
     let same = |k: ChunkKey| {
-        let stored_ok = map.volume.stored_level(k).is_none_or(|l| l == level);
+        let stored_ok = match map.volume.stored_level(k) {
+            Some(l) => l == level,
+            None => uniform_binds(map, level),
+        };
         stored_ok && map.get(k) == level
     };
     map.volume.level_of(key) == level && same(key) && NEIGHBOURS.iter().all(|&d| same(key.offset(d)))
+}
+
+/// Whether a uniform chunk's lines read at `level` agree with its list neighbours: at the
+/// volume's level or below. A uniform chunk binds its neighbours' lines only at the volume's
+/// level (as edits and the invariant checker read it), so a neighbour stored finer can end a
+/// line between its nodes, or start one on a node of its own face, in the other state. Read
+/// plainly at that finer level, the uniform chunk's line ends there would then contradict the
+/// neighbour's nodes (a notch along a four-chunk edge under the detail tool opened the mesh);
+/// patched, every shared face and chunk edge is taken from its effective data instead, and the
+/// blocks on both sides agree.
+fn uniform_binds(map: &LevelMap<'_>, level: crate::coords::Level) -> bool {
+    level <= map.volume.level
 }
 
 /// Whether `key` and its face and edge neighbours are all meshed at one level in `map` (then
@@ -62,17 +78,21 @@ pub(crate) fn plain(map: &LevelMap<'_>, key: ChunkKey) -> bool {
 /// [`LevelMap::decided_level`]) agrees with any level: its lines are uniform at every level and
 /// no seam runs along it. (Without that, the uniform chunks around a model viewed coarser than
 /// it is stored, which take the level of their list neighbours, met uniform chunks farther out
-/// at the volume's level, and each was patched through a dense grid.)
+/// at the volume's level, and each was patched through a dense grid.) A uniform chunk (the
+/// block's own or a neighbour) whose level a list chunk decides agrees only where it binds its
+/// neighbours at that level ([`uniform_binds`]).
 pub(crate) fn same_level_around(map: &LevelMap<'_>, key: ChunkKey) -> bool {
     let level = map.get(key);
-    NEIGHBOURS.iter().all(|&d| match map.decided_level(key.offset(d)) {
-        Some(l) => l == level,
-        None => {
-            // (It has no list neighbour: the block beside it is uniform too.)
-            debug_assert!(map.volume.stored_level(key).is_none());
-            true
-        }
-    })
+    let binds = |k: ChunkKey| map.volume.stored_level(k).is_some() || uniform_binds(map, level);
+    binds(key)
+        && NEIGHBOURS.iter().all(|&d| match map.decided_level(key.offset(d)) {
+            Some(l) => l == level && binds(key.offset(d)),
+            None => {
+                // (It has no list neighbour: the block beside it is uniform too.)
+                debug_assert!(map.volume.stored_level(key).is_none());
+                true
+            }
+        })
 }
 
 /// The block of `key` at its level in `map`, with every shared face taken from its effective
