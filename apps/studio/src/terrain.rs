@@ -361,12 +361,13 @@ impl TerrainMode {
     pub fn status(&self, editor: &Editor) -> String {
         let Some(world) = editor.world() else { return String::new() };
         format!(
-            "Terrain {}: at ({:.0}, {:.0}, {:.0}); {} chunks loaded, {} triangles, {} waiting; {} craters; history {} steps; {} edits not yet written",
+            "Terrain {}: at ({:.0}, {:.0}, {:.0}); {} chunks loaded (surface {}), {} triangles, {} waiting; {} craters; history {} steps; {} edits not yet written",
             Self::path(editor).map_or("(in memory)".into(), |p| p.display().to_string()),
             self.eye.x,
             self.eye.y,
             self.eye.z,
             world.loaded_count(),
+            crate::studio::chunk_levels(world.volume()),
             editor.triangle_count(),
             editor.pending(),
             self.craters,

@@ -759,6 +759,145 @@ fn a_new_world_is_flown_through_dug_bombed_undone_closed_and_reopened() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+/// Waits (stepping frames) until the world has nothing left to generate or mesh.
+fn settle_world(h: &mut Harness<'static, StudioApp>) {
+    let start = std::time::Instant::now();
+    while start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(5));
+        h.step();
+        let s = &h.state().studio;
+        if s.editor.world().unwrap().pending_count() == 0 && s.editor.pending() == 0 {
+            return;
+        }
+    }
+    panic!("the world did not settle: {}", h.state().studio.status());
+}
+
+/// The far ring as a user meets it (the studio generates chunks beyond a distance at 8³ cells,
+/// nearer ones at 16³; here a small world, so the ring is near): the status bar counts the
+/// surface chunks of each size, the streamed ground meshes closed across the sizes, flying
+/// ahead sharpens the chunks it nears and coarsens those it leaves, and a dig lands at the base
+/// level and meshes closed; Ctrl+Z gives the ground back (the coarse chunks it reached at the
+/// base level, generated again for it), Ctrl+Y the dig.
+#[test]
+fn far_terrain_streams_coarse_and_sharpens_as_the_viewer_flies_and_digs() {
+    use strata_volume::Level;
+    let dir = temp("coarse");
+    let mut h = harness(&dir);
+    {
+        let w = &mut h.state_mut().studio.world_settings;
+        w.view_distance = 56.0;
+        w.threads = 2;
+        w.vertical_ratio = 1.0;
+        w.detail_distance = 0.0;
+        w.coarse_distance = 24.0;
+    }
+    h.run();
+    h.get_by_label("Terrain").click();
+    h.run();
+    h.get_by_label("New world…").click();
+    h.run();
+    type_keys(&mut h, &dir.join("far.world").display().to_string());
+    h.key_press(egui::Key::Enter);
+    h.run_steps(3);
+    assert!(h.state().studio.terrain.is_some(), "{}", h.state().studio.message);
+    settle_world(&mut h);
+    let world = |h: &Harness<'static, StudioApp>| h.state().studio.editor.world().unwrap().volume().clone();
+    // Every edge of the welded mesh is used twice, but at the border of what is loaded (where
+    // the ground goes on in chunks not in memory).
+    let closed = |h: &Harness<'static, StudioApp>, when: &str| {
+        let world = h.state().studio.editor.world().unwrap();
+        let loaded: std::collections::HashSet<_> = world.loaded().collect();
+        let mesh = strata_mesh::mesh_volume_with(world.volume(), strata_mesh::MeshOptions::default()).unwrap();
+        assert!(!mesh.indices.is_empty(), "{when}: ground");
+        let mut uses = std::collections::HashMap::<(u32, u32), u32>::new();
+        for t in mesh.indices.chunks_exact(3) {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        for ((a, b), n) in uses.into_iter().filter(|&(_, n)| n != 2) {
+            let mid =
+                (glam::Vec3::from(mesh.positions[a as usize]) + glam::Vec3::from(mesh.positions[b as usize])) / 2.0;
+            let k = strata_volume::ChunkKey((mid.as_dvec3() / 16.0).floor().as_ivec3());
+            assert!(
+                k.around().any(|n| !loaded.contains(&n)),
+                "{when}: edge at {mid} used {n} times inside the loaded ground"
+            );
+        }
+    };
+    let levels = |h: &Harness<'static, StudioApp>| {
+        let w = h.state().studio.editor.world().unwrap();
+        w.loaded().map(|k| (k, w.generated_level(k))).collect::<std::collections::HashMap<_, _>>()
+    };
+    let counts = world(&h).level_counts();
+    assert!(counts[Level::COARSEST.index()] > 0 && counts[Level::BASE.index()] > 0, "both sizes: {counts:?}");
+    let status = h.state().studio.status();
+    assert!(status.contains("×8³") && status.contains("×16³"), "the status bar counts both sizes: {status}");
+    closed(&h, "streamed");
+    // Fly ahead with W held (about 40 cells a second) past a chunk or two.
+    let before = levels(&h);
+    let start = h.state().studio.terrain.as_ref().unwrap().eye;
+    h.key_down(egui::Key::W);
+    let flight = std::time::Instant::now();
+    while h.state().studio.terrain.as_ref().unwrap().eye.distance(start) < 40.0
+        && flight.elapsed() < Duration::from_secs(30)
+    {
+        std::thread::sleep(Duration::from_millis(20));
+        h.step();
+    }
+    h.key_up(egui::Key::W);
+    h.step();
+    settle_world(&mut h);
+    let after = levels(&h);
+    let sharpened = after.iter().filter(|(k, l)| **l == Level::BASE && before.get(k) == Some(&Level::COARSEST)).count();
+    let coarsened = after.iter().filter(|(k, l)| **l == Level::COARSEST && before.get(k) == Some(&Level::BASE)).count();
+    assert!(sharpened > 0 && coarsened > 0, "flying sharpened {sharpened} chunks and coarsened {coarsened}");
+    closed(&h, "after the flight");
+    // Look down and dig.
+    h.state_mut().studio.terrain.as_mut().unwrap().pitch = 1.2;
+    settle_world(&mut h);
+    let generated = world(&h);
+    drag_over_the_ball(&mut h, 6);
+    settle_world(&mut h);
+    let dug = world(&h);
+    assert_ne!(dug, generated, "the drag dug: {}", h.state().studio.message);
+    let edited: Vec<_> = dug.chunks().filter(|(k, c)| generated.chunk(*k) != Some(*c)).map(|(k, _)| k).collect();
+    assert!(!edited.is_empty());
+    for k in &edited {
+        let l = dug.stored_level(*k);
+        assert!(l.is_none_or(|l| l >= Level::BASE), "{k:?} was edited at {l:?}");
+    }
+    closed(&h, "dug");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    // The ground as generated, but that the coarse chunks the dig reached were generated again
+    // at the base level first (where they stay until the viewer moves on).
+    let undone = world(&h);
+    let field = h.state().studio.editor.world().unwrap().field();
+    let mut raised = 0;
+    let keys: std::collections::HashSet<_> = undone.chunks().chain(generated.chunks()).map(|(k, _)| k).collect();
+    for k in keys {
+        if undone.chunk(k) != generated.chunk(k) {
+            assert_eq!(generated.stored_level(k), Some(Level::COARSEST), "Ctrl+Z left {k:?} changed");
+            let g = strata_volume::generate_chunk(k, Level::BASE, field);
+            assert!(undone.chunk(k) == g.chunk.as_ref(), "Ctrl+Z left {k:?} unlike its ground at the base level");
+            raised += 1;
+        }
+    }
+    assert!(raised < edited.len(), "Ctrl+Z gave the dug chunks back");
+    closed(&h, "undone");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
+    h.step();
+    assert!(world(&h) == dug, "Ctrl+Y dug again");
+    h.get_by_label("Terrain").click();
+    h.run_steps(3);
+    h.get_by_label("Close world").click();
+    h.run_steps(3);
+    assert!(h.state().studio.terrain.is_none(), "{}", h.state().studio.message);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
 #[test]
 fn the_viewport_and_exports_take_the_mesher_chosen_in_the_menus() {
     let dir = temp("meshers");

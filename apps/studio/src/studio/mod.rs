@@ -476,14 +476,8 @@ impl Studio {
             .layers
             .get(self.editor.active_layer)
             .map(|l| {
-                let counts = l.volume.level_counts();
-                let parts: Vec<String> = counts
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, c)| **c > 0)
-                    .map(|(k, c)| format!("{c}×{}³", strata_volume::Level::ALL[k].cells()))
-                    .collect();
-                if parts.is_empty() { String::new() } else { format!(" · chunks {}", parts.join(" ")) }
+                let parts = chunk_levels(&l.volume);
+                if parts.is_empty() { String::new() } else { format!(" · chunks {parts}") }
             })
             .unwrap_or_default();
         format!(
@@ -560,4 +554,17 @@ impl Studio {
         self.falloff_kind = self.editor.tool.kind;
         Ok(())
     }
+}
+
+/// The list chunks of `volume` counted by the cells a side they are stored at ("12×8³ 40×16³";
+/// empty where it holds none).
+pub(crate) fn chunk_levels(volume: &strata_volume::Volume) -> String {
+    let parts: Vec<String> = volume
+        .level_counts()
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c > 0)
+        .map(|(k, c)| format!("{c}×{}³", strata_volume::Level::ALL[k].cells()))
+        .collect();
+    parts.join(" ")
 }
