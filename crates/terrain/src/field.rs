@@ -23,11 +23,11 @@
 use std::cell::RefCell;
 
 use glam::{DVec3, I64Vec3};
-use noise::{NoiseFn, Perlin};
 use strata_volume::coords::CHUNK_CELLS;
 use strata_volume::{Axis, Level, MaterialId, NodeField};
 
 use crate::bound::PerlinRange;
+use crate::perlin::Perlin;
 use crate::recipe::{Recipe, RecipeError};
 
 /// Fractal sum of Perlin octaves, normalised into `[-1, 1]`.
@@ -58,7 +58,7 @@ impl Fbm {
         let (mut f, mut amp) = (self.inv_wavelength, 1.0);
         let (mut plain, mut ridged) = (0.0, 0.0);
         for o in &self.octaves {
-            let n = o.get([x * f, z * f]);
+            let n = o.get2([x * f, z * f]);
             plain += amp * n;
             ridged += amp * (1.0 - 2.0 * n.abs());
             f *= self.lacunarity;
@@ -71,7 +71,7 @@ impl Fbm {
     fn get3(&self, p: DVec3) -> f64 {
         let (mut f, mut amp, mut sum) = (self.inv_wavelength, 1.0, 0.0);
         for o in &self.octaves {
-            sum += amp * o.get([p.x * f, p.y * f, p.z * f]);
+            sum += amp * o.get3([p.x * f, p.y * f, p.z * f]);
             f *= 2.0;
             amp *= 0.5;
         }
@@ -207,7 +207,7 @@ impl TerrainField {
         let w = &self.recipe.warp;
         let (x, z) = if w.amplitude > 0.0 {
             let f = 1.0 / w.wavelength;
-            (x + w.amplitude * self.warp_x.get([x * f, z * f]), z + w.amplitude * self.warp_z.get([x * f, z * f]))
+            (x + w.amplitude * self.warp_x.get2([x * f, z * f]), z + w.amplitude * self.warp_z.get2([x * f, z * f]))
         } else {
             (x, z)
         };

@@ -20,6 +20,8 @@
 
 mod bound;
 mod field;
+/// Perlin noise, the `noise` crate's values bit for bit, computed faster.
+pub mod perlin;
 mod recipe;
 mod region;
 mod store;
