@@ -392,12 +392,20 @@ impl Volume {
 
     /// Extracts the block of `key` into `out`, reusing its allocations. Where the chunk or a
     /// neighbour across a face or an edge is stored at another level, the shared faces are
-    /// patched to meet (see [`VoxelBlock::patched`] and [`VoxelBlock::seams`]).
+    /// patched to meet (see [`VoxelBlock::patched`] and [`VoxelBlock::seams`]). A uniform
+    /// chunk whose face and edge neighbours are all meshed at one level at or below the
+    /// volume's (far terrain's coarse chunks around the sky and the rock beside them) is read
+    /// at that level straight from its neighbours' lines, as level of detail reads it: nothing
+    /// differs in level there to patch.
     pub fn extract_block_into(&self, key: ChunkKey, out: &mut VoxelBlock) {
         if !self.single_level() {
             let map = crate::level::LevelMap::stored(self);
             if !crate::level::plain(&map, key) {
-                self.extract_unplain(&map, key, out);
+                if crate::level::same_level_around(&map, key) && !self.plain_block_uniform(key) {
+                    extract_sampled(&map, key, out);
+                } else {
+                    self.extract_unplain(&map, key, out);
+                }
                 self.fill_block_materials(out);
                 return;
             }
@@ -860,12 +868,20 @@ mod tests {
         for (i, &k) in lists.iter().enumerate() {
             mixed.set_chunk_level(k, Level::new((i % 3) as i8).unwrap());
         }
+        // Far terrain: every list chunk stored below the volume's level, the uniform chunks
+        // among them read at theirs.
+        let mut coarse = Volume::new();
+        coarse.add(&Sphere::new(DVec3::new(33.3, 30.1, 29.7), 21.6).unwrap()).unwrap();
+        coarse.subtract(&Sphere::new(DVec3::new(40.0, 36.0, 31.0), 9.0).unwrap()).unwrap();
+        let coarse_lists: Vec<ChunkKey> =
+            coarse.chunks().filter(|(k, _)| coarse.stored_level(*k).is_some()).map(|(k, _)| k).collect();
+        coarse.set_chunk_levels(&coarse_lists, Level::COARSEST);
         let listed: std::collections::HashSet<ChunkKey> = lists.iter().copied().collect();
         let middle = |k: ChunkKey| if listed.contains(&k) { Level::new(1).unwrap() } else { Level::FINEST };
         let odd = |k: ChunkKey| if (k.0.x + k.0.y + k.0.z) % 2 == 0 { Level::BASE } else { Level::new(1).unwrap() };
         type Cap<'a> = Option<&'a (dyn Fn(ChunkKey) -> Level + Sync)>;
-        let cases: [(&Volume, Cap<'_>); 4] =
-            [(&fine, Some(&middle)), (&fine, Some(&odd)), (&mixed, None), (&mixed, Some(&odd))];
+        let cases: [(&Volume, Cap<'_>); 5] =
+            [(&fine, Some(&middle)), (&fine, Some(&odd)), (&mixed, None), (&mixed, Some(&odd)), (&coarse, None)];
         for (case, (v, cap)) in cases.into_iter().enumerate() {
             let map = crate::level::LevelMap::new(v, cap, None);
             let (mut sampled, mut beside_isolated) = (0, 0);
@@ -900,9 +916,21 @@ mod tests {
                 }
             }
             assert!(sampled > 50, "case {case}: {sampled} sampled blocks");
+            if case == 4 {
+                // The uniform chunks among the coarse ones are read so when their blocks are.
+                let uniform = (-2..6)
+                    .flat_map(|x| (-2..6).flat_map(move |y| (-2..6).map(move |z| ChunkKey::new(x, y, z))))
+                    .filter(|&k| v.stored_level(k).is_none() && crate::level::same_level_around(&map, k))
+                    .filter(|&k| !v.plain_block_uniform(k) && map.get(k) == Level::COARSEST)
+                    .count();
+                assert!(uniform > 10, "{uniform} uniform chunks among coarse ones");
+            }
             // (Stored levels alone, uncapped, leave no uniform chunk at another level than its
             // neighbours'.)
-            assert!(case == 2 || beside_isolated > 10, "case {case}: {beside_isolated} blocks beside isolated chunks");
+            assert!(
+                case == 2 || case == 4 || beside_isolated > 10,
+                "case {case}: {beside_isolated} blocks beside isolated chunks"
+            );
         }
     }
 
