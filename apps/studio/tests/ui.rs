@@ -848,6 +848,8 @@ fn far_terrain_streams_coarse_and_sharpens_as_the_viewer_flies_and_digs() {
     }
     h.key_up(egui::Key::W);
     h.step();
+    let flown = h.state().studio.terrain.as_ref().unwrap().eye.distance(start);
+    assert!(flown >= 40.0, "W flew {flown} cells in 30 s");
     settle_world(&mut h);
     let after = levels(&h);
     let sharpened = after.iter().filter(|(k, l)| **l == Level::BASE && before.get(k) == Some(&Level::COARSEST)).count();
@@ -863,7 +865,7 @@ fn far_terrain_streams_coarse_and_sharpens_as_the_viewer_flies_and_digs() {
     let dug = world(&h);
     assert_ne!(dug, generated, "the drag dug: {}", h.state().studio.message);
     let edited: Vec<_> = dug.chunks().filter(|(k, c)| generated.chunk(*k) != Some(*c)).map(|(k, _)| k).collect();
-    assert!(!edited.is_empty());
+    assert!(!edited.is_empty(), "the dig changed chunks");
     for k in &edited {
         let l = dug.stored_level(*k);
         assert!(l.is_none_or(|l| l >= Level::BASE), "{k:?} was edited at {l:?}");
@@ -886,6 +888,7 @@ fn far_terrain_streams_coarse_and_sharpens_as_the_viewer_flies_and_digs() {
         }
     }
     assert!(raised < edited.len(), "Ctrl+Z gave the dug chunks back");
+    assert!(raised > 0, "the dig reached the coarse ring (so an edit there was made at the base level)");
     closed(&h, "undone");
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
     h.step();

@@ -26,6 +26,11 @@ fn main() {
         let (crate2, c) = ns(&|p| theirs.get([p[0], p[2]]));
         let (ours2, d) = ns(&|p| ours.get2([p[0], p[2]]));
         assert!(a == b && c == d, "the same sums");
-        println!("3D: the crate {crate3:.1} ns, ours {ours3:.1} ns; 2D: the crate {crate2:.1} ns, ours {ours2:.1} ns");
+        println!(
+            "3D: the crate {crate3:.1} ns, ours {ours3:.1} ns ({:.2}× faster); \
+             2D: the crate {crate2:.1} ns, ours {ours2:.1} ns ({:.2}× faster)",
+            crate3 / ours3,
+            crate2 / ours2
+        );
     }
 }

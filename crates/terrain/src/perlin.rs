@@ -14,9 +14,15 @@
 use noise::permutationtable::{NoiseHasher, PermutationTable};
 
 /// One octave of Perlin noise: `noise::Perlin::new(seed)`, faster (see the module docs).
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct Perlin {
     table: [u8; 256],
+}
+
+impl std::fmt::Debug for Perlin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Perlin").finish_non_exhaustive()
+    }
 }
 
 /// The crate's cell of a coordinate (see the module docs; `as` saturates where the crate's
