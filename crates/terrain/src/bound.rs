@@ -15,26 +15,18 @@
 //! noise in the box. A box crossing cell boundaries is split at them and the ranges joined.
 //! The crate computes in `f64`; the range is widened by [`ROUNDING`], far more than its rounding
 //! (a few units in the last place of values below 2), and both its ends are clamped into
-//! `[−1, 1]` as the crate clamps its value.
+//! `[−1, 1]` as the crate clamps its value. The table, the gradients by hash, the weight and the
+//! scale are [`crate::perlin`]'s, the one statement of the crate's noise here.
 
-use noise::permutationtable::{NoiseHasher, PermutationTable};
+use crate::perlin::{GRADIENTS_3, Perlin, SCALE_3, quintic};
 
 /// Added to both ends of a range: above the noise's own rounding (values below 2, a few dozen
 /// operations).
 const ROUNDING: f64 = 1e-9;
 
-/// `2/√3`: the crate's scale of the 3D noise.
-const SCALE: f64 = 1.154_700_538_379_251_5;
-
 /// Boxes spanning more lattice cells than this on an axis get the noise's whole range (the
 /// callers bound chunks and smaller boxes; a box that large decides nothing anyway).
 const MAX_CELLS_PER_AXIS: i64 = 8;
-
-/// The quintic weight.
-#[inline]
-fn quintic(t: f64) -> f64 {
-    t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
-}
 
 /// The range of `b t + a (1 − t)` over `a`, `b`, `t` in their ranges (`t ⊂ [0, 1]`).
 #[inline]
@@ -53,33 +45,21 @@ fn lerp(a: (f64, f64), b: (f64, f64), t: (f64, f64)) -> (f64, f64) {
     (lo, hi)
 }
 
-/// The range of one corner's value `G · (d − k)` for `d` in `[lo, hi]` (cell-local).
+/// The range of one corner's value `G · (d − k)` for `d` in `[lo, hi]` (cell-local), `G` the
+/// gradient its hash picks (two axes, each ±1: the sum of two terms' ranges).
 #[inline]
-fn corner(hash: usize, k: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
-    // (term range for +1, for -1) per axis.
-    let plus = |i: usize| (lo[i] - k[i], hi[i] - k[i]);
-    let minus = |i: usize| (k[i] - hi[i], k[i] - lo[i]);
-    let sum = |a: (f64, f64), b: (f64, f64)| (a.0 + b.0, a.1 + b.1);
-    match hash & 0b1111 {
-        0 | 12 => sum(plus(0), plus(1)),
-        1 | 13 => sum(minus(0), plus(1)),
-        2 => sum(plus(0), minus(1)),
-        3 => sum(minus(0), minus(1)),
-        4 => sum(plus(0), plus(2)),
-        5 => sum(minus(0), plus(2)),
-        6 => sum(plus(0), minus(2)),
-        7 => sum(minus(0), minus(2)),
-        8 => sum(plus(1), plus(2)),
-        9 | 14 => sum(minus(1), plus(2)),
-        10 => sum(plus(1), minus(2)),
-        _ => sum(minus(1), minus(2)),
-    }
+fn corner(hash: u8, k: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+    let term =
+        |i: usize, sign: f64| if sign > 0.0 { (lo[i] - k[i], hi[i] - k[i]) } else { (k[i] - hi[i], k[i] - lo[i]) };
+    let (a, sa, b, sb) = GRADIENTS_3[usize::from(hash & 15)];
+    let (ta, tb) = (term(a, sa), term(b, sb));
+    (ta.0 + tb.0, ta.1 + tb.1)
 }
 
 /// Ranges of one Perlin noise (the crate's, for the same seed).
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 pub(crate) struct PerlinRange {
-    table: PermutationTable,
+    noise: Perlin,
 }
 
 impl std::fmt::Debug for PerlinRange {
@@ -91,7 +71,7 @@ impl std::fmt::Debug for PerlinRange {
 impl PerlinRange {
     /// The ranges of `noise::Perlin::new(seed)`.
     pub(crate) fn new(seed: u32) -> Self {
-        PerlinRange { table: PermutationTable::new(seed) }
+        PerlinRange { noise: Perlin::new(seed) }
     }
 
     /// A range holding the noise at every point of the box `[lo, hi]` (noise coordinates).
@@ -125,14 +105,13 @@ impl PerlinRange {
     /// The range over the cell-local box `[l, h]` of the cell at `c`, before the rounding margin.
     fn cell(&self, c: [i64; 3], l: [f64; 3], h: [f64; 3]) -> (f64, f64) {
         let g = |x: i64, y: i64, z: i64| {
-            let at = [(c[0] + x) as isize, (c[1] + y) as isize, (c[2] + z) as isize];
-            corner(self.table.hash(&at), [x as f64, y as f64, z as f64], l, h)
+            corner(self.noise.hash3([c[0] + x, c[1] + y, c[2] + z]), [x as f64, y as f64, z as f64], l, h)
         };
         let w: [(f64, f64); 3] = std::array::from_fn(|i| (quintic(l[i]), quintic(h[i])));
         let x0 = lerp(lerp(g(0, 0, 0), g(0, 0, 1), w[2]), lerp(g(0, 1, 0), g(0, 1, 1), w[2]), w[1]);
         let x1 = lerp(lerp(g(1, 0, 0), g(1, 0, 1), w[2]), lerp(g(1, 1, 0), g(1, 1, 1), w[2]), w[1]);
         let r = lerp(x0, x1, w[0]);
-        (r.0 * SCALE, r.1 * SCALE)
+        (r.0 * SCALE_3, r.1 * SCALE_3)
     }
 }
 

@@ -35,7 +35,7 @@ fn cell(x: f64) -> isize {
 /// The gradients of 3D noise by hash (its low 4 bits): the two axes and their signs, so that
 /// `s0·p[a0] + s1·p[a1]` is the crate's `±p.a0 ± p.a1` exactly (a product by ±1 is exact and
 /// `u - v` is `u + (-v)`).
-const GRADIENTS_3: [(usize, f64, usize, f64); 16] = [
+pub(crate) const GRADIENTS_3: [(usize, f64, usize, f64); 16] = [
     (0, 1.0, 1, 1.0),   // 0: x + y
     (0, -1.0, 1, 1.0),  // 1: -x + y
     (0, 1.0, 1, -1.0),  // 2: x - y
@@ -74,9 +74,12 @@ fn linear(a: f64, b: f64, t: f64) -> f64 {
     b * t + a * (1.0 - t)
 }
 
+/// The crate's scale of 3D noise, `2/√3`, as the crate writes it.
+pub(crate) const SCALE_3: f64 = 1.154_700_538_379_251_5;
+
 /// The crate's quintic curve of `x` clamped to `[0, 1]`.
 #[inline(always)]
-fn quintic(x: f64) -> f64 {
+pub(crate) fn quintic(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
     x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
 }
@@ -92,6 +95,13 @@ impl Perlin {
     #[inline(always)]
     fn at(&self, i: u8) -> u8 {
         self.table[usize::from(i)]
+    }
+
+    /// The hash of the lattice corner `c` (whose low 4 bits pick its gradient in
+    /// [`GRADIENTS_3`]): the crate's `T[T[T[x] ^ y] ^ z]` of the coordinates' low bytes.
+    #[inline]
+    pub(crate) fn hash3(&self, c: [i64; 3]) -> u8 {
+        self.at(self.at(self.at(c[0] as u8) ^ c[1] as u8) ^ c[2] as u8)
     }
 
     /// 2D noise at `[x, y]`, in `[-1, 1]`.
@@ -114,8 +124,6 @@ impl Perlin {
     /// 3D noise at `[x, y, z]`, in `[-1, 1]`.
     #[inline]
     pub fn get3(&self, [x, y, z]: [f64; 3]) -> f64 {
-        // 2/√3, as the crate writes it.
-        const SCALE: f64 = 1.154_700_538_379_251_5;
         let (cx, cy, cz) = (cell(x), cell(y), cell(z));
         let (dx, dy, dz) = (x - cx as f64, y - cy as f64, z - cz as f64);
         let (x0, y0, z0) = (cx as u8, cy as u8, cz as u8);
@@ -134,7 +142,7 @@ impl Perlin {
         let (u, v, w) = (quintic(dx), quintic(dy), quintic(dz));
         let near = linear(linear(g000, g001, w), linear(g010, g011, w), v);
         let far = linear(linear(g100, g101, w), linear(g110, g111, w), v);
-        (linear(near, far, u) * SCALE).clamp(-1.0, 1.0)
+        (linear(near, far, u) * SCALE_3).clamp(-1.0, 1.0)
     }
 }
 

@@ -401,7 +401,8 @@ impl Volume {
         if !self.single_level() {
             let map = crate::level::LevelMap::stored(self);
             if !crate::level::plain(&map, key) {
-                if crate::level::same_level_around(&map, key) && !self.plain_block_uniform(key) {
+                // (The cheap test first: most blocks that fail it hold sky or rock alone.)
+                if !self.plain_block_uniform(key) && crate::level::same_level_around(&map, key) {
                     extract_sampled(&map, key, out);
                 } else {
                     self.extract_unplain(&map, key, out);
