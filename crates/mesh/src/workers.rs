@@ -3,9 +3,10 @@
 //!
 //! A chunk's mesh reads the chunk and the neighbours its voxel block's apron reaches (the chunks
 //! at offsets `{0, 1}³` in a volume of one level, all 26 around it otherwise). [`MeshWorkers::submit`]
-//! copies exactly those into a small snapshot volume (a few kilobytes; the main thread's only
-//! cost) and a worker meshes the snapshot, so the main thread never waits for a mesh and the
-//! world may change meanwhile: a result is kept only if no newer request for its chunk was made.
+//! puts shares of exactly those into a small snapshot volume ([`Volume::share_chunks`]: two small
+//! tables, no chunk copied; the main thread's only cost) and a worker meshes the snapshot, so the
+//! main thread never waits for a mesh and the world may change meanwhile: a result is kept only
+//! if no newer request for its chunk was made.
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
@@ -14,7 +15,6 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
-use glam::IVec3;
 use strata_volume::{ChunkKey, KeyHasher, Volume, VoxelBlock};
 
 use crate::{Mesh, mesh_block};
@@ -110,12 +110,10 @@ impl MeshWorkers {
     }
 
     /// The chunks the mesh of `key` reads in `volume`.
-    pub fn reads(volume: &Volume, key: ChunkKey) -> Vec<ChunkKey> {
-        if volume.single_level() {
-            (0..8).map(|d| key.offset(IVec3::new(d & 1, (d >> 1) & 1, (d >> 2) & 1))).collect()
-        } else {
-            key.around().collect()
-        }
+    pub fn reads(volume: &Volume, key: ChunkKey) -> impl Iterator<Item = ChunkKey> {
+        // The 27 around `key`, or the 8 at offsets {0, 1}³ among them.
+        let single = volume.single_level();
+        key.around().filter(move |k| !single || (k.0 - key.0).min_element() >= 0)
     }
 
     /// The chunks whose meshes read chunk `key` (the inverse of [`MeshWorkers::reads`]): what
@@ -126,12 +124,9 @@ impl MeshWorkers {
 
     /// Asks for a new mesh of `key` as `volume` is now (replacing any request not yet done).
     pub fn submit(&mut self, volume: &Volume, key: ChunkKey) {
-        let mut snapshot = Volume::with_level(volume.level());
-        for k in Self::reads(volume, key) {
-            if let Some(c) = volume.chunk(k) {
-                snapshot.put_chunk(k, Some(c.clone()), volume.chunk_materials(k).cloned());
-            }
-        }
+        // Shares of the chunks read (see `Volume::share_chunks`): the frame's thread allocates
+        // the snapshot's two small tables and copies no chunk.
+        let snapshot = volume.share_chunks(Self::reads(volume, key));
         self.next += 1;
         self.latest.insert(key, self.next);
         if let Ok(mut w) = self.wanted.lock() {

@@ -278,6 +278,31 @@ impl Volume {
         Some(v)
     }
 
+    /// A volume of the same level and cell size holding chunks `keys` as they are here, with
+    /// their materials (not the mask), for a reader on another thread: a mesher's snapshot of a
+    /// chunk's neighbourhood. The chunks are shared, not copied ([`ChunkLists`] and material runs
+    /// never change once made), so this allocates the two tables and nothing per chunk.
+    pub fn share_chunks(&self, keys: impl IntoIterator<Item = ChunkKey>) -> Volume {
+        let keys = keys.into_iter();
+        let mut v = Volume {
+            chunks: ChunkMap::default(),
+            materials: Default::default(),
+            level: self.level,
+            cell_size: self.cell_size,
+            mask: Default::default(),
+        };
+        v.chunks.lists.reserve(keys.size_hint().1.unwrap_or(0).min(64));
+        for key in keys {
+            if let Some(c) = self.chunks.get(&key) {
+                v.chunks.insert(key, c.clone());
+                if let Some(m) = self.materials.get(&key) {
+                    v.materials.insert(key, m.clone());
+                }
+            }
+        }
+        v
+    }
+
     /// The resolution level of new chunks.
     pub fn level(&self) -> Level {
         self.level

@@ -359,3 +359,47 @@ proptest! {
         }
     }
 }
+
+/// A mesher's snapshot shares the chunks and their material runs instead of copying them, reads
+/// as the volume did when it was taken, and is left as it was by later edits.
+#[test]
+fn shared_chunks_read_as_the_volume_did_and_outlive_its_edits() {
+    let mut v = Volume::new();
+    v.set_cell_size(0.5).unwrap();
+    v.apply(CsgOp::Add, &Sphere::new(DVec3::new(20.0, 18.0, 15.0), 11.0).unwrap(), &settings(1)).unwrap();
+    v.apply(CsgOp::Add, &Cuboid::new(DVec3::new(12.0, 10.0, 8.0), DVec3::new(22.0, 20.0, 30.0)).unwrap(), &settings(2))
+        .unwrap();
+    let key = ChunkKey::new(1, 1, 0);
+    let before = v.clone();
+    let snapshot = v.share_chunks(key.around());
+    assert_eq!((snapshot.level(), snapshot.cell_size()), (v.level(), v.cell_size()));
+    let mut runs = 0;
+    for k in key.around() {
+        assert_eq!(snapshot.chunk(k), v.chunk(k), "{k:?}");
+        assert_eq!(snapshot.chunk_materials(k), v.chunk_materials(k), "{k:?}");
+        if let (Some(Chunk::Lists(a)), Some(Chunk::Lists(b))) = (snapshot.chunk(k), v.chunk(k)) {
+            assert!(a.shares_with(b), "{k:?} was copied, not shared");
+        }
+        if let (Some(strata_volume::ChunkMaterials::Runs(a)), Some(strata_volume::ChunkMaterials::Runs(b))) =
+            (snapshot.chunk_materials(k), v.chunk_materials(k))
+        {
+            assert!(std::sync::Arc::ptr_eq(a, b), "{k:?}'s materials were copied, not shared");
+            runs += 1;
+        }
+    }
+    assert!(runs > 0, "the case holds chunks of two materials");
+    assert!(snapshot.chunks().all(|(k, _)| key.around().any(|a| a == k)), "only the chunks asked for");
+    let block = move |v: &Volume| {
+        let mut b = strata_volume::VoxelBlock::default();
+        v.extract_block_into(key, &mut b);
+        b
+    };
+    assert_eq!(block(&snapshot), block(&v));
+    // Edits replace the volume's chunks; the snapshot keeps what it shared, moved to another
+    // thread and read there.
+    v.apply(CsgOp::Subtract, &Sphere::new(DVec3::new(20.0, 18.0, 8.0), 6.0).unwrap(), &settings(0)).unwrap();
+    assert_ne!(block(&v), block(&before), "the edit reaches the chunk");
+    let read = std::thread::spawn(move || block(&snapshot)).join().unwrap();
+    assert_eq!(read, block(&before));
+    v.check_invariants().unwrap();
+}

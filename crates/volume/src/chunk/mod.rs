@@ -110,107 +110,202 @@ fn write_bits(words: &mut [u64], start: usize, width: u32, value: u64) {
     }
 }
 
-/// A boxed word slice behind a thin pointer: the one place in the crate with `unsafe` code.
+/// A shared, never-changing word slice behind a thin pointer: the one place in the crate with
+/// `unsafe` code.
 #[allow(unsafe_code)]
 mod thin {
+    use std::alloc::{Layout, alloc_zeroed, dealloc, handle_alloc_error};
     use std::ptr::NonNull;
+    use std::sync::atomic::{AtomicU64, Ordering, fence};
 
     use super::stored_len;
 
-    /// Owns a `Box<[u64]>` whose word 0 records its length (see [`stored_len`]), through an
-    /// 8-byte pointer: a chunk map slot then holds the value in 8 bytes (a `Box<[u64]>` takes
-    /// 16) without a second allocation per chunk.
+    /// Owns a share of one allocation `[count, word 0, word 1, …]`, through an 8-byte pointer: a
+    /// chunk map slot then holds the value in 8 bytes (a `Box<[u64]>` takes 16, an `Arc<[u64]>`
+    /// 16 and two counts) without a second allocation per chunk. Word 0 records the number of
+    /// words after the count (see [`stored_len`]). The words never change once made, so a clone
+    /// is a new share (one atomic add), not a copy: a mesher's snapshot of a chunk's
+    /// neighbourhood, an undo record or a copied volume allocates nothing per chunk.
     pub(super) struct Words {
-        /// The first word of a `Box<[u64]>` released with `Box::into_raw`.
+        /// The count word at the start of an allocation made in `filled` with `layout(len)`.
         ptr: NonNull<u64>,
     }
 
+    /// The allocation of `len` words and the count before them (aligned for an `AtomicU64`).
+    fn layout(len: usize) -> Layout {
+        let bytes = len.checked_add(1).and_then(|n| n.checked_mul(8)).expect("a chunk allocation's size fits");
+        Layout::from_size_align(bytes, std::mem::align_of::<AtomicU64>().max(8)).expect("a chunk allocation's layout")
+    }
+
+    /// Frees an allocation if the closure filling it panics.
+    struct Unfinished {
+        ptr: NonNull<u64>,
+        layout: Layout,
+    }
+
+    impl Drop for Unfinished {
+        fn drop(&mut self) {
+            // SAFETY: `ptr` was returned by `alloc_zeroed(layout)` in `filled` and nothing else
+            // frees it (`filled` forgets this guard once the allocation is handed to `Words`).
+            unsafe { dealloc(self.ptr.as_ptr().cast(), self.layout) }
+        }
+    }
+
     impl Words {
-        /// Takes ownership of `words`, whose word 0 must record `words.len()`.
-        pub(super) fn new(words: Box<[u64]>) -> Self {
-            assert!(
-                !words.is_empty() && stored_len(words[0]) == words.len(),
-                "a chunk allocation records its own length"
-            );
-            let raw: *mut [u64] = Box::into_raw(words);
-            Words { ptr: NonNull::new(raw.cast::<u64>()).expect("a boxed slice pointer is never null") }
+        /// `len` zeroed words filled by `fill`, which must record `len` in word 0.
+        pub(super) fn filled(len: usize, fill: impl FnOnce(&mut [u64])) -> Self {
+            assert!(len >= 1, "a chunk allocation holds its header");
+            let layout = layout(len);
+            // SAFETY: the layout's size is at least 16 bytes, never zero.
+            let raw = unsafe { alloc_zeroed(layout) }.cast::<u64>();
+            let Some(ptr) = NonNull::new(raw) else { handle_alloc_error(layout) };
+            let guard = Unfinished { ptr, layout };
+            // SAFETY: the allocation holds `len + 1` zeroed (so initialised) `u64`s, aligned; words
+            // 1..=len are borrowed mutably here only, while no `Words` exists for them yet.
+            let words = unsafe { std::slice::from_raw_parts_mut(ptr.as_ptr().add(1), len) };
+            fill(words);
+            assert!(stored_len(words[0]) == len, "a chunk allocation records its own length");
+            std::mem::forget(guard);
+            // SAFETY: as above, the count word is in bounds and aligned for an `AtomicU64`; no other
+            // reference to it exists yet.
+            unsafe { ptr.as_ptr().write(1) };
+            Words { ptr }
         }
 
-        /// The whole allocation.
+        /// The share count, read and changed only atomically.
+        #[inline]
+        fn count(&self) -> &AtomicU64 {
+            // SAFETY: `ptr` points at the count word of a live allocation (freed only when the last
+            // share drops), aligned for `AtomicU64` (see `layout`); after `filled` the word is only
+            // ever reached through this atomic view.
+            unsafe { AtomicU64::from_ptr(self.ptr.as_ptr()) }
+        }
+
+        /// The words (not the count).
         #[inline]
         pub(super) fn get(&self) -> &[u64] {
-            // SAFETY: `ptr` is the start of a live `Box<[u64]>` allocation (made in `new`, freed
-            // only in `drop`) of at least one word (checked in `new`), whose word 0 records its exact
-            // length; nothing writes to the words after `new` (no method hands out `&mut`).
-            // Reading word 0 is therefore in bounds, the slice covers exactly the allocation,
-            // and the shared borrow of `self` keeps it alive with no writer.
+            // SAFETY: `ptr` is the count word of a live allocation of `len + 1` words (made in
+            // `filled`, freed only in `drop` when the last share goes), whose word 0 (at `ptr + 1`)
+            // records `len` (checked in `filled`); nothing writes to words 0..len after `filled`
+            // (no method hands out `&mut`), so a shared slice of them is sound for as long as
+            // `self` is borrowed.
             unsafe {
-                let len = stored_len(*self.ptr.as_ptr());
-                std::slice::from_raw_parts(self.ptr.as_ptr(), len)
+                let words = self.ptr.as_ptr().add(1);
+                std::slice::from_raw_parts(words, stored_len(*words))
             }
+        }
+
+        /// Whether the two share one allocation.
+        #[inline]
+        pub(super) fn same(&self, other: &Self) -> bool {
+            self.ptr == other.ptr
+        }
+
+        /// How many values share this allocation (for tests).
+        #[cfg(test)]
+        pub(super) fn shares(&self) -> u64 {
+            self.count().load(Ordering::Acquire)
         }
     }
 
     impl Drop for Words {
         fn drop(&mut self) {
-            let len = self.get().len();
-            // SAFETY: `ptr` and `len` are exactly the pointer and length of the `Box<[u64]>`
-            // that `new` released (see `get`), and this is the only place that frees it, once.
-            unsafe { drop(Box::from_raw(std::ptr::slice_from_raw_parts_mut(self.ptr.as_ptr(), len))) }
+            // The last share frees: the release-acquire pair orders every other share's reads
+            // before the free (as `Arc` does).
+            if self.count().fetch_sub(1, Ordering::Release) != 1 {
+                return;
+            }
+            fence(Ordering::Acquire);
+            let layout = layout(self.get().len());
+            // SAFETY: this was the last share, so nothing else reads the allocation; `ptr` and
+            // `layout` are exactly what `filled` allocated with (the length is word 0's, checked
+            // there), and only the last share reaches this line, once.
+            unsafe { dealloc(self.ptr.as_ptr().cast(), layout) }
         }
     }
 
     impl Clone for Words {
         fn clone(&self) -> Self {
-            Words::new(self.get().into())
+            // Relaxed as in `Arc`: a share is made from a live share, which keeps the allocation
+            // alive meanwhile. Far more shares than memory could hold means a leak of shares: stop
+            // before the count could wrap.
+            if self.count().fetch_add(1, Ordering::Relaxed) > i64::MAX as u64 {
+                std::process::abort();
+            }
+            Words { ptr: self.ptr }
         }
     }
 
     impl PartialEq for Words {
         fn eq(&self, other: &Self) -> bool {
-            self.get() == other.get()
+            self.same(other) || self.get() == other.get()
         }
     }
 
     impl Eq for Words {}
 
-    // SAFETY: `Words` owns its allocation exclusively, exactly like the `Box<[u64]>` it was made
-    // from (which is Send and Sync): sending it moves that ownership, and shared references
-    // only read words that never change.
+    // SAFETY: every share only reads words that never change after `filled`, and the count is
+    // changed only atomically, so shares may be sent to and dropped on any thread (the last one
+    // frees, after every other share's reads, as in `Arc<[u64]>`, which is Send and Sync).
     unsafe impl Send for Words {}
-    // SAFETY: as above; there is no interior mutability.
+    // SAFETY: as above; there is no other interior mutability.
     unsafe impl Sync for Words {}
 
     #[cfg(test)]
     mod tests {
         use super::*;
 
+        fn make(len: usize, fill: u64) -> Words {
+            Words::filled(len, |w| {
+                w.fill(fill);
+                w[0] = (len as u64) << super::super::field::LEN.0;
+            })
+        }
+
         #[test]
-        fn words_clone_compare_move_across_threads_and_free() {
-            let make = |len: usize, fill: u64| {
-                let mut b = vec![fill; len].into_boxed_slice();
-                b[0] = (len as u64) << super::super::field::LEN.0;
-                Words::new(b)
-            };
+        fn words_share_compare_move_across_threads_and_free() {
             let a = make(5, 7);
             let b = a.clone();
-            assert!(a == b);
+            assert!(a == b && a.same(&b));
+            assert_eq!(a.shares(), 2);
             assert_eq!(a.get().len(), 5);
             assert_eq!(a.get()[4], 7);
             assert!(a != make(5, 8));
             assert!(a != make(6, 7));
+            // Equal words in another allocation are equal, not the same.
+            let c = make(5, 7);
+            assert!(a == c && !a.same(&c));
+            // A share dropped on another thread leaves the others readable.
             let moved = std::thread::spawn(move || b.get().iter().skip(1).sum::<u64>()).join().unwrap();
             assert_eq!(moved, 28);
-            // Many allocations made and freed (run under valgrind or Miri to see no leak).
+            assert_eq!(a.shares(), 1);
+            // Many shares made and dropped on many threads at once: the last frees, once (run
+            // under valgrind or Miri to see no leak and no double free).
             let all: Vec<Words> = (2..200).map(|n| make(n, n as u64)).collect();
-            let copies = all.clone();
-            assert!(all.iter().zip(&copies).all(|(x, y)| x == y && x.get().len() == y.get().len()));
+            std::thread::scope(|s| {
+                for _ in 0..4 {
+                    let copies = all.clone();
+                    s.spawn(move || {
+                        let more: Vec<Words> = copies.iter().flat_map(|w| [w.clone(), w.clone()]).collect();
+                        assert!(more.chunks(2).zip(&copies).all(|(p, w)| p[0].same(w) && p[1] == *w));
+                    });
+                }
+            });
+            assert!(all.iter().all(|w| w.shares() == 1));
+            let last = all.into_iter().last().unwrap();
+            assert_eq!(last.get().len(), 199);
         }
 
         #[test]
         #[should_panic(expected = "records its own length")]
         fn words_refuse_an_allocation_that_misstates_its_length() {
-            let _ = Words::new(vec![0u64; 3].into_boxed_slice());
+            let _ = Words::filled(3, |_| {});
+        }
+
+        #[test]
+        fn a_panicking_fill_frees_its_allocation_and_unwinds() {
+            let r = std::panic::catch_unwind(|| Words::filled(4, |_| panic!("fill failed")));
+            assert!(r.is_err());
         }
     }
 }
@@ -642,9 +737,14 @@ impl ChunkLists {
         starts
     }
 
-    /// Bytes of the one allocation.
+    /// Whether `self` and `other` share one allocation (a clone is a share, never a copy).
+    pub fn shares_with(&self, other: &ChunkLists) -> bool {
+        self.words.same(&other.words)
+    }
+
+    /// Bytes of the one allocation (its words and their share count).
     pub(crate) fn heap_bytes(&self) -> usize {
-        std::mem::size_of_val(self.words.get())
+        std::mem::size_of_val(self.words.get()) + 8
     }
 
     /// Bytes of positions and of normals (each `2 m`), for memory reports.
@@ -694,32 +794,33 @@ fn assemble(
     // its cache line), padded to an even number of bytes so the values that follow are aligned.
     let stored: usize = nonempty.iter().map(|&w| nonzero_bytes(w)).sum();
     let len = head + (stored.next_multiple_of(2) + 4 * m).div_ceil(8);
-    let mut data = vec![0u64; len].into_boxed_slice();
-    write_bits(&mut data, field::LEVEL.0, field::LEVEL.1, level.code() as u64);
-    write_bits(&mut data, field::CORNER.0, field::CORNER.1, corner as u64);
-    write_bits(&mut data, field::LEN.0, field::LEN.1, len as u64);
-    write_bits(&mut data, field::CROSSINGS.0, field::CROSSINGS.1, m as u64);
-    write_bits(&mut data, field::Y_START.0, field::Y_START.1, family_start[0] as u64);
-    write_bits(&mut data, field::Z_START.0, field::Z_START.1, family_start[1] as u64);
-    write_bits(&mut data, field::STORED_ROWS.0, field::STORED_ROWS.1, stored as u64);
-    let (header, body) = data.split_at_mut(head);
-    let bytes: &mut [u8] = bytemuck::cast_slice_mut(body);
-    let mut slot = 0;
-    for (i, &w) in nonempty.iter().enumerate().filter(|(_, w)| **w != 0) {
-        // The eight rows of this word: their row bits go in at once.
-        let mut rows = 0;
-        for (b, byte) in w.to_le_bytes().into_iter().enumerate().filter(|(_, b)| *b != 0) {
-            rows |= 1 << b;
-            bytes[slot] = byte;
-            slot += 1;
+    let words = thin::Words::filled(len, |data| {
+        write_bits(data, field::LEVEL.0, field::LEVEL.1, level.code() as u64);
+        write_bits(data, field::CORNER.0, field::CORNER.1, corner as u64);
+        write_bits(data, field::LEN.0, field::LEN.1, len as u64);
+        write_bits(data, field::CROSSINGS.0, field::CROSSINGS.1, m as u64);
+        write_bits(data, field::Y_START.0, field::Y_START.1, family_start[0] as u64);
+        write_bits(data, field::Z_START.0, field::Z_START.1, family_start[1] as u64);
+        write_bits(data, field::STORED_ROWS.0, field::STORED_ROWS.1, stored as u64);
+        let (header, body) = data.split_at_mut(head);
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(body);
+        let mut slot = 0;
+        for (i, &w) in nonempty.iter().enumerate().filter(|(_, w)| **w != 0) {
+            // The eight rows of this word: their row bits go in at once.
+            let mut rows = 0;
+            for (b, byte) in w.to_le_bytes().into_iter().enumerate().filter(|(_, b)| *b != 0) {
+                rows |= 1 << b;
+                bytes[slot] = byte;
+                slot += 1;
+            }
+            write_bits(header, field::ROWS + 8 * i, 8, rows);
         }
-        write_bits(header, field::ROWS + 8 * i, 8, rows);
-    }
-    let values: &mut [u16] = bytemuck::cast_slice_mut(body);
-    let values = &mut values[stored.div_ceil(2)..];
-    values[..m].copy_from_slice(positions);
-    values[m..2 * m].copy_from_slice(bytemuck::cast_slice(normals));
-    ChunkLists { words: thin::Words::new(data) }
+        let values: &mut [u16] = bytemuck::cast_slice_mut(body);
+        let values = &mut values[stored.div_ceil(2)..];
+        values[..m].copy_from_slice(positions);
+        values[m..2 * m].copy_from_slice(bytemuck::cast_slice(normals));
+    });
+    ChunkLists { words }
 }
 
 /// Ones among bits `[from, to)`.

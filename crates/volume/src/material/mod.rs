@@ -50,8 +50,9 @@ pub const MATERIAL_IDS: usize = 256;
 pub enum ChunkMaterials {
     /// Every solid node has this id (never 0: such a chunk stores nothing).
     Uniform(MaterialId),
-    /// Change points, `(varint delta, id)` pairs.
-    Runs(Box<[u8]>),
+    /// Change points, `(varint delta, id)` pairs, shared (never changed once made: a copy of
+    /// the chunk, for a mesher's snapshot or an undo record, is a new share, not a new copy).
+    Runs(std::sync::Arc<[u8]>),
 }
 
 #[derive(Deserialize)]
@@ -84,7 +85,7 @@ impl TryFrom<RawMaterials> for ChunkMaterials {
                 if count < 2 {
                     return Err("material runs with fewer than two change points".into());
                 }
-                Ok(ChunkMaterials::Runs(bytes))
+                Ok(ChunkMaterials::Runs(bytes.into()))
             }
         }
     }
@@ -146,7 +147,8 @@ impl ChunkMaterials {
     pub fn heap_bytes(&self) -> usize {
         match self {
             ChunkMaterials::Uniform(_) => 0,
-            ChunkMaterials::Runs(b) => b.len(),
+            // The bytes and the two counts before them.
+            ChunkMaterials::Runs(b) => b.len() + 16,
         }
     }
 
@@ -226,7 +228,7 @@ impl ChunkMaterials {
             (0, _) => None,
             (1, Some(0)) => None,
             (1, Some(id)) => Some(ChunkMaterials::Uniform(id)),
-            _ => Some(ChunkMaterials::Runs(out.into_boxed_slice())),
+            _ => Some(ChunkMaterials::Runs(out.into())),
         }
     }
 

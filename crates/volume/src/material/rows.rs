@@ -123,7 +123,7 @@ impl PointWriter {
         match (self.points, self.id) {
             (0, _) | (1, Some(0)) => None,
             (1, Some(id)) => Some(ChunkMaterials::Uniform(id)),
-            _ => Some(ChunkMaterials::Runs(self.out.into_boxed_slice())),
+            _ => Some(ChunkMaterials::Runs(self.out.into())),
         }
     }
 }
