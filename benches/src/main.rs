@@ -2,6 +2,12 @@
 //!
 //! `cargo run --release -p strata-bench -- table1` replays the paper's Table 1 workload.
 
+/// The studio's allocator, so the flights measure what the studio runs: mimalloc, whose frees of
+/// memory another thread allocated never wait for that thread's lock (docs/BENCHMARKS.md,
+/// "Generation on every core").
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use strata_bench::{Mesher, replay, replay_frames, table1_instructions};

@@ -86,6 +86,9 @@ pub struct StreamingRow {
     pub in_view: usize,
     /// Loaded at the end.
     pub loaded: usize,
+    /// Chunks waiting for a mesh at the end (loaded but not yet drawn as they are, or changed by
+    /// a neighbour's arrival): [`strata_editor::Editor::pending`].
+    pub waiting: usize,
 }
 
 /// Paging throughput.
@@ -308,7 +311,7 @@ fn streaming(
     recipe: &Recipe,
     (view, speed, seconds, detail, coarse): (f64, f64, f64, f64, f64),
 ) -> anyhow::Result<StreamingRow> {
-    // One core for the main thread, the others for the workers (as `WorldSettings` defaults).
+    // A generating worker per core, below the mesher's priority (as `WorldSettings` defaults).
     let threads = WorldSettings::default().threads;
     let settings = WorldSettings {
         view_distance: view,
@@ -352,6 +355,7 @@ fn streaming(
     let world = editor.world().expect("the editor is on a world");
     let elapsed = start.elapsed().as_secs_f64();
     let in_view = world.chunks_in_view(&[viewer]).len();
+    let loaded = world.loaded_count();
     Ok(StreamingRow {
         view,
         detail,
@@ -366,7 +370,8 @@ fn streaming(
         generated_per_s: integrated as f64 / elapsed,
         meshed_per_s: meshed as f64 / elapsed,
         in_view,
-        loaded: world.loaded_count(),
+        loaded,
+        waiting: editor.pending(),
     })
 }
 
@@ -570,7 +575,7 @@ pub fn markdown(s: &mut String, t: &TerrainResults) {
     let f = &t.streaming[0];
     let _ = writeln!(
         s,
-        "\nStreaming: flying straight for {} frames (60 a second, real time), view distance {} cells (vertical {}), {} generating worker thread(s); each frame integrates finished chunks (2 ms budget), hands changed chunks to one mesher thread nearest first (snapshots of their neighbourhoods, until 6 ms into the frame) and takes the meshes it finished. With detail, chunks within the detail distance are generated at 32³ cells; with a coarse distance, chunks beyond it at 8³ cells (a chunk's size stays 16 base cells). Target: main-thread frame p99 ≤ 11.1 ms, ≥ 95 % of the view loaded.\n",
+        "\nStreaming: flying straight for {} frames (60 a second, real time), view distance {} cells (vertical {}), {} generating worker thread(s); each frame integrates finished chunks (2 ms budget), hands changed chunks to one mesher thread nearest first (snapshots of their neighbourhoods, until 6 ms into the frame) and takes the meshes it finished. With detail, chunks within the detail distance are generated at 32³ cells; with a coarse distance, chunks beyond it at 8³ cells (a chunk's size stays 16 base cells). Target: main-thread frame p99 ≤ 11.1 ms, ≥ 95 % of the view loaded. Waiting: chunks queued for a mesh at the end (not yet drawn as they are).\n",
         f.frames,
         f.view,
         f.view * 0.5,
@@ -578,13 +583,13 @@ pub fn markdown(s: &mut String, t: &TerrainResults) {
     );
     let _ = writeln!(
         s,
-        "| speed (chunks/s) | detail (cells) | coarse beyond (cells) | frame mean (ms) | frame p99 (ms) | update mean / p99 (ms) | chunks integrated / s | chunks meshed / s | in view at the end | loaded |"
+        "| speed (chunks/s) | detail (cells) | coarse beyond (cells) | frame mean (ms) | frame p99 (ms) | update mean / p99 (ms) | chunks integrated / s | chunks meshed / s | in view at the end | loaded | waiting for a mesh |"
     );
-    let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for f in &t.streaming {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.2} | {:.2} | {:.2} / {:.2} | {:.0} | {:.0} | {} | {} |",
+            "| {} | {} | {} | {:.2} | {:.2} | {:.2} / {:.2} | {:.0} | {:.0} | {} | {} | {} |",
             f.speed,
             if f.detail > 0.0 { format!("{}", f.detail) } else { "off".into() },
             if f.coarse > 0.0 { format!("{}", f.coarse) } else { "off".into() },
@@ -595,7 +600,8 @@ pub fn markdown(s: &mut String, t: &TerrainResults) {
             f.generated_per_s,
             f.meshed_per_s,
             f.in_view,
-            f.loaded
+            f.loaded,
+            f.waiting
         );
     }
     let _ = writeln!(

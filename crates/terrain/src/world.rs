@@ -45,7 +45,9 @@ pub struct WorldSettings {
     pub view_distance: f64,
     /// Vertical view distance as a fraction of the horizontal one.
     pub vertical_ratio: f64,
-    /// Worker threads generating and paging in (at least 1).
+    /// Worker threads generating and paging in (at least 1; by default one per core: they run
+    /// at the least priority, below the meshers' and the frame's thread, which still have the
+    /// cores when they need them).
     pub threads: usize,
     /// Main-thread time per [`World::update`] spent integrating finished chunks.
     pub frame_budget: Duration,
@@ -73,7 +75,7 @@ impl Default for WorldSettings {
         WorldSettings {
             view_distance: 256.0,
             vertical_ratio: 0.5,
-            threads: std::thread::available_parallelism().map_or(2, |n| n.get()).saturating_sub(1).max(1),
+            threads: std::thread::available_parallelism().map_or(2, |n| n.get()).max(1),
             frame_budget: Duration::from_millis(4),
             flush_interval: Duration::from_secs(2),
             memory_budget: 512 << 20,
