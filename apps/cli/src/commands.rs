@@ -167,7 +167,18 @@ pub fn convert(
     saving.finish_and_clear();
     let repairs = repairs?;
     let v = &scene.layers[0].volume;
-    let stats = v.crossing_stats();
+    // The report's counts, read from each chunk's header (`crossing_stats` would walk every
+    // line for a histogram this report does not print).
+    let (mut list_chunks, mut solid_chunks, mut crossings) = (0u64, 0u64, 0u64);
+    for (_, chunk) in v.chunks() {
+        match chunk {
+            Chunk::Solid => solid_chunks += 1,
+            Chunk::Lists(l) => {
+                list_chunks += 1;
+                crossings += l.crossing_count() as u64;
+            }
+        }
+    }
     let mut r = String::new();
     writeln!(r, "{}: {} vertices, {} triangles", mesh.display(), tri.vertices.len(), tri.triangles.len())?;
     writeln!(
@@ -178,8 +189,8 @@ pub fn convert(
         fill,
         if closed { "" } else { "; the mesh has holes: inside is decided line by line" }
     )?;
-    writeln!(r, "  chunks          {} lists, {} solid", stats.list_chunks, stats.solid_chunks)?;
-    writeln!(r, "  crossings       {} (estimated {:.0})", stats.total, plan.estimated_crossings)?;
+    writeln!(r, "  chunks          {list_chunks} lists, {solid_chunks} solid")?;
+    writeln!(r, "  crossings       {crossings} (estimated {:.0})", plan.estimated_crossings)?;
     writeln!(r, "  memory          {}", bytes(v.memory().total()))?;
     writeln!(r, "  read + index    {read_ms:.0} ms")?;
     writeln!(r, "  convert         {convert_ms:.0} ms")?;

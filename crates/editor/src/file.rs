@@ -474,7 +474,6 @@ pub fn scene_record(scene: &Scene, with_references: bool) -> Result<SceneRecord,
     let mut layers = Vec::with_capacity(scene.layers.len());
     for l in &scene.layers {
         let mut solid = Vec::new();
-        let mut lists = Vec::new();
         let mut materials = Vec::new();
         let mut with_materials: Vec<(ChunkKey, &ChunkMaterials)> = l.volume.material_chunks().collect();
         with_materials.sort_by_key(|(k, _)| k.0.to_array());
@@ -490,12 +489,20 @@ pub fn scene_record(scene: &Scene, with_references: bool) -> Result<SceneRecord,
         let mut chunks: Vec<(ChunkKey, &Chunk)> = l.volume.chunks().collect();
         // A canonical order: the same scene always gives the same bytes.
         chunks.sort_by_key(|(k, _)| k.0.to_array());
+        let mut listed = Vec::with_capacity(chunks.len());
         for (key, chunk) in chunks {
             match chunk {
                 Chunk::Solid => solid.push(key),
-                Chunk::Lists(c) => lists.push(ChunkRecord::new(key, postcard::to_allocvec(c).map_err(payload_err)?)),
+                Chunk::Lists(c) => listed.push((key, c)),
             }
         }
+        // Each chunk's bytes and CRC on every core, in the canonical order.
+        use rayon::prelude::*;
+        let lists = listed
+            .par_iter()
+            .with_min_len(64)
+            .map(|&(key, c)| Ok(ChunkRecord::new(key, postcard::to_allocvec(c).map_err(payload_err)?)))
+            .collect::<Result<Vec<_>, SceneFileError>>()?;
         layers.push(LayerRecord {
             name: l.name.clone(),
             transform: l.transform,
@@ -989,8 +996,11 @@ pub fn load(path: &Path) -> Result<Loaded, SceneFileError> {
 /// would refuse is repaired in the written copy, and the returned report lists it (`scene`
 /// itself is not changed: call [`validate_scene`] on it to make it match the file).
 pub fn save(scene: &Scene, path: &Path) -> Result<LoadReport, SceneFileError> {
-    let (bytes, report) = if is_valid(scene) {
-        (encode(scene)?, LoadReport::default())
+    // The full check and the encoding run side by side: a valid scene (nearly every one) is
+    // written as encoded; an invalid one's encoding is dropped and its repaired copy encoded.
+    let (valid, encoded) = rayon::join(|| is_valid(scene), || encode(scene));
+    let (bytes, report) = if valid {
+        (encoded?, LoadReport::default())
     } else {
         let mut fixed = scene.clone();
         let report = validate_scene(&mut fixed);

@@ -24,30 +24,50 @@ pub(crate) fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
     let n = level.cells();
     let mut rows = vec![0u128; n * n];
     let mut cursor = lists.cursor(axis, 0);
-    for v in 0..n {
-        for u in 0..n {
+    if axis == Axis::X {
+        // An x line is one row: its inside nodes are bit ranges.
+        for row in rows.iter_mut() {
             let line = cursor.next_line();
-            // Nodes `from..to` of the line are inside: a bit range of one row for x lines, one
-            // bit of consecutive rows for y lines (x = v, row j + n u), of rows n apart for z
-            // lines (x = u, row v + n j): see `compose`.
-            let mut fill = |from: usize, to: usize| match axis {
-                Axis::X if to > from => rows[u + n * v] |= ((1u128 << (to - from)) - 1) << from,
-                Axis::X => {}
-                Axis::Y => rows[n * u + from..n * u + to].iter_mut().for_each(|r| *r |= 1 << v),
-                Axis::Z => (from..to).for_each(|j| rows[v + n * j] |= 1 << u),
-            };
             // A crossing in cell `e` flips the state of the nodes after node `e`.
             let (mut inside, mut from) = (line.start_inside, 0);
             for e in line.positions().map(|q| edge_of(q, level)) {
                 let to = (e + 1).min(n);
-                if inside {
-                    fill(from, to);
+                if inside && to > from {
+                    *row |= ((1u128 << (to - from)) - 1) << from;
                 }
                 (inside, from) = (!inside, to);
             }
-            if inside {
-                fill(from, n);
+            if inside && n > from {
+                *row |= ((1u128 << (n - from)) - 1) << from;
             }
+        }
+        return rows;
+    }
+    // A y or z line is one bit of n rows: its start state and the flips after each crossing
+    // are marked where they happen, then each row takes the XOR of the rows before it along the
+    // axis (node j's state is the start state flipped once per crossing before it). That costs
+    // a word per row and a bit per crossing, not a bit per inside node. Node j of y line (u, v)
+    // = (z, x) is bit v of row j + n u; of z line (u, v) = (x, y), bit u of row v + n j.
+    let step = if axis == Axis::Y { 1 } else { n };
+    let first_row = |w: usize| if axis == Axis::Y { n * w } else { w };
+    for v in 0..n {
+        for u in 0..n {
+            let line = cursor.next_line();
+            let (bit, first) = if axis == Axis::Y { (1u128 << v, first_row(u)) } else { (1u128 << u, first_row(v)) };
+            if line.start_inside {
+                rows[first] ^= bit;
+            }
+            for e in line.positions().map(|q| edge_of(q, level)) {
+                if e + 1 < n {
+                    rows[first + step * (e + 1)] ^= bit;
+                }
+            }
+        }
+    }
+    for w in 0..n {
+        let first = first_row(w);
+        for j in 1..n {
+            rows[first + step * j] ^= rows[first + step * (j - 1)];
         }
     }
     rows

@@ -110,7 +110,7 @@ pub(super) fn edit_chunk(
         // Node states of the brush from the x lines, apron rows included: x_states[y + (n+1) z],
         // from the span table where there is one (each line's spans were found once for the
         // whole edit; an apron row is its owner's line, so both chunks read the same spans).
-        s.x_states.clear();
+        s.states.x.clear();
         let mut line = WorkLine::EMPTY;
         let x_table = table_level.map(|(t, offset)| (&t.axes[0], offset.y, offset.z, (origin.x - t.base.x) as f64));
         for z in 0..=n {
@@ -126,14 +126,15 @@ pub(super) fn edit_chunk(
                     }
                     None => sampler.sample(at(Axis::X, y, z), &mut line),
                 }
-                s.x_states.push(line.states);
+                s.states.x.push(line.states);
             }
         }
-        if ctx.op != CsgOp::Intersect && s.x_states.iter().all(|&r| r == 0) {
+        if ctx.op != CsgOp::Intersect && s.states.x.iter().all(|&r| r == 0) {
             // The brush holds no node of the chunk or its apron: nothing changes (the common
             // case for the empty chunks around a converted mesh).
             return None;
         }
+        s.states.transpose(n);
     }
     if let Some((t, offset)) = table_level
         && ctx.op != CsgOp::Intersect
@@ -145,7 +146,7 @@ pub(super) fn edit_chunk(
     // Lines are visited in storage order and written straight into the new chunk, the lines
     // between them copied in runs (as in `edit_chunk_by_table`).
     *noted = ctx.rows;
-    let Scratch { builder: b, rows, x_states } = s;
+    let Scratch { builder: b, rows, states } = s;
     b.begin(level);
     let mut changed = false;
     let (mut old_line, mut brush_line, mut new_line) = (WorkLine::EMPTY, WorkLine::EMPTY, WorkLine::EMPTY);
@@ -192,7 +193,7 @@ pub(super) fn edit_chunk(
                     sampler.sample(at(axis, u, v), &mut brush_line);
                 }
                 if ctx.reconcile && inside_box && axis != Axis::X {
-                    repaired += reconcile_line(x_states, axis, u, v, level, sampler.flip, &mut brush_line);
+                    repaired += reconcile_line(states.along(axis, u, v, n), axis, level, sampler.flip, &mut brush_line);
                 }
                 if brush_line.states == 0 && ctx.op != CsgOp::Intersect {
                     // An empty brush line leaves a union or difference unchanged.
@@ -335,27 +336,57 @@ pub(super) fn chunk_side(brush: &dyn Brush, origin: I64Vec3) -> Option<bool> {
     }
 }
 
-/// Forces a y or z brush line to the node states of the x lines; returns how many nodes moved.
-pub(super) fn reconcile_line(
-    x_states: &[u128],
-    axis: Axis,
-    u: usize,
-    v: usize,
-    level: Level,
-    flip: bool,
-    line: &mut WorkLine,
-) -> u64 {
-    let n = level.cells();
-    let m = n + 1;
-    let mut expect = 0u128;
-    for j in 0..=n {
-        // y lines: (u, v) = (z, x), node (x, j, z); z lines: (u, v) = (x, y), node (x, y, j).
-        let (x, row) = match axis {
-            Axis::Y => (v, x_states[j + m * u]),
-            _ => (u, x_states[v + m * j]),
-        };
-        expect |= ((row >> x) & 1) << j;
+/// A reconciled brush's node states, from its x lines (apron rows included), and the same states
+/// as bit rows along y and z, for the y and z lines that are forced to them.
+#[derive(Default)]
+pub(super) struct NodeStates {
+    /// `x[y + (n+1) z]`: bit `x` is node (x, y, z).
+    pub(super) x: Vec<u128>,
+    /// `y[z + (n+1) x]`: bit `y` is node (x, y, z).
+    y: Vec<u128>,
+    /// `z[x + (n+1) y]`: bit `z` is node (x, y, z).
+    z: Vec<u128>,
+}
+
+impl NodeStates {
+    /// Fills the y and z rows from the x rows (a chunk of `n` cells a side). Visits each inside
+    /// node once, where reading a y or z line's bits from the x rows one node at a time visits
+    /// every node of every line.
+    pub(super) fn transpose(&mut self, n: usize) {
+        let m = n + 1;
+        debug_assert_eq!(self.x.len(), m * m);
+        self.y.clear();
+        self.y.resize(m * m, 0);
+        self.z.clear();
+        self.z.resize(m * m, 0);
+        for z in 0..m {
+            for y in 0..m {
+                let mut row = self.x[y + m * z];
+                while row != 0 {
+                    let x = row.trailing_zeros() as usize;
+                    row &= row - 1;
+                    self.y[z + m * x] |= 1 << y;
+                    self.z[x + m * y] |= 1 << z;
+                }
+            }
+        }
     }
+
+    /// The node states of the `axis` line at (`u`, `v`) (y lines: (u, v) = (z, x); z lines:
+    /// (u, v) = (x, y)). Only for y and z.
+    pub(super) fn along(&self, axis: Axis, u: usize, v: usize, n: usize) -> u128 {
+        let m = n + 1;
+        match axis {
+            Axis::Y => self.y[u + m * v],
+            _ => self.z[u + m * v],
+        }
+    }
+}
+
+/// Forces a y or z brush line to the node states `expect` the x lines give it; returns how many
+/// nodes moved.
+pub(super) fn reconcile_line(expect: u128, axis: Axis, level: Level, flip: bool, line: &mut WorkLine) -> u64 {
+    let n = level.cells();
     if expect == line.states {
         return 0;
     }

@@ -264,7 +264,8 @@ impl UndoRecord {
 #[derive(Default)]
 struct Scratch {
     builder: ChunkBuilder,
-    x_states: Vec<u128>,
+    /// A reconciled brush's node states from its x lines (see `line::NodeStates`).
+    states: line::NodeStates,
     /// The x lines whose own node states the chunk's edit changed (kept when `EditCtx::rows`).
     rows: Vec<RowChange>,
 }

@@ -83,3 +83,47 @@ fn per_cell_csg_equals_continuous_csg_wherever_the_result_changes_once() {
         }
     }
 }
+
+proptest::proptest! {
+    /// The y and z rows a reconciled brush's lines are forced to read, bit for bit, the nodes of
+    /// the x rows they came from (every line of the chunk and its apron, at every chunk size).
+    #[test]
+    fn node_states_along_y_and_z_read_the_x_rows_node_by_node(
+        size in 0usize..3,
+        seed in proptest::prelude::any::<u64>(),
+        density in 0u32..=4,
+    ) {
+        let n = [16usize, 32, 64][size];
+        let m = n + 1;
+        let full = (1u128 << m) - 1;
+        // Random rows, sparse to dense (density 0: empty, 4: every node inside).
+        let mut state = seed | 1;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut states = NodeStates::default();
+        for _ in 0..m * m {
+            let mut row = full;
+            for _ in density..4 {
+                row &= (u128::from(next()) << 64 | u128::from(next())) | !full;
+            }
+            states.x.push(if density == 0 { 0 } else { row & full });
+        }
+        states.transpose(n);
+        for u in 0..m {
+            for v in 0..m {
+                let (mut y, mut z) = (0u128, 0u128);
+                for j in 0..m {
+                    // y line (u, v) = (z, x): node (v, j, u); z line (u, v) = (x, y): node (u, v, j).
+                    y |= ((states.x[j + m * u] >> v) & 1) << j;
+                    z |= ((states.x[v + m * j] >> u) & 1) << j;
+                }
+                proptest::prop_assert_eq!(states.along(Axis::Y, u, v, n), y, "y line {} {}", u, v);
+                proptest::prop_assert_eq!(states.along(Axis::Z, u, v, n), z, "z line {} {}", u, v);
+            }
+        }
+    }
+}
