@@ -27,6 +27,20 @@ pub fn box_mesh(min: DVec3, size: DVec3) -> (Vec<DVec3>, Vec<[u32; 3]>) {
     (v, t)
 }
 
+/// The nice value this process started with (its main thread's), read from `/proc` (Linux;
+/// `None` elsewhere). A thread may not take a higher priority than this without privileges.
+pub fn process_nice() -> Option<i32> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    nice_field(&stat)
+}
+
+/// The nice value in a `/proc/.../stat` line: after the name in parentheses come the fields
+/// from the third on; the nice value is the nineteenth.
+fn nice_field(stat: &str) -> Option<i32> {
+    let rest = stat.rfind(')').map(|i| &stat[i + 1..])?;
+    rest.split_whitespace().nth(16).and_then(|f| f.parse().ok())
+}
+
 /// The nice values of this process's threads whose names start with `prefix`, read from
 /// `/proc` (Linux; empty elsewhere). Higher is a lower scheduling priority.
 pub fn thread_nice(prefix: &str) -> Vec<i32> {
@@ -38,10 +52,7 @@ pub fn thread_nice(prefix: &str) -> Vec<i32> {
             continue;
         }
         let Ok(stat) = std::fs::read_to_string(task.path().join("stat")) else { continue };
-        // After the name in parentheses come the fields from the third on; the nice value is
-        // the nineteenth.
-        let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else { continue };
-        if let Some(nice) = rest.split_whitespace().nth(16).and_then(|f| f.parse().ok()) {
+        if let Some(nice) = nice_field(&stat) {
             out.push(nice);
         }
     }

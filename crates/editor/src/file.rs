@@ -1002,6 +1002,7 @@ pub fn save(scene: &Scene, path: &Path) -> Result<LoadReport, SceneFileError> {
     let (bytes, report) = if valid {
         (encoded?, LoadReport::default())
     } else {
+        drop(encoded);
         let mut fixed = scene.clone();
         let report = validate_scene(&mut fixed);
         (encode(&fixed)?, report)

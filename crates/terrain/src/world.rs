@@ -75,7 +75,7 @@ impl Default for WorldSettings {
         WorldSettings {
             view_distance: 256.0,
             vertical_ratio: 0.5,
-            threads: std::thread::available_parallelism().map_or(2, |n| n.get()).max(1),
+            threads: std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 256),
             frame_budget: Duration::from_millis(4),
             flush_interval: Duration::from_secs(2),
             memory_budget: 512 << 20,
@@ -137,9 +137,9 @@ struct Job {
     level: Level,
 }
 
-/// Lowers the calling worker thread's scheduling priority to the least, so that a frame's
-/// thread never waits for its time slice (ARCHITECTURE: "Worker threads"). A refusal only leaves
-/// the normal priority.
+/// Lowers the calling worker thread's scheduling priority to the least, below the meshers', so
+/// that a frame's thread does not wait for its time slices (ARCHITECTURE: "Worker threads").
+/// Lowering a priority is not refused on Linux; elsewhere a refusal leaves the normal one.
 fn background_priority() {
     let _ = thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min);
 }
