@@ -108,3 +108,55 @@ fn the_whole_studio_window_with_its_viewport_matches_its_snapshot() {
     let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(2000);
     h.snapshot_options("studio_default_scene", &options);
 }
+
+/// The studio's own binary, as a user runs it headless: its allocator and its default worker
+/// threads (a generator on every core, meshers above them) stream and mesh terrain that the
+/// picture shows below the sky; a malformed size is refused with a message, not a panic.
+#[test]
+fn the_studio_binary_streams_meshes_and_draws_terrain_and_refuses_a_bad_size() {
+    let bin = env!("CARGO_BIN_EXE_strata-studio");
+    let dir = std::env::temp_dir().join(format!("strata-binary-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("terrain.png");
+
+    let bad = std::process::Command::new(bin)
+        .args(["--screenshot", out.to_str().unwrap(), "--terrain", "11", "--size", "96by64"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && said.contains("--size must look like"), "{said}");
+    assert!(!said.contains("panicked"), "{said}");
+    assert!(!out.exists(), "a refused size writes nothing");
+
+    if !adapter_present() {
+        return;
+    }
+    let run = std::process::Command::new(bin)
+        .args(["--screenshot", out.to_str().unwrap(), "--terrain", "11", "--size", "96x64"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success() && said.contains("wrote"), "{said}");
+    let (w, h, px) = decode(&out);
+    assert_eq!((w, h), (96, 64));
+    // The top row is sky; the bottom quarter is shaded ground: other colours, and many of them.
+    let at = |x: u32, y: u32| {
+        let i = 4 * (x + w * y) as usize;
+        [px[i], px[i + 1], px[i + 2]]
+    };
+    let sky = at(w / 2, 0);
+    let ground: Vec<[u8; 3]> =
+        (3 * h / 4..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| at(x, y)).collect();
+    let unlike_sky =
+        ground.iter().filter(|p| p.iter().zip(sky).map(|(a, b)| a.abs_diff(b) as u32).sum::<u32>() > 60).count();
+    assert!(
+        unlike_sky > ground.len() * 9 / 10,
+        "{unlike_sky} of {} ground pixels unlike the sky {sky:?}",
+        ground.len()
+    );
+    let mut shades = ground.clone();
+    shades.sort_unstable();
+    shades.dedup();
+    assert!(shades.len() > 50, "{} shades on the ground", shades.len());
+    let _ = std::fs::remove_dir_all(dir);
+}

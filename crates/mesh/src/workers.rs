@@ -52,14 +52,14 @@ impl std::fmt::Debug for MeshWorkers {
 }
 
 /// Lowers the calling worker thread's scheduling priority below the normal one, so that a
-/// frame's thread never waits for its time slice, but above the terrain's generating workers
+/// frame's thread rarely waits for its time slices, but above the terrain's generating workers
 /// (which take the least): a chunk already loaded is drawn before more are loaded, and on a
 /// machine whose every core generates, meshing still keeps up (ARCHITECTURE: "Worker threads").
 /// A refusal only leaves the normal priority.
 fn background_priority() {
     // 24 of the portable 0–99 range is nice 9 on Linux (thread-priority maps it onto nice 19
-    // down to −20 in 39 steps). Linux weighs nice 0, 9 and 19 as 1024, 137 and 15: a mesher gets 9× a generator's
-    // share of a core they contend for, and an eighth of a normal thread's.
+    // down to −20 in 39 steps). Linux weighs nice 0, 9 and 19 as 1024, 137 and 15: a mesher
+    // gets 9× a generator's share of a core they contend for, and an eighth of a normal thread's.
     let priority = thread_priority::ThreadPriorityValue::try_from(24u8)
         .map_or(thread_priority::ThreadPriority::Min, thread_priority::ThreadPriority::Crossplatform);
     let _ = thread_priority::set_current_thread_priority(priority);

@@ -107,7 +107,7 @@ pub(super) fn edit_chunk(
         return (old != ChunkView::Uniform(now)).then_some((Built::Uniform(now), 0));
     }
     if ctx.reconcile {
-        // Node states of the brush from the x lines, apron rows included: x_states[y + (n+1) z],
+        // Node states of the brush from the x lines, apron rows included: states.x[y + (n+1) z],
         // from the span table where there is one (each line's spans were found once for the
         // whole edit; an apron row is its owner's line, so both chunks read the same spans).
         s.states.x.clear();
