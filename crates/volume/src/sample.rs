@@ -117,18 +117,8 @@ impl<'a> LineSampler<'a> {
     pub(crate) fn fill_from_spans(&self, all: &[Span], shift: f64, at: LineAt, out: &mut WorkLine) {
         let n = at.level.cells();
         let sp = at.level.spacing();
-        let inv_sp = at.level.nodes_per_unit();
-        let end = crate::coords::CHUNK_CELLS as f64;
-        // Only spans reaching within a cell of this chunk's part of the line can decide its
-        // nodes or crossings (the spans are sorted and disjoint): a long line through a complex
-        // mesh then costs each chunk only the spans it holds.
-        let first = all.partition_point(|s| s.exit - shift < -1.0);
-        let last = all.partition_point(|s| s.enter - shift <= end + 1.0);
-        let spans = &all[first..last.max(first)];
-        if let [s] = spans
-            && s.enter - shift < -SNAP_DISTANCE
-            && s.exit - shift > end + SNAP_DISTANCE
-        {
+        let spans = near_chunk(all, shift);
+        if covers_line(spans, shift) {
             // The whole chunk line is well inside.
             out.states = node_mask(n);
             return;
@@ -139,31 +129,7 @@ impl<'a> LineSampler<'a> {
             line.apply(out);
             return;
         }
-        let mut states = 0u128;
-        for s in spans {
-            let (enter, exit) = (s.enter - shift, s.exit - shift);
-            let j0 = ceil_clamped(enter * inv_sp, n);
-            let j1 = floor_clamped(exit * inv_sp, n);
-            if let (Some(j0), Some(j1)) = (j0, j1)
-                && j0 <= j1
-            {
-                states |= node_mask(j1) & !((1u128 << j0) - 1);
-            }
-        }
-        // Nodes (practically) on the surface follow the predicate, whatever the roots said.
-        for s in spans {
-            for t in [s.enter - shift, s.exit - shift] {
-                let Some(j) = nearest_node(t * inv_sp, n) else { continue };
-                if (j as f64 * sp - t).abs() <= SNAP_DISTANCE {
-                    let (o, p) = at.node(j);
-                    if self.brush.contains(o, p) {
-                        states |= 1 << j;
-                    } else {
-                        states &= !(1 << j);
-                    }
-                }
-            }
-        }
+        let states = self.general_states(spans, shift, at);
         out.states = states;
         let mut c = out.changes(n);
         while c != 0 {
@@ -191,6 +157,53 @@ impl<'a> LineSampler<'a> {
             out.pos[e] = quantize_into_edge(t - shift, e, at.level);
             out.nrm[e] = pack_oriented(normal, self.flip);
         }
+    }
+
+    /// The node states [`LineSampler::fill_from_spans`] gives the line, without its crossings
+    /// (what a reconciled edit reads from its x lines).
+    pub(crate) fn states_from_spans(&self, all: &[Span], shift: f64, at: LineAt) -> u128 {
+        let spans = near_chunk(all, shift);
+        if covers_line(spans, shift) {
+            return node_mask(at.level.cells());
+        }
+        if let [s] = spans
+            && let Some((j0, j1)) = single_span_nodes(s, shift, at.level)
+        {
+            return node_range(j0, j1);
+        }
+        self.general_states(spans, shift, at)
+    }
+
+    /// Node states from spans near the chunk (see [`near_chunk`]) by rounding their ends to
+    /// nodes, where nodes (practically) on the surface follow the predicate, whatever the roots
+    /// said.
+    fn general_states(&self, spans: &[Span], shift: f64, at: LineAt) -> u128 {
+        let n = at.level.cells();
+        let sp = at.level.spacing();
+        let inv_sp = at.level.nodes_per_unit();
+        let mut states = 0u128;
+        for s in spans {
+            let (enter, exit) = (s.enter - shift, s.exit - shift);
+            let j0 = ceil_clamped(enter * inv_sp, n);
+            let j1 = floor_clamped(exit * inv_sp, n);
+            if let (Some(j0), Some(j1)) = (j0, j1) {
+                states |= node_range(j0, j1);
+            }
+        }
+        for s in spans {
+            for t in [s.enter - shift, s.exit - shift] {
+                let Some(j) = nearest_node(t * inv_sp, n) else { continue };
+                if (j as f64 * sp - t).abs() <= SNAP_DISTANCE {
+                    let (o, p) = at.node(j);
+                    if self.brush.contains(o, p) {
+                        states |= 1 << j;
+                    } else {
+                        states &= !(1 << j);
+                    }
+                }
+            }
+        }
+        states
     }
 
     fn fill_from_samples(
@@ -281,8 +294,36 @@ impl SingleSpan {
     }
 }
 
+/// Which spans of a line can decide its chunk piece's nodes or crossings: those reaching within
+/// a cell of the piece (the spans are sorted and disjoint), so a long line through a complex
+/// mesh costs each chunk only the spans it holds.
 #[inline]
-fn single_span(s: &Span, flip: bool, shift: f64, level: Level) -> Option<SingleSpan> {
+fn near_chunk(all: &[Span], shift: f64) -> &[Span] {
+    let end = crate::coords::CHUNK_CELLS as f64;
+    let first = all.partition_point(|s| s.exit - shift < -1.0);
+    let last = all.partition_point(|s| s.enter - shift <= end + 1.0);
+    &all[first..last.max(first)]
+}
+
+/// Whether the spans near a chunk are one span holding the whole chunk line, farther than the
+/// snapping distance from both ends.
+#[inline]
+fn covers_line(spans: &[Span], shift: f64) -> bool {
+    let end = crate::coords::CHUNK_CELLS as f64;
+    matches!(spans, [s] if s.enter - shift < -SNAP_DISTANCE && s.exit - shift > end + SNAP_DISTANCE)
+}
+
+/// Nodes `j0..=j1` (none where `j0 > j1`).
+#[inline]
+fn node_range(j0: usize, j1: usize) -> u128 {
+    if j0 > j1 { 0 } else { node_mask(j1) & !((1u128 << j0) - 1) }
+}
+
+/// The nodes `j0..=j1` of the chunk line inside a span no end of which is within the snapping
+/// distance of a node of the piece (`j0 > j1` where it holds none), or `None` where the span
+/// needs the general reading (an end near a node, or the span beside the piece).
+#[inline]
+fn single_span_nodes(s: &Span, shift: f64, level: Level) -> Option<(usize, usize)> {
     let n = level.cells();
     let inv_sp = level.nodes_per_unit();
     let (enter, exit) = ((s.enter - shift) * inv_sp, (s.exit - shift) * inv_sp);
@@ -291,12 +332,17 @@ fn single_span(s: &Span, flip: bool, shift: f64, level: Level) -> Option<SingleS
     if near(enter) || near(exit) {
         return None;
     }
-    let j0 = ceil_clamped(enter, n)?;
-    let j1 = floor_clamped(exit, n)?;
+    Some((ceil_clamped(enter, n)?, floor_clamped(exit, n)?))
+}
+
+#[inline]
+fn single_span(s: &Span, flip: bool, shift: f64, level: Level) -> Option<SingleSpan> {
+    let n = level.cells();
+    let (j0, j1) = single_span_nodes(s, shift, level)?;
     if j0 > j1 {
         return Some(SingleSpan { states: 0, enter: None, exit: None });
     }
-    let states = node_mask(j1) & !((1u128 << j0) - 1);
+    let states = node_range(j0, j1);
     let enter = (j0 > 0)
         .then(|| (j0 - 1, quantize_into_edge(s.enter - shift, j0 - 1, level), pack_oriented(s.enter_normal, flip)));
     let exit =

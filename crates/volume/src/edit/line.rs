@@ -112,21 +112,24 @@ pub(super) fn edit_chunk(
         // whole edit; an apron row is its owner's line, so both chunks read the same spans).
         s.states.x.clear();
         let mut line = WorkLine::EMPTY;
-        let x_table = table_level.map(|(t, offset)| (&t.axes[0], offset.y, offset.z, (origin.x - t.base.x) as f64));
+        // (A line of one span with no end near a node takes its states from the table's node
+        // range, without reading its span.)
+        let x_table =
+            table_level.map(|(t, offset)| (&t.axes[0], offset.x, offset.y, offset.z, (origin.x - t.base.x) as f64));
         for z in 0..=n {
             for y in 0..=n {
-                match x_table {
-                    Some((spans, off_y, off_z, shift)) => {
-                        let spans = spans.line(off_y + y as i64, off_z + z as i64);
-                        if spans.is_empty() {
-                            line.states = 0;
-                        } else {
-                            sampler.fill_from_spans(spans, shift, at(Axis::X, y, z), &mut line);
-                        }
+                let states = match x_table {
+                    Some((spans, off_x, off_y, off_z, shift)) => {
+                        let (u, v) = (off_y + y as i64, off_z + z as i64);
+                        simple_states(spans.range_at(u, v), off_x, n)
+                            .unwrap_or_else(|| sampler.states_from_spans(spans.line(u, v), shift, at(Axis::X, y, z)))
                     }
-                    None => sampler.sample(at(Axis::X, y, z), &mut line),
-                }
-                s.states.x.push(line.states);
+                    None => {
+                        sampler.sample(at(Axis::X, y, z), &mut line);
+                        line.states
+                    }
+                };
+                s.states.x.push(states);
             }
         }
         if ctx.op != CsgOp::Intersect && s.states.x.iter().all(|&r| r == 0) {
@@ -168,7 +171,8 @@ pub(super) fn edit_chunk(
         };
         // Per-axis constants of the table lookups (glam vectors indexed by a runtime axis cost a
         // match each time).
-        let table_axis = table_level.map(|(t, offset)| (&t.axes[axis.index()], offset[ua.index()], offset[va.index()]));
+        let table_axis = table_level
+            .map(|(t, offset)| (&t.axes[axis.index()], offset[ua.index()], offset[va.index()], offset[axis.index()]));
         let shift_along = table_level.map_or(0.0, |(t, _)| (origin[axis.index()] - t.base[axis.index()]) as f64);
         // Every line of the box is visited: an intersection empties lines without spans, and
         // repairs can give them node states.
@@ -182,12 +186,13 @@ pub(super) fn edit_chunk(
                 // Where the brush line is taken from: nothing, the span table, or the sampler.
                 if !inside_box {
                     brush_line.states = 0;
-                } else if let Some((axis_spans, off_u, off_v)) = table_axis {
-                    let spans = axis_spans.line(off_u + u as i64, off_v + v as i64);
-                    if spans.is_empty() {
+                } else if let Some((axis_spans, off_u, off_v, off)) = table_axis {
+                    let (tu, tv) = (off_u + u as i64, off_v + v as i64);
+                    if simple_states(axis_spans.range_at(tu, tv), off, n) == Some(0) {
+                        // No span, or one span that holds none of this piece's nodes.
                         brush_line.states = 0;
                     } else {
-                        sampler.fill_from_spans(spans, shift_along, at(axis, u, v), &mut brush_line);
+                        sampler.fill_from_spans(axis_spans.line(tu, tv), shift_along, at(axis, u, v), &mut brush_line);
                     }
                 } else {
                     sampler.sample(at(axis, u, v), &mut brush_line);

@@ -64,6 +64,17 @@ impl AxisSpans {
         &self.spans[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
 
+    /// The simple range of line `(u, v)` (absolute, relative to the table base; [`NO_NODES`]
+    /// outside the table).
+    #[inline]
+    pub(super) fn range_at(&self, u: i64, v: i64) -> (i32, i32) {
+        let (u, v) = (u - self.u0, v - self.v0);
+        if u < 0 || v < 0 || u as usize >= self.nu || v as usize >= self.nv {
+            return NO_NODES;
+        }
+        self.simple[u as usize + self.nu * v as usize]
+    }
+
     /// The spans of line `(u, v)` (absolute, relative to the table base).
     #[inline]
     pub(super) fn line(&self, u: i64, v: i64) -> &[Span] {
@@ -364,6 +375,21 @@ pub(super) fn meets_chunk(t: &SpanTable, offset: I64Vec3, n: usize) -> bool {
 pub(super) fn reach((j0, j1): (i32, i32), off: i64, n: usize) -> Option<(i64, i64)> {
     let (ja, jb) = (j0 as i64 - off, j1 as i64 - off);
     (jb >= 0 && ja <= n as i64 && ja <= jb).then_some((ja, jb))
+}
+
+/// The node states a chunk line takes from a table line's simple range (see [`reach`]): what
+/// [`crate::sample::LineSampler::states_from_spans`] reads from the line's one span, whose ends
+/// lie farther than the snapping distance from every node. `None` for a line that needs the
+/// general sampler.
+#[inline]
+pub(super) fn simple_states(range: (i32, i32), off: i64, n: usize) -> Option<u128> {
+    if range == ALL_NODES {
+        return None;
+    }
+    Some(reach(range, off, n).map_or(0, |(ja, jb)| {
+        let (lo, hi) = (ja.max(0) as usize, jb.min(n as i64) as usize);
+        node_mask(hi) & !((1u128 << lo) - 1)
+    }))
 }
 
 /// Whether every x line through the chunk (apron rows included) lies inside one span from

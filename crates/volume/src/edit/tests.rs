@@ -126,4 +126,54 @@ proptest::proptest! {
             }
         }
     }
+
+    /// A line's node states read without its crossings equal the states of the full reading,
+    /// and a table line's simple node range gives them without reading its span: spans with ends
+    /// on nodes, within and just beyond the snapping distance of them, and between them, on
+    /// lines of every level in chunks before, on and after the table's base.
+    #[test]
+    fn node_states_from_a_simple_range_equal_the_samplers(
+        level in 0usize..4,
+        chunk in -3i64..4,
+        ends in proptest::collection::vec((-40i64..100, 0usize..8, 0u32..1000), 0..7),
+    ) {
+        let level = Level::ALL[level];
+        let (n, sp, inv_sp) = (level.cells(), level.spacing(), level.nodes_per_unit());
+        // An end at a node (table node units), moved on or off the grid.
+        let mut ts: Vec<f64> = ends
+            .iter()
+            .map(|&(j, how, frac)| {
+                let moved = [
+                    0.0,
+                    0.5 * SNAP_DISTANCE,
+                    -0.5 * SNAP_DISTANCE,
+                    2.0 * SNAP_DISTANCE,
+                    -2.0 * SNAP_DISTANCE,
+                    1e-12,
+                    f64::from(frac) / 1000.0 * sp,
+                    -f64::from(frac) / 1000.0 * sp,
+                ][how];
+                j as f64 * sp + moved
+            })
+            .collect();
+        ts.sort_by(f64::total_cmp);
+        ts.dedup();
+        let spans: Vec<Span> = ts
+            .chunks_exact(2)
+            .filter(|p| p[0] < p[1])
+            .map(|p| Span { enter: p[0], exit: p[1], enter_normal: -DVec3::X, exit_normal: DVec3::X })
+            .collect();
+        let brush = crate::brush::Sphere::new(DVec3::new(20.0, 3.0, -5.0), 30.0).unwrap();
+        let sampler = LineSampler::new(&brush, false);
+        // The chunk `chunk` x chunks ahead of the table's base, on one of its lines.
+        let (shift, off) = ((chunk * CHUNK_CELLS) as f64, chunk * n as i64);
+        let at = LineAt { origin_grid: I64Vec3::new(chunk * CHUNK_CELLS, 0, 0), level, axis: Axis::X, u: 1, v: 2 };
+        let states = sampler.states_from_spans(&spans, shift, at);
+        let mut full = WorkLine::EMPTY;
+        sampler.fill_from_spans(&spans, shift, at, &mut full);
+        proptest::prop_assert_eq!(states, full.states, "spans {:?}", spans);
+        if let Some(simple) = simple_states(simple_range(&spans, inv_sp), off, n) {
+            proptest::prop_assert_eq!(simple, states, "spans {:?}", spans);
+        }
+    }
 }
