@@ -1,11 +1,15 @@
 //! The invariants every volume keeps, checked exhaustively (for tests and debugging).
 
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
+
 use thiserror::Error;
 
 use crate::axis::Axis;
 use crate::chunk::{Chunk, ChunkLists, ChunkView, check_lists};
 use crate::coords::{ChunkKey, edge_of};
-use crate::volume::Volume;
+use crate::volume::{KeyHasher, Volume};
 
 /// A broken invariant: which chunk and what.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]
@@ -19,15 +23,25 @@ pub struct InvariantViolation {
 
 /// Node states of a chunk's own nodes (`0..n` on each axis) as read from the lines along one
 /// axis, as `rows[y + n z]` with bit `x`.
+#[cfg(test)]
 pub(crate) fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
+    states_and_ends(lists, axis, &mut Vec::new())
+}
+
+/// [`states_from`], and in `ends` the state after each line's last cell (bit `u + n v` of line
+/// `(u, v)`, in words of 64 bits).
+fn states_and_ends(lists: &ChunkLists, axis: Axis, ends: &mut Vec<u64>) -> Vec<u128> {
     let level = lists.level();
     let n = level.cells();
     let mut rows = vec![0u128; n * n];
+    ends.clear();
+    ends.resize((n * n).div_ceil(64), 0);
     let mut cursor = lists.cursor(axis, 0);
     if axis == Axis::X {
         // An x line is one row: its inside nodes are bit ranges.
-        for row in rows.iter_mut() {
+        for (i, row) in rows.iter_mut().enumerate() {
             let line = cursor.next_line();
+            ends[i / 64] |= u64::from(line.end_inside()) << (i % 64);
             // A crossing in cell `e` flips the state of the nodes after node `e`.
             let (mut inside, mut from) = (line.start_inside, 0);
             for e in line.positions().map(|q| edge_of(q, level)) {
@@ -53,6 +67,8 @@ pub(crate) fn states_from(lists: &ChunkLists, axis: Axis) -> Vec<u128> {
     for v in 0..n {
         for u in 0..n {
             let line = cursor.next_line();
+            let i = u + n * v;
+            ends[i / 64] |= u64::from(line.end_inside()) << (i % 64);
             let (bit, first) = if axis == Axis::Y { (1u128 << v, first_row(u)) } else { (1u128 << u, first_row(v)) };
             if line.start_inside {
                 rows[first] ^= bit;
@@ -89,12 +105,24 @@ impl Volume {
     /// bound by what that chunk will hold, which this volume cannot see.
     pub fn check_invariants_within(&self, known: &(dyn Fn(ChunkKey) -> bool + Sync)) -> Result<(), InvariantViolation> {
         use rayon::prelude::*;
-        // Chunks are checked independently (in parallel); of several violations the one of the
-        // smallest key is reported, so the answer does not depend on the thread count.
         let chunks: Vec<(&ChunkKey, &Chunk)> = self.chunks.iter().collect();
+        // First each chunk of lists on its own: its lists, and its axes agreeing on node states,
+        // which gives the start and end states of its lines for the borders.
+        let edges: HashMap<ChunkKey, Result<LineEdges, String>, BuildHasherDefault<KeyHasher>> = chunks
+            .par_iter()
+            .filter_map(|&(&key, chunk)| match chunk {
+                Chunk::Lists(lists) => Some((key, LineEdges::of(lists))),
+                Chunk::Solid => None,
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .collect();
+        // Then every chunk against its neighbours. Chunks are checked independently (in
+        // parallel); of several violations the one of the smallest key is reported, so the
+        // answer does not depend on the thread count.
         let worst = chunks
             .par_iter()
-            .filter_map(|&(&key, chunk)| self.check_chunk(key, chunk, known).err())
+            .filter_map(|&(&key, chunk)| self.check_chunk(key, chunk, &edges, known).err())
             .min_by_key(|v| v.key.0.to_array());
         match worst {
             Some(v) => Err(v),
@@ -102,24 +130,25 @@ impl Volume {
         }
     }
 
-    /// The invariants of one chunk: its lists, its level, its axes agreeing on node states, and
-    /// continuity with the next chunk along each axis (and with an empty previous chunk).
+    /// The invariants of one chunk: its lists, its level, its axes agreeing on node states (from
+    /// `edges`, where every chunk of lists has its [`LineEdges::of`]), and continuity with the
+    /// next chunk along each axis (and with an empty previous chunk).
     fn check_chunk(
         &self,
         key: ChunkKey,
         chunk: &Chunk,
+        edges: &HashMap<ChunkKey, Result<LineEdges, String>, BuildHasherDefault<KeyHasher>>,
         known: &(dyn Fn(ChunkKey) -> bool + Sync),
     ) -> Result<(), InvariantViolation> {
         let fail = |what: String| InvariantViolation { key, what };
-        if let Chunk::Lists(lists) = chunk {
-            check_lists(lists).map_err(fail)?;
-            let from_x = states_from(lists, Axis::X);
-            for axis in [Axis::Y, Axis::Z] {
-                if states_from(lists, axis) != from_x {
-                    return Err(fail(format!("lines along {axis:?} disagree with x lines on node states")));
-                }
-            }
-        }
+        let mine = match chunk {
+            Chunk::Lists(_) => match edges.get(&key) {
+                Some(Ok(e)) => Some(e),
+                Some(Err(what)) => return Err(fail(what.clone())),
+                None => unreachable!("every chunk of lists has its line edges"),
+            },
+            Chunk::Solid => None,
+        };
         let here = ChunkView::of(Some(chunk));
         let level_of = |v: ChunkView<'_>| match v {
             ChunkView::Lists(l) => Some(l.level()),
@@ -127,39 +156,68 @@ impl Volume {
         };
         for axis in Axis::ALL {
             let step = axis.unit_i64().as_ivec3();
-            let next = self.view(key.offset(step));
+            let next_key = key.offset(step);
+            let next = self.view(next_key);
             let prev_missing = !self.chunks.contains_key(&key.offset(-step)) && known(key.offset(-step));
-            let next_known = known(key.offset(step));
+            let next_known = known(next_key);
             // A uniform chunk is sampled at the volume's level, as edits sample it: the lines of
             // a finer neighbour between its nodes are not bound by it.
             let (lh, ln) = (level_of(here).unwrap_or(self.level), level_of(next).unwrap_or(self.level));
             let (nh, nn) = (lh.cells(), ln.cells());
-            let ends: Vec<bool> = {
-                let mut c = here.cursor(axis, 0);
-                (0..nh * nh).map(|_| c.next_line().end_inside()).collect()
+            let a = axis.index();
+            // Line `i`'s state after its last cell here, and before its first in the next chunk
+            // (a chunk whose own check failed is read line by line, as it stands).
+            let read_starts = |view: ChunkView<'_>, count: usize| -> Vec<u64> {
+                let mut c = view.cursor(axis, 0);
+                let mut bits = vec![0u64; count.div_ceil(64)];
+                for i in 0..count {
+                    bits[i / 64] |= u64::from(c.next_line().start_inside) << (i % 64);
+                }
+                bits
             };
-            let starts: Vec<bool> = {
-                let mut c = next.cursor(axis, 0);
-                (0..nn * nn).map(|_| c.next_line().start_inside).collect()
+            let next_starts = match (next, edges.get(&next_key)) {
+                (ChunkView::Lists(_), Some(Ok(e))) => Cow::Borrowed(&e.starts[a][..]),
+                (ChunkView::Lists(_), _) => Cow::Owned(read_starts(next, nn * nn)),
+                (ChunkView::Uniform(inside), _) => Cow::Owned(uniform_bits(inside, nn * nn)),
+            };
+            let here_ends = match mine {
+                Some(e) => Cow::Borrowed(&e.ends[a][..]),
+                None => Cow::Owned(uniform_bits(true, nh * nh)),
             };
             // Lines of the coarser level are lines of both; finer ones end between the other's nodes.
             let lc = lh.min(ln);
             let nc = lc.cells();
             let (fh, fn_) = (nh / nc, nn / nc);
-            for v in 0..nc {
-                for u in 0..nc {
-                    if next_known && ends[u * fh + nh * v * fh] != starts[u * fn_ + nn * v * fn_] {
-                        let (u, v) = (u * fh, v * fh);
+            if next_known {
+                if fh == 1 && fn_ == 1 {
+                    // One level: every line against its continuation, a word at a time.
+                    if let Some(w) = here_ends.iter().zip(next_starts.iter()).position(|(e, s)| e != s) {
+                        let i = 64 * w + (here_ends[w] ^ next_starts[w]).trailing_zeros() as usize;
+                        let (u, v) = (i % nh, i / nh);
                         return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
+                    }
+                } else {
+                    for v in 0..nc {
+                        for u in 0..nc {
+                            if bit(&here_ends, u * fh + nh * v * fh) != bit(&next_starts, u * fn_ + nn * v * fn_) {
+                                let (u, v) = (u * fh, v * fh);
+                                return Err(fail(format!(
+                                    "{axis:?} line ({u}, {v}) ends unlike the next chunk starts"
+                                )));
+                            }
+                        }
                     }
                 }
             }
             if prev_missing {
-                let mut c = here.cursor(axis, 0);
+                let starts = match mine {
+                    Some(e) => Cow::Borrowed(&e.starts[a][..]),
+                    None => Cow::Owned(uniform_bits(true, nh * nh)),
+                };
                 let f = nh / lh.min(self.level).cells();
                 for i in 0..nh * nh {
                     let (u, v) = (i % nh, i / nh);
-                    if c.next_line().start_inside && u % f == 0 && v % f == 0 {
+                    if bit(&starts, i) && u % f == 0 && v % f == 0 {
                         return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
                     }
                 }
@@ -167,6 +225,59 @@ impl Volume {
         }
         Ok(())
     }
+}
+
+/// What the border checks read of a chunk of lists that passed its own checks: the state of
+/// each line before its first cell and after its last (per axis, bit `u + n v` of line `(u, v)`,
+/// in words of 64 bits).
+struct LineEdges {
+    starts: [Vec<u64>; 3],
+    ends: [Vec<u64>; 3],
+}
+
+impl LineEdges {
+    /// A chunk's lists checked ([`check_lists`], and the three axes agreeing on every node),
+    /// and its lines' start and end states, or what is wrong with it. The axes agree, so a line's
+    /// start state is its first node's, read from the x rows.
+    fn of(lists: &ChunkLists) -> Result<LineEdges, String> {
+        check_lists(lists)?;
+        let n = lists.level().cells();
+        let mut ends: [Vec<u64>; 3] = Default::default();
+        let rows = states_and_ends(lists, Axis::X, &mut ends[0]);
+        for axis in [Axis::Y, Axis::Z] {
+            if states_and_ends(lists, axis, &mut ends[axis.index()]) != rows {
+                return Err(format!("lines along {axis:?} disagree with x lines on node states"));
+            }
+        }
+        let words = (n * n).div_ceil(64);
+        let mut starts: [Vec<u64>; 3] = std::array::from_fn(|_| vec![0u64; words]);
+        for v in 0..n {
+            for u in 0..n {
+                let i = u + n * v;
+                // x line (u, v) = (y, z): node (0, y, z); y line (z, x): node (x, 0, z); z line
+                // (x, y): node (x, y, 0).
+                let first = [rows[u + n * v] & 1, (rows[n * u] >> v) & 1, (rows[v] >> u) & 1];
+                for (a, &b) in first.iter().enumerate() {
+                    starts[a][i / 64] |= (b as u64) << (i % 64);
+                }
+            }
+        }
+        Ok(LineEdges { starts, ends })
+    }
+}
+
+/// `count` bits, all `inside`.
+fn uniform_bits(inside: bool, count: usize) -> Vec<u64> {
+    let mut bits = vec![if inside { u64::MAX } else { 0 }; count.div_ceil(64)];
+    if inside && !count.is_multiple_of(64) {
+        *bits.last_mut().expect("a word") = (1u64 << (count % 64)) - 1;
+    }
+    bits
+}
+
+#[inline]
+fn bit(bits: &[u64], i: usize) -> bool {
+    (bits[i / 64] >> (i % 64)) & 1 == 1
 }
 
 #[cfg(test)]
@@ -227,5 +338,143 @@ mod tests {
         }
         assert!(seen >= 4, "{seen} chunks with lists");
         v.check_invariants().unwrap();
+    }
+
+    /// The border checks as they were written before [`LineEdges`]: every line's start and end
+    /// read through cursors, chunk by chunk (the chunk's own checks first).
+    fn check_by_cursors(v: &Volume, known: &dyn Fn(ChunkKey) -> bool) -> Result<(), InvariantViolation> {
+        let mut keys: Vec<ChunkKey> = v.chunks.iter().map(|(k, _)| *k).collect();
+        keys.sort_by_key(|k| k.0.to_array());
+        for key in keys {
+            let chunk = v.chunks.get(&key).unwrap();
+            let fail = |what: String| InvariantViolation { key, what };
+            if let Chunk::Lists(lists) = chunk {
+                check_lists(lists).map_err(fail)?;
+                let from_x = states_from(lists, Axis::X);
+                for axis in [Axis::Y, Axis::Z] {
+                    if states_from(lists, axis) != from_x {
+                        return Err(fail(format!("lines along {axis:?} disagree with x lines on node states")));
+                    }
+                }
+            }
+            let here = ChunkView::of(Some(chunk));
+            let level_of = |c: ChunkView<'_>| match c {
+                ChunkView::Lists(l) => Some(l.level()),
+                ChunkView::Uniform(_) => None,
+            };
+            for axis in Axis::ALL {
+                let step = axis.unit_i64().as_ivec3();
+                let next = v.view(key.offset(step));
+                let prev_missing = !v.chunks.contains_key(&key.offset(-step)) && known(key.offset(-step));
+                let next_known = known(key.offset(step));
+                let (lh, ln) = (level_of(here).unwrap_or(v.level), level_of(next).unwrap_or(v.level));
+                let (nh, nn) = (lh.cells(), ln.cells());
+                let ends: Vec<bool> = {
+                    let mut c = here.cursor(axis, 0);
+                    (0..nh * nh).map(|_| c.next_line().end_inside()).collect()
+                };
+                let starts: Vec<bool> = {
+                    let mut c = next.cursor(axis, 0);
+                    (0..nn * nn).map(|_| c.next_line().start_inside).collect()
+                };
+                let nc = lh.min(ln).cells();
+                let (fh, fn_) = (nh / nc, nn / nc);
+                for vv in 0..nc {
+                    for u in 0..nc {
+                        if next_known && ends[u * fh + nh * vv * fh] != starts[u * fn_ + nn * vv * fn_] {
+                            let (u, vv) = (u * fh, vv * fh);
+                            return Err(fail(format!("{axis:?} line ({u}, {vv}) ends unlike the next chunk starts")));
+                        }
+                    }
+                }
+                if prev_missing {
+                    let mut c = here.cursor(axis, 0);
+                    let f = nh / lh.min(v.level).cells();
+                    for i in 0..nh * nh {
+                        let (u, vv) = (i % nh, i / nh);
+                        if c.next_line().start_inside && u % f == 0 && vv % f == 0 {
+                            return Err(fail(format!("{axis:?} line ({u}, {vv}) starts inside after an empty chunk")));
+                        }
+                    }
+                }
+            }
+        }
+        v.check_materials()
+    }
+
+    /// A brush whose x lines see one sphere and whose y and z lines another: its edits leave
+    /// axes that disagree.
+    struct Liar(Sphere, Sphere);
+
+    impl crate::brush::Brush for Liar {
+        fn bounds(&self) -> crate::brush::Aabb {
+            let (a, b) = (self.0.bounds(), self.1.bounds());
+            crate::brush::Aabb::new(a.min.min(b.min), a.max.max(b.max))
+        }
+        fn field(&self, origin: DVec3, p: DVec3) -> f64 {
+            self.0.field(origin, p)
+        }
+        fn spans(&self, origin: DVec3, start: DVec3, dir: DVec3, out: &mut Vec<crate::brush::Span>) -> bool {
+            if dir == DVec3::X { self.0.spans(origin, start, dir, out) } else { self.1.spans(origin, start, dir, out) }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(96))]
+        /// The check by line edges finds what the check by cursors found, the same violation of
+        /// the same chunk: consistent volumes, chunks swapped in from another solid, dropped,
+        /// made solid, relevelled, cut by a brush whose axes disagree, on and off the grid, with
+        /// some neighbours unknown (a streamed world's border).
+        #[test]
+        fn line_edges_find_what_the_cursors_found(
+            a in (2.0f64..30.0, 2.0f64..30.0, 2.0f64..30.0, 3.0f64..14.0),
+            b in (2.0f64..30.0, 2.0f64..30.0, 2.0f64..30.0, 3.0f64..14.0),
+            on_grid in proptest::prelude::any::<bool>(),
+            damage in proptest::collection::vec((0u8..6, 0i32..3, 0i32..3, 0i32..3), 0..4),
+            unknown in proptest::collection::vec((0i32..3, 0i32..3, 0i32..3), 0..3),
+        ) {
+            let snap = |x: f64| if on_grid { x.round() } else { x };
+            let sphere = |(x, y, z, r): (f64, f64, f64, f64)| {
+                Sphere::new(DVec3::new(snap(x), snap(y), snap(z)), snap(r)).unwrap()
+            };
+            let mut v = Volume::new();
+            v.add(&sphere(a)).unwrap();
+            let mut other = Volume::new();
+            other.add(&sphere(b)).unwrap();
+            for (what, x, y, z) in damage {
+                let key = ChunkKey::new(x, y, z);
+                match what {
+                    0 => match other.chunks.get(&key).cloned() {
+                        Some(c) => {
+                            v.chunks.insert(key, c);
+                        }
+                        None => {
+                            v.chunks.remove(&key);
+                        }
+                    },
+                    1 => {
+                        v.chunks.remove(&key);
+                    }
+                    2 => {
+                        v.chunks.insert(key, Chunk::Solid);
+                    }
+                    3 => {
+                        let _ = v.set_chunk_level(key, Level::new(1).unwrap());
+                    }
+                    4 => {
+                        let _ = v.set_chunk_level(key, Level::new(-1).unwrap());
+                    }
+                    _ => {
+                        let c = DVec3::new(x as f64, y as f64, z as f64) * 16.0 + 8.0;
+                        let liar = Liar(Sphere::new(c, 6.3).unwrap(), Sphere::new(c, 6.0).unwrap());
+                        v.add(&liar).unwrap();
+                    }
+                }
+            }
+            let unknown: Vec<ChunkKey> = unknown.into_iter().map(|(x, y, z)| ChunkKey::new(x, y, z)).collect();
+            let known = |k: ChunkKey| !unknown.contains(&k);
+            proptest::prop_assert_eq!(v.check_invariants_within(&known), check_by_cursors(&v, &known));
+            proptest::prop_assert_eq!(v.check_invariants(), check_by_cursors(&v, &|_| true));
+        }
     }
 }
