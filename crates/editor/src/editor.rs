@@ -812,10 +812,14 @@ pub(crate) fn surface_mut<'a>(
 
 /// Moves a grid-space mesh into world space.
 pub fn to_world(mesh: &mut Mesh, tr: &crate::scene::LayerTransform) {
-    for p in &mut mesh.positions {
-        *p = tr.to_world(glam::Vec3::from(*p).as_dvec3()).as_vec3().into();
-    }
-    for n in &mut mesh.normals {
-        *n = (tr.rotation * glam::Vec3::from(*n).as_dvec3()).as_vec3().into();
-    }
+    use rayon::prelude::*;
+    // (Each vertex on its own: on every core, in runs long enough to be worth a hand-off.)
+    mesh.positions
+        .par_iter_mut()
+        .with_min_len(1 << 14)
+        .for_each(|p| *p = tr.to_world(glam::Vec3::from(*p).as_dvec3()).as_vec3().into());
+    mesh.normals
+        .par_iter_mut()
+        .with_min_len(1 << 14)
+        .for_each(|n| *n = (tr.rotation * glam::Vec3::from(*n).as_dvec3()).as_vec3().into());
 }

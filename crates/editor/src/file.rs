@@ -59,6 +59,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::Path;
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use strata_volume::{Chunk, ChunkKey, ChunkLists, ChunkMap, ChunkMask, ChunkMaterials, Level, Volume};
 use thiserror::Error;
@@ -497,7 +498,6 @@ pub fn scene_record(scene: &Scene, with_references: bool) -> Result<SceneRecord,
             }
         }
         // Each chunk's bytes and CRC on every core, in the canonical order.
-        use rayon::prelude::*;
         let lists = listed
             .par_iter()
             .with_min_len(64)
@@ -798,19 +798,26 @@ fn scene_from_record(record: SceneRecord, report: &mut LoadReport) -> Scene {
             1.0
         };
         let mut entries: Vec<(ChunkKey, Chunk)> = l.solid.into_iter().map(|k| (k, Chunk::Solid)).collect();
-        for c in l.lists {
-            let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
-            if crc32fast::hash(&c.bytes) != c.crc {
-                report
-                    .repairs
-                    .push(format!("layer {name:?}: chunk ({x}, {y}, {z}) failed its checksum and was dropped"));
-                continue;
-            }
-            match postcard::from_bytes::<ChunkLists>(&c.bytes) {
-                Ok(lists) => entries.push((c.key, Chunk::Lists(lists))),
-                Err(e) => report
-                    .repairs
-                    .push(format!("layer {name:?}: chunk ({x}, {y}, {z}) does not decode ({e}) and was dropped")),
+        // Each chunk's checksum and decoding on every core; what they found is taken in file order.
+        let decoded: Vec<Result<(ChunkKey, ChunkLists), String>> = l
+            .lists
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|c| {
+                let (x, y, z) = (c.key.0.x, c.key.0.y, c.key.0.z);
+                if crc32fast::hash(&c.bytes) != c.crc {
+                    return Err(format!("layer {name:?}: chunk ({x}, {y}, {z}) failed its checksum and was dropped"));
+                }
+                postcard::from_bytes::<ChunkLists>(&c.bytes)
+                    .map(|lists| (c.key, lists))
+                    .map_err(|e| format!("layer {name:?}: chunk ({x}, {y}, {z}) does not decode ({e}) and was dropped"))
+            })
+            .collect();
+        entries.reserve(decoded.len());
+        for d in decoded {
+            match d {
+                Ok((key, lists)) => entries.push((key, Chunk::Lists(lists))),
+                Err(why) => report.repairs.push(why),
             }
         }
         let chunks = resolve_chunks(&name, entries, report);

@@ -18,7 +18,7 @@ use strata_volume::{ChunkKey, KeyHasher, Volume, VoxelBlock};
 use crate::Mesh;
 use crate::marching::{block_vertex_keys, mesh_block, surface_chunks};
 use crate::mesh::VertexMaterial;
-use crate::normals::{Creaser, rows_by};
+use crate::normals::{Creaser, Face, rows_by};
 use crate::weld::{EdgeKey, KEY_STEPS};
 
 /// Chunks meshed together before their parts are joined: enough to keep both cores busy, few
@@ -47,8 +47,8 @@ struct Scratch {
     block: VoxelBlock,
     mesh: Mesh,
     creaser: Creaser,
-    /// Area-weighted normal of each triangle.
-    face: Vec<Vec3>,
+    /// Each triangle's area-weighted normal (and its length and direction).
+    face: Vec<Face>,
     /// The corners around each vertex: `corners[start[v]..start[v + 1]]`, in triangle order.
     start: Vec<u32>,
     corners: Vec<u32>,
@@ -75,7 +75,7 @@ fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {
     s.face.clear();
     s.face.extend(m.indices.chunks_exact(3).map(|t| {
         let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(m.positions[t[k] as usize]));
-        (b - a).cross(c - a)
+        Face::new((b - a).cross(c - a))
     }));
     let nv = m.positions.len();
     rows_by(&m.indices, nv, &mut s.start, &mut s.corners);
@@ -90,7 +90,7 @@ fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {
         // Centroids of split seam triangles (after the ids) belong to this chunk alone.
         if let Some(id) = ids.get(v).filter(|id| on_chunk_face(id)) {
             let first = out.faces.len() as u32;
-            out.faces.extend(around.iter().map(|&c| (s.face[c as usize / 3], c)));
+            out.faces.extend(around.iter().map(|&c| (s.face[c as usize / 3].normal, c)));
             out.border.push(Border {
                 key: *id,
                 position: m.positions[v],
@@ -198,7 +198,7 @@ pub fn mesh_volume_creased(volume: &Volume, crease_degrees: f32) -> Mesh {
         creaser.clear();
         for &i in &order[start[v] as usize..start[v + 1] as usize] {
             let (f, c) = faces[i as usize];
-            creaser.push(f, c);
+            creaser.push(Face::new(f), c);
         }
         creaser.split_into(&mut out, &mut indices, position, material, with_materials);
     }

@@ -23,11 +23,11 @@ const SLIVER_AREA_RATIO: f32 = 0.05;
 /// on the mesh before this step.
 pub fn crease_normals(mesh: &Mesh, crease_degrees: f32) -> Mesh {
     // Area-weighted face normals (the cross product's length is twice the area).
-    let face: Vec<Vec3> = mesh
+    let face: Vec<Face> = mesh
         .triangles()
         .map(|t| {
             let [a, b, c] = t.map(|i| Vec3::from(mesh.positions[i as usize]));
-            (b - a).cross(c - a)
+            Face::new((b - a).cross(c - a))
         })
         .collect();
     let (mut start, mut corners) = (Vec::new(), Vec::new());
@@ -72,12 +72,30 @@ pub(crate) fn rows_by(keys: &[u32], rows: usize, start: &mut Vec<u32>, order: &m
     start[0] = 0;
 }
 
+/// A triangle as the grouping reads it: its area-weighted normal, that normal's length (twice
+/// the area) and its direction (zero for a triangle without area), found once per triangle
+/// rather than once per corner.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Face {
+    length: f32,
+    pub(crate) normal: Vec3,
+    dir: Vec3,
+}
+
+impl Face {
+    /// The face of area-weighted normal `normal`.
+    #[inline]
+    pub(crate) fn new(normal: Vec3) -> Self {
+        Face { length: normal.length(), normal, dir: normal.normalize_or_zero() }
+    }
+}
+
 /// The grouping of [`crease_normals`] around one vertex, shared with the streamed export
 /// ([`crate::creased`]): faces are pushed in mesh order, then [`Creaser::split`] groups them.
 pub(crate) struct Creaser {
     cos_limit: f32,
-    /// (twice the area, area-weighted face normal, corner) of each face around the vertex.
-    around: Vec<(f32, Vec3, u32)>,
+    /// Each face around the vertex, and its corner that names the vertex.
+    around: Vec<(Face, u32)>,
     /// (normal sum, its direction, vertex index) of each group.
     groups: Vec<(Vec3, Vec3, u32)>,
 }
@@ -92,10 +110,11 @@ impl Creaser {
         self.around.clear();
     }
 
-    /// One face around the vertex: its area-weighted normal and the corner that names the
-    /// vertex (faces come in mesh order).
-    pub(crate) fn push(&mut self, face: Vec3, corner: u32) {
-        self.around.push((face.length(), face, corner));
+    /// One face around the vertex and the corner that names the vertex (faces come in mesh
+    /// order).
+    #[inline]
+    pub(crate) fn push(&mut self, face: Face, corner: u32) {
+        self.around.push((face, corner));
     }
 
     /// Groups the faces pushed since [`Creaser::clear`]: largest first (ties in mesh order), a
@@ -105,11 +124,10 @@ impl Creaser {
     /// final unit normal through `normal` afterwards) and returns its index; `corner(c, i)`
     /// points corner `c` at vertex `i`.
     fn split(&mut self, mut vertex: impl FnMut([f32; 3]) -> u32, mut corner: impl FnMut(u32, u32)) {
-        self.around.sort_by(|a, b| b.0.total_cmp(&a.0));
+        self.around.sort_by(|a, b| b.0.length.total_cmp(&a.0.length));
         self.groups.clear();
-        let largest = self.around.first().map_or(0.0, |a| a.0);
-        for &(length, f, c) in &self.around {
-            let dir = f.normalize_or_zero();
+        let largest = self.around.first().map_or(0.0, |a| a.0.length);
+        for &(Face { length, normal: f, dir }, c) in &self.around {
             let closeness = |g: &(Vec3, Vec3, u32)| g.1.dot(dir);
             let mut slot = self.groups.iter().position(|g| closeness(g) >= self.cos_limit);
             // Slivers (marching cubes makes some next to nodes) have unreliable normals: they
