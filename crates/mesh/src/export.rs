@@ -16,6 +16,7 @@ use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
+use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::Mesh;
@@ -68,7 +69,8 @@ fn validate(mesh: &Mesh) -> Result<(), ExportError> {
     if !mesh.indices.len().is_multiple_of(3) {
         return Err(ExportError::Malformed("index count is not a multiple of 3"));
     }
-    if mesh.indices.iter().any(|&i| i as usize >= mesh.positions.len()) {
+    // (The scans of a large mesh run on every core: an export checks millions of indices.)
+    if mesh.indices.par_iter().with_min_len(1 << 16).any(|&i| i as usize >= mesh.positions.len()) {
         return Err(ExportError::Malformed("an index names no vertex"));
     }
     if mesh.normals.len() != mesh.positions.len() {
@@ -77,7 +79,7 @@ fn validate(mesh: &Mesh) -> Result<(), ExportError> {
     if !mesh.materials.is_empty() && mesh.materials.len() != mesh.positions.len() {
         return Err(ExportError::Malformed("vertex materials and positions differ in count"));
     }
-    if mesh.positions.iter().flatten().any(|v| !v.is_finite()) {
+    if mesh.positions.par_iter().with_min_len(1 << 16).flatten().any(|v| !v.is_finite()) {
         return Err(ExportError::Malformed("a position is not finite"));
     }
     Ok(())
@@ -122,9 +124,11 @@ pub fn vertex_color(mesh: &Mesh, i: usize, palette: &[ExportMaterial]) -> [f32; 
 /// The dominant material of each triangle: the most common dominant id of its corners (the
 /// first corner's on a three-way tie).
 fn triangle_materials(mesh: &Mesh) -> Vec<u8> {
-    mesh.triangles()
+    mesh.indices
+        .par_chunks_exact(3)
+        .with_min_len(1 << 14)
         .map(|t| {
-            let d = t.map(|i| mesh.material(i as usize).dominant());
+            let d = [t[0], t[1], t[2]].map(|i| mesh.material(i as usize).dominant());
             if d[1] == d[2] { d[1] } else { d[0] }
         })
         .collect()
@@ -323,13 +327,20 @@ fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
     }
     // Every piece is a whole number of 4-byte words: no padding.
     let bin_len = indices_at + mesh.indices.len() * 4;
-    let (mut min, mut max) = ([f32::MAX; 3], [f32::MIN; 3]);
-    for p in &mesh.positions {
+    let bounds = |(mut min, mut max): ([f32; 3], [f32; 3]), p: &[f32; 3]| {
         for k in 0..3 {
             min[k] = min[k].min(p[k]);
             max[k] = max[k].max(p[k]);
         }
-    }
+        (min, max)
+    };
+    let none = || ([f32::MAX; 3], [f32::MIN; 3]);
+    let (min, max) = mesh
+        .positions
+        .par_iter()
+        .with_min_len(1 << 16)
+        .fold(none, bounds)
+        .reduce(none, |a, (bmin, bmax)| bounds(bounds(a, &bmin), &bmax));
     let mut views = vec![
         serde_json::json!({ "buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": 34962 }),
         serde_json::json!({ "buffer": 0, "byteOffset": normals_at, "byteLength": colors_at - normals_at, "target": 34962 }),
@@ -392,13 +403,15 @@ fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
     write_le_words(w, bytemuck::cast_slice::<[f32; 3], f32>(&mesh.positions))?;
     write_le_words(w, bytemuck::cast_slice::<[f32; 3], f32>(&mesh.normals))?;
     if !palette.is_empty() {
-        let colors: Vec<u8> = (0..nv)
-            .flat_map(|i| {
+        let colors: Vec<[u8; 4]> = (0..nv)
+            .into_par_iter()
+            .with_min_len(1 << 14)
+            .map(|i| {
                 let c = vertex_color(mesh, i, palette).map(linear_byte);
                 [c[0], c[1], c[2], 255]
             })
             .collect();
-        w.write_all(&colors)?;
+        w.write_all(bytemuck::cast_slice(&colors))?;
     }
     match &dominant {
         Some(dominant) if groups.len() > 1 => {

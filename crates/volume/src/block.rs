@@ -589,6 +589,8 @@ impl Volume {
             let mut expected_ok = true;
             // One cursor per source chunk: this chunk, its neighbours along `ua`, `va` and both.
             let mut cursors: [Option<ViewCursor<'_>>; 4] = [None, None, None, None];
+            // (Each source chunk looked up once, not once a row.)
+            let mut views: [Option<ChunkView<'_>>; 4] = [None; 4];
             for v in ov..=ov + w {
                 // Lines u < n come from one chunk, u = n from its neighbour along `ua`.
                 let base = key.offset(if v == n { unit(va) } else { IVec3::ZERO });
@@ -598,7 +600,7 @@ impl Volume {
                     if us.is_empty() {
                         continue;
                     }
-                    let view = self.view(source);
+                    let view = *views[2 * usize::from(v == n) + k].get_or_insert_with(|| self.view(source));
                     if let ChunkView::Lists(l) = view
                         && l.level() != level
                     {
