@@ -191,17 +191,38 @@ pub fn mesh_volume_creased(volume: &Volume, crease_degrees: f32) -> Mesh {
     let (mut start, mut order) = (Vec::new(), Vec::new());
     rows_by(&face_vertex, vertex.len(), &mut start, &mut order);
     drop(face_vertex);
-    let mut creaser = Creaser::new(crease_degrees);
     let with_materials = !out.materials.is_empty();
+    // Runs of border vertices creased on every core, each into a mesh of its own with the
+    // corners it moved; joined in order, they add the vertices the loop over all of them adds.
+    let runs: Vec<(Mesh, Vec<(u32, u32)>)> = (0..vertex.len())
+        .into_par_iter()
+        .with_min_len(BORDER_RUN)
+        .fold(
+            || (Creaser::new(crease_degrees), Mesh::default(), Vec::new()),
+            |(mut creaser, mut mesh, mut corners), v| {
+                let (position, material) = vertex[v];
+                creaser.clear();
+                for &i in &order[start[v] as usize..start[v + 1] as usize] {
+                    let (f, c) = faces[i as usize];
+                    creaser.push(Face::new(f), c);
+                }
+                creaser.split_with(&mut mesh, position, material, with_materials, |c, i| corners.push((c, i)));
+                (creaser, mesh, corners)
+            },
+        )
+        .map(|(_, mesh, corners)| (mesh, corners))
+        .collect();
     let mut indices = std::mem::take(&mut out.indices);
-    for (v, &(position, material)) in vertex.iter().enumerate() {
-        creaser.clear();
-        for &i in &order[start[v] as usize..start[v + 1] as usize] {
-            let (f, c) = faces[i as usize];
-            creaser.push(Face::new(f), c);
+    for (mesh, corners) in runs {
+        let first = out.positions.len() as u32;
+        out.append_range(&mesh, 0..mesh.positions.len(), 0..0);
+        for (c, i) in corners {
+            indices[c as usize] = first + i;
         }
-        creaser.split_into(&mut out, &mut indices, position, material, with_materials);
     }
     out.indices = indices;
     out
 }
+
+/// Border vertices creased together on one core at least.
+const BORDER_RUN: usize = 1 << 12;

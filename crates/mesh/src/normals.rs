@@ -164,12 +164,24 @@ impl Creaser {
         material: VertexMaterial,
         with_materials: bool,
     ) {
+        self.split_with(out, position, material, with_materials, |c, i| indices[c as usize] = i);
+    }
+
+    /// [`Creaser::split_into`] with each corner's new vertex given to `corner(c, i)`.
+    pub(crate) fn split_with(
+        &mut self,
+        out: &mut Mesh,
+        position: [f32; 3],
+        material: VertexMaterial,
+        with_materials: bool,
+        corner: impl FnMut(u32, u32),
+    ) {
         self.split(
             |normal| {
                 out.push_vertex(position, normal, material, with_materials);
                 out.positions.len() as u32 - 1
             },
-            |c, i| indices[c as usize] = i,
+            corner,
         );
         for (normal, i) in self.normals() {
             out.normals[i as usize] = normal;

@@ -138,3 +138,18 @@ fn far_from_the_origin_where_f32_positions_round_it_is_the_same() {
     v.add(&Cuboid::new(DVec3::new(100_016.0, -70_000.0, 50_008.5), DVec3::new(6.0, 9.0, 4.25)).unwrap()).unwrap();
     assert_same(&v, DEFAULT_CREASE_DEGREES).unwrap();
 }
+
+#[test]
+fn border_vertices_creased_in_many_runs_on_every_core_are_the_same() {
+    // Tens of thousands of vertices on chunk faces: the border vertices are creased in several
+    // runs in parallel and joined; a second material reaches some of them.
+    let mut v = Volume::new();
+    v.add(&Sphere::new(DVec3::new(0.5, 1.25, -0.3), 100.0).unwrap()).unwrap();
+    let settings = EditSettings { material: 2, ..Default::default() };
+    v.apply(CsgOp::Add, &Cuboid::new(DVec3::new(70.0, 0.0, 0.0), DVec3::new(40.0, 32.0, 16.0)).unwrap(), &settings)
+        .unwrap();
+    let m = mesh_volume_creased(&v, DEFAULT_CREASE_DEGREES);
+    let on_faces = m.positions.iter().filter(|p| p.iter().any(|&c| c.rem_euclid(16.0) == 0.0)).count();
+    assert!(on_faces > 3 << 12, "{on_faces} vertices on chunk faces: too few for several runs");
+    assert_same(&v, DEFAULT_CREASE_DEGREES).unwrap();
+}
