@@ -60,6 +60,11 @@ fn on_chunk_face(key: &EdgeKey) -> bool {
 }
 
 fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {
+    if volume.plain_block_uniform(key) {
+        // The chunk and its apron's owners are uniform alike: no surface, nothing to read (most
+        // of the chunks around a converted mesh are inside it or outside it).
+        return None;
+    }
     volume.extract_block_into(key, &mut s.block);
     let m = &mut s.mesh;
     mesh_block(&s.block, m);

@@ -225,7 +225,11 @@ pub(crate) fn mesh_volume_capped(volume: &Volume, cap: &(dyn Fn(ChunkKey) -> Lev
 }
 
 fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + Sync)>) -> Mesh {
-    let keys = surface_chunks(volume);
+    let mut keys = surface_chunks(volume);
+    if cap.is_none() {
+        // A chunk whose apron's owners are uniform alike with it holds no surface.
+        keys.retain(|&k| !volume.plain_block_uniform(k));
+    }
     let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)> = keys
         .par_iter()
         .map_init(VoxelBlock::default, |block, &key| {
