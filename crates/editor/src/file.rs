@@ -307,7 +307,47 @@ pub fn encode_version_2_payload(scene: &Scene) -> Result<Vec<u8>, SceneFileError
 pub struct ChunkRecord {
     pub key: ChunkKey,
     pub crc: u32,
+    #[serde(with = "byte_string")]
     pub bytes: Vec<u8>,
+}
+
+/// A `Vec<u8>` (de)serialised as a byte string: in postcard the same bytes as a sequence of
+/// `u8` (a varint length, then one byte each), read and written as one slice instead of byte
+/// by byte.
+mod byte_string {
+    use serde::{Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(bytes: &[u8], s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bytes(bytes)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<u8>, D::Error> {
+        struct Bytes;
+        impl<'de> serde::de::Visitor<'de> for Bytes {
+            type Value = Vec<u8>;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a byte string")
+            }
+
+            fn visit_bytes<E: serde::de::Error>(self, v: &[u8]) -> Result<Vec<u8>, E> {
+                Ok(v.to_vec())
+            }
+
+            fn visit_byte_buf<E: serde::de::Error>(self, v: Vec<u8>) -> Result<Vec<u8>, E> {
+                Ok(v)
+            }
+
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<u8>, A::Error> {
+                let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 20));
+                while let Some(b) = seq.next_element()? {
+                    out.push(b);
+                }
+                Ok(out)
+            }
+        }
+        d.deserialize_byte_buf(Bytes)
+    }
 }
 
 impl ChunkRecord {
@@ -350,6 +390,7 @@ pub struct ReferenceRecord {
     pub visible: bool,
     pub locked: bool,
     pub crc: u32,
+    #[serde(with = "byte_string")]
     pub bytes: Vec<u8>,
 }
 
@@ -1087,4 +1128,35 @@ pub fn chunk_digests(scene: &Scene) -> Result<Vec<ChunkDigest>, SceneFileError> 
         out.extend(by_key.into_values());
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The records as every earlier build wrote them: bytes as a plain sequence of `u8`.
+    #[derive(Serialize, Deserialize, PartialEq, Debug)]
+    struct PlainRecord {
+        key: ChunkKey,
+        crc: u32,
+        bytes: Vec<u8>,
+    }
+
+    #[test]
+    fn chunk_bytes_as_a_byte_string_are_the_bytes_written_before() {
+        for len in [0usize, 1, 127, 128, 300, 70_000] {
+            let bytes: Vec<u8> = (0..len).map(|i| (i * 37 % 251) as u8).collect();
+            let key = ChunkKey::new(-3, 7, 1 << 20);
+            let record = ChunkRecord::new(key, bytes.clone());
+            let plain = PlainRecord { key, crc: record.crc, bytes };
+            let written = postcard::to_allocvec(&record).unwrap();
+            assert_eq!(written, postcard::to_allocvec(&plain).unwrap(), "{len} bytes");
+            let read: ChunkRecord = postcard::from_bytes(&written).unwrap();
+            assert_eq!((read.key, read.crc, &read.bytes), (plain.key, plain.crc, &plain.bytes));
+            // A record cut short is an error, not a panic.
+            if len > 0 {
+                assert!(postcard::from_bytes::<ChunkRecord>(&written[..written.len() - 1]).is_err());
+            }
+        }
+    }
 }
