@@ -335,12 +335,12 @@ fn write_glb(mesh: &Mesh, palette: &[ExportMaterial], w: &mut impl Write) -> io:
         (min, max)
     };
     let none = || ([f32::MAX; 3], [f32::MIN; 3]);
-    let (min, max) = mesh
-        .positions
-        .par_iter()
-        .with_min_len(1 << 16)
-        .fold(none, bounds)
-        .reduce(none, |a, (bmin, bmax)| bounds(bounds(a, &bmin), &bmax));
+    let (min, max) = mesh.positions.par_iter().with_min_len(1 << 16).fold(none, bounds).reduce(
+        none,
+        |(amin, amax), (bmin, bmax)| {
+            (std::array::from_fn(|k| amin[k].min(bmin[k])), std::array::from_fn(|k| amax[k].max(bmax[k])))
+        },
+    );
     let mut views = vec![
         serde_json::json!({ "buffer": 0, "byteOffset": 0, "byteLength": normals_at, "target": 34962 }),
         serde_json::json!({ "buffer": 0, "byteOffset": normals_at, "byteLength": colors_at - normals_at, "target": 34962 }),

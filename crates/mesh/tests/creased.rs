@@ -152,8 +152,8 @@ fn far_from_the_origin_where_f32_positions_round_it_is_the_same() {
 
 #[test]
 fn border_vertices_creased_in_many_runs_on_every_core_are_the_same() {
-    // Tens of thousands of vertices on chunk faces: the border vertices are creased in several
-    // runs in parallel and joined; a second material reaches some of them; hundreds of solid
+    // Over 12,288 vertices on chunk faces: the border vertices are creased in three runs or
+    // more in parallel and joined; a second material reaches some of them; over a hundred solid
     // chunks inside are skipped.
     let mut v = Volume::new();
     v.add(&Sphere::new(DVec3::new(0.5, 1.25, -0.3), 100.0).unwrap()).unwrap();

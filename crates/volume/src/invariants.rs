@@ -150,10 +150,6 @@ impl Volume {
             Chunk::Solid => None,
         };
         let here = ChunkView::of(Some(chunk));
-        let level_of = |v: ChunkView<'_>| match v {
-            ChunkView::Lists(l) => Some(l.level()),
-            ChunkView::Uniform(_) => None,
-        };
         for axis in Axis::ALL {
             let step = axis.unit_i64().as_ivec3();
             let next_key = key.offset(step);
@@ -266,6 +262,14 @@ impl LineEdges {
     }
 }
 
+/// The level a chunk's lists are stored at (`None` for a uniform chunk).
+fn level_of(view: ChunkView<'_>) -> Option<crate::coords::Level> {
+    match view {
+        ChunkView::Lists(l) => Some(l.level()),
+        ChunkView::Uniform(_) => None,
+    }
+}
+
 /// `count` bits, all `inside`.
 fn uniform_bits(inside: bool, count: usize) -> Vec<u64> {
     let mut bits = vec![if inside { u64::MAX } else { 0 }; count.div_ceil(64)];
@@ -358,10 +362,6 @@ mod tests {
                 }
             }
             let here = ChunkView::of(Some(chunk));
-            let level_of = |c: ChunkView<'_>| match c {
-                ChunkView::Lists(l) => Some(l.level()),
-                ChunkView::Uniform(_) => None,
-            };
             for axis in Axis::ALL {
                 let step = axis.unit_i64().as_ivec3();
                 let next = v.view(key.offset(step));
