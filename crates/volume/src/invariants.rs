@@ -1,6 +1,5 @@
 //! The invariants every volume keeps, checked exhaustively (for tests and debugging).
 
-use std::borrow::Cow;
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
 
@@ -172,14 +171,11 @@ impl Volume {
                 bits
             };
             let next_starts = match (next, edges.get(&next_key)) {
-                (ChunkView::Lists(_), Some(Ok(e))) => Cow::Borrowed(&e.starts[a][..]),
-                (ChunkView::Lists(_), _) => Cow::Owned(read_starts(next, nn * nn)),
-                (ChunkView::Uniform(inside), _) => Cow::Owned(uniform_bits(inside, nn * nn)),
+                (ChunkView::Lists(_), Some(Ok(e))) => LineBits::Words(&e.starts[a]),
+                (ChunkView::Lists(_), _) => LineBits::Read(read_starts(next, nn * nn)),
+                (ChunkView::Uniform(inside), _) => LineBits::All(inside),
             };
-            let here_ends = match mine {
-                Some(e) => Cow::Borrowed(&e.ends[a][..]),
-                None => Cow::Owned(uniform_bits(true, nh * nh)),
-            };
+            let here_ends = mine.map_or(LineBits::All(true), |e| LineBits::Words(&e.ends[a]));
             // Lines of the coarser level are lines of both; finer ones end between the other's nodes.
             let lc = lh.min(ln);
             let nc = lc.cells();
@@ -187,15 +183,15 @@ impl Volume {
             if next_known {
                 if fh == 1 && fn_ == 1 {
                     // One level: every line against its continuation, a word at a time.
-                    if let Some(w) = here_ends.iter().zip(next_starts.iter()).position(|(e, s)| e != s) {
-                        let i = 64 * w + (here_ends[w] ^ next_starts[w]).trailing_zeros() as usize;
+                    if let Some(w) = (0..(nh * nh).div_ceil(64)).find(|&w| here_ends.word(w) != next_starts.word(w)) {
+                        let i = 64 * w + (here_ends.word(w) ^ next_starts.word(w)).trailing_zeros() as usize;
                         let (u, v) = (i % nh, i / nh);
                         return Err(fail(format!("{axis:?} line ({u}, {v}) ends unlike the next chunk starts")));
                     }
                 } else {
                     for v in 0..nc {
                         for u in 0..nc {
-                            if bit(&here_ends, u * fh + nh * v * fh) != bit(&next_starts, u * fn_ + nn * v * fn_) {
+                            if here_ends.bit(u * fh + nh * v * fh) != next_starts.bit(u * fn_ + nn * v * fn_) {
                                 let (u, v) = (u * fh, v * fh);
                                 return Err(fail(format!(
                                     "{axis:?} line ({u}, {v}) ends unlike the next chunk starts"
@@ -206,14 +202,11 @@ impl Volume {
                 }
             }
             if prev_missing {
-                let starts = match mine {
-                    Some(e) => Cow::Borrowed(&e.starts[a][..]),
-                    None => Cow::Owned(uniform_bits(true, nh * nh)),
-                };
+                let starts = mine.map_or(LineBits::All(true), |e| LineBits::Words(&e.starts[a]));
                 let f = nh / lh.min(self.level).cells();
                 for i in 0..nh * nh {
                     let (u, v) = (i % nh, i / nh);
-                    if bit(&starts, i) && u % f == 0 && v % f == 0 {
+                    if starts.bit(i) && u % f == 0 && v % f == 0 {
                         return Err(fail(format!("{axis:?} line ({u}, {v}) starts inside after an empty chunk")));
                     }
                 }
@@ -270,18 +263,35 @@ fn level_of(view: ChunkView<'_>) -> Option<crate::coords::Level> {
     }
 }
 
-/// `count` bits, all `inside`.
-fn uniform_bits(inside: bool, count: usize) -> Vec<u64> {
-    let mut bits = vec![if inside { u64::MAX } else { 0 }; count.div_ceil(64)];
-    if inside && !count.is_multiple_of(64) {
-        *bits.last_mut().expect("a word") = (1u64 << (count % 64)) - 1;
-    }
-    bits
+/// One bit per line of a chunk's axis (bit `u + n v` of line `(u, v)`; `n²` is a multiple of 64
+/// at every level): a checked chunk's words, words read line by line, or a uniform chunk's one
+/// state (no words made for it).
+enum LineBits<'a> {
+    Words(&'a [u64]),
+    Read(Vec<u64>),
+    All(bool),
 }
 
-#[inline]
-fn bit(bits: &[u64], i: usize) -> bool {
-    (bits[i / 64] >> (i % 64)) & 1 == 1
+impl LineBits<'_> {
+    #[inline]
+    fn word(&self, w: usize) -> u64 {
+        match self {
+            LineBits::Words(b) => b[w],
+            LineBits::Read(b) => b[w],
+            LineBits::All(inside) => {
+                if *inside {
+                    u64::MAX
+                } else {
+                    0
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn bit(&self, i: usize) -> bool {
+        (self.word(i / 64) >> (i % 64)) & 1 == 1
+    }
 }
 
 #[cfg(test)]
