@@ -185,6 +185,9 @@ pub struct TetraScratch {
     face_at: Vec<u32>,
     neighbour: VoxelBlock,
     slab: SlabScratch,
+    /// The unit normal of each axis crossing of the block, decoded once (a crossing's normal
+    /// is read by its own vertex and by the face and body diagonals around it).
+    normals: [Vec<Vec3>; 3],
 }
 
 /// Marching tetrahedra of one block, with integrated clustering when `cluster`, into `out`
@@ -216,6 +219,11 @@ fn mesh_candidates_and_cluster(block: &VoxelBlock, cluster: bool, scratch: &mut 
     s.ts.clear();
     s.tris.clear();
     s.face_of.clear();
+    for a in Axis::ALL {
+        let normals = &mut s.normals[a.index()];
+        normals.clear();
+        normals.extend(block.crossings(a).iter().map(|c| unpack_normal(c.normal).as_vec3()));
+    }
     let sp = block.level().spacing() as f32;
     let with_materials = block.has_materials();
     let node = |x: usize, y: usize, z: usize| x + m * (y + m * z);
@@ -249,14 +257,13 @@ fn for_each_piece(block: &VoxelBlock, cells: [std::ops::Range<usize>; 3], mut pi
     for z in cells[2].clone() {
         for y in cells[1].clone() {
             let mut mixed = block.mixed_cells(y, z) & xs;
+            // The cell's corners from the four node rows around it: bits 2k and 2k + 1 of the
+            // states (corners `2k`, `2k + 1`: x and x + 1) from row k = (y offset) + 2 (z offset).
+            let rows = [block.row(y, z), block.row(y + 1, z), block.row(y, z + 1), block.row(y + 1, z + 1)];
             while mixed != 0 {
                 let x = mixed.trailing_zeros() as usize;
                 mixed &= mixed - 1;
-                let mut states = 0u8;
-                for c in 0..8 {
-                    let o = offset(c);
-                    states |= (block.inside(x + o[0], y + o[1], z + o[2]) as u8) << c;
-                }
+                let states = rows.iter().enumerate().fold(0u8, |acc, (k, r)| acc | (((r >> x) & 3) as u8) << (2 * k));
                 for (t, corners) in tets.iter().enumerate() {
                     let mask = (0..4).fold(0usize, |acc, k| acc | ((states >> corners[k] & 1) as usize) << k);
                     let case = &table[t][mask];
@@ -379,7 +386,7 @@ fn face_clusters(lower: &VoxelBlock, upper: &VoxelBlock, axis: usize, s: &mut Sl
                         + layers * (node[u] as usize + m * node[w] as usize));
                 if s.ids[slot] == NONE {
                     s.ids[slot] = s.mesh.positions.len() as u32;
-                    let (t, normal) = edge_point(block, dir, l);
+                    let (t, normal) = edge_point(&Crossings { block, normals: None }, dir, l);
                     s.mesh.positions.push((along(node.map(|c| c as f32), dir, t) * sp).to_array());
                     s.mesh.normals.push(normal.normalize_or(Vec3::Z).to_array());
                     if with_materials {
@@ -539,7 +546,7 @@ fn vertex(
     }
     let id = out.positions.len() as u32;
     *slot = id;
-    let (t, normal) = edge_point(block, dir, lower);
+    let (t, normal) = edge_point(&Crossings { block, normals: Some(&s.normals) }, dir, lower);
     out.positions.push((along(lower.map(|c| c as f32), dir, t) * sp).to_array());
     out.normals.push(normal.normalize_or(Vec3::Z).to_array());
     if with_materials {
@@ -550,18 +557,37 @@ fn vertex(
     id
 }
 
-/// Where the surface crosses lattice edge (`dir`, `lower`) of `block`: the position along the
+/// A block's axis crossings, with their normals decoded once where the caller has them.
+struct Crossings<'a> {
+    block: &'a VoxelBlock,
+    /// Each axis's crossing normals, decoded (`unpack_normal(..).as_vec3()`), by crossing index.
+    normals: Option<&'a [Vec<Vec3>; 3]>,
+}
+
+impl Crossings<'_> {
+    /// The crossing on the edge along `axis` from `lower`: its position along the edge and its
+    /// normal; `None` where the edge's nodes agree.
+    #[inline]
+    fn at(&self, axis: usize, lower: [usize; 3]) -> Option<(f32, Vec3)> {
+        let i = self.block.crossing_index(Axis::from_index(axis), lower[0], lower[1], lower[2])? as usize;
+        let c = &self.block.crossings(Axis::from_index(axis))[i];
+        let normal = match self.normals {
+            Some(n) => n[axis][i],
+            None => unpack_normal(c.normal).as_vec3(),
+        };
+        Some((c.t, normal))
+    }
+}
+
+/// Where the surface crosses lattice edge (`dir`, `lower`) of the block: the position along the
 /// edge from its lower node, and the normal there (not normalised).
-fn edge_point(block: &VoxelBlock, dir: usize, lower: [usize; 3]) -> (f32, Vec3) {
+fn edge_point(c: &Crossings, dir: usize, lower: [usize; 3]) -> (f32, Vec3) {
     if dir < 3 {
-        let c = block
-            .crossing(Axis::from_index(dir), lower[0], lower[1], lower[2])
-            .expect("a voxel block has a crossing on every edge whose nodes differ");
-        (c.t, unpack_normal(c.normal).as_vec3())
+        c.at(dir, lower).expect("a voxel block has a crossing on every edge whose nodes differ")
     } else if dir < 6 {
-        face_diagonal(block, lower, offset(DIRS[dir]))
+        face_diagonal(c, lower, offset(DIRS[dir]))
     } else {
-        body_diagonal(block, lower)
+        body_diagonal(c, lower)
     }
 }
 
@@ -583,7 +609,8 @@ fn edge_vertex_material(block: &VoxelBlock, dir: usize, lower: [usize; 3]) -> st
 /// between the face's two axis crossings (one on each side of the diagonal) meets it, with the
 /// normals blended there. Uses only the face's four edges, which both blocks sharing the face
 /// hold identically.
-fn face_diagonal(block: &VoxelBlock, lower: [usize; 3], d: [usize; 3]) -> (f32, Vec3) {
+fn face_diagonal(crossings: &Crossings, lower: [usize; 3], d: [usize; 3]) -> (f32, Vec3) {
+    let block = crossings.block;
     let axes: SmallVec<[usize; 2]> = (0..3).filter(|&k| d[k] == 1).collect();
     let (a, b) = (axes[0], axes[1]);
     // The crossing on the path through the corner `lower + e_first`, in face coordinates.
@@ -596,18 +623,18 @@ fn face_diagonal(block: &VoxelBlock, lower: [usize; 3], d: [usize; 3]) -> (f32, 
             } else {
                 (corner, second, 1.0)
             };
-        let c = block
-            .crossing(Axis::from_index(along), edge_lower[0], edge_lower[1], edge_lower[2])
+        let (t, normal) = crossings
+            .at(along, edge_lower)
             .expect("one edge of each path from one end of the diagonal to the other changes state");
         let mut uv = [0.0f32; 2];
         let (fi, si) = if first == a { (0, 1) } else { (1, 0) };
         if along == first {
-            uv[fi] = c.t;
+            uv[fi] = t;
         } else {
             uv[fi] = at;
-            uv[si] = c.t;
+            uv[si] = t;
         }
-        (uv, unpack_normal(c.normal).as_vec3())
+        (uv, normal)
     };
     let (p1, n1) = path(a, b);
     let (p2, n2) = path(b, a);
@@ -620,17 +647,24 @@ fn face_diagonal(block: &VoxelBlock, lower: [usize; 3], d: [usize; 3]) -> (f32, 
 
 /// The crossing on the body diagonal of the cell at `lower`: the least-squares meeting point of
 /// the tangent planes at the cell's axis crossings with the diagonal, kept inside the edge.
-fn body_diagonal(block: &VoxelBlock, lower: [usize; 3]) -> (f32, Vec3) {
-    let [x, y, z] = lower;
+fn body_diagonal(crossings: &Crossings, lower: [usize; 3]) -> (f32, Vec3) {
     let (mut num, mut den, mut normal) = (0.0f32, 0.0f32, Vec3::ZERO);
-    for (axis, l, c) in block.cell_crossings(x, y, z) {
-        let nrm = unpack_normal(c.normal).as_vec3();
-        let mut p = Vec3::new((l[0] - x) as f32, (l[1] - y) as f32, (l[2] - z) as f32);
-        p[axis.index()] += c.t;
-        let k = nrm.x + nrm.y + nrm.z;
-        num += k * nrm.dot(p);
-        den += k * k;
-        normal += nrm;
+    // The cell's twelve edges, axis by axis (the order of `VoxelBlock::cell_crossings`).
+    for axis in 0..3 {
+        // `Axis::across`: the next two axes in turn.
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for edge in 0..4 {
+            let mut l = lower;
+            l[u] += edge & 1;
+            l[v] += edge >> 1;
+            let Some((t, nrm)) = crossings.at(axis, l) else { continue };
+            let mut p = Vec3::new((l[0] - lower[0]) as f32, (l[1] - lower[1]) as f32, (l[2] - lower[2]) as f32);
+            p[axis] += t;
+            let k = nrm.x + nrm.y + nrm.z;
+            num += k * nrm.dot(p);
+            den += k * k;
+            normal += nrm;
+        }
     }
     let t = if den > 1e-6 { num / den } else { 0.5 };
     let t = if t.is_finite() { t } else { 0.5 };
@@ -979,5 +1013,79 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The body diagonal as it was computed before the normals were decoded once per block:
+    /// through [`VoxelBlock::cell_crossings`], each normal decoded where it is read.
+    fn body_diagonal_by_cell_crossings(block: &VoxelBlock, lower: [usize; 3]) -> (f32, Vec3) {
+        let [x, y, z] = lower;
+        let (mut num, mut den, mut normal) = (0.0f32, 0.0f32, Vec3::ZERO);
+        for (axis, l, c) in block.cell_crossings(x, y, z) {
+            let nrm = unpack_normal(c.normal).as_vec3();
+            let mut p = Vec3::new((l[0] - x) as f32, (l[1] - y) as f32, (l[2] - z) as f32);
+            p[axis.index()] += c.t;
+            let k = nrm.x + nrm.y + nrm.z;
+            num += k * nrm.dot(p);
+            den += k * k;
+            normal += nrm;
+        }
+        let t = if den > 1e-6 { num / den } else { 0.5 };
+        let t = if t.is_finite() { t } else { 0.5 };
+        (t.clamp(0.05, 0.95), normal)
+    }
+
+    #[test]
+    fn diagonal_vertices_from_decoded_normals_equal_those_decoded_where_read() {
+        use strata_volume::brush::{Cuboid, Sphere};
+        let mut v = strata_volume::Volume::new();
+        v.add(&Sphere::new(DVec3::new(20.3, 19.6, 21.1), 13.7).unwrap()).unwrap();
+        // Faces on grid planes and a sphere cut away: crossings at nodes and normals of every sign.
+        v.add(&Cuboid::new(DVec3::new(8.0, 17.0, 7.0), DVec3::new(4.0, 13.0, 2.5)).unwrap()).unwrap();
+        v.subtract(&Sphere::new(DVec3::new(27.0, 25.0, 14.0), 6.2).unwrap()).unwrap();
+        let mut block = VoxelBlock::default();
+        let mut checked = [0usize; 3];
+        for key in crate::surface_chunks(&v) {
+            v.extract_block_into(key, &mut block);
+            let normals: [Vec<Vec3>; 3] =
+                Axis::ALL.map(|a| block.crossings(a).iter().map(|c| unpack_normal(c.normal).as_vec3()).collect());
+            let decoded = Crossings { block: &block, normals: Some(&normals) };
+            let where_read = Crossings { block: &block, normals: None };
+            let n = block.cells();
+            for (z, y, x) in (0..n).flat_map(|z| (0..n).flat_map(move |y| (0..n).map(move |x| (z, y, x)))) {
+                if block.mixed_cells(y, z) >> x & 1 == 0 {
+                    continue;
+                }
+                let lower = [x, y, z];
+                let bits = |p: (f32, Vec3)| (p.0.to_bits(), p.1.to_array().map(f32::to_bits));
+                if block.inside(x, y, z) != block.inside(x + 1, y + 1, z + 1) {
+                    let want = body_diagonal_by_cell_crossings(&block, lower);
+                    assert_eq!(bits(body_diagonal(&decoded, lower)), bits(want), "body diagonal at {lower:?}");
+                    assert_eq!(bits(body_diagonal(&where_read, lower)), bits(want));
+                    checked[0] += 1;
+                }
+                for dir in 3..6 {
+                    let d = offset(DIRS[dir]);
+                    if block.inside(x, y, z) != block.inside(x + d[0], y + d[1], z + d[2]) {
+                        let want = edge_point(&where_read, dir, lower);
+                        assert_eq!(
+                            bits(edge_point(&decoded, dir, lower)),
+                            bits(want),
+                            "face diagonal {dir} at {lower:?}"
+                        );
+                        checked[1] += 1;
+                    }
+                }
+                for dir in 0..3 {
+                    let d = offset(DIRS[dir]);
+                    if block.inside(x, y, z) != block.inside(x + d[0], y + d[1], z + d[2]) {
+                        let c = block.crossing(Axis::from_index(dir), x, y, z).unwrap();
+                        let want = (c.t, unpack_normal(c.normal).as_vec3());
+                        assert_eq!(bits(edge_point(&decoded, dir, lower)), bits(want));
+                        checked[2] += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked.iter().all(|&c| c > 100), "too few edges checked: {checked:?}");
     }
 }
