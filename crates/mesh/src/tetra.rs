@@ -1063,8 +1063,8 @@ mod tests {
                     assert_eq!(bits(body_diagonal(&where_read, lower)), bits(want));
                     checked[0] += 1;
                 }
-                for dir in 3..6 {
-                    let d = offset(DIRS[dir]);
+                for (dir, &mask) in DIRS.iter().enumerate().take(6).skip(3) {
+                    let d = offset(mask);
                     if block.inside(x, y, z) != block.inside(x + d[0], y + d[1], z + d[2]) {
                         let want = edge_point(&where_read, dir, lower);
                         assert_eq!(
@@ -1075,8 +1075,8 @@ mod tests {
                         checked[1] += 1;
                     }
                 }
-                for dir in 0..3 {
-                    let d = offset(DIRS[dir]);
+                for (dir, &mask) in DIRS.iter().enumerate().take(3) {
+                    let d = offset(mask);
                     if block.inside(x, y, z) != block.inside(x + d[0], y + d[1], z + d[2]) {
                         let c = block.crossing(Axis::from_index(dir), x, y, z).unwrap();
                         let want = (c.t, unpack_normal(c.normal).as_vec3());
