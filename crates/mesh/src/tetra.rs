@@ -656,23 +656,32 @@ fn face_diagonal(crossings: &Crossings, lower: [usize; 3], d: [usize; 3]) -> (f3
 /// The crossing on the body diagonal of the cell at `lower`: the least-squares meeting point of
 /// the tangent planes at the cell's axis crossings with the diagonal, kept inside the edge.
 fn body_diagonal(crossings: &Crossings, lower: [usize; 3]) -> (f32, Vec3) {
-    let (mut num, mut den, mut normal) = (0.0f32, 0.0f32, Vec3::ZERO);
-    // The cell's twelve edges, axis by axis (the order of `VoxelBlock::cell_crossings`).
-    for axis in 0..3 {
-        // `Axis::across`: the next two axes in turn.
+    // The cell's twelve edges, axis by axis (the order of `VoxelBlock::cell_crossings`; the
+    // next two axes in turn, as `Axis::across` names them).
+    let planes = (0..3).flat_map(|axis| {
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        for edge in 0..4 {
+        (0..4).filter_map(move |edge| {
             let mut l = lower;
             l[u] += edge & 1;
             l[v] += edge >> 1;
-            let Some((t, nrm)) = crossings.at(axis, l) else { continue };
+            let (t, nrm) = crossings.at(axis, l)?;
             let mut p = Vec3::new((l[0] - lower[0]) as f32, (l[1] - lower[1]) as f32, (l[2] - lower[2]) as f32);
             p[axis] += t;
-            let k = nrm.x + nrm.y + nrm.z;
-            num += k * nrm.dot(p);
-            den += k * k;
-            normal += nrm;
-        }
+            Some((p, nrm))
+        })
+    });
+    body_diagonal_from(planes)
+}
+
+/// The body diagonal's crossing from the tangent planes at a cell's axis crossings (point in the
+/// cell's frame, normal), summed in the order given.
+fn body_diagonal_from(planes: impl Iterator<Item = (Vec3, Vec3)>) -> (f32, Vec3) {
+    let (mut num, mut den, mut normal) = (0.0f32, 0.0f32, Vec3::ZERO);
+    for (p, nrm) in planes {
+        let k = nrm.x + nrm.y + nrm.z;
+        num += k * nrm.dot(p);
+        den += k * k;
+        normal += nrm;
     }
     let t = if den > 1e-6 { num / den } else { 0.5 };
     let t = if t.is_finite() { t } else { 0.5 };
@@ -1030,19 +1039,11 @@ mod tests {
     /// through [`VoxelBlock::cell_crossings`], each normal decoded where it is read.
     fn body_diagonal_by_cell_crossings(block: &VoxelBlock, lower: [usize; 3]) -> (f32, Vec3) {
         let [x, y, z] = lower;
-        let (mut num, mut den, mut normal) = (0.0f32, 0.0f32, Vec3::ZERO);
-        for (axis, l, c) in block.cell_crossings(x, y, z) {
-            let nrm = unpack_normal(c.normal).as_vec3();
+        body_diagonal_from(block.cell_crossings(x, y, z).map(|(axis, l, c)| {
             let mut p = Vec3::new((l[0] - x) as f32, (l[1] - y) as f32, (l[2] - z) as f32);
             p[axis.index()] += c.t;
-            let k = nrm.x + nrm.y + nrm.z;
-            num += k * nrm.dot(p);
-            den += k * k;
-            normal += nrm;
-        }
-        let t = if den > 1e-6 { num / den } else { 0.5 };
-        let t = if t.is_finite() { t } else { 0.5 };
-        (t.clamp(0.05, 0.95), normal)
+            (p, unpack_normal(c.normal).as_vec3())
+        }))
     }
 
     #[test]
