@@ -32,7 +32,10 @@
 //!   of the clustered surface;
 //! - in a mesh clustered again, a candidate lies farther than [`MAX_REACH_CELLS`] from its vertex
 //!   and from every triangle around it (a tip or a fin cut short), where the vertex or one beside
-//!   it belongs to the cluster.
+//!   it belongs to the cluster; given the candidate triangles, so does an edge midpoint or the
+//!   centroid of a candidate triangle with such a corner (checked once the rest holds; a
+//!   concave crease, a box's top face meeting a sphere 0.06 cells under a node plane, had one
+//!   0.504 cells from the surface).
 //!
 //! **Distance.** The clustering maps each candidate vertex to its cluster's vertex and each
 //! candidate triangle linearly onto the triangle, edge or vertex its corners go to. A point of a
@@ -43,8 +46,9 @@
 //! triangles), so each surface lies within [`MAX_REACH_CELLS`] of the other (their Hausdorff
 //! distance) wherever every candidate stays that near its vertex: always for the node clusters,
 //! a proof. The short-edge rounds let a pair reach farther (a pair's candidates span two nodes);
-//! there a candidate beyond the bound is only checked against the triangles around its vertex,
-//! and the vertex placed within the bound of some candidate. That holds the candidates and the
+//! there a candidate beyond the bound, and the midpoints and centroids of the candidate
+//! triangles around it, are only checked against the triangles around its vertex, and the
+//! vertex placed within the bound of some candidate. That holds the candidates and the
 //! vertices themselves, not every point of the triangles between them: for the rounds the
 //! half-cell distance is measured (the random-edit property test, at vertices, edge midpoints and
 //! centroids), not proven.
@@ -107,6 +111,9 @@ pub(crate) struct Clustering<'a> {
     /// vertices stands for. Placement and bounds then use those, so clustering again keeps
     /// every candidate within the bounds of its final vertex, not only of an intermediate one.
     hermite: Option<Hermite<'a>>,
+    /// With a value, the candidate triangles: the far-candidate check then also holds their
+    /// edge midpoints and centroids to the bound ([`Clustering::check_far_triangles`]).
+    candidate_tris: Option<&'a [[u32; 3]]>,
     /// How far (cells) a member may lie from the merged vertex, and from its tangent plane.
     reach: f32,
     off: f32,
@@ -183,6 +190,13 @@ impl<'a> Clustering<'a> {
         self
     }
 
+    /// Holds the edge midpoints and centroids of the candidate triangles around a far candidate
+    /// to the bound too (see [`Clustering::check_far_triangles`]).
+    pub(crate) fn with_candidate_tris(mut self, tris: &'a [[u32; 3]]) -> Self {
+        self.candidate_tris = Some(tris);
+        self
+    }
+
     /// Verifies also that every vertex's triangles from each side (`sides[t]` for candidate
     /// triangle `t`: the chunk it lies in) form one simple path or cycle, so that each chunk's
     /// part of the surface around a vertex shared by two chunks is one fan: clustering each
@@ -245,6 +259,7 @@ impl<'a> Clustering<'a> {
             cell,
             max_rms: None,
             hermite: None,
+            candidate_tris: None,
             reach: MAX_REACH_CELLS,
             off: MAX_MOVE_CELLS,
             sides: None,
@@ -270,6 +285,16 @@ impl<'a> Clustering<'a> {
         let mut mapped_sides: Vec<u8> = Vec::new();
         // Whether a merged cluster has a candidate beyond [`MAX_REACH_CELLS`] of its vertex.
         let mut far = vec![false; n];
+        // With the candidate triangles: the vertex of this mesh standing for each candidate.
+        let mut owner: Vec<u32> = Vec::new();
+        if let (Some(_), Some((positions, _, samples))) = (&self.candidate_tris, self.hermite) {
+            owner.resize(positions.len(), NONE);
+            for v in 0..n as u32 {
+                for &c in samples.of(v) {
+                    owner[c as usize] = v;
+                }
+            }
+        }
         // Members of each cluster as linked lists (in vertex order).
         for v in (0..n).rev() {
             let r = rep[v] as usize;
@@ -351,7 +376,7 @@ impl<'a> Clustering<'a> {
             }
             self.check_links(&rep, &mapped, &mapped_sides, &mut offsets, &mut link, &mut bad);
             if self.hermite.is_some() {
-                self.check_far_samples(&rep, &pos, &first, &next, &far, &offsets, &link, &mut bad);
+                self.check_far_samples(&rep, &pos, (&first, &next), &far, &offsets, &link, &mut bad);
             }
             for &(a, b) in &folded {
                 let around = &link[offsets[a as usize] as usize..offsets[a as usize + 1] as usize];
@@ -365,6 +390,18 @@ impl<'a> Clustering<'a> {
                 if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) && self.pinned(r).is_none() {
                     self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
                     any = true;
+                }
+            }
+            // Once the rest holds: the candidate triangles around far candidates (costlier,
+            // so measured on a surface that passed everything else).
+            if !any && self.candidate_tris.is_some() {
+                bad.fill(false);
+                self.check_far_triangles(&rep, &pos, (&first, &next), &owner, &offsets, &link, &mut bad);
+                for r in 0..n {
+                    if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) && self.pinned(r).is_none() {
+                        self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
+                        any = true;
+                    }
                 }
             }
             if !any {
@@ -487,8 +524,7 @@ impl<'a> Clustering<'a> {
         &self,
         rep: &[u32],
         pos: &[Vec3],
-        first: &[u32],
-        next: &[u32],
+        (first, next): (&[u32], &[u32]),
         far: &[bool],
         offsets: &[u32],
         link: &[(u32, u32)],
@@ -505,18 +541,76 @@ impl<'a> Clustering<'a> {
                 continue;
             }
             let p = pos[r];
-            let cut = self.members(r as u32, first, next).flat_map(|m| self.samples(m)).any(|(q, _)| {
-                q.distance_squared(p) > near * near
-                    && fan.iter().all(|&(u, w)| {
-                        let [a, b, c, x] = [p, pos[u as usize], pos[w as usize], q].map(Vec3::as_dvec3);
-                        crate::checks::point_triangle_distance(x, a, b, c) > near as f64
-                    })
-            });
+            let strays = |q: Vec3| strays(q, p, fan, pos, near);
+            let cut = self.members(r as u32, first, next).flat_map(|m| self.samples(m)).any(|(q, _)| strays(q));
             if cut {
                 bad[r] = true;
                 for &(u, w) in fan {
                     bad[u as usize] = true;
                     bad[w as usize] = true;
+                }
+            }
+        }
+    }
+
+    /// For a mesh clustered again, with the candidate triangles: marks the clusters around a
+    /// vertex where a candidate triangle with a corner farther than [`MAX_REACH_CELLS`] from its
+    /// vertex has an edge midpoint or its centroid farther than that from the vertex and from
+    /// every triangle around it. A sample's image (the same mean of its corners' vertices) lies
+    /// on the clustered surface no farther from it than the mean of its corners' moves, so only
+    /// where that mean passes the bound is the sample measured. Only vertices that moved, or
+    /// whose neighbours did, are looked at, as in [`Clustering::check_far_samples`].
+    #[allow(clippy::too_many_arguments)]
+    fn check_far_triangles(
+        &self,
+        rep: &[u32],
+        pos: &[Vec3],
+        (first, next): (&[u32], &[u32]),
+        owner: &[u32],
+        offsets: &[u32],
+        link: &[(u32, u32)],
+        bad: &mut [bool],
+    ) {
+        let (Some(tris), Some((positions, _, _))) = (self.candidate_tris, self.hermite) else { return };
+        let near = MAX_REACH_CELLS * self.cell;
+        let moved = |v: u32| merged(first, next, v);
+        let vertex = |c: u32| rep[owner[c as usize] as usize];
+        // How far each candidate lies from its vertex.
+        let moves: Vec<f32> = (0..positions.len() as u32)
+            .map(|c| {
+                if owner[c as usize] == NONE {
+                    0.0
+                } else {
+                    Vec3::from(positions[c as usize]).distance(pos[vertex(c) as usize])
+                }
+            })
+            .collect();
+        for tri in tris {
+            let m = tri.map(|c| moves[c as usize]);
+            if m.iter().all(|&d| d <= near) {
+                continue;
+            }
+            let q = tri.map(|c| Vec3::from(positions[c as usize]));
+            for k in 0..3 {
+                if m[k] <= near {
+                    continue;
+                }
+                let r = vertex(tri[k]) as usize;
+                let fan = &link[offsets[r] as usize..offsets[r + 1] as usize];
+                if !(moved(r as u32) || fan.iter().any(|&(u, w)| moved(u) || moved(w))) {
+                    continue;
+                }
+                let j = (k + 1) % 3;
+                // Each edge from the far corner once (the one leaving it); the centroid.
+                let cut = ((m[k] + m[j]) * 0.5 > near && strays((q[k] + q[j]) * 0.5, pos[r], fan, pos, near))
+                    || ((m[0] + m[1] + m[2]) / 3.0 > near
+                        && strays((q[0] + q[1] + q[2]) / 3.0, pos[r], fan, pos, near));
+                if cut {
+                    bad[r] = true;
+                    for &(u, w) in fan {
+                        bad[u as usize] = true;
+                        bad[w as usize] = true;
+                    }
                 }
             }
         }
@@ -659,6 +753,20 @@ impl<'a> Clustering<'a> {
         out.tris = mapped.iter().map(|m| m.map(|v| index[v as usize])).collect();
         out
     }
+}
+
+/// Whether `q` lies farther than `near` from vertex `p` and from every triangle around it
+/// (`fan`: the directed edges opposite `p`, positions `pos`). A corner of a triangle within
+/// `near` settles it without the full distance.
+fn strays(q: Vec3, p: Vec3, fan: &[(u32, u32)], pos: &[Vec3], near: f32) -> bool {
+    q.distance_squared(p) > near * near
+        && fan.iter().all(|&(u, w)| {
+            let (b, c) = (pos[u as usize], pos[w as usize]);
+            q.distance_squared(b) > near * near
+                && q.distance_squared(c) > near * near
+                && crate::checks::point_triangle_distance(q.as_dvec3(), p.as_dvec3(), b.as_dvec3(), c.as_dvec3())
+                    > near as f64
+        })
 }
 
 /// Whether the cluster standing at `r` (its member lists `first` and `next`) has more than one

@@ -806,6 +806,7 @@ fn cluster_twice(
         let pairs = crate::cluster::short_pairs(&c, &locked, SHORT_EDGE_CELLS * cell);
         let next = Clustering::new(&c.positions, &c.normals, &c.tris, &locked, cell)
             .with_samples(&out.positions, &out.normals, &c.samples)
+            .with_candidate_tris(tris)
             .with_max_rms(SHORT_EDGE_RMS_CELLS * cell)
             .with_bounds(SHORT_EDGE_REACH_CELLS, SHORT_EDGE_MOVE_CELLS)
             .run(pairs);
