@@ -385,30 +385,40 @@ impl<'a> Clustering<'a> {
                     bad[b as usize] = true;
                 }
             }
-            let mut any = false;
-            for r in 0..n {
-                if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) && self.pinned(r).is_none() {
-                    self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
-                    any = true;
-                }
-            }
+            let mut any = self.split_bad(&bad, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
             // Once the rest holds: the candidate triangles around far candidates (costlier,
             // so measured on a surface that passed everything else).
             if !any && self.candidate_tris.is_some() {
                 bad.fill(false);
                 self.check_far_triangles(&rep, &pos, (&first, &next), &owner, &offsets, &link, &mut bad);
-                for r in 0..n {
-                    if bad[r] && rep[r] as usize == r && merged(&first, &next, r as u32) && self.pinned(r).is_none() {
-                        self.split(r, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
-                        any = true;
-                    }
-                }
+                any = self.split_bad(&bad, &mut rep, &mut first, &mut next, &mut pos, &mut nrm);
             }
             if !any {
                 break;
             }
         }
         self.output(&rep, &pos, (&first, &next), &far, &mapped)
+    }
+
+    /// Takes apart every merged, unpinned cluster whose standing vertex is marked `bad`;
+    /// whether any was.
+    fn split_bad(
+        &self,
+        bad: &[bool],
+        rep: &mut [u32],
+        first: &mut [u32],
+        next: &mut [u32],
+        pos: &mut [Vec3],
+        nrm: &mut [Vec3],
+    ) -> bool {
+        let mut any = false;
+        for r in 0..rep.len() {
+            if bad[r] && rep[r] as usize == r && merged(first, next, r as u32) && self.pinned(r).is_none() {
+                self.split(r, rep, first, next, pos, nrm);
+                any = true;
+            }
+        }
+        any
     }
 
     /// Makes every member of cluster `r` a cluster of its own, at its own position.
@@ -531,24 +541,19 @@ impl<'a> Clustering<'a> {
         bad: &mut [bool],
     ) {
         let near = MAX_REACH_CELLS * self.cell;
-        let moved = |v: u32| merged(first, next, v);
         for r in 0..rep.len() {
             if rep[r] as usize != r || !self.is_far(r as u32, first, next, far) {
                 continue;
             }
             let fan = &link[offsets[r] as usize..offsets[r + 1] as usize];
-            if !(moved(r as u32) || fan.iter().any(|&(u, w)| moved(u) || moved(w))) {
+            if !near_a_merge(r, fan, first, next) {
                 continue;
             }
             let p = pos[r];
             let strays = |q: Vec3| strays(q, p, fan, pos, near);
             let cut = self.members(r as u32, first, next).flat_map(|m| self.samples(m)).any(|(q, _)| strays(q));
             if cut {
-                bad[r] = true;
-                for &(u, w) in fan {
-                    bad[u as usize] = true;
-                    bad[w as usize] = true;
-                }
+                mark_around(bad, r, fan);
             }
         }
     }
@@ -573,7 +578,6 @@ impl<'a> Clustering<'a> {
     ) {
         let (Some(tris), Some((positions, _, _))) = (self.candidate_tris, self.hermite) else { return };
         let near = MAX_REACH_CELLS * self.cell;
-        let moved = |v: u32| merged(first, next, v);
         let vertex = |c: u32| rep[owner[c as usize] as usize];
         // How far each candidate lies from its vertex.
         let moves: Vec<f32> = (0..positions.len() as u32)
@@ -597,7 +601,7 @@ impl<'a> Clustering<'a> {
                 }
                 let r = vertex(tri[k]) as usize;
                 let fan = &link[offsets[r] as usize..offsets[r + 1] as usize];
-                if !(moved(r as u32) || fan.iter().any(|&(u, w)| moved(u) || moved(w))) {
+                if !near_a_merge(r, fan, first, next) {
                     continue;
                 }
                 let j = (k + 1) % 3;
@@ -606,11 +610,7 @@ impl<'a> Clustering<'a> {
                     || ((m[0] + m[1] + m[2]) / 3.0 > near
                         && strays((q[0] + q[1] + q[2]) / 3.0, pos[r], fan, pos, near));
                 if cut {
-                    bad[r] = true;
-                    for &(u, w) in fan {
-                        bad[u as usize] = true;
-                        bad[w as usize] = true;
-                    }
+                    mark_around(bad, r, fan);
                 }
             }
         }
@@ -752,6 +752,21 @@ impl<'a> Clustering<'a> {
         }
         out.tris = mapped.iter().map(|m| m.map(|v| index[v as usize])).collect();
         out
+    }
+}
+
+/// Whether vertex `r` or one beside it (`fan`: the directed edges opposite it) moved: merged
+/// in this clustering (its cluster's member lists `first` and `next`).
+fn near_a_merge(r: usize, fan: &[(u32, u32)], first: &[u32], next: &[u32]) -> bool {
+    merged(first, next, r as u32) || fan.iter().any(|&(u, w)| merged(first, next, u) || merged(first, next, w))
+}
+
+/// Marks vertex `r` and the vertices around it (`fan`) `bad`.
+fn mark_around(bad: &mut [bool], r: usize, fan: &[(u32, u32)]) {
+    bad[r] = true;
+    for &(u, w) in fan {
+        bad[u as usize] = true;
+        bad[w as usize] = true;
     }
 }
 
