@@ -1,6 +1,7 @@
 //! Marching tetrahedra with and without the integrated clustering: every corner case of one
-//! cell (alone and at a chunk corner), analytic shapes on and off the grid, random edit
-//! sequences, chunk borders, incremental meshing and mixed levels.
+//! cell (alone and at a chunk corner), analytic shapes on and off the grid, gaps and bubbles
+//! thinner than two cells, random edit sequences, chunk borders, incremental meshing and mixed
+//! levels.
 
 use std::f64::consts::PI;
 
@@ -186,6 +187,26 @@ fn analytic_shapes_mesh_closed_with_their_volume_on_and_off_the_grid() {
             assert!(signed_volume(&m) > 0.3 * lists_volume(&v));
         }
     }
+}
+
+/// Where the outside is thinner than two cells (the places a table over corner states alone
+/// closes over: a gap between two solids, a bubble under a surface, two spheres nearly
+/// touching), the clustered meshes keep it open, within half a cell of the plain mesh.
+#[test]
+fn gaps_and_bubbles_thinner_than_two_cells_stay_within_half_a_cell() {
+    // Two boxes 1.5 cells apart, their facing sides between grid planes.
+    let left = Cuboid::new(DVec3::new(4.3, 8.2, 7.9), DVec3::new(6.0, 6.5, 6.2)).unwrap();
+    let right = Cuboid::new(DVec3::new(17.8, 8.2, 7.9), DVec3::new(6.0, 6.5, 6.2)).unwrap();
+    assert_tetrahedra(&volume_of(&[&left, &right]), 0.02, 0.5);
+    // A bubble of radius 0.85 a cell under a sphere's surface.
+    let mut v = volume_of(&[&Sphere::new(DVec3::new(0.0, 31.1, -2.04), 10.87).unwrap()]);
+    let bubble = Sphere::new(DVec3::new(-3.13, 37.8, 4.66), 0.85).unwrap();
+    v.apply(CsgOp::Subtract, &bubble, &EditSettings::default()).unwrap();
+    assert_tetrahedra(&v, 0.02, 0.5);
+    // Two spheres whose surfaces pass 0.6 cells apart, off the grid.
+    let a = Sphere::new(DVec3::new(10.2, 10.3, 10.4), 7.0).unwrap();
+    let b = Sphere::new(DVec3::new(24.8, 10.3, 10.4), 7.0).unwrap();
+    assert_tetrahedra(&volume_of(&[&a, &b]), 0.02, 0.5);
 }
 
 #[test]
