@@ -19,7 +19,7 @@ use crate::Mesh;
 use crate::marching::{block_vertex_keys, mesh_block, surface_chunks};
 use crate::mesh::VertexMaterial;
 use crate::normals::{Creaser, Face, rows_by};
-use crate::weld::{EdgeKey, KEY_STEPS};
+use crate::weld::{EdgeKey, on_chunk_face};
 
 /// Chunks meshed together before their parts are joined: enough to keep both cores busy, few
 /// enough that their meshes stay a small share of the whole.
@@ -52,11 +52,6 @@ struct Scratch {
     /// The corners around each vertex: `corners[start[v]..start[v + 1]]`, in triangle order.
     start: Vec<u32>,
     corners: Vec<u32>,
-}
-
-/// Whether the crossing `key` lies on a face of the chunk grid (and may be another chunk's too).
-fn on_chunk_face(key: &EdgeKey) -> bool {
-    (0..3).any(|i| key.1[i].rem_euclid(KEY_STEPS) == 0)
 }
 
 fn part(volume: &Volume, key: ChunkKey, s: &mut Scratch) -> Option<Part> {

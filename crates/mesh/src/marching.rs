@@ -225,13 +225,21 @@ pub(crate) fn mesh_volume_capped(volume: &Volume, cap: &(dyn Fn(ChunkKey) -> Lev
 }
 
 fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + Sync)>) -> Mesh {
+    weld(chunk_parts(volume, cap))
+}
+
+/// Every chunk's marching-cubes mesh (chunk-local positions) with its vertices' identities, for
+/// the weld.
+pub(crate) fn chunk_parts(
+    volume: &Volume,
+    cap: Option<&(dyn Fn(ChunkKey) -> Level + Sync)>,
+) -> Vec<(ChunkKey, Mesh, Vec<EdgeKey>)> {
     let mut keys = surface_chunks(volume);
     if cap.is_none() {
         // A chunk whose apron's owners are uniform alike with it holds no surface.
         keys.retain(|&k| !volume.plain_block_uniform(k));
     }
-    let parts: Vec<(ChunkKey, Mesh, Vec<EdgeKey>)> = keys
-        .par_iter()
+    keys.par_iter()
         .map_init(VoxelBlock::default, |block, &key| {
             match cap {
                 Some(c) => volume.extract_block_capped(key, c, block),
@@ -242,6 +250,5 @@ fn mesh_volume_impl(volume: &Volume, cap: Option<&(dyn Fn(ChunkKey) -> Level + S
             let ids = block_vertex_keys(block);
             (key, m, ids)
         })
-        .collect();
-    weld(parts)
+        .collect()
 }

@@ -865,7 +865,7 @@ type ChunkPart = (ChunkKey, Mesh, Vec<EdgeKey>);
 /// chunk (no other chunk's vertex can be nearest to it), else `NONE` and its global position
 /// (cells of the volume's level).
 #[derive(Clone, Copy, Debug)]
-struct NearNode {
+pub(crate) struct NearNode {
     local: u32,
     global: I64Vec3,
 }
@@ -880,7 +880,7 @@ fn on_chunk_face(site: &Site, n: usize) -> bool {
 
 /// The tetrahedra mesh of every chunk that can hold surface (clustered chunk by chunk when
 /// `cluster`), shared vertices first with their identities, and each vertex's nearest node.
-fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<NearNode>)> {
+pub(crate) fn chunk_parts(volume: &strata_volume::Volume, cluster: bool) -> Vec<(ChunkPart, Vec<NearNode>)> {
     use rayon::prelude::*;
     let faces = ChunkFaces::default();
     crate::surface_chunks(volume)
