@@ -172,9 +172,8 @@ mod tests {
             }
             let cap = |k: ChunkKey| if (k.0.x + k.0.y + k.0.z).rem_euclid(2) == 0 { Level::BASE } else { Level::FINEST };
             assert_same_weld(&crate::marching::chunk_parts(&v, Some(&cap)))?;
-            let keys: Vec<ChunkKey> = relevel.iter().map(|&(x, y, z, _)| ChunkKey::new(x, y, z)).collect();
-            for (&(.., l), &k) in relevel.iter().zip(&keys) {
-                let _ = v.set_chunk_levels(&[k], Level::new(l).unwrap());
+            for &(x, y, z, l) in &relevel {
+                v.set_chunk_level(ChunkKey::new(x, y, z), Level::new(l).unwrap());
             }
             assert_same_weld(&crate::marching::chunk_parts(&v, None))?;
         }
